@@ -1,0 +1,41 @@
+"""The `arduinobot` command: one entry point, one subcommand per job."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from . import cmd_model
+from .common import run_guarded
+
+_COMMANDS = [cmd_model]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="arduinobot",
+        description="Motion planning for the arduinobot arm (and your own URDF): load and "
+        "check models without ROS, plan collision-free paths, time them within the "
+        "motors' limits, and serve it all over Zenoh.",
+        epilog="Every command that reads a model takes FILE (URDF or xacro; default: the "
+        "shipped arduinobot) and --package-dir DIR, and honours ROS_PACKAGE_PATH and "
+        "AMENT_PREFIX_PATH. 'arduinobot COMMAND --help' explains each command.")
+    p.add_argument("-v", "--verbose", action="count", default=0,
+                   help="log more (-v info, -vv debug) to stderr")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for mod in _COMMANDS:
+        mod.register(sub)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    ns = build_parser().parse_args(argv)
+    level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+                        stream=sys.stderr)
+    return run_guarded(ns.func, ns)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

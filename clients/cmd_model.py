@@ -1,0 +1,101 @@
+"""`arduinobot check`, `urdf` and `info`: look at a model without ROS."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from description import read_model_text
+from description.checks import check_model
+from description.packages import build_package_index
+
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, parse_xacro_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "check", help="check a URDF/xacro for errors and simulation readiness",
+        description="Check a model as check_urdf does (one root, a tree, names resolve), "
+        "then for simulation readiness (visual, collision and inertial on every link; "
+        "mass > 0; physical inertia; meshes resolve, load and are watertight; sane limits; "
+        "mimic targets; non-zero axes), then for plausibility (inertia against the "
+        "mesh). Prints PASS/WARN/FAIL lines; exits 1 on any FAIL.",
+        epilog="examples:\n  arduinobot check\n  arduinobot check my_robot.urdf.xacro "
+        "--package-dir ~/ws/src/my_robot_description\n  arduinobot check --json",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_model_args(p)
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser("urdf", help="print the expanded URDF",
+                       description="Expand a xacro file in-process (no ROS needed) and print "
+                       "the URDF; a plain URDF is printed as is.",
+                       epilog="example:\n  arduinobot urdf --arg prefix=left_ > robot.urdf",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_model_args(p)
+    p.set_defaults(func=cmd_urdf)
+
+    p = sub.add_parser("info", help="print the kinematic tree with joint types, axes and limits",
+                       description="Print the kinematic tree of a model: each link under its "
+                       "parent, with the joint's type, axis, limits and mimic; then the "
+                       "actuated joints and the SRDF's groups and named states.")
+    add_model_args(p)
+    p.set_defaults(func=cmd_info)
+
+
+def cmd_check(ns: argparse.Namespace) -> int:
+    report = check_model(ns.file, package_dirs=ns.package_dir, args=parse_xacro_args(ns.arg))
+    if ns.json:
+        print(json.dumps(report.to_json(), indent=2))
+    else:
+        print(f"checking {report.source}")
+        for f in report.findings:
+            print(f.line())
+        print(f"{report.count('PASS')} passed, {report.count('WARN')} warnings, "
+              f"{report.count('FAIL')} failed")
+    return EXIT_FAIL if report.failed else EXIT_OK
+
+
+def cmd_urdf(ns: argparse.Namespace) -> int:
+    text, _ = read_model_text(ns.file, args=parse_xacro_args(ns.arg),
+                              packages=build_package_index(ns.package_dir))
+    sys.stdout.write(text)
+    return EXIT_OK
+
+
+def _fmt(v: float | None) -> str:
+    return "-inf" if v is None else f"{v:+.4f}"
+
+
+def cmd_info(ns: argparse.Namespace) -> int:
+    d = load_from_args(ns)
+    r = d.robot
+    print(f"robot '{r.name}' from {r.source}")
+    print(f"links {len(r.links)}, joints {len(r.joints)}, actuated {', '.join(r.actuated_joints)}")
+
+    def walk(link: str, depth: int) -> None:
+        for j in r.child_joints[link]:
+            desc = f"{j.type}"
+            if j.movable:
+                desc += f" axis ({' '.join(f'{a:g}' for a in j.axis)})"
+            if j.limit is not None and j.movable:
+                desc += (f" [{_fmt(j.limit.lower)}, {_fmt(j.limit.upper)}] rad"
+                         f" effort {j.limit.effort:g} velocity {j.limit.velocity:g}")
+            if j.mimic is not None:
+                desc += f" mimic {j.mimic.multiplier:g}*{j.mimic.joint}+{j.mimic.offset:g}"
+            xyz = " ".join(f"{v:g}" for v in j.origin.xyz)
+            print(f"{'  ' * depth}└─ {j.child}  via {j.name}: {desc}; origin xyz ({xyz})")
+            walk(j.child, depth + 1)
+
+    print(r.root)
+    walk(r.root, 0)
+    if d.srdf is not None:
+        for g in d.srdf.groups.values():
+            print(f"group {g.name}: {', '.join(g.joints)}")
+        for s in d.srdf.group_states.values():
+            vals = ", ".join(f"{k}={v:g}" for k, v in s.values.items())
+            print(f"named state {s.name} ({s.group}): {vals}")
+    if d.tcp is not None:
+        print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link}")
+    return EXIT_OK

@@ -1,0 +1,48 @@
+"""Options every model-reading command shares, and turning errors into exit codes."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+
+from description import DescriptionError, Description, load_description
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
+
+
+def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None:
+    """FILE, --package-dir and --arg, as every command that reads a model takes them."""
+    if file_arg:
+        p.add_argument("file", nargs="?", metavar="FILE",
+                       help="a .urdf or .xacro file (default: the shipped arduinobot)")
+    p.add_argument("--package-dir", action="append", default=[], metavar="DIR",
+                   help="a package folder (with package.xml) or a folder of packages, for "
+                   "package:// and $(find); repeatable; searched before ROS_PACKAGE_PATH "
+                   "and AMENT_PREFIX_PATH")
+    p.add_argument("--arg", action="append", default=[], metavar="NAME=VALUE",
+                   help="a xacro argument; repeatable")
+
+
+def parse_xacro_args(items: list[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise SystemExit(f"arduinobot: error: --arg '{item}' must be NAME=VALUE")
+        out[name] = value
+    return out
+
+
+def load_from_args(ns: argparse.Namespace) -> Description:
+    return load_description(getattr(ns, "file", None), package_dirs=ns.package_dir,
+                            args=parse_xacro_args(ns.arg))
+
+
+def run_guarded(fn: Callable[[argparse.Namespace], int], ns: argparse.Namespace) -> int:
+    """Run a command; a model error becomes one clear line on stderr and exit 1."""
+    try:
+        return fn(ns)
+    except DescriptionError as e:
+        print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
+        return EXIT_FAIL

@@ -1,0 +1,254 @@
+"""Model checks: what ``check_urdf`` checks, simulation readiness, and plausibility.
+
+Each check yields :class:`Finding` objects at level PASS, WARN or FAIL; a model with
+any FAIL is not ready for planning or simulation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from .errors import DescriptionError
+from .meshes import load_mesh
+from .model import Inertial, Link, Robot
+from .packages import build_package_index
+from .srdf import parse_srdf
+from .urdf import parse_urdf
+from .loader import _default_srdf, find_package_root, read_model_text
+
+Level = Literal["PASS", "WARN", "FAIL"]
+
+# An inertia more than this many times the one the mesh implies at the link's mass
+# is not a modelling choice but a placeholder (the seed's unit tensor on a 10 g finger).
+PLAUSIBLE_INERTIA_RATIO = 10.0
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One check's verdict on one subject (or on all of them, for a PASS)."""
+
+    level: Level
+    check: str
+    subject: str
+    message: str
+    details: Mapping[str, object] = field(default_factory=dict)
+
+    def line(self) -> str:
+        return f"{self.level}  {self.check:<18} {self.subject}: {self.message}"
+
+    def to_json(self) -> dict[str, object]:
+        return {"level": self.level, "check": self.check, "subject": self.subject,
+                "message": self.message, "details": dict(self.details)}
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    source: str
+    findings: tuple[Finding, ...]
+
+    @property
+    def failed(self) -> bool:
+        return any(f.level == "FAIL" for f in self.findings)
+
+    def count(self, level: Level) -> int:
+        return sum(f.level == level for f in self.findings)
+
+    def to_json(self) -> dict[str, object]:
+        return {"source": self.source, "ok": not self.failed,
+                "counts": {lvl: self.count(lvl) for lvl in ("PASS", "WARN", "FAIL")},
+                "findings": [f.to_json() for f in self.findings]}
+
+
+def _fail_from(e: DescriptionError, check: str) -> Finding:
+    return Finding("FAIL", check, e.element or (Path(e.file).name if e.file else "model"),
+                   e.message + (f" (fix: {e.hint})" if e.hint else ""),
+                   {"file": e.file} if e.file else {})
+
+
+def check_model(
+    path: str | Path | None = None,
+    *,
+    package_dirs: Sequence[str | Path] = (),
+    args: Mapping[str, str] | None = None,
+    env: Mapping[str, str] | None = None,
+) -> CheckReport:
+    """Check a URDF or xacro file (default: the shipped arduinobot); never raises for a
+    problem in the model, it reports it."""
+    packages = build_package_index(package_dirs, env=env)
+    try:
+        text, p = read_model_text(path, args=args, packages=packages)
+        report = parse_urdf(text, packages=packages, source=p, strict=False)
+    except DescriptionError as e:
+        return CheckReport(str(path or "shipped model"), (_fail_from(e, "load"),))
+    findings: list[Finding] = []
+    findings.extend(_fail_from(e, "parse") for e in report.problems)
+    robot = report.robot
+    if robot is None:
+        return CheckReport(str(p), tuple(findings))
+    findings.append(Finding("PASS", "structure", robot.name,
+                            f"one root '{robot.root}', a tree of {len(robot.links)} links and "
+                            f"{len(robot.joints)} joints, every name resolves"))
+    for fn in (_check_links, _check_inertials, _check_meshes, _check_joints):
+        findings.extend(fn(robot))
+    findings.extend(_check_srdf(robot, p))
+    return CheckReport(str(p), tuple(findings))
+
+
+def _summarise(check: str, subjects: list[str], bad: list[Finding], what: str) -> Iterator[Finding]:
+    yield from bad
+    ok = len(subjects) - len({f.subject for f in bad if f.level == "FAIL"})
+    if ok:
+        yield Finding("PASS", check, f"{ok} of {len(subjects)}", what)
+
+
+def _check_links(robot: Robot) -> Iterator[Finding]:
+    bad: list[Finding] = []
+    links = [link for name, link in robot.links.items() if name != robot.root]
+    for link in links:
+        missing = [tag for tag, have in (("visual", link.visuals), ("collision", link.collisions),
+                                         ("inertial", link.inertial)) if not have]
+        if missing:
+            bad.append(Finding("FAIL", "link.elements", link.name,
+                               f"has no <{'>, <'.join(missing)}>; a simulator needs all three",
+                               {"missing": missing}))
+    yield from _summarise("link.elements", [x.name for x in links], bad,
+                          "every link but the root has visual, collision and inertial")
+
+
+def _principal(inertial: Inertial) -> np.ndarray:
+    return np.linalg.eigvalsh(inertial.tensor())
+
+
+def _check_inertials(robot: Robot) -> Iterator[Finding]:
+    bad: list[Finding] = []
+    with_inertial = [x for x in robot.links.values() if x.inertial is not None]
+    for link in with_inertial:
+        ine = link.inertial
+        if ine is None:
+            continue
+        if not ine.mass > 0:
+            bad.append(Finding("FAIL", "inertial.mass", link.name, f"mass {ine.mass} must be > 0"))
+        ev = _principal(ine)
+        if not ev.min() > 0:
+            bad.append(Finding("FAIL", "inertial.inertia", link.name,
+                               f"inertia is not positive definite (principal moments "
+                               f"{np.round(ev, 9).tolist()})"))
+        else:
+            a, b, c = np.sort(ev)
+            if a + b < c * (1 - 1e-9):
+                bad.append(Finding("FAIL", "inertial.inertia", link.name,
+                                   f"principal moments {np.round(ev, 9).tolist()} break the "
+                                   "triangle inequality (no real body has them)"))
+        bad.extend(_plausibility(link))
+    yield from _summarise("inertial", [x.name for x in with_inertial], bad,
+                          "mass > 0, inertia positive definite and physically realisable")
+
+
+def mesh_inertia(link: Link, mass: float) -> np.ndarray | None:
+    """The inertia tensor [kg m^2] about the centre of mass that the link's collision
+    meshes imply at ``mass`` and uniform density, in the link frame; None if the meshes
+    cannot say (missing, or not closed)."""
+    from .meshes import shape_mesh
+    try:
+        parts = [shape_mesh(s) for s in link.collisions]
+    except DescriptionError:
+        return None
+    if not parts:
+        return None
+    import trimesh
+    mesh = trimesh.util.concatenate(parts)
+    if not mesh.is_volume or mesh.volume <= 0:
+        return None
+    mesh.density = mass / mesh.volume
+    return np.asarray(mesh.moment_inertia)
+
+
+def _plausibility(link: Link) -> Iterator[Finding]:
+    ine = link.inertial
+    if ine is None or not ine.mass > 0:
+        return
+    implied = mesh_inertia(link, ine.mass)
+    if implied is None:
+        return
+    given, expected = _principal(ine).max(), np.linalg.eigvalsh(implied).max()
+    if expected > 0 and given > PLAUSIBLE_INERTIA_RATIO * expected:
+        t = np.round(implied, 8)
+        yield Finding(
+            "WARN", "inertial.plausible", link.name,
+            f"inertia {given:g} kg m^2 is {given / expected:,.0f}x what the mesh implies for "
+            f"{ine.mass:g} kg; the mesh implies ixx={t[0, 0]:.3g} ixy={t[0, 1]:.3g} "
+            f"ixz={t[0, 2]:.3g} iyy={t[1, 1]:.3g} iyz={t[1, 2]:.3g} izz={t[2, 2]:.3g}",
+            {"given_max": float(given), "implied": t.tolist(), "ratio": float(given / expected)})
+
+
+def _check_meshes(robot: Robot) -> Iterator[Finding]:
+    bad: list[Finding] = []
+    subjects = []
+    for link in robot.links.values():
+        for tag, shapes in (("visual", link.visuals), ("collision", link.collisions)):
+            for i, s in enumerate(shapes):
+                g = s.geometry
+                if g.kind != "mesh":
+                    continue
+                subj = f"{link.name} {tag}#{i + 1}"
+                subjects.append(subj)
+                if g.path is None:
+                    bad.append(Finding("FAIL", "mesh", subj, f"'{g.uri}' did not resolve"))
+                    continue
+                try:
+                    mesh = load_mesh(g.path, g.scale)
+                except DescriptionError as e:
+                    bad.append(Finding("FAIL", "mesh", subj, e.message))
+                    continue
+                if not mesh.is_watertight:
+                    level: Level = "FAIL" if tag == "collision" else "WARN"
+                    bad.append(Finding(level, "mesh", subj,
+                                       f"{g.path.name} is not watertight (open edges): its "
+                                       "volume, inertia and inside/outside are undefined"))
+    yield from _summarise("mesh", subjects, bad, "every mesh resolves, loads and is watertight")
+
+
+def _check_joints(robot: Robot) -> Iterator[Finding]:
+    bad: list[Finding] = []
+    movable = [j for j in robot.joints.values() if j.movable]
+    for j in movable:
+        lim = j.limit
+        if lim is None:
+            continue
+        if j.type in ("revolute", "prismatic") and not (
+                lim.lower is not None and lim.upper is not None and lim.lower < lim.upper):
+            bad.append(Finding("FAIL", "joint.limits", j.name,
+                               f"lower {lim.lower} must be < upper {lim.upper}"))
+        if not lim.effort > 0:
+            bad.append(Finding("FAIL", "joint.limits", j.name, f"effort {lim.effort} must be > 0"))
+        if not lim.velocity > 0:
+            bad.append(Finding("FAIL", "joint.limits", j.name,
+                               f"velocity {lim.velocity} must be > 0"))
+    yield from _summarise("joint.limits", [j.name for j in movable], bad,
+                          "lower < upper, effort > 0, velocity > 0, axes non-zero")
+    mimics = [j for j in robot.joints.values() if j.mimic is not None]
+    if mimics:
+        yield Finding("PASS", "joint.mimic", ", ".join(j.name for j in mimics),
+                      "; ".join(f"{j.name} = {j.mimic.multiplier:g} * {j.mimic.joint}"
+                                f" + {j.mimic.offset:g}" for j in mimics if j.mimic))
+
+
+def _check_srdf(robot: Robot, path: Path) -> Iterator[Finding]:
+    root = find_package_root(path.parent)
+    srdf_path = _default_srdf(root / "config" if root else None, robot.name)
+    if srdf_path is None:
+        return
+    try:
+        srdf = parse_srdf(srdf_path.read_text(encoding="utf-8"), robot, source=srdf_path)
+    except DescriptionError as e:
+        yield _fail_from(e, "srdf")
+        return
+    yield Finding("PASS", "srdf", srdf_path.name,
+                  f"groups {', '.join(srdf.groups)}; named states "
+                  f"{', '.join(srdf.group_states)}; {len(srdf.disabled_collisions)} disabled "
+                  "collision pairs")

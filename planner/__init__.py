@@ -1,0 +1,5 @@
+"""planner"""
+
+import logging
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())

@@ -1,0 +1,85 @@
+"""Every way planning can fail, one exception class each, under :class:`PlanningError`.
+
+Each carries what a user needs to act: the field, the joints, the colliding pairs.
+``code`` is the wire error code the service sends.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+
+class PlanningError(Exception):
+    """Root of every planner error. ``details`` is JSON-ready."""
+
+    code = "INTERNAL"
+
+    def __init__(self, message: str, *, details: Mapping[str, object] | None = None) -> None:
+        self.message = message
+        self.details = dict(details or {})
+        super().__init__(message)
+
+
+class InvalidRequest(PlanningError):
+    """A request field is malformed or out of range."""
+
+    code = "INVALID_REQUEST"
+
+    def __init__(self, message: str, *, field: str | None = None,
+                 details: Mapping[str, object] | None = None) -> None:
+        self.field = field
+        d = dict(details or {})
+        if field is not None:
+            d.setdefault("field", field)
+        super().__init__(f"{field}: {message}" if field else message, details=d)
+
+
+class JointLimitViolation(InvalidRequest):
+    """A joint value lies outside its position limits."""
+
+    def __init__(self, joint: str, value: float, lower: float, upper: float, *,
+                 field: str) -> None:
+        self.joint, self.value, self.lower, self.upper = joint, value, lower, upper
+        super().__init__(f"{joint} = {value:.6g} rad is outside its limits "
+                         f"[{lower:.6g}, {upper:.6g}]", field=field,
+                         details={"joint": joint, "value": value, "lower": lower,
+                                  "upper": upper})
+
+
+class StateInCollision(PlanningError):
+    """A state collides; ``pairs`` lists every colliding pair (link/link or link/obstacle)."""
+
+    def __init__(self, message: str, *, pairs: Sequence[tuple[str, str]],
+                 q: Mapping[str, float] | None = None) -> None:
+        self.pairs = [tuple(p) for p in pairs]
+        details: dict[str, object] = {"pairs": [list(p) for p in self.pairs]}
+        if q is not None:
+            details["q"] = dict(q)
+        super().__init__(f"{message}: " + ", ".join(f"{a}/{b}" for a, b in self.pairs),
+                         details=details)
+
+
+class StartInCollision(StateInCollision):
+    code = "START_IN_COLLISION"
+
+
+class GoalInCollision(StateInCollision):
+    code = "GOAL_IN_COLLISION"
+
+
+class GoalOutOfReach(PlanningError):
+    """No joint state within limits puts the tcp at the requested position."""
+
+    code = "GOAL_OUT_OF_REACH"
+
+
+class NoPathFound(PlanningError):
+    """The planner found no collision-free path within its time budget."""
+
+    code = "NO_PATH_FOUND"
+
+
+class TrajectoryError(PlanningError):
+    """Time parameterisation failed or could not be verified within the limits."""
+
+    code = "TRAJECTORY_FAILED"

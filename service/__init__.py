@@ -1,0 +1,5 @@
+"""service"""
+
+import logging
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
