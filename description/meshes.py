@@ -44,7 +44,8 @@ def load_mesh(path: Path, scale: tuple[float, float, float] = (1.0, 1.0, 1.0), *
         raise MeshLoadError(f"cannot read mesh {path}: {type(e).__name__}: {e}", file=path,
                             element=element, hint="export it as STL, OBJ, PLY, DAE or GLB") from e
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise MeshLoadError(f"mesh {path} holds no triangles", file=path, element=element)
+        raise MeshLoadError(f"cannot read a mesh from {path}: no triangles in it", file=path,
+                            element=element, hint="export it as binary STL, OBJ, PLY, DAE or GLB")
     mesh = loaded.copy()
     mesh.apply_scale(np.asarray(scale, dtype=float))
     mesh.vertices.flags.writeable = False

@@ -200,14 +200,6 @@ def structure_problems(links: dict[str, Link], joints: dict[str, Joint],
             fail(f"link '{j.child}' already has parent joint '{parent_of[j.child]}'",
                  f"joint '{j.name}'", hint="a link has exactly one parent joint in a tree")
         parent_of.setdefault(j.child, j.name)
-        if j.mimic is not None:
-            if j.mimic.joint not in joints:
-                fail(f"mimics joint '{j.mimic.joint}', which does not exist", f"joint '{j.name}'")
-            elif joints[j.mimic.joint].mimic is not None:
-                fail(f"mimics '{j.mimic.joint}', itself a mimic", f"joint '{j.name}'",
-                     hint="mimic the leader joint directly")
-        if j.movable and j.type != "floating" and sum(a * a for a in j.axis) < 1e-12:
-            fail("axis is zero", f"joint '{j.name}'", hint="give a non-zero <axis xyz=.../>")
     roots = [n for n in links if n not in {j.child for j in joints.values()}]
     if not roots:
         fail("no root link: every link is some joint's child, so the joints form a cycle",
@@ -231,6 +223,25 @@ def structure_problems(links: dict[str, Link], joints: dict[str, Joint],
     if roots and on_cycle:
         fail(f"links {', '.join(on_cycle)} form a cycle unreachable from the root",
              "<robot>", hint="a URDF is a tree; remove the joint that closes the loop")
+    return probs
+
+
+def joint_problems(joints: dict[str, Joint], source: Path | None) -> list[DescriptionError]:
+    """Per-joint problems that leave the tree intact: mimic targets, zero axes."""
+    probs: list[DescriptionError] = []
+
+    def fail(msg: str, element: str, hint: str | None = None) -> None:
+        probs.append(InvalidModel(msg, file=source, element=element, hint=hint))
+
+    for j in joints.values():
+        if j.mimic is not None:
+            if j.mimic.joint not in joints:
+                fail(f"mimics joint '{j.mimic.joint}', which does not exist", f"joint '{j.name}'")
+            elif joints[j.mimic.joint].mimic is not None:
+                fail(f"mimics '{j.mimic.joint}', itself a mimic", f"joint '{j.name}'",
+                     hint="mimic the leader joint directly")
+        if j.movable and j.type != "floating" and sum(a * a for a in j.axis) < 1e-12:
+            fail("axis is zero", f"joint '{j.name}'", hint="give a non-zero <axis xyz=.../>")
     return probs
 
 
@@ -286,6 +297,7 @@ def parse_urdf(
     problems = ctx.problems
     structural = structure_problems(links, joints, source)
     problems.extend(structural)
+    problems.extend(joint_problems(joints, source))
     if strict and problems:
         raise problems[0]
     robot = None
