@@ -1,0 +1,289 @@
+"""The collision world: the robot's link meshes and the scene's obstacles in python-fcl.
+
+Built once per (description, obstacles, padding) and reused for every check. A check is
+fast FK (numba), an OBB-tree broad phase over every checked pair (numba,
+:mod:`planner.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
+separate; FCL objects are built once and only moved.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from itertools import combinations
+
+import fcl
+import numpy as np
+import trimesh
+from numpy.typing import ArrayLike
+
+from description import Description
+from description.meshes import shape_mesh
+
+from .acm import AllowedCollisionMatrix
+from .errors import InvalidRequest
+from .kinematics import Kinematics
+from .obbtree import Forest, ObbTree, box_tree, build_tree, pair_candidates, \
+    pair_candidates_batch
+from .scene import Obstacle, validate_obstacles
+
+_log = logging.getLogger(__name__)
+_STACK = 4096
+
+
+@dataclass(frozen=True)
+class StateCheck:
+    """The outcome of checking one state.
+
+    Attributes:
+        valid: no checked pair collides (or comes closer than the padding).
+        pairs: every colliding pair, (link, link) or (link, obstacle id).
+        clearance: minimum distance [m] over the checked pairs, if asked for (0 when
+            colliding).
+        closest: the pair at that distance, if asked for.
+    """
+
+    valid: bool
+    pairs: tuple[tuple[str, str], ...]
+    clearance: float | None = None
+    closest: tuple[str, str] | None = None
+
+
+def _bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
+    m = fcl.BVHModel()
+    m.beginModel(len(mesh.vertices), len(mesh.faces))
+    m.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
+    m.endModel()
+    return m
+
+
+def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree]:
+    if o.shape == "box":
+        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2)
+    if o.shape == "sphere":
+        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius))
+    if o.shape == "cylinder":
+        return fcl.Cylinder(o.radius, o.length), box_tree(np.array([o.radius, o.radius,
+                                                                     o.length / 2]))
+    mesh = trimesh.load(o.mesh_path, force="mesh")
+    return _bvh(mesh), build_tree(mesh.vertices, mesh.faces)
+
+
+class CollisionWorld:
+    """Self and scene collision checking for one robot in one scene.
+
+    Args:
+        description: the loaded robot.
+        obstacles: scene obstacles (ids must be unique and differ from link names).
+        padding: a state is invalid when a checked pair is closer than this [m].
+        acm: pairs to skip; default: the SRDF's disabled pairs.
+    """
+
+    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
+                 padding: float = 0.0, acm: AllowedCollisionMatrix | None = None) -> None:
+        if not np.isfinite(padding) or padding < 0:
+            raise InvalidRequest(f"{padding!r} must be a finite number >= 0 [m]",
+                                 field="padding")
+        self.description = description
+        self.kin = Kinematics(description.robot)
+        self.padding = float(padding)
+        self.acm = acm if acm is not None else AllowedCollisionMatrix.from_srdf(description.srdf)
+        self.obstacles = validate_obstacles(obstacles, link_names=self.kin.link_names)
+        self.checks = 0
+        robot = description.robot
+        names, frames, trees, objs, statics = [], [], [], [], []
+        for link in self.kin.link_names:
+            shapes = robot.links[link].collisions
+            if not shapes:
+                continue
+            meshes = [shape_mesh(s, element=f"link '{link}' collision") for s in shapes]
+            mesh = meshes[0] if len(meshes) == 1 else trimesh.util.concatenate(meshes)
+            names.append(link)
+            frames.append(self.kin.link_index[link])
+            trees.append(build_tree(mesh.vertices, mesh.faces))
+            objs.append(fcl.CollisionObject(_bvh(mesh), fcl.Transform()))
+            statics.append(not any(j.movable for j in robot.link_path(link)))
+        self.link_bodies = tuple(names)
+        static_pose = np.tile(np.eye(4), (len(names) + len(self.obstacles), 1, 1))
+        for i, o in enumerate(self.obstacles):
+            geom, tree = _obstacle_geometry(o)
+            pose = o.pose()
+            names.append(o.id)
+            frames.append(-1)
+            trees.append(tree)
+            objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
+            statics.append(True)
+            static_pose[len(self.link_bodies) + i] = pose
+        self.body_names = tuple(names)
+        self._frame = np.array(frames, dtype=np.int64)
+        self._static_pose = static_pose
+        self._objs = objs
+        self._forest = Forest.of(trees)
+        self._radius = np.array([t.radius for t in trees])
+        self._center = np.array([t.center[0] for t in trees])
+        moving, fixed = [], []
+        for a, b in combinations(range(len(names)), 2):
+            if a >= len(self.link_bodies) and b >= len(self.link_bodies):
+                continue  # obstacle/obstacle never matters
+            if self.acm.allowed(names[a], names[b]):
+                continue
+            (fixed if statics[a] and statics[b] else moving).append((a, b))
+        self._pairs = np.array(moving, dtype=np.int64).reshape(-1, 2)
+        self.pair_names: tuple[tuple[str, str], ...] = tuple(
+            (names[a], names[b]) for a, b in self._pairs)
+        self._placed = np.full(len(names), -1, dtype=np.int64)
+        self._stamp = 0
+        self._creq = fcl.CollisionRequest()
+        self._dreq = fcl.DistanceRequest()
+        # Pairs of bodies that never move are decided once, here.
+        poses0 = self.kin.link_poses(np.zeros(self.kin.dof))
+        self._fixed_hits = tuple((names[a], names[b]) for a, b in fixed
+                                 if self._narrow(poses0, a, b))
+        self._fixed_pairs = tuple(fixed)
+        self._poses = np.empty((len(self.kin.link_names), 4, 4))
+        self._cand = np.zeros(len(self._pairs), dtype=np.int64)
+        self._stack = np.empty((_STACK, 2), dtype=np.int64)
+        _log.info("collision world: %d bodies, %d moving pairs, %d fixed pairs (%d colliding)",
+                  len(names), len(self._pairs), len(fixed), len(self._fixed_hits))
+
+    # -- internals -------------------------------------------------------------------
+    def _place(self, poses: np.ndarray, b: int) -> None:
+        # move body b's FCL object once per state (stamped), never for obstacles
+        if self._frame[b] < 0 or self._placed[b] == self._stamp:
+            return
+        t = poses[self._frame[b]]
+        self._objs[b].setRotation(t[:3, :3])
+        self._objs[b].setTranslation(t[:3, 3])
+        self._placed[b] = self._stamp
+
+    def _narrow(self, poses: np.ndarray, a: int, b: int) -> bool:
+        self._place(poses, a)
+        self._place(poses, b)
+        if self.padding > 0:
+            return self._distance(a, b) < self.padding
+        return fcl.collide(self._objs[a], self._objs[b], self._creq, fcl.CollisionResult()) > 0
+
+    def _distance(self, a: int, b: int) -> float:
+        d = fcl.distance(self._objs[a], self._objs[b], self._dreq, fcl.DistanceResult())
+        return max(float(d), 0.0)
+
+    def _candidates(self, poses: np.ndarray, out: np.ndarray) -> int:
+        f = self._forest
+        return pair_candidates(poses, self._frame, self._static_pose, self._pairs, f.root,
+                               f.center, f.axes, f.half, f.left, f.right, self.padding,
+                               self._stack, out)
+
+    def _state_hits(self, poses: np.ndarray, cand: np.ndarray, *, first: bool) -> list[int]:
+        self._stamp += 1
+        hits = []
+        for p in np.flatnonzero(cand):
+            a, b = self._pairs[p]
+            if self._narrow(poses, a, b):
+                hits.append(int(p))
+                if first:
+                    break
+        return hits
+
+    def _poses_of(self, q: ArrayLike) -> np.ndarray:
+        return self.kin.link_poses(q, out=self._poses)
+
+    # -- public -----------------------------------------------------------------------
+    @property
+    def dof(self) -> int:
+        return self.kin.dof
+
+    def is_valid(self, q: ArrayLike) -> bool:
+        """True if state ``q`` (shape (dof,), [rad]) collides with nothing."""
+        self.checks += 1
+        if self._fixed_hits:
+            return False
+        poses = self._poses_of(q)
+        if self._candidates(poses, self._cand) == 0:
+            return True
+        return not self._state_hits(poses, self._cand, first=True)
+
+    def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
+        """Every colliding pair at ``q``, and the minimum clearance if asked."""
+        self.checks += 1
+        poses = self._poses_of(q)
+        cand = np.zeros(len(self._pairs), dtype=np.int64)
+        self._candidates(poses, cand)
+        hits = self._state_hits(poses, cand, first=False)
+        pairs = self._fixed_hits + tuple(self.pair_names[p] for p in hits)
+        if not clearance:
+            return StateCheck(valid=not pairs, pairs=pairs)
+        dist, closest = self._clearance(poses) if not pairs else (0.0, pairs[0])
+        return StateCheck(valid=not pairs, pairs=pairs, clearance=dist, closest=closest)
+
+    def _clearance(self, poses: np.ndarray, best: float = np.inf) -> tuple[float, tuple[str, str]]:
+        # Bounding spheres give a lower bound per pair; FCL distance only where it could win.
+        self._stamp += 1
+        cw = np.empty((len(self.body_names), 3))
+        for b in range(len(self.body_names)):
+            t = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
+            cw[b] = t[:3, :3] @ self._center[b] + t[:3, 3]
+        allp = list(map(tuple, self._pairs)) + list(self._fixed_pairs)
+        if not allp:
+            return float("inf"), ("", "")
+        ia = np.array([p[0] for p in allp])
+        ib = np.array([p[1] for p in allp])
+        lb = np.linalg.norm(cw[ia] - cw[ib], axis=1) - self._radius[ia] - self._radius[ib]
+        closest = (self.body_names[ia[0]], self.body_names[ib[0]])
+        for k in np.argsort(lb):
+            if lb[k] >= best:
+                break
+            a, b = int(ia[k]), int(ib[k])
+            self._place(poses, a)
+            self._place(poses, b)
+            d = self._distance(a, b)
+            if d < best:
+                best, closest = d, (self.body_names[a], self.body_names[b])
+        return float(best), closest
+
+    def candidates_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Link poses (m, n_links, 4, 4) and broad-phase candidate flags (m, n_pairs)."""
+        poses = self.kin.link_poses_batch(qs)
+        out = np.zeros((len(qs), len(self._pairs)), dtype=np.int64)
+        f = self._forest
+        pair_candidates_batch(poses, self._frame, self._static_pose, self._pairs, f.root,
+                              f.center, f.axes, f.half, f.left, f.right, self.padding,
+                              self._stack, out)
+        return poses, out
+
+    def first_invalid(self, qs: ArrayLike, *, order: np.ndarray | None = None) -> int:
+        """Index of the first colliding state of ``qs`` (shape (m, dof)), -1 if none.
+
+        ``order`` (a permutation of range(m)) sets the order states are narrow-phased
+        in; the answer is then the first colliding state in that order.
+        """
+        qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
+        self.checks += len(qs)
+        if len(qs) == 0:
+            return -1
+        if self._fixed_hits:
+            return 0 if order is None else int(order[0])
+        poses, cand = self.candidates_batch(qs)
+        rows = np.flatnonzero(cand.any(axis=1))
+        if order is not None and len(rows):
+            rank = np.empty(len(order), dtype=np.int64)
+            rank[order] = np.arange(len(order))
+            rows = rows[np.argsort(rank[rows])]
+        for i in rows:
+            if self._state_hits(poses[i], cand[i], first=True):
+                return int(i)
+        return -1
+
+    def min_clearance(self, qs: ArrayLike) -> tuple[float, tuple[str, str]]:
+        """Minimum clearance [m] over states ``qs`` (shape (m, dof)) and its pair."""
+        qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
+        self.checks += len(qs)
+        best, closest = float("inf"), ("", "")
+        if self._fixed_hits:
+            return 0.0, self._fixed_hits[0]
+        poses = self.kin.link_poses_batch(qs)
+        for i in range(len(qs)):
+            d, c = self._clearance(poses[i], best)
+            if d < best:
+                best, closest = d, c
+        return best, closest

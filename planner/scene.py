@@ -1,0 +1,130 @@
+"""Scene obstacles: boxes, spheres, cylinders and meshes placed in the world frame.
+
+An :class:`Obstacle` is validated when it is built, so a bad request fails with the
+field that is wrong (``obstacles[2].size``) before any collision object exists.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from description.model import Origin
+
+from .errors import InvalidRequest
+
+ShapeKind = Literal["box", "sphere", "cylinder", "mesh"]
+_KINDS = ("box", "sphere", "cylinder", "mesh")
+
+
+def _finite_vec(value: object, n: int, field: str, *, positive: bool = False) -> tuple[float, ...]:
+    try:
+        vec = tuple(float(v) for v in value)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise InvalidRequest(f"{value!r} must be {n} numbers", field=field) from None
+    if len(vec) != n or not all(math.isfinite(v) for v in vec):
+        raise InvalidRequest(f"{value!r} must be {n} finite numbers", field=field)
+    if positive and any(v <= 0 for v in vec):
+        raise InvalidRequest(f"{value!r} must be > 0 [m]", field=field)
+    return vec
+
+
+def _positive(value: object, field: str) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise InvalidRequest(f"{value!r} is not a number", field=field) from None
+    if not math.isfinite(v) or v <= 0:
+        raise InvalidRequest(f"{value!r} must be a finite number > 0 [m]", field=field)
+    return v
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """One obstacle of the scene.
+
+    Attributes:
+        id: a unique name, used in colliding pairs (``("horizontal_arm", "table")``).
+        shape: box, sphere, cylinder or mesh.
+        size: box edge lengths (x, y, z) [m], centred on the pose.
+        radius: sphere or cylinder radius [m].
+        length: cylinder length along its z axis [m], centred on the pose.
+        mesh_path: a mesh file (STL, OBJ, ...) in metres, in the obstacle frame.
+        xyz: position [m] in the world frame.
+        rpy: URDF roll-pitch-yaw [rad].
+        where: the field prefix named in errors (e.g. ``obstacles[2]``).
+    """
+
+    id: str
+    shape: ShapeKind
+    size: tuple[float, float, float] | None = None
+    radius: float | None = None
+    length: float | None = None
+    mesh_path: str | None = None
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    where: str = "obstacle"
+
+    def __post_init__(self) -> None:
+        w = self.where
+        if not isinstance(self.id, str) or not self.id:
+            raise InvalidRequest("must be a non-empty string", field=f"{w}.id")
+        if self.shape not in _KINDS:
+            raise InvalidRequest(f"'{self.shape}' is not one of {', '.join(_KINDS)}",
+                                 field=f"{w}.shape")
+        set_ = object.__setattr__
+        set_(self, "xyz", _finite_vec(self.xyz, 3, f"{w}.xyz"))
+        set_(self, "rpy", _finite_vec(self.rpy, 3, f"{w}.rpy"))
+        if self.shape == "box":
+            if self.size is None:
+                raise InvalidRequest("a box needs size (x, y, z) [m]", field=f"{w}.size")
+            set_(self, "size", _finite_vec(self.size, 3, f"{w}.size", positive=True))
+        elif self.shape == "sphere":
+            set_(self, "radius", _positive(self.radius, f"{w}.radius"))
+        elif self.shape == "cylinder":
+            set_(self, "radius", _positive(self.radius, f"{w}.radius"))
+            set_(self, "length", _positive(self.length, f"{w}.length"))
+        else:
+            if not self.mesh_path or not Path(self.mesh_path).is_file():
+                raise InvalidRequest(f"mesh file {self.mesh_path!r} does not exist",
+                                     field=f"{w}.mesh_path")
+
+    def pose(self) -> np.ndarray:
+        """The obstacle's pose in the world frame, shape (4, 4)."""
+        return Origin(xyz=self.xyz, rpy=self.rpy).matrix()
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, object], *, where: str = "obstacle") -> Obstacle:
+        """Build from a JSON-like mapping (the service's wire format)."""
+        if not isinstance(data, Mapping):
+            raise InvalidRequest("must be an object", field=where)
+        known = {"id", "shape", "size", "radius", "length", "mesh_path", "xyz", "rpy"}
+        extra = sorted(set(data) - known)
+        if extra:
+            raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+        for key in ("id", "shape"):
+            if key not in data:
+                raise InvalidRequest("is required", field=f"{where}.{key}")
+        return cls(where=where, **{k: v for k, v in data.items()})  # type: ignore[arg-type]
+
+
+def validate_obstacles(obstacles: Sequence[Obstacle], *,
+                       link_names: Sequence[str] = ()) -> tuple[Obstacle, ...]:
+    """Check ids are unique and do not shadow a link name; returns them as a tuple."""
+    seen: set[str] = set()
+    links = set(link_names)
+    for i, o in enumerate(obstacles):
+        if not isinstance(o, Obstacle):
+            raise InvalidRequest(f"expected an Obstacle, got {type(o).__name__}",
+                                 field=f"obstacles[{i}]")
+        if o.id in seen:
+            raise InvalidRequest(f"duplicate id '{o.id}'", field=f"obstacles[{i}].id")
+        if o.id in links:
+            raise InvalidRequest(f"id '{o.id}' is also a link name", field=f"obstacles[{i}].id")
+        seen.add(o.id)
+    return tuple(obstacles)
