@@ -1,0 +1,236 @@
+"""Jerk-limited timing along the curve with ruckig (the default profile).
+
+Each piece of a curve section (a straight edge or a corner blend) gets a one-degree-of-
+freedom ruckig profile of the path parameter ``s``. Because the joints follow ``c(s)``,
+this is exactly ruckig's phase-synchronised motion on a straight edge (all joints share
+one profile shape, so the motion stays on the edge), and on a blend it stays on the
+re-checked blend. Per piece we bound ``sd``, ``sdd``, ``sddd`` so that, at every sampled
+point of the piece and with margin for the curvature terms::
+
+    |c'| v <= vmax,  |c'| a + |c''| v^2 <= amax,
+    |c'| j + 3 |c''| v a + |c'''| v^3 <= jmax,  |m| a + |b| v^2 + |g| <= effort
+
+Pieces meet with ``sdd = 0``; the path velocity at each junction is chosen by a forward
+and a backward pass over closed-form jerk-limited distances, so every piece is reachable
+without overshoot. Stops (hard corners) end a section at rest. Offline ruckig only: no
+intermediate waypoints (the community build would call a remote API for them).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from ruckig import InputParameter, Result, Ruckig, Trajectory
+
+from .curve import Curve, PathCurve
+from .errors import TrajectoryError
+from .path_limits import ActiveLimits, BatchDynamics, torque_coefficients
+from .trajectory import CurveTiming, RestProfile
+
+log = logging.getLogger(__name__)
+
+_LINE_SAMPLES = 9
+_BLEND_SAMPLES = 17
+_TINY = 1e-12
+
+
+class RuckigProfile:
+    """Piecewise ruckig profiles of ``s``, evaluated from their polynomial phases."""
+
+    def __init__(self, pieces: Sequence[tuple[float, Trajectory]]) -> None:
+        # (s offset, trajectory); each phase: start time, p, v, a, j
+        starts, p, v, a, j = [], [], [], [], []
+        t = 0.0
+        for s_off, tr in pieces:
+            prof = tr.profiles[0][0]
+            if prof.brake.duration > 0 or prof.accel.duration > 0:
+                raise TrajectoryError("ruckig needed a brake pre-trajectory: the boundary "
+                                      "state exceeded the piece's limits",
+                                      details={"stage": "ruckig"})
+            tt = t
+            for i in range(7):
+                starts.append(tt)
+                p.append(s_off + prof.p[i])
+                v.append(prof.v[i])
+                a.append(prof.a[i])
+                j.append(prof.j[i])
+                tt += prof.t[i]
+            t += tr.duration
+        self._start = np.array(starts)
+        self._c = np.array([p, v, a, j]).T
+        self.duration = t
+        self._end = (s_off + pieces[-1][1].profiles[0][0].pf) if pieces else 0.0
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ts = np.clip(np.asarray(ts, float), 0.0, self.duration)
+        k = np.clip(np.searchsorted(self._start, ts, side="right") - 1, 0, len(self._start) - 1)
+        dt = ts - self._start[k]
+        p, v, a, j = self._c[k].T
+        s = p + dt * (v + dt * (a / 2 + dt * j / 6))
+        sd = v + dt * (a + dt * j / 2)
+        sdd = a + dt * j
+        end = ts >= self.duration
+        s[end], sd[end], sdd[end] = self._end, 0.0, 0.0
+        return s, sd, sdd
+
+
+def _speed_change_distance(v0: float, v1: float, a: float, j: float) -> float:
+    """Distance to change speed v0 -> v1 with sdd = 0 at both ends, limits a, j (time-optimal)."""
+    dv = abs(v1 - v0)
+    t = dv / a + a / j if dv >= a * a / j else 2.0 * math.sqrt(dv / j)
+    return 0.5 * (v0 + v1) * t
+
+
+def _max_speed_within(v_other: float, dist: float, a: float, j: float, cap: float) -> float:
+    """Largest v <= cap that can reach/leave ``v_other`` within ``dist``."""
+    if v_other >= cap or _speed_change_distance(v_other, cap, a, j) <= dist:
+        return cap
+    lo, hi = v_other, cap
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if _speed_change_distance(v_other, mid, a, j) <= dist:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+class JerkLimitedTiming:
+    """Jerk-limited time parameterisation of a :class:`Curve`.
+
+    Args:
+        dynamics: anything with ``torques_batch`` (the effort limit is enforced through it).
+    """
+
+    def __init__(self, dynamics: BatchDynamics) -> None:
+        self.dynamics = dynamics
+        self._otg = Ruckig(1)
+
+    def piece_limits(self, curve: PathCurve, limits: ActiveLimits
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Constant (v, a, j) bounds on (sd, sdd, sddd) per piece, each shape (n,)."""
+        n = len(curve.lengths)
+        ss, owner = [], []
+        for k in range(n):
+            m = _BLEND_SAMPLES if curve.kinds[k] == "blend" else _LINE_SAMPLES
+            ss.append(curve.s0[k] + np.linspace(0.0, curve.lengths[k], m))
+            owner.append(np.full(m, k))
+        s = np.concatenate(ss)
+        own = np.concatenate(owner)
+        # evaluate each sample inside its own piece (searchsorted puts piece ends in the next)
+        d1, d2, d3 = self._derivs(curve, own, s - curve.s0[own])
+        q = self._pos(curve, own, s - curve.s0[own])
+        mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
+        V, A, J, E = limits.velocity, limits.acceleration, limits.jerk, limits.effort
+        d1, d2, d3, mt, bt, gt = (np.abs(x) for x in (d1, d2, d3, mt, bt, gt))
+        vs, as_, js = np.empty(n), np.empty(n), np.empty(n)
+        for k in range(n):
+            sel = own == k
+            p1, p2, p3, pm, pb, pg = (x[sel] for x in (d1, d2, d3, mt, bt, gt))
+            slack_e = E - pg
+            if np.any(slack_e <= 0):
+                raise TrajectoryError("gravity alone exceeds the effort limit on the path",
+                                      details={"stage": "ruckig", "piece": k})
+            v = _min_ratio(V, p1)
+            # leave half of the acceleration and effort budgets for sdd
+            v = min(v, math.sqrt(_min_ratio(0.5 * A, p2)), math.sqrt(_min_ratio(0.5 * slack_e, pb)))
+            for _ in range(30):
+                a = min(_min_ratio(A - p2 * v * v, p1), _min_ratio(slack_e - pb * v * v, pm))
+                j = _min_ratio(J - 3 * p2 * v * a - p3 * v**3, p1) if a > 0 else -1.0
+                if a > 0 and j > 0 and (curve.kinds[k] == "line" or j > 0.25 * _min_ratio(J, p1)):
+                    break
+                v *= 0.8
+            else:
+                raise TrajectoryError("no feasible path speed on a curve piece",
+                                      details={"stage": "ruckig", "piece": k})
+            vs[k], as_[k], js[k] = v, a, j
+        return vs, as_, js
+
+    @staticmethod
+    def _derivs(curve: PathCurve, k: np.ndarray, sigma: np.ndarray):
+        L = curve.lengths[k][:, None]
+        x = (sigma[:, None] / L)
+        du = curve.u2[k] - curve.u1[k]
+        return (curve.u1[k] + du * (3 * x**2 - 2 * x**3), du * (6 * x - 6 * x**2) / L,
+                du * (6 - 12 * x) / L**2)
+
+    @staticmethod
+    def _pos(curve: PathCurve, k: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        L = curve.lengths[k][:, None]
+        x = sigma[:, None] / L
+        return (curve.starts[k] + curve.u1[k] * sigma[:, None]
+                + (curve.u2[k] - curve.u1[k]) * L * (x**3 - 0.5 * x**4))
+
+    def section(self, curve: PathCurve, limits: ActiveLimits, *,
+                blend_speed: bool = True) -> RuckigProfile:
+        """The profile of one section, from rest to rest.
+
+        ``blend_speed=False`` stops at every junction (the per-piece rest-to-rest baseline).
+        """
+        vs, as_, js = self.piece_limits(curve, limits)
+        n = len(vs)
+        L = curve.lengths
+        vb = np.zeros(n + 1)
+        if blend_speed:
+            for k in range(1, n):
+                vb[k] = min(vs[k - 1], vs[k]) * (1 - 1e-9)
+            for k in range(n - 1, 0, -1):  # backward: able to slow down to vb[k + 1]
+                vb[k] = _max_speed_within(vb[k + 1], L[k] * (1 - 1e-9), as_[k], js[k], vb[k])
+            for k in range(1, n):  # forward: able to speed up from vb[k - 1]
+                vb[k] = _max_speed_within(vb[k - 1], L[k - 1] * (1 - 1e-9), as_[k - 1],
+                                          js[k - 1], vb[k])
+        pieces: list[tuple[float, Trajectory]] = []
+        for k in range(n):
+            tr = self._piece(L[k], vb[k], vb[k + 1], vs[k], as_[k], js[k])
+            pieces.append((float(curve.s0[k]), tr))
+        return RuckigProfile(pieces)
+
+    def _piece(self, length: float, v0: float, v1: float, v: float, a: float,
+               j: float) -> Trajectory:
+        inp = InputParameter(1)
+        inp.current_position = [0.0]
+        inp.current_velocity = [v0]
+        inp.current_acceleration = [0.0]
+        inp.target_position = [float(length)]
+        inp.target_velocity = [v1]
+        inp.target_acceleration = [0.0]
+        inp.max_velocity = [float(v)]
+        inp.max_acceleration = [float(a)]
+        inp.max_jerk = [float(j)]
+        tr = Trajectory(1)
+        res = self._otg.calculate(inp, tr)
+        if res not in (Result.Working, Result.Finished):
+            raise TrajectoryError(f"ruckig failed on a curve piece: {res}",
+                                  details={"stage": "ruckig", "result": str(res),
+                                           "length": float(length), "v0": v0, "v1": v1,
+                                           "limits": [v, a, j]})
+        ext = tr.position_extrema[0]
+        if ext.min < -1e-9 or ext.max > length + 1e-9:
+            raise TrajectoryError("ruckig overshot a curve piece",
+                                  details={"stage": "ruckig", "min": ext.min, "max": ext.max,
+                                           "length": float(length)})
+        return tr
+
+    def parameterise(self, curve: Curve, limits: ActiveLimits, *,
+                     blend_speed: bool = True) -> CurveTiming:
+        """Time every section of ``curve``; raises TrajectoryError if ruckig fails."""
+        secs = []
+        for c in curve.sections:
+            if c.length <= _TINY:
+                continue
+            secs.append((c, self.section(c, limits, blend_speed=blend_speed)))
+        if not secs:
+            secs.append((curve.sections[0], RestProfile()))
+        return CurveTiming(secs)
+
+
+def _min_ratio(budget: np.ndarray, use: np.ndarray) -> float:
+    """min over entries of budget / use where use > 0 (inf if nothing is used)."""
+    budget = np.broadcast_to(budget, use.shape)
+    m = use > _TINY
+    if not m.any():
+        return math.inf
+    return float(np.min(budget[m] / use[m]))

@@ -1,0 +1,205 @@
+"""Timed trajectories: a curve followed by a path-parameter profile, sampled for motors.
+
+Both time parameterisations (toppra, ruckig) produce the same thing: for each smooth
+section of the :class:`~planner.curve.Curve`, a scalar profile ``s(t)`` of the path
+parameter. Joint states follow exactly from the chain rule::
+
+    q = c(s),   qd = c'(s) sd,   qdd = c'(s) sdd + c''(s) sd^2
+
+so every position lies on the collision-checked curve, at any time, not only at samples.
+:class:`JointTrajectory` is the JointTrajectory-shaped result (ROS ``trajectory_msgs``):
+samples at a fixed rate plus the exact final state, JSON/CSV export, and ``at(t)``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Protocol
+
+import numpy as np
+
+from .curve import PathCurve
+from .errors import InvalidRequest
+
+# Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
+EffortFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
+
+class ScalarProfile(Protocol):
+    """A path-parameter profile on [0, duration]: ``evaluate(ts) -> (s, sd, sdd)``, each (m,)."""
+
+    @property
+    def duration(self) -> float: ...
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
+class RestProfile:
+    """The profile of a path that does not move: zero duration."""
+
+    duration = 0.0
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        z = np.zeros(len(np.atleast_1d(ts)))
+        return z, z.copy(), z.copy()
+
+
+class CurveTiming:
+    """Sections of a curve, each with its own profile, played one after the other.
+
+    Every section starts and ends at rest. ``evaluate(ts)`` gives (q, qd, qdd), each
+    shape (m, dof); times outside [0, duration] are clamped.
+    """
+
+    def __init__(self, sections: Sequence[tuple[PathCurve, ScalarProfile]]) -> None:
+        if not sections:
+            raise InvalidRequest("a timing needs at least one section", field="sections")
+        self.sections = tuple(sections)
+        durs = np.array([p.duration for _, p in self.sections], float)
+        self.t0 = np.concatenate(([0.0], np.cumsum(durs)[:-1]))
+        self.duration = float(durs.sum())
+        self.dof = self.sections[0][0].dof
+        self.goal = self.sections[-1][0].end
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ts = np.clip(np.atleast_1d(np.asarray(ts, float)), 0.0, self.duration)
+        k = np.clip(np.searchsorted(self.t0, ts, side="right") - 1, 0, len(self.sections) - 1)
+        q = np.empty((len(ts), self.dof))
+        qd = np.empty_like(q)
+        qdd = np.empty_like(q)
+        for i, (curve, prof) in enumerate(self.sections):
+            m = k == i
+            if not m.any():
+                continue
+            s, sd, sdd = prof.evaluate(ts[m] - self.t0[i])
+            d1 = curve(s, 1)
+            q[m] = curve(s, 0)
+            qd[m] = d1 * sd[:, None]
+            qdd[m] = d1 * sdd[:, None] + curve(s, 2) * (sd * sd)[:, None]
+        # The final state is exact: the goal, at rest (not the curve formula's rounding).
+        end = ts >= self.duration
+        q[end] = self.goal
+        qd[end] = 0.0
+        qdd[end] = 0.0
+        return q, qd, qdd
+
+
+@dataclass(frozen=True)
+class TrajectoryPoint:
+    """One sample: per joint positions [rad], velocities [rad/s], accelerations [rad/s^2],
+    effort [N m] (inverse dynamics), at ``time_from_start`` [s]."""
+
+    positions: tuple[float, ...]
+    velocities: tuple[float, ...]
+    accelerations: tuple[float, ...]
+    effort: tuple[float, ...]
+    time_from_start: float
+
+    def to_dict(self) -> dict[str, object]:
+        return {"positions": list(self.positions), "velocities": list(self.velocities),
+                "accelerations": list(self.accelerations), "effort": list(self.effort),
+                "time_from_start": self.time_from_start}
+
+
+def sample_times(duration: float, rate: float) -> np.ndarray:
+    """Times [s] at ``rate`` [Hz] from 0, always ending with exactly ``duration``."""
+    if not (math.isfinite(rate) and 1.0 <= rate <= 1000.0):
+        raise InvalidRequest(f"{rate!r} must be within [1, 1000] Hz", field="sample_rate")
+    n = int(math.floor(duration * rate + 1e-9))
+    ts = np.arange(n + 1) / rate
+    if duration - ts[-1] > 1e-9:
+        ts = np.append(ts, duration)
+    else:
+        ts[-1] = duration
+    return ts
+
+
+@dataclass(frozen=True)
+class JointTrajectory:
+    """A sampled, timed trajectory of the actuated joints.
+
+    Attributes:
+        joint_names: the actuated joints, in column order.
+        times: sample times [s], shape (m,), the last one is ``duration``.
+        positions, velocities, accelerations, efforts: shape (m, dof).
+        duration: the exact duration [s].
+        sample_rate: [Hz].
+        profile: 'jerk_limited' or 'time_optimal'.
+    """
+
+    joint_names: tuple[str, ...]
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    efforts: np.ndarray
+    duration: float
+    sample_rate: float
+    profile: str
+    timing: CurveTiming = field(repr=False, compare=False)
+    effort_fn: EffortFn = field(repr=False, compare=False)
+
+    @classmethod
+    def sample(cls, timing: CurveTiming, effort_fn: EffortFn, *,
+               joint_names: Sequence[str], sample_rate: float = 100.0,
+               profile: str = "jerk_limited") -> JointTrajectory:
+        """Sample ``timing`` at ``sample_rate`` [Hz] (1..1000) plus its exact final state."""
+        ts = sample_times(timing.duration, sample_rate)
+        q, qd, qdd = timing.evaluate(ts)
+        tau = np.asarray(effort_fn(q, qd, qdd), float)
+        for a in (ts, q, qd, qdd, tau):
+            a.setflags(write=False)
+        return cls(tuple(joint_names), ts, q, qd, qdd, tau, timing.duration,
+                   float(sample_rate), profile, timing, effort_fn)
+
+    @cached_property
+    def points(self) -> tuple[TrajectoryPoint, ...]:
+        return tuple(TrajectoryPoint(tuple(map(float, self.positions[i])),
+                                     tuple(map(float, self.velocities[i])),
+                                     tuple(map(float, self.accelerations[i])),
+                                     tuple(map(float, self.efforts[i])),
+                                     float(self.times[i]))
+                     for i in range(len(self.times)))
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, qd, qdd) at any times [s], each (m, dof); clamped to [0, duration]."""
+        return self.timing.evaluate(ts)
+
+    def at(self, t: float) -> TrajectoryPoint:
+        """The exact state at time ``t`` [s] (clamped to [0, duration])."""
+        if not math.isfinite(t):
+            raise InvalidRequest(f"{t!r} is not a finite time", field="t")
+        q, qd, qdd = self.timing.evaluate(np.array([t]))
+        tau = np.asarray(self.effort_fn(q, qd, qdd), float)
+        t = min(max(float(t), 0.0), self.duration)
+        return TrajectoryPoint(tuple(map(float, q[0])), tuple(map(float, qd[0])),
+                               tuple(map(float, qdd[0])), tuple(map(float, tau[0])), t)
+
+    def to_dict(self) -> dict[str, object]:
+        return {"joint_names": list(self.joint_names), "duration": self.duration,
+                "sample_rate": self.sample_rate, "profile": self.profile,
+                "points": [p.to_dict() for p in self.points]}
+
+    def to_json(self) -> str:
+        """trajectory_msgs/JointTrajectory-shaped JSON (time_from_start in seconds)."""
+        return json.dumps(self.to_dict())
+
+    def to_csv(self) -> str:
+        """One row per sample: time, then position/velocity/acceleration/effort per joint."""
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        header = ["time_from_start"]
+        for kind in ("position", "velocity", "acceleration", "effort"):
+            header += [f"{n}.{kind}" for n in self.joint_names]
+        w.writerow(header)
+        for i, t in enumerate(self.times):
+            w.writerow([repr(float(t))] + [repr(float(x)) for x in np.concatenate(
+                (self.positions[i], self.velocities[i], self.accelerations[i],
+                 self.efforts[i]))])
+        return buf.getvalue()

@@ -1,0 +1,224 @@
+"""Verify a trajectory before it is returned: every limit at every sample, and collisions.
+
+Checks, per joint, the worst ratio of each quantity to its limit:
+- position: ``|q - mid| / half_range`` at every sample and every densified state;
+- velocity, acceleration: at every sample and every densified state;
+- jerk: finite differences of the sampled accelerations (the mean jerk over each sample
+  interval), as a motor controller would see them;
+- effort: inverse dynamics at every sample.
+Collisions: the trajectory is evaluated at a time step small enough that no joint moves
+more than ``step`` (0.002 rad) between checked states, and every state is checked with
+``first_invalid``. The step bound uses the sampled peak speed plus the acceleration limit
+times half a sample interval, and is re-measured on the dense states.
+
+A ratio passes if it is <= 1 + ``TOLERANCE`` (1e-6 relative): only floating-point
+rounding of limits that are met exactly (ruckig saturates its limits) is forgiven.
+The minimum clearance is an FCL distance query and slow (~ms per state), so it is
+measured on ``clearance_states`` states spread over the trajectory (reported as such);
+collision-freedom itself is checked on every dense state.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from .path_limits import BatchDynamics, Derating
+from .trajectory import JointTrajectory
+
+log = logging.getLogger(__name__)
+
+TOLERANCE = 1e-6
+QUANTITIES = ("position", "velocity", "acceleration", "jerk", "effort")
+
+
+class _World(Protocol):
+    def first_invalid(self, qs: np.ndarray) -> int: ...
+    def min_clearance(self, qs: np.ndarray) -> tuple[float, tuple[str, str]]: ...
+    def check(self, q: np.ndarray, *, clearance: bool = False): ...
+
+
+class _Limits(Protocol):
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+    effort: np.ndarray
+
+
+@dataclass(frozen=True)
+class VerificationReport:
+    """What the verifier found.
+
+    Attributes:
+        ok: every enforced ratio <= 1 + tolerance and no collision.
+        joint_names: column order of ``ratios``.
+        ratios: quantity -> worst ratio to the limit per joint (1.0 = at the limit).
+        worst: quantity -> worst ratio over joints.
+        enforced: quantities that must pass (jerk is not enforced for time-optimal profiles:
+            toppra cannot limit it; its ratio is still reported).
+        violations: the enforced quantities over 1 + tolerance.
+        collision_free: no dense state collides.
+        colliding_time: time [s] of the first colliding state, if any; ``colliding_pairs`` its pairs.
+        checked_states: dense states collision-checked; ``max_step`` the largest joint step [rad].
+        min_clearance: [m] over ``clearance_states`` states, and ``closest_pair``.
+        derating: factors applied to the limits to get here; ``attempts`` timings tried.
+        tolerance: relative tolerance on the ratios.
+    """
+
+    ok: bool
+    joint_names: tuple[str, ...]
+    ratios: Mapping[str, tuple[float, ...]]
+    worst: Mapping[str, float]
+    enforced: tuple[str, ...]
+    violations: tuple[str, ...]
+    collision_free: bool
+    colliding_time: float | None
+    colliding_pairs: tuple[tuple[str, str], ...]
+    checked_states: int
+    max_step: float
+    min_clearance: float
+    closest_pair: tuple[str, str]
+    clearance_states: int
+    derating: Derating = field(default_factory=Derating)
+    attempts: int = 1
+    tolerance: float = TOLERANCE
+
+    @property
+    def worst_overall(self) -> tuple[str, float]:
+        """The enforced quantity closest to (or furthest over) its limit, and its ratio."""
+        q = max(self.enforced, key=lambda k: self.worst[k])
+        return q, self.worst[q]
+
+    def to_dict(self) -> dict[str, object]:
+        wq, wr = self.worst_overall
+        return {"ok": self.ok, "joint_names": list(self.joint_names),
+                "ratios": {k: list(v) for k, v in self.ratios.items()},
+                "worst": dict(self.worst), "worst_overall": {"quantity": wq, "ratio": wr},
+                "enforced": list(self.enforced), "violations": list(self.violations),
+                "collision_free": self.collision_free, "colliding_time": self.colliding_time,
+                "colliding_pairs": [list(p) for p in self.colliding_pairs],
+                "checked_states": self.checked_states, "max_step": self.max_step,
+                "min_clearance": self.min_clearance if math.isfinite(self.min_clearance)
+                else None,
+                "closest_pair": list(self.closest_pair),
+                "clearance_states": self.clearance_states,
+                "derating": self.derating.to_dict(), "attempts": self.attempts,
+                "tolerance": self.tolerance}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict())
+
+
+def _ratio(values: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Worst |value| / limit per joint, shape (dof,); a zero limit with motion is inf."""
+    peak = np.max(np.abs(values), axis=0) if len(values) else np.zeros(len(limit))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(limit > 0, peak / np.where(limit > 0, limit, 1.0),
+                     np.where(peak > 0, np.inf, 0.0))
+    return r
+
+
+class Verifier:
+    """Checks trajectories against the limits, the dynamics and the collision world.
+
+    Args:
+        limits: position limits and the (request-scaled) velocity/acceleration/jerk/effort.
+        dynamics: anything with ``torques_batch``.
+        world: a CollisionWorld (``first_invalid``, ``min_clearance``, ``check``).
+        step: max joint step [rad] between collision-checked states.
+        clearance_states: states the clearance is measured on (0 to skip).
+    """
+
+    def __init__(self, limits: _Limits, dynamics: BatchDynamics, world: _World, *,
+                 step: float = 0.002, clearance_states: int = 3) -> None:
+        self.limits = limits
+        self.dynamics = dynamics
+        self.world = world
+        self.step = step
+        self.clearance_states = clearance_states
+
+    def dense_times(self, traj: JointTrajectory) -> np.ndarray:
+        """Times [s] whose states are <= ``step`` apart per joint (re-measured by caller)."""
+        if traj.duration <= 0.0:
+            return np.array([0.0])
+        h = float(np.max(np.diff(traj.times))) if len(traj.times) > 1 else traj.duration
+        vpeak = float(np.max(np.abs(traj.velocities)
+                             + 0.5 * h * np.asarray(self.limits.acceleration)[None, :]))
+        n = max(2, int(math.ceil(traj.duration * vpeak / (0.95 * self.step))) + 1)
+        return np.linspace(0.0, traj.duration, n)
+
+    def verify(self, traj: JointTrajectory, *, enforce_jerk: bool = True,
+               derating: Derating = Derating(), attempts: int = 1) -> VerificationReport:
+        lim = self.limits
+        lo, hi = np.asarray(lim.lower, float), np.asarray(lim.upper, float)
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        t, q, qd, qdd = traj.times, traj.positions, traj.velocities, traj.accelerations
+        # dense states: collisions, and position/velocity/acceleration between samples
+        td = self.dense_times(traj)
+        qx, qdx, qddx = traj.evaluate(td)
+        steps = np.abs(np.diff(qx, axis=0))
+        max_step = float(steps.max()) if len(steps) else 0.0
+        while max_step > self.step:  # the bound was not enough: refine until it holds
+            td = np.linspace(0.0, traj.duration, 2 * len(td) - 1)
+            qx, qdx, qddx = traj.evaluate(td)
+            max_step = float(np.abs(np.diff(qx, axis=0)).max())
+        tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
+        jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
+            else np.zeros((0, q.shape[1]))
+        ratios = {
+            "position": np.maximum(_ratio(q - mid, half), _ratio(qx - mid, half)),
+            "velocity": np.maximum(_ratio(qd, lim.velocity), _ratio(qdx, lim.velocity)),
+            "acceleration": np.maximum(_ratio(qdd, lim.acceleration),
+                                       _ratio(qddx, lim.acceleration)),
+            "jerk": _ratio(jerk, lim.jerk),
+            "effort": _ratio(tau, lim.effort),
+        }
+        enforced = QUANTITIES if enforce_jerk else tuple(k for k in QUANTITIES if k != "jerk")
+        worst = {k: float(np.max(v)) for k, v in ratios.items()}
+        violations = tuple(k for k in enforced if worst[k] > 1.0 + TOLERANCE)
+        bad = self.world.first_invalid(qx)
+        pairs: tuple[tuple[str, str], ...] = ()
+        when = None
+        if bad >= 0:
+            when = float(td[bad])
+            pairs = tuple(self.world.check(qx[bad]).pairs)
+            clearance, closest = 0.0, (pairs[0] if pairs else ("", ""))
+            n_clear = 1
+        elif self.clearance_states > 0:
+            idx = np.unique(np.linspace(0, len(qx) - 1, self.clearance_states).round()
+                            .astype(int))
+            clearance, closest = self.world.min_clearance(qx[idx])
+            n_clear = len(idx)
+        else:
+            clearance, closest, n_clear = math.inf, ("", ""), 0
+        return VerificationReport(
+            ok=not violations and bad < 0, joint_names=tuple(traj.joint_names),
+            ratios={k: tuple(float(x) for x in v) for k, v in ratios.items()},
+            worst=worst, enforced=tuple(enforced), violations=violations,
+            collision_free=bad < 0, colliding_time=when, colliding_pairs=pairs,
+            checked_states=len(qx), max_step=max_step, min_clearance=float(clearance),
+            closest_pair=tuple(closest), clearance_states=n_clear, derating=derating,
+            attempts=attempts)
+
+
+def derate(report: VerificationReport, current: Derating, *, margin: float = 0.98,
+           floor: float = 0.05) -> Derating:
+    """Tighter factors for each violated quantity: ``factor * margin / ratio``.
+
+    Position and collision violations cannot be fixed by slowing down; callers raise.
+    """
+    f = current.to_dict()
+    for k in report.violations:
+        if k in f:
+            r = report.worst[k]
+            f[k] = max(floor, f[k] * margin / (r if math.isfinite(r) and r > 1 else 2.0))
+    return Derating(**f)
+
