@@ -1,0 +1,149 @@
+"""Planning goals: joint values, named SRDF states and tcp positions.
+
+Each goal resolves to one or more full joint vectors; a tcp position resolves to every
+collision-free IK solution, so the planner may reach whichever is easiest.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from description import Description
+from description.errors import SrdfError
+
+from .collision import CollisionWorld
+from .errors import GoalInCollision, GoalOutOfReach, InvalidRequest
+
+
+@dataclass(frozen=True)
+class JointGoal:
+    """Target values [rad] for some or all joints of the group; the rest keep their start."""
+
+    values: Mapping[str, float]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.values, Mapping) or not self.values:
+            raise InvalidRequest("needs at least one joint value", field="goal.values")
+        for k, v in self.values.items():
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise InvalidRequest(f"{v!r} is not a finite number [rad]",
+                                     field=f"goal.values.{k}")
+        object.__setattr__(self, "values", dict(self.values))
+
+
+@dataclass(frozen=True)
+class NamedGoal:
+    """A named state from the SRDF (``home``, ``reach_forward``, ...)."""
+
+    name: str
+
+
+@dataclass(frozen=True)
+class PositionGoal:
+    """A tcp position [m] in the world frame, shape (3,)."""
+
+    position: tuple[float, float, float]
+    where: str = field(default="goal.position", repr=False)
+
+    def __post_init__(self) -> None:
+        try:
+            p = tuple(float(v) for v in self.position)
+        except (TypeError, ValueError):
+            raise InvalidRequest(f"{self.position!r} must be 3 numbers [m]",
+                                 field=self.where) from None
+        if len(p) != 3 or not all(math.isfinite(v) for v in p):
+            raise InvalidRequest(f"{self.position!r} must be 3 finite numbers [m]",
+                                 field=self.where)
+        object.__setattr__(self, "position", p)
+
+
+Goal = JointGoal | NamedGoal | PositionGoal
+
+
+def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
+    """Raise :class:`JointLimitViolation` naming the first joint outside its limits."""
+    from .errors import JointLimitViolation
+
+    lim = world.description.robot.position_limits(world.kin.joint_names)
+    for name, v, (lo, hi) in zip(world.kin.joint_names, q, lim):
+        if not (lo - 1e-9 <= v <= hi + 1e-9):
+            raise JointLimitViolation(name, float(v), float(lo), float(hi),
+                                      field=f"{field}.{name}")
+
+
+def resolve_goal(goal: Goal, *, world: CollisionWorld, description: Description,
+                 start: np.ndarray, group_joints: Sequence[str]) -> np.ndarray:
+    """Every candidate goal state for ``goal``, shape (k, dof), k >= 1, collision-free.
+
+    Joints outside ``group_joints`` keep their ``start`` value.
+
+    Raises:
+        InvalidRequest: a joint outside the group, an unknown named state.
+        JointLimitViolation: a joint goal outside its limits.
+        GoalOutOfReach: no IK solution within the limits.
+        GoalInCollision: every candidate collides (the pairs of the first one).
+    """
+    names = world.kin.joint_names
+    idx = {n: i for i, n in enumerate(names)}
+    if isinstance(goal, NamedGoal):
+        srdf = description.srdf
+        if srdf is None:
+            raise InvalidRequest("the model has no SRDF, so no named states", field="goal.name")
+        try:
+            state = srdf.named_state(goal.name)
+        except SrdfError as e:
+            raise InvalidRequest(str(e.args[0] if e.args else e), field="goal.name") from None
+        goal = JointGoal({k: v for k, v in state.values.items() if k in idx})
+    if isinstance(goal, JointGoal):
+        q = start.copy()
+        for k, v in goal.values.items():
+            if k not in idx:
+                raise InvalidRequest(f"'{k}' is not an actuated joint ({', '.join(names)})",
+                                     field=f"goal.values.{k}")
+            if k not in group_joints:
+                raise InvalidRequest(f"'{k}' is not in the planning group "
+                                     f"({', '.join(group_joints)})", field=f"goal.values.{k}")
+            q[idx[k]] = v
+        check_limits(world, q, field="goal.values")
+        chk = world.check(q)
+        if not chk.valid:
+            raise GoalInCollision("the goal state collides", pairs=chk.pairs,
+                                  q=dict(zip(names, map(float, q))))
+        return q[None]
+    if isinstance(goal, PositionGoal):
+        return _position_candidates(goal, world=world, description=description, start=start,
+                                    group_joints=group_joints)
+    raise InvalidRequest(f"unknown goal type {type(goal).__name__}", field="goal")
+
+
+def _position_candidates(goal: PositionGoal, *, world: CollisionWorld,
+                         description: Description, start: np.ndarray,
+                         group_joints: Sequence[str]) -> np.ndarray:
+    from .ik import position_ik  # written alongside; imported late to keep startup light
+
+    if description.tcp is None:
+        raise InvalidRequest("the model has no tcp (config/tcp.yaml)", field="goal.position")
+    ik_joints = tuple(j for j in ("joint_1", "joint_2", "joint_3") if j in group_joints)
+    if len(ik_joints) < 3:
+        raise InvalidRequest("a tcp position goal needs a group holding joint_1..joint_3 "
+                             f"(got {', '.join(group_joints)})", field="group")
+    sols = position_ik(world.kin, description.tcp, goal.position, joints=ik_joints,
+                       q_fixed=start)
+    if not sols:
+        raise GoalOutOfReach(f"no joint state reaches {goal.position}",
+                             details={"position": list(goal.position)})
+    free, first_pairs = [], None
+    for s in sols:
+        chk = world.check(s.q)
+        if chk.valid:
+            free.append(np.asarray(s.q, float))
+        elif first_pairs is None:
+            first_pairs = chk.pairs
+    if not free:
+        raise GoalInCollision(f"every IK solution ({len(sols)}) for {goal.position} collides",
+                              pairs=first_pairs or ())
+    return np.array(free)

@@ -1,0 +1,285 @@
+"""Joint-space path planning with OMPL: build, validate, solve.
+
+A request names a group (``arm``, ``gripper`` or ``all``); joints outside it keep their
+start values. Solving validates start and goal (limits, collisions), tries the straight
+line, runs the chosen OMPL planner, shortcuts the path and re-checks it densely, so a
+returned path never grazes anything between checks.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import ompl.base as ob
+import ompl.geometric as og
+import ompl.util as ou
+
+from description import Description
+
+from .collision import CollisionWorld
+from .errors import InvalidRequest, NoPathFound, StartInCollision
+from .goals import Goal, JointGoal, NamedGoal, PositionGoal, check_limits, resolve_goal
+from .motion_check import MotionChecker, StateCodec, ValidityChecker, interpolate, \
+    motion_valid
+
+_log = logging.getLogger(__name__)
+
+GroupName = Literal["arm", "gripper", "all"]
+PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
+            "LBKPIECE1", "BKPIECE1", "EST", "FMT", "BFMT", "InformedRRTstar", "SORRTstar",
+            "AORRTC")
+RECHECK_STEP = 0.002  # [rad] the largest joint step between re-checked samples
+# [rad] edge-check step while planning; a path failing the dense re-check is re-planned
+# at RECHECK_STEP, so a coarse step costs correctness nothing
+PLAN_STEP = 0.01
+
+
+def available_planners() -> tuple[str, ...]:
+    """The planner names this OMPL build offers."""
+    return tuple(p for p in PLANNERS if hasattr(og, p))
+
+
+@dataclass(frozen=True)
+class PathRequest:
+    """A planning problem.
+
+    Attributes:
+        start: the full actuated joint vector [rad], shape (dof,).
+        goal: joint values, a named SRDF state, or a tcp position.
+        group: the joints that move; the others keep their start values.
+        planner: an OMPL geometric planner's name.
+        planning_time: the planner's time budget [s].
+        seed: seeds OMPL's random generator, making results reproducible.
+    """
+
+    start: np.ndarray
+    goal: Goal
+    group: GroupName = "arm"
+    planner: str = "RRTConnect"
+    planning_time: float = 1.0
+    seed: int | None = None
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """A collision-free joint path.
+
+    Attributes:
+        joint_names: the order of the joint vectors.
+        path: waypoints, shape (k, dof), k >= 2, first = start; every straight segment
+            was re-checked at ``RECHECK_STEP``.
+        planner: the planner that produced it ("straight line" if none was needed).
+        timings: seconds per stage: validate, straight_line, plan, simplify, recheck.
+        checks: state validity checks made (narrow or broad phase).
+        straight_line: the straight line to the goal was free.
+        length: joint-space path length [rad] (sum of Euclidean segment lengths).
+    """
+
+    joint_names: tuple[str, ...]
+    path: np.ndarray
+    planner: str
+    timings: Mapping[str, float] = field(default_factory=dict)
+    checks: int = 0
+    straight_line: bool = False
+    length: float = 0.0
+
+
+def _path_length(path: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
+class PathPlanner:
+    """Plans paths in one collision world.
+
+    Args:
+        world: the collision world (robot, scene, padding) to plan in.
+        description: the robot (groups and named states from its SRDF).
+        step: the largest joint step [rad] when checking an edge while planning.
+    """
+
+    def __init__(self, world: CollisionWorld, description: Description, *,
+                 step: float = PLAN_STEP) -> None:
+        self.world = world
+        self.description = description
+        self.step = step
+        names = world.kin.joint_names
+        self._groups: dict[str, tuple[str, ...]] = {"all": tuple(names)}
+        srdf = description.srdf
+        for g in ("arm", "gripper"):
+            if srdf is not None and g in srdf.groups:
+                self._groups[g] = tuple(j for j in srdf.groups[g].joints if j in names)
+        self._limits = description.robot.position_limits(names)
+
+    def group_joints(self, group: str) -> tuple[str, ...]:
+        try:
+            return self._groups[group]
+        except KeyError:
+            raise InvalidRequest(f"'{group}' is not a group ({', '.join(self._groups)})",
+                                 field="group") from None
+
+    # -- validate ---------------------------------------------------------------------
+    def _validate(self, req: PathRequest) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        if not isinstance(req.goal, (JointGoal, NamedGoal, PositionGoal)):
+            raise InvalidRequest(f"unknown goal type {type(req.goal).__name__}", field="goal")
+        if req.planner not in available_planners():
+            raise InvalidRequest(f"unknown planner '{req.planner}' (available: "
+                                 f"{', '.join(available_planners())})", field="planner")
+        if not (np.isfinite(req.planning_time) and req.planning_time > 0):
+            raise InvalidRequest(f"{req.planning_time!r} must be > 0 [s]", field="planning_time")
+        if req.seed is not None and (not isinstance(req.seed, int) or req.seed < 0):
+            raise InvalidRequest(f"{req.seed!r} must be an integer >= 0", field="seed")
+        joints = self.group_joints(req.group)
+        start = np.asarray(req.start, dtype=float)
+        names = self.world.kin.joint_names
+        if start.shape != (len(names),) or not np.all(np.isfinite(start)):
+            raise InvalidRequest(f"must be {len(names)} finite values ({', '.join(names)})",
+                                 field="start")
+        check_limits(self.world, start, field="start")
+        chk = self.world.check(start)
+        if not chk.valid:
+            raise StartInCollision("the start state collides", pairs=chk.pairs,
+                                   q=dict(zip(names, map(float, start))))
+        goals = resolve_goal(req.goal, world=self.world, description=self.description,
+                             start=start, group_joints=joints)
+        return start, goals, joints
+
+    # -- solve ------------------------------------------------------------------------
+    def solve(self, request: PathRequest) -> PathResult:
+        """Plan a path for ``request``.
+
+        Raises:
+            InvalidRequest, JointLimitViolation: a malformed request.
+            StartInCollision, GoalInCollision: with every colliding pair.
+            GoalOutOfReach: no IK solution for a position goal.
+            NoPathFound: no path within the time budget.
+        """
+        timings: dict[str, float] = {}
+        checks0 = self.world.checks
+        t0 = time.perf_counter()
+        start, goals, joints = self._validate(request)
+        t1 = time.perf_counter()
+        timings["validate"] = t1 - t0
+        # Straight line first: nearest goal candidates first.
+        order = np.argsort(np.linalg.norm(goals - start, axis=1))
+        path = None
+        for k in order:
+            if motion_valid(self.world, start, goals[k], self.step):
+                path = np.array([start, goals[k]])
+                break
+        t2 = time.perf_counter()
+        timings["straight_line"] = t2 - t1
+        straight = path is not None
+        planner_name = "straight line"
+        if path is None:
+            path = self._plan(request, start, goals, joints)
+            planner_name = request.planner
+        t3 = time.perf_counter()
+        timings["plan"] = t3 - t2
+        if not straight:
+            path = self._shortcut(path, seed=request.seed)
+        t4 = time.perf_counter()
+        timings["simplify"] = t4 - t3
+        dense = interpolate(path, RECHECK_STEP)
+        bad = self.world.first_invalid(dense)
+        t5 = time.perf_counter()
+        timings["recheck"] = t5 - t4
+        if bad >= 0 and self.step > RECHECK_STEP:
+            # a coarse edge check missed a graze: plan again checking edges densely
+            _log.info("dense re-check failed at sample %d; re-planning at %g rad", bad,
+                      RECHECK_STEP)
+            fine = PathPlanner(self.world, self.description, step=RECHECK_STEP)
+            result = fine.solve(request)
+            return PathResult(joint_names=result.joint_names, path=result.path,
+                              planner=result.planner,
+                              timings={k: timings.get(k, 0.0) + v
+                                       for k, v in result.timings.items()},
+                              checks=self.world.checks - checks0,
+                              straight_line=result.straight_line, length=result.length)
+        if bad >= 0:
+            # cannot happen when edges were checked at <= RECHECK_STEP; never return it
+            raise NoPathFound("the path failed its dense re-check",
+                              details={"q": dense[bad].tolist(), "planner": planner_name})
+        return PathResult(joint_names=self.world.kin.joint_names, path=path,
+                          planner=planner_name, timings=timings,
+                          checks=self.world.checks - checks0, straight_line=straight,
+                          length=_path_length(path))
+
+    def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
+              joints: tuple[str, ...]) -> np.ndarray:
+        names = self.world.kin.joint_names
+        gidx = np.array([names.index(j) for j in joints], dtype=np.int64)
+        if req.seed is not None:
+            ou.RNG.setSeed(int(req.seed))
+        space = ob.RealVectorStateSpace(len(gidx))
+        bounds = ob.RealVectorBounds(len(gidx))
+        for i, j in enumerate(gidx):
+            bounds.setLow(i, float(self._limits[j, 0]))
+            bounds.setHigh(i, float(self._limits[j, 1]))
+        space.setBounds(bounds)
+        ss = og.SimpleSetup(space)
+        si = ss.getSpaceInformation()
+        codec = StateCodec(gidx, start)
+        svc = ValidityChecker(si, self.world, codec)
+        mv = MotionChecker(si, self.world, codec, self.step)
+        ss.setStateValidityChecker(svc)
+        si.setMotionValidator(mv)
+        s = si.allocState()
+        codec.put(start, s)
+        ss.setStartState(s)
+        gs = ob.GoalStates(si)
+        for g in goals:
+            st = si.allocState()
+            codec.put(g, st)
+            gs.addState(st)
+        ss.setGoal(gs)
+        planner = getattr(og, req.planner)(si)
+        ss.setPlanner(planner)
+        ss.setup()
+        status = ss.solve(float(req.planning_time))
+        if not ss.haveExactSolutionPath():
+            raise NoPathFound(f"{req.planner} found no path in {req.planning_time:g} s "
+                              f"({status})", details={"planner": req.planner,
+                                                      "planning_time": req.planning_time})
+        p = ss.getSolutionPath()
+        out = np.array([codec.full(p.getState(i)) for i in range(p.getStateCount())])
+        # keep the svc/mv alive until OMPL is done with them
+        del svc, mv
+        return out
+
+    def _shortcut(self, path: np.ndarray, *, seed: int | None,
+                  attempts: int = 40) -> np.ndarray:
+        """Drop waypoints a straight segment can skip, then random shortcuts (seeded)."""
+        path = [p for p in path]
+        i = 0
+        while i < len(path) - 2:  # greedy vertex reduction from the start
+            j = len(path) - 1
+            while j > i + 1 and not motion_valid(self.world, path[i], path[j], self.step):
+                j -= 1
+            del path[i + 1:j]
+            i += 1
+        rng = np.random.default_rng(seed)
+        pts = np.array(path)
+        for _ in range(attempts):
+            if len(pts) < 3:
+                break
+            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+            cum = np.concatenate([[0.0], np.cumsum(seg)])
+            ta, tb = np.sort(rng.uniform(0, cum[-1], 2))
+            ia, ib = np.searchsorted(cum, ta) - 1, np.searchsorted(cum, tb) - 1
+            ia, ib = max(ia, 0), max(ib, 0)
+            if ib <= ia:
+                continue
+            qa = pts[ia] + (ta - cum[ia]) / max(seg[ia], 1e-12) * (pts[ia + 1] - pts[ia])
+            qb = pts[ib] + (tb - cum[ib]) / max(seg[ib], 1e-12) * (pts[ib + 1] - pts[ib])
+            old = (np.linalg.norm(qa - pts[ia + 1]) + cum[ib] - cum[ia + 1]
+                   + np.linalg.norm(qb - pts[ib]))
+            if np.linalg.norm(qb - qa) >= old - 1e-9:
+                continue
+            if motion_valid(self.world, qa, qb, self.step):
+                pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
+        return pts
