@@ -1,0 +1,220 @@
+"""The viewer: a viser server showing the robot, sliders per joint and collisions.
+
+Threading: viser runs GUI callbacks on its own threads; every change of the shown pose
+goes through :meth:`RobotViewer.set_q`, which holds one lock while it moves the links and
+recolours them.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from description import Description
+from planner.collision import CollisionWorld, StateCheck
+from planner.scene import Obstacle
+
+from . import require
+from .geometry import (COLLISION_RGB, OBSTACLE_RGB, frame_box, link_meshes, matrix_to_wxyz,
+                       obstacle_mesh, world_bounds)
+
+_log = logging.getLogger(__name__)
+
+
+class RobotViewer:
+    """Serve a page showing ``description`` at the slider values, with collisions in red.
+
+    Args:
+        description: the robot.
+        obstacles: scene obstacles to show (and check against).
+        host: the address to listen on (127.0.0.1: this machine only).
+        port: the HTTP/websocket port.
+        q0: the first pose, shape (dof,) in ``robot.actuated_joints`` order [rad];
+            default: all zeros clamped into the limits.
+        padding: collision padding [m] (a pair closer than this shows as colliding).
+    """
+
+    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
+                 host: str = "127.0.0.1", port: int = 8080, q0: ArrayLike | None = None,
+                 padding: float = 0.0) -> None:
+        viser = require("viser")
+        self.description = description
+        self.obstacles = tuple(obstacles)
+        self.world = CollisionWorld(description, obstacles=self.obstacles, padding=padding)
+        self.kin = self.world.kin
+        self.joint_names = self.kin.joint_names
+        lim = description.robot.position_limits(self.joint_names)
+        self.lower = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -math.pi)
+        self.upper = np.where(np.isfinite(lim[:, 1]), lim[:, 1], math.pi)
+        q = np.zeros(self.kin.dof) if q0 is None else np.asarray(q0, dtype=float)
+        self._q = np.clip(q, self.lower, self.upper)
+        self._lock = threading.RLock()
+        self._local = threading.local()  # marks set_q's own slider writes
+        self._listeners: list[Callable[[np.ndarray, StateCheck], None]] = []
+        self.meshes = link_meshes(description, self.kin)
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server.gui.configure_theme(control_layout="floating", control_width="medium",
+                                        show_share_button=False)
+        self._build_scene()
+        self.sliders = self._build_joint_panel()
+        self.check = self.world.check(self._q)
+        self._poses = self.kin.link_poses(self._q)
+        self.set_q(self._q, force=True)
+        _log.info("viewer serving %s on http://%s:%d", description.robot.name, host,
+                  self.server.get_port())
+
+    # -- building ----------------------------------------------------------------------
+    def _build_scene(self) -> None:
+        scene = self.server.scene
+        scene.set_up_direction("+z")
+        poses = self.kin.link_poses(self._q)
+        bounds = world_bounds(self.meshes, poses, self.obstacles)
+        size = float(np.max(bounds[1] - bounds[0]))
+        cell = 10 ** math.floor(math.log10(max(size, 1e-3) / 2))
+        extent = 2 * cell * math.ceil(1.5 * size / (2 * cell))
+        scene.add_grid("/ground", width=extent, height=extent, plane="xy", cell_size=cell,
+                       section_size=cell * 5, position=(float(bounds.mean(axis=0)[0]),
+                                                        float(bounds.mean(axis=0)[1]), 0.0))
+        view = frame_box(bounds)
+        cam = self.server.initial_camera
+        cam.fov = view.fov
+        cam.look_at = view.look_at
+        cam.position = view.position
+        cam.up = (0.0, 0.0, 1.0)
+        self.camera = view
+        axes = 0.12 * size
+        self._frames = {}
+        self._mesh_handles = {}
+        for m in self.meshes:
+            self._frames[m.link] = scene.add_frame(
+                f"/robot/{m.link}", show_axes=False, axes_length=axes, axes_radius=axes * 0.04)
+            self._mesh_handles[m.link] = scene.add_mesh_simple(
+                f"/robot/{m.link}/visual", m.vertices, m.faces, color=m.color)
+        self._obstacle_handles = {}
+        for o in self.obstacles:
+            mesh = obstacle_mesh(o)
+            pose = o.pose()
+            self._obstacle_handles[o.id] = scene.add_mesh_simple(
+                f"/obstacles/{o.id}", np.asarray(mesh.vertices, np.float32),
+                np.asarray(mesh.faces, np.uint32), color=OBSTACLE_RGB, opacity=0.85,
+                wxyz=matrix_to_wxyz(pose[:3, :3]), position=tuple(pose[:3, 3]))
+        self._colors = {m.link: m.color for m in self.meshes}
+        self._colors.update({o: OBSTACLE_RGB for o in self._obstacle_handles})
+
+    def _build_joint_panel(self) -> dict[str, object]:
+        gui = self.server.gui
+        robot = self.description.robot
+        sliders = {}
+        with gui.add_folder("Joints"):
+            for i, name in enumerate(self.joint_names):
+                mimics = robot.mimics_of(name)
+                hint = f"{name} [rad]" + (f"; {', '.join(mimics)} follow(s) it" if mimics else "")
+                label = name + (f" (+{', '.join(mimics)})" if mimics else "")
+                s = gui.add_slider(label, min=float(self.lower[i]), max=float(self.upper[i]),
+                                   step=0.01, initial_value=float(self._q[i]), hint=hint,
+                                   marks=tuple((float(v), f"{v:.2f}") for v in
+                                               (self.lower[i], self.upper[i])))
+                s.on_update(self._slider_moved)
+                sliders[name] = s
+            states = self._named_states()
+            if states:
+                pick = gui.add_dropdown("Named state", ("(choose)",) + tuple(states),
+                                        hint="move the sliders to an SRDF named state")
+
+                @pick.on_update
+                def _(_event: object) -> None:
+                    if pick.value in states:
+                        q = self.q.copy()
+                        for j, v in states[pick.value].items():
+                            if j in self.joint_names:
+                                q[self.joint_names.index(j)] = v
+                        self.set_q(q)
+            frames = gui.add_checkbox("Show link frames", False)
+
+            @frames.on_update
+            def _(_event: object) -> None:
+                for f in self._frames.values():
+                    f.show_axes = frames.value
+        with gui.add_folder("Collisions"):
+            self._collision_md = gui.add_markdown("")
+        return sliders
+
+    def _named_states(self) -> dict[str, Mapping[str, float]]:
+        srdf = self.description.srdf
+        if srdf is None:
+            return {}
+        return {s.name: dict(s.values) for s in srdf.group_states.values()}
+
+    # -- state -------------------------------------------------------------------------
+    @property
+    def q(self) -> np.ndarray:
+        """The shown pose, shape (dof,) [rad], in ``joint_names`` order (a copy)."""
+        with self._lock:
+            return self._q.copy()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}/"
+
+    def on_change(self, fn: Callable[[np.ndarray, StateCheck], None]) -> None:
+        """Call ``fn(q, check)`` after every pose change."""
+        self._listeners.append(fn)
+
+    def _slider_moved(self, _event: object) -> None:
+        if getattr(self._local, "setting", False):
+            return
+        self.set_q([float(self.sliders[n].value) for n in self.joint_names])
+
+    def set_q(self, q: ArrayLike, *, force: bool = False) -> StateCheck:
+        """Show pose ``q`` (shape (dof,) [rad], clamped into the limits): move the links,
+        the sliders, and colour colliding bodies red. Returns the collision check."""
+        q = np.clip(np.asarray(q, dtype=float).reshape(-1), self.lower, self.upper)
+        with self._lock:
+            if not force and np.array_equal(q, self._q):
+                return self.check
+            self._q = q
+            poses = self.kin.link_poses(q)
+            check = self.world.check(q)
+            red = {name for pair in check.pairs for name in pair}
+            with self.server.atomic():
+                for m in self.meshes:
+                    t = poses[m.index]
+                    f = self._frames[m.link]
+                    f.wxyz = matrix_to_wxyz(t[:3, :3])
+                    f.position = tuple(float(v) for v in t[:3, 3])
+                for name, h in (self._mesh_handles | self._obstacle_handles).items():
+                    want = COLLISION_RGB if name in red else self._colors[name]
+                    if force or tuple(h.color) != want:
+                        h.color = want
+                self._local.setting = True
+                try:
+                    for i, n in enumerate(self.joint_names):
+                        if abs(float(self.sliders[n].value) - q[i]) > 1e-9:
+                            self.sliders[n].value = float(q[i])
+                finally:
+                    self._local.setting = False
+                self._collision_md.content = _collision_text(check)
+            self.check, self._poses = check, poses
+        for fn in self._listeners:
+            fn(q, check)
+        return check
+
+    def link_poses(self) -> np.ndarray:
+        """The shown links' poses, shape (n_links, 4, 4), in ``kin.link_names`` order."""
+        with self._lock:
+            return self._poses.copy()
+
+    def close(self) -> None:
+        self.server.stop()
+
+
+def _collision_text(check: StateCheck) -> str:
+    if check.valid:
+        return "**No collision**"
+    lines = "\n".join(f"- {a} ↔ {b}" for a, b in check.pairs)
+    return f"**In collision** ({len(check.pairs)} pairs):\n\n{lines}"

@@ -1,0 +1,108 @@
+"""Plots of a trajectory: positions, velocities, accelerations and efforts with limits.
+
+:func:`plot_panels` gives the numbers (used by the page's live plots); :func:`plot_png`
+draws them with matplotlib (an optional dependency, imported here only).
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from description import Description
+
+from . import require
+from .trajectory import PlaybackTrajectory
+
+Quantity = Literal["position", "velocity", "acceleration", "effort"]
+
+
+@dataclass(frozen=True)
+class PlotPanel:
+    """One quantity of every joint over time.
+
+    Attributes:
+        quantity: what is plotted.
+        unit: its unit, e.g. "rad/s".
+        times: [s], shape (n,).
+        values: shape (n, j), one column per joint (``joint_names``).
+        lower: lower limit per joint, shape (j,) (nan: none).
+        upper: upper limit per joint, shape (j,) (nan: none).
+    """
+
+    quantity: Quantity
+    unit: str
+    joint_names: tuple[str, ...]
+    times: np.ndarray
+    values: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+
+
+def joint_limits(description: Description, joints: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """Position lower/upper, velocity, acceleration and effort limits per joint, each
+    shape (j,) (nan where the model gives none): the URDF's limits, with the MoveIt
+    joint_limits.yaml overriding velocity and adding acceleration."""
+    out = {k: np.full(len(joints), np.nan)
+           for k in ("lower", "upper", "velocity", "acceleration", "effort")}
+    yaml_limits = description.joint_limits or {}
+    for i, name in enumerate(joints):
+        j = description.robot.joints.get(name)
+        if j is not None and j.limit is not None:
+            out["lower"][i] = np.nan if j.limit.lower is None else j.limit.lower
+            out["upper"][i] = np.nan if j.limit.upper is None else j.limit.upper
+            out["velocity"][i] = j.limit.velocity or np.nan
+            out["effort"][i] = j.limit.effort or np.nan
+        y = yaml_limits.get(name, {})
+        if y.get("has_velocity_limits") and y.get("max_velocity") is not None:
+            out["velocity"][i] = float(y["max_velocity"])
+        if y.get("has_acceleration_limits") and y.get("max_acceleration") is not None:
+            out["acceleration"][i] = float(y["max_acceleration"])
+    return out
+
+
+def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list[PlotPanel]:
+    """The panels the trajectory has data for (positions always)."""
+    nan = np.full(len(traj.joint_names), np.nan)
+    specs: list[tuple[Quantity, str, np.ndarray | None, np.ndarray, np.ndarray]] = [
+        ("position", "rad", traj.positions, limits["lower"], limits["upper"]),
+        ("velocity", "rad/s", traj.velocities, -limits["velocity"], limits["velocity"]),
+        ("acceleration", "rad/s²", traj.accelerations, -limits["acceleration"],
+         limits["acceleration"]),
+        ("effort", "N·m", traj.effort, -limits["effort"], limits["effort"]),
+    ]
+    return [PlotPanel(quantity=q, unit=u, joint_names=traj.joint_names, times=traj.times,
+                      values=v, lower=lo if lo is not None else nan,
+                      upper=hi if hi is not None else nan)
+            for q, u, v, lo, hi in specs if v is not None]
+
+
+def plot_png(panels: list[PlotPanel], *, title: str = "", dpi: int = 110) -> bytes:
+    """The panels as one PNG: one row per quantity, limits dashed in each joint's colour."""
+    matplotlib = require("matplotlib")
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure  # the OO API: no global pyplot state
+
+    fig = Figure(figsize=(9, 2.4 * max(len(panels), 1)), dpi=dpi, layout="constrained")
+    axes = fig.subplots(max(len(panels), 1), 1, sharex=True, squeeze=False)[:, 0]
+    colors = [f"C{i}" for i in range(10)]
+    for ax, p in zip(axes, panels):
+        for i, name in enumerate(p.joint_names):
+            c = colors[i % len(colors)]
+            ax.plot(p.times, p.values[:, i], color=c, label=name, lw=1.6)
+            for lim in (p.lower[i], p.upper[i]):
+                if np.isfinite(lim):
+                    ax.axhline(lim, color=c, lw=0.8, ls="--", alpha=0.6)
+        ax.set_ylabel(f"{p.quantity} [{p.unit}]")
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="upper right", fontsize="small", ncols=max(1, len(panels[0].joint_names))
+                   if panels else 1)
+    axes[-1].set_xlabel("time [s]")
+    if title:
+        fig.suptitle(title)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()
