@@ -6,10 +6,10 @@ import argparse
 import logging
 import sys
 
-from . import cmd_model
+from . import cmd_model, cmd_serve, cmd_srdf
 from .common import run_guarded
 
-_COMMANDS = [cmd_model]
+_COMMANDS = [cmd_model, cmd_serve, cmd_srdf]
 
 
 def build_parser() -> argparse.ArgumentParser:
