@@ -1,0 +1,99 @@
+"""`arduinobot serve`: run the planning service on Zenoh."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, parse_xacro_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "serve", help="serve planning, fk, ik and state checks over Zenoh",
+        description="Open a Zenoh session and answer JSON queries on <prefix>/plan, /fk, "
+        "/ik, /check, /description, /health and /schema (and the same under "
+        "<prefix>/instance/<id>/ for one instance), with a liveliness token "
+        "<prefix>/alive/<id>. Default: peer mode listening on tcp/127.0.0.1:7447, "
+        "multicast scouting off. Planning runs in a pool of worker processes. Ctrl-C "
+        "stops it cleanly.",
+        epilog="examples:\n  arduinobot serve\n  arduinobot serve --listen tcp/0.0.0.0:7447 "
+        "--workers 4\n  arduinobot serve --mode client --connect tcp/router.lan:7447\n"
+        "  arduinobot serve --config zenoh.json5   # TLS, user/password, access control\n"
+        "  arduinobot serve my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_model_args(p)
+    p.add_argument("--description", metavar="PATH", dest="description_path",
+                   help="the robot's URDF/xacro (same as FILE)")
+    p.add_argument("--listen", action="append", metavar="ENDPOINT",
+                   help="an endpoint to listen on, repeatable (default tcp/127.0.0.1:7447; "
+                   "with --config, the file's)")
+    p.add_argument("--connect", action="append", metavar="ENDPOINT",
+                   help="a router or peer to connect to, repeatable")
+    p.add_argument("--mode", choices=("peer", "client", "router"), default=None,
+                   help="zenoh session mode (default peer; with --config, the file's)")
+    p.add_argument("--config", metavar="FILE",
+                   help="a zenoh JSON5 config file (TLS, user/password, access control); "
+                   "options given here override it")
+    p.add_argument("--multicast-scouting", action="store_true",
+                   help="announce the service on the LAN by multicast scouting (off by "
+                   "default, even with --config)")
+    p.add_argument("--prefix", default="arduinobot", help="key expression prefix "
+                   "(default: arduinobot)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, metavar="N",
+                   help="planning worker processes (default: the number of cores, "
+                   f"{os.cpu_count()})")
+    p.add_argument("--queue", type=int, default=None, metavar="N",
+                   help="requests that may wait for a worker before BUSY (default 4 per "
+                   "worker)")
+    p.add_argument("--timeout", type=float, default=30.0, metavar="S",
+                   help="a request's deadline [s], plus planning_time for plans; then "
+                   "TIMEOUT (default 30)")
+    p.set_defaults(func=cmd_serve)
+
+
+def cmd_serve(ns: argparse.Namespace) -> int:
+    from service.server import PlannerService, ServeOptions
+    from service.worker import DescriptionSpec
+    from service.zconfig import DEFAULT_ENDPOINT
+
+    if ns.file and ns.description_path:
+        print("arduinobot: error: give the model as FILE or --description, not both",
+              file=sys.stderr)
+        return EXIT_FAIL
+    if ns.workers < 1:
+        print("arduinobot: error: --workers must be >= 1", file=sys.stderr)
+        return EXIT_FAIL
+    logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
+    spec = DescriptionSpec(path=ns.file or ns.description_path,
+                           package_dirs=tuple(ns.package_dir), args=parse_xacro_args(ns.arg))
+    listen = ns.listen if ns.listen or ns.config else [DEFAULT_ENDPOINT]
+    opts = ServeOptions(prefix=ns.prefix, mode=ns.mode or ("peer" if not ns.config else None),
+                        listen=listen, connect=ns.connect, config_file=ns.config,
+                        multicast_scouting=ns.multicast_scouting, description=spec,
+                        workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    svc = PlannerService(opts)
+    try:
+        svc.start()
+    except Exception as e:
+        import zenoh
+
+        from service.pool import PoolStartError
+        if isinstance(e, (PoolStartError, zenoh.ZError)):
+            print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
+            return EXIT_FAIL
+        raise
+    try:
+        while not stop.wait(0.5):  # short waits keep the signal handler responsive
+            pass
+    finally:
+        logging.getLogger("service.server").info("shutting down")
+        svc.close()
+    return EXIT_OK

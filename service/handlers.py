@@ -1,0 +1,140 @@
+"""What a worker does with one validated request: fk, ik, check or plan.
+
+A :class:`Handlers` owns everything built from the description once per process (the
+kinematics, the obstacle-free collision world, the motion planner), so a request pays
+only for its own work. Results are JSON-ready dicts; failures raise
+:class:`planner.errors.PlanningError` subclasses whose ``code`` goes on the wire.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import OrderedDict
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from description import Description
+from planner.collision import CollisionWorld
+from planner.errors import InvalidRequest
+from planner.ik import position_ik
+from planner.kinematics import Kinematics
+
+from .requests import joint_values, obstacles
+
+_log = logging.getLogger(__name__)
+
+_SCENE_CACHE = 4
+
+
+def _rpy(m: np.ndarray) -> list[float]:
+    """URDF roll-pitch-yaw [rad] of a rotation matrix, shape (3, 3)."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(m[2, 0]))))
+    if abs(math.cos(pitch)) > 1e-9:
+        roll = math.atan2(float(m[2, 1]), float(m[2, 2]))
+        yaw = math.atan2(float(m[1, 0]), float(m[0, 0]))
+    else:  # gimbal lock: put it all in yaw
+        roll, yaw = 0.0, math.atan2(-float(m[0, 1]), float(m[1, 1]))
+    return [roll, pitch, yaw]
+
+
+class Handlers:
+    """The request handlers of one worker process, for one robot description."""
+
+    def __init__(self, description: Description) -> None:
+        self.description = description
+        self.kin = Kinematics(description.robot)
+        self._world: CollisionWorld | None = None
+        # Scenes repeat (a robot cell's table): keep the last few worlds with obstacles.
+        self._scenes: OrderedDict[tuple[Any, ...], CollisionWorld] = OrderedDict()
+        self._planner: Any = None
+
+    @property
+    def world(self) -> CollisionWorld:
+        """The obstacle-free collision world, built on first use (meshes take a while)."""
+        if self._world is None:
+            self._world = CollisionWorld(self.description)
+        return self._world
+
+    def warm_up(self) -> None:
+        """Build the collision world and the planner now, not on the first request."""
+        _ = self.world
+        self._motion_planner()
+
+    def _motion_planner(self) -> Any:
+        if self._planner is None:
+            from planner.pipeline import MotionPlanner  # the heaviest import: only if used
+            self._planner = MotionPlanner(self.description)
+        return self._planner
+
+    def _q(self, values: Mapping[str, float] | None, field: str) -> np.ndarray:
+        vals = joint_values(self.description, values, field=field)
+        return np.array([vals[n] for n in self.kin.joint_names])
+
+    def handle(self, kind: str, data: Mapping[str, Any]) -> dict[str, Any]:
+        """Dispatch one request of ``kind`` (``fk``, ``ik``, ``check``, ``plan``)."""
+        fn = {"fk": self.fk, "ik": self.ik, "check": self.check, "plan": self.plan}.get(kind)
+        if fn is None:
+            raise InvalidRequest(f"unknown request kind '{kind}'")
+        return fn(data)
+
+    def fk(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        """Link poses in the world frame: xyz [m], rpy [rad], 4x4 matrix; tcp position [m]."""
+        q = self._q(data.get("joints"), "joints")
+        links = list(data.get("links") or self.kin.link_names)
+        for i, link in enumerate(links):
+            if link not in self.kin.link_index:
+                raise InvalidRequest(f"no link '{link}'; links: {', '.join(self.kin.link_names)}",
+                                     field=f"links[{i}]")
+        poses = self.kin.link_poses(q)
+        out = {link: {"xyz": [float(v) for v in poses[self.kin.link_index[link]][:3, 3]],
+                      "rpy": _rpy(poses[self.kin.link_index[link]][:3, :3]),
+                      "matrix": poses[self.kin.link_index[link]].tolist()} for link in links}
+        tcp = self.description.tcp
+        tcp_xyz = None if tcp is None else [
+            float(v) for v in self.kin.point_position(q, tcp.parent_link, tcp.xyz)]
+        return {"joints": dict(zip(self.kin.joint_names, map(float, q))), "links": out,
+                "tcp": tcp_xyz}
+
+    def ik(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        """Every tcp position IK branch within the joint limits (GOAL_OUT_OF_REACH if none)."""
+        tcp = self.description.tcp
+        if tcp is None:
+            raise InvalidRequest("this description has no tcp (config/tcp.yaml)")
+        sols = position_ik(self.kin, tcp, [float(v) for v in data["position"]])
+        return {"solutions": [{"joints": dict(zip(self.kin.joint_names, map(float, s.q))),
+                               "branch": s.branch} for s in sols]}
+
+    def check(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        """Validity of one state: colliding pairs, clearance [m] and the closest pair."""
+        q = self._q(data.get("joints"), "joints")
+        obs = obstacles(self.description, data.get("obstacles"))
+        padding = float(data.get("padding", 0.0))
+        world = self._scene(obs, padding)
+        res = world.check(q, clearance=True)
+        clearance = res.clearance if res.clearance is not None and math.isfinite(
+            res.clearance) else None
+        return {"valid": bool(res.valid), "pairs": [list(p) for p in res.pairs],
+                "clearance": clearance,
+                "closest": list(res.closest) if res.closest else None,
+                "joints": dict(zip(self.kin.joint_names, map(float, q)))}
+
+    def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
+        if not obs and padding == 0.0:
+            return self.world
+        key = (obs, padding)
+        world = self._scenes.pop(key, None)
+        if world is None:
+            world = CollisionWorld(self.description, obstacles=obs, padding=padding)
+        self._scenes[key] = world
+        while len(self._scenes) > _SCENE_CACHE:
+            self._scenes.popitem(last=False)
+        return world
+
+    def plan(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        """A v1 plan request (validated by the schema) -> the v1 response body."""
+        from .plan_io import plan_request, plan_response
+        req = plan_request(self.description, data)
+        return plan_response(self._motion_planner().solve(req))

@@ -1,0 +1,296 @@
+"""A pool of worker processes with a bounded queue, deadlines and exactly one reply per job.
+
+One parent thread per worker slot feeds its process over a pipe and waits for the answer
+with the job's deadline: when the deadline passes the job gets TIMEOUT and the process is
+replaced (it may be stuck in native code); when the process dies (a crash in native code,
+a signal) the job gets INTERNAL and the process is replaced. A watcher thread times out
+jobs still waiting in the queue. Past ``queue_size`` waiting jobs, ``submit`` refuses at
+once (BUSY). Replies are sent from these threads, never from Zenoh's.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import logging
+import multiprocessing as mp
+import queue
+import signal
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from .worker import DescriptionSpec, worker_main
+
+_log = logging.getLogger(__name__)
+
+#: ``(True, body)`` or ``(False, {"code", "message", "details"})``.
+Outcome = tuple[bool, dict[str, Any]]
+
+
+class PoolStartError(RuntimeError):
+    """A worker could not load the description or warm up."""
+
+
+@dataclass(eq=False)
+class Job:
+    """One request in flight. ``respond`` is called exactly once (first outcome wins),
+    then dropped, so whatever it holds (a Zenoh query) is released."""
+
+    kind: str
+    data: Mapping[str, Any]
+    request_id: str
+    deadline: float  # time.monotonic()
+    respond: Callable[[Outcome], None] | None
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    @property
+    def done(self) -> bool:
+        return self.respond is None
+
+    def finish(self, outcome: Outcome) -> bool:
+        with self._lock:
+            fn, self.respond = self.respond, None
+        if fn is None:
+            return False
+        try:
+            fn(outcome)
+        except Exception:  # a reply that cannot be sent must not kill the pool thread
+            _log.exception("request %s: sending the reply failed", self.request_id)
+        return True
+
+
+def error(code: str, message: str, **details: Any) -> Outcome:
+    return False, {"code": code, "message": message, "details": details}
+
+
+class WorkerPool:
+    """``workers`` processes, each with the description loaded once.
+
+    Args:
+        spec: how workers load the description.
+        workers: number of processes (>= 1).
+        queue_size: jobs that may wait for a free worker; more are refused (BUSY).
+        start_method: ``forkserver`` (default; fast replacement) or ``spawn``.
+    """
+
+    def __init__(self, spec: DescriptionSpec, *, workers: int, queue_size: int,
+                 start_method: str = "forkserver") -> None:
+        if workers < 1 or queue_size < 0:
+            raise ValueError("workers must be >= 1 and queue_size >= 0")
+        self.spec, self.workers = spec, workers
+        self._ctx = mp.get_context(start_method)
+        if start_method == "forkserver":
+            # Children fork from a server that already imported the planner.
+            self._ctx.set_forkserver_preload(["service.worker"])
+        self._queue: queue.Queue[Job | None] = queue.Queue(maxsize=queue_size)
+        self.queue_size = queue_size
+        self.counters: Counter[str] = Counter()
+        self._lock = threading.Lock()
+        self._pids: list[int | None] = [None] * workers
+        self._busy: list[Job | None] = [None] * workers
+        self._procs: list[Any] = [None] * workers
+        self._heap: list[tuple[float, int, Job]] = []
+        self._seq = itertools.count()
+        self._cond = threading.Condition()
+        self._stopping = False
+        self._threads: list[threading.Thread] = []
+
+    # -- lifecycle ---------------------------------------------------------------------
+    def start(self) -> None:
+        """Start every worker and wait until each has loaded the description.
+
+        Raises:
+            PoolStartError: a worker failed to load (the message says why).
+        """
+        ready = [threading.Event() for _ in range(self.workers)]
+        failures: list[str] = []
+        for i in range(self.workers):
+            t = threading.Thread(target=self._slot, args=(i, ready[i], failures),
+                                 name=f"pool-slot-{i}", daemon=True)
+            t.start()
+            self._threads.append(t)
+        for ev in ready:
+            ev.wait()
+        if failures:
+            self.close()
+            raise PoolStartError(failures[0])
+        w = threading.Thread(target=self._watch, name="pool-deadlines", daemon=True)
+        w.start()
+        self._threads.append(w)
+
+    def close(self) -> None:
+        """Refuse new jobs, answer waiting ones with INTERNAL, stop the workers."""
+        with self._cond:
+            self._stopping = True
+            self._cond.notify_all()
+        while True:
+            try:
+                job = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if job is not None:
+                job.finish(error("INTERNAL", "the service is shutting down"))
+        for _ in range(self.workers):
+            try:
+                self._queue.put_nowait(None)
+            except queue.Full:
+                break
+        for t in self._threads:
+            t.join(timeout=5.0)
+        for p in self._procs:
+            if p is not None and p.is_alive():
+                p.kill()
+                p.join(1.0)
+
+    def __enter__(self) -> WorkerPool:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- submitting --------------------------------------------------------------------
+    def submit(self, job: Job) -> None:
+        """Queue a job, or answer it BUSY at once when the queue is full."""
+        self.count("received")
+        if self._stopping:
+            job.finish(error("INTERNAL", "the service is shutting down"))
+            return
+        try:
+            self._queue.put_nowait(job)
+        except queue.Full:
+            self.count("BUSY")
+            job.finish(error("BUSY", f"all {self.workers} workers are busy and "
+                             f"{self.queue_size} requests are waiting; retry later",
+                             workers=self.workers, queue_size=self.queue_size,
+                             request_id=job.request_id))
+            return
+        with self._cond:
+            heapq.heappush(self._heap, (job.deadline, next(self._seq), job))
+            self._cond.notify()
+
+    def status(self) -> dict[str, Any]:
+        """Workers (pid, busy request), queue depth and counters, JSON-ready."""
+        with self._lock:
+            workers = [{"pid": pid, "busy": None if j is None else j.request_id}
+                       for pid, j in zip(self._pids, self._busy)]
+            counters = dict(self.counters)
+        return {"workers": workers, "queue_depth": self._queue.qsize(),
+                "queue_size": self.queue_size, "counters": counters}
+
+    # -- internals ---------------------------------------------------------------------
+    def count(self, key: str) -> None:
+        with self._lock:
+            self.counters[key] += 1
+
+    def _finish(self, job: Job, outcome: Outcome) -> None:
+        if job.finish(outcome):
+            self.count("ok" if outcome[0] else outcome[1]["code"])
+
+    def _watch(self) -> None:
+        while True:
+            with self._cond:
+                if self._stopping:
+                    return
+                now = time.monotonic()
+                expired = []
+                while self._heap and (self._heap[0][0] <= now or self._heap[0][2].done):
+                    expired.append(heapq.heappop(self._heap)[2])
+                if not expired:
+                    timeout = self._heap[0][0] - now if self._heap else None
+                    self._cond.wait(timeout)
+                    continue
+            for job in expired:
+                if not job.done:
+                    self._finish(job, error("TIMEOUT", "the request's deadline passed while "
+                                            "it waited for a worker",
+                                            request_id=job.request_id))
+
+    def _spawn(self, i: int) -> tuple[Any, Any]:
+        parent, child = self._ctx.Pipe()
+        proc = self._ctx.Process(target=worker_main, name=f"arduinobot-worker-{i}",
+                                 args=(child, self.spec, logging.getLogger().level),
+                                 daemon=True)
+        proc.start()
+        child.close()
+        try:
+            msg = parent.recv()
+        except EOFError:
+            proc.join(1.0)
+            raise PoolStartError(f"worker {i} exited while starting "
+                                 f"(exit code {proc.exitcode})") from None
+        if msg[0] != "ready":
+            proc.join(1.0)
+            raise PoolStartError(f"worker {i} could not start: {msg[1]}")
+        with self._lock:
+            self._pids[i], self._procs[i] = msg[1], proc
+        _log.debug("worker %d ready (pid %d)", i, msg[1])
+        return proc, parent
+
+    def _slot(self, i: int, ready: threading.Event, failures: list[str]) -> None:
+        try:
+            proc, conn = self._spawn(i)
+        except PoolStartError as e:
+            failures.append(str(e))
+            ready.set()
+            return
+        ready.set()
+        while True:
+            job = self._queue.get()
+            if job is None or self._stopping:
+                if job is not None:
+                    job.finish(error("INTERNAL", "the service is shutting down"))
+                if proc.is_alive():
+                    conn.send(None)
+                proc.join(2.0)
+                return
+            if job.done:
+                continue
+            with self._lock:
+                self._busy[i] = job
+            replace = False
+            try:
+                conn.send((job.request_id, job.kind, job.data))
+                remaining = job.deadline - time.monotonic()
+                if conn.poll(max(remaining, 0.0)):
+                    msg = conn.recv()
+                    self._finish(job, (True, msg[2]) if msg[1] == "ok" else error(
+                        msg[2], msg[3], **{**msg[4], "request_id": job.request_id}))
+                else:
+                    replace = True
+                    self.count("timeouts_in_worker")
+                    self._finish(job, error("TIMEOUT", "the request's deadline passed "
+                                            "while a worker was on it",
+                                            request_id=job.request_id))
+            except (EOFError, OSError, BrokenPipeError):
+                replace = True
+                proc.join(1.0)
+                code = proc.exitcode
+                how = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0
+                       else f"exit code {code}")
+                self.count("worker_crashes")
+                _log.error("worker %d (pid %s) died (%s) on request %s; replacing it",
+                           i, proc.pid, how, job.request_id)
+                self._finish(job, error("INTERNAL", f"the worker process died ({how}) "
+                                        "while planning this request; it has been replaced",
+                                        request_id=job.request_id, worker_exit=how))
+            finally:
+                with self._lock:
+                    self._busy[i] = None
+            if replace and not self._stopping:
+                if proc.is_alive():
+                    proc.kill()
+                proc.join(2.0)
+                conn.close()
+                try:
+                    proc, conn = self._spawn(i)
+                    self.count("worker_restarts")
+                except PoolStartError:
+                    _log.exception("worker %d could not be replaced; its slot is closed", i)
+                    with self._lock:
+                        self._pids[i] = None
+                    return

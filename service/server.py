@@ -1,0 +1,231 @@
+"""The Zenoh service: queryables under a prefix, a liveliness token, a worker pool.
+
+Keys (``<p>`` is the prefix, default ``arduinobot``; ``<id>`` the instance's zenoh id):
+
+- ``<p>/plan``, ``<p>/fk``, ``<p>/ik``, ``<p>/check``: JSON requests, answered by the pool;
+- ``<p>/description``, ``<p>/health``, ``<p>/schema``: answered at once;
+- the same under ``<p>/instance/<id>/...``, so a client can address one instance;
+- the liveliness token ``<p>/alive/<id>``, so clients discover live instances.
+
+Shared keys are declared complete: a plain ``get`` reaches one instance and, once an
+instance dies, the others.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import os
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from planner.errors import PlanningError
+
+from . import wire
+from .pool import Job, Outcome, WorkerPool
+from .worker import DescriptionSpec
+from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
+
+_log = logging.getLogger(__name__)
+
+VERSION = "1"
+WORK_KINDS = ("plan", "fk", "ik", "check")
+INFO_KINDS = ("description", "health", "schema")
+JSON = "application/json"
+
+
+@dataclass(frozen=True)
+class ServeOptions:
+    """Everything ``arduinobot serve`` takes.
+
+    Attributes:
+        timeout: a request's deadline after arrival [s] (plan requests add their
+            planning_time); past it the request is answered TIMEOUT.
+        queue_size: requests that may wait for a worker (default 4 per worker).
+    """
+
+    prefix: str = DEFAULT_PREFIX
+    mode: Mode | None = "peer"
+    listen: Sequence[str] | None = (DEFAULT_ENDPOINT,)
+    connect: Sequence[str] | None = None
+    config_file: str | None = None
+    multicast_scouting: bool = False
+    description: DescriptionSpec = field(default_factory=DescriptionSpec)
+    workers: int = field(default_factory=lambda: os.cpu_count() or 1)
+    queue_size: int | None = None
+    timeout: float = 30.0
+    start_method: str = "forkserver"
+
+
+def _package_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("arduinobot")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def description_body(desc: Any) -> dict[str, Any]:
+    """The ``<p>/description`` reply: expanded URDF, SRDF text, limits, joints, tcp."""
+    robot = desc.robot
+    srdf_text = None
+    if desc.srdf is not None and desc.srdf.source is not None:
+        srdf_text = Path(desc.srdf.source).read_text("utf-8")
+    lims = robot.position_limits(robot.actuated_joints)
+    return {
+        "robot": robot.name,
+        "urdf": robot.urdf,
+        "srdf": srdf_text,
+        "actuated_joints": list(robot.actuated_joints),
+        "mimic_joints": {n: {"leader": robot.joints[n].mimic.joint,
+                             "multiplier": robot.joints[n].mimic.multiplier,
+                             "offset": robot.joints[n].mimic.offset}
+                         for n in robot.mimic_joints},
+        "position_limits": {n: [float(lo), float(hi)]
+                            for n, (lo, hi) in zip(robot.actuated_joints, lims)},
+        "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
+        "groups": {} if desc.srdf is None else {g.name: list(g.joints)
+                                                for g in desc.srdf.groups.values()},
+        "named_states": {} if desc.srdf is None else {
+            s.name: dict(s.values) for s in desc.srdf.group_states.values()},
+        "tcp": None if desc.tcp is None else {"parent_link": desc.tcp.parent_link,
+                                              "xyz": list(desc.tcp.xyz)},
+    }
+
+
+class PlannerService:
+    """Start with :meth:`start` (or ``with``), stop with :meth:`close`.
+
+    The pool starts (and every worker loads the description) before the Zenoh session
+    opens, so no process is ever forked from one holding a session.
+    """
+
+    def __init__(self, options: ServeOptions) -> None:
+        self.options = options
+        self.pool: WorkerPool | None = None
+        self.session: zenoh.Session | None = None
+        self.instance = ""
+        self._entities: list[Any] = []
+        self._ids = itertools.count(1)
+        self._started = time.monotonic()
+        self._static: dict[str, bytes] = {}
+
+    @property
+    def keys(self) -> list[str]:
+        p = self.options.prefix
+        return [f"{p}/{k}" for k in (*WORK_KINDS, *INFO_KINDS)]
+
+    def start(self) -> None:
+        o = self.options
+        desc = o.description.load()  # fails here, clearly, before any worker starts
+        self._static["description"] = wire.encode(description_body(desc))
+        self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas()})
+        qsize = o.queue_size if o.queue_size is not None else 4 * o.workers
+        self.pool = WorkerPool(o.description, workers=o.workers, queue_size=qsize,
+                               start_method=o.start_method)
+        self.pool.start()
+        try:
+            cfg = zenoh_config(mode=o.mode, listen=o.listen, connect=o.connect,
+                               config_file=o.config_file,
+                               multicast_scouting=o.multicast_scouting)
+            self.session = zenoh.open(cfg)
+            self.instance = str(self.session.zid())
+            p = o.prefix
+            for kind in (*WORK_KINDS, *INFO_KINDS):
+                for key in (f"{p}/{kind}", f"{p}/instance/{self.instance}/{kind}"):
+                    self._entities.append(self.session.declare_queryable(
+                        key, self._callback(kind, key), complete=True))
+            self._entities.append(
+                self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
+        except Exception:
+            self.close()
+            raise
+        self._started = time.monotonic()
+        _log.info("arduinobot service ready: instance %s, %d workers, robot '%s', serving %s "
+                  "(and %s/instance/%s/*), liveliness %s/alive/%s", self.instance,
+                  o.workers, desc.robot.name, ", ".join(self.keys), p, self.instance, p,
+                  self.instance)
+
+    def close(self) -> None:
+        for e in reversed(self._entities):
+            try:
+                e.undeclare()
+            except zenoh.ZError:
+                pass  # already gone with the session
+        self._entities.clear()
+        if self.session is not None:
+            self.session.close()
+            self.session = None
+        if self.pool is not None:
+            self.pool.close()
+            self.pool = None
+
+    def __enter__(self) -> PlannerService:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def health(self) -> dict[str, Any]:
+        st = self.pool.status() if self.pool is not None else {}
+        return {"version": _package_version(), "api": VERSION, "instance": self.instance,
+                "prefix": self.options.prefix, "uptime": time.monotonic() - self._started,
+                "workers": self.options.workers, **st}
+
+    # -- queries -----------------------------------------------------------------------
+    def _callback(self, kind: str, key: str):
+        def on_query(query: zenoh.Query) -> None:
+            # Runs on Zenoh's thread: only cheap checks here, planning goes to the pool.
+            try:
+                self._on_query(kind, key, query)
+            except Exception:
+                _log.exception("%s: unexpected failure handling a query", key)
+                _reply_error(query, "INTERNAL", "unexpected failure in the service", {})
+        return on_query
+
+    def _on_query(self, kind: str, key: str, query: zenoh.Query) -> None:
+        if kind in self._static:
+            query.reply(key, self._static[kind], encoding=JSON)
+            return
+        if kind == "health":
+            query.reply(key, wire.encode(self.health()), encoding=JSON)
+            return
+        request_id = f"{self.instance[:8]}-{next(self._ids)}"
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        try:
+            data = wire.decode(kind, payload)  # type: ignore[arg-type]
+        except PlanningError as e:
+            self._count_refusal(e.code)
+            _reply_error(query, e.code, e.message, {**e.details, "request_id": request_id})
+            return
+        budget = self.options.timeout + float(data.get("planning_time", 1.0) if kind == "plan"
+                                              else 0.0)
+
+        def respond(outcome: Outcome, query: zenoh.Query = query) -> None:
+            ok, body = outcome
+            if ok:
+                query.reply(key, wire.encode({**body, "request_id": request_id}),
+                            encoding=JSON)
+            else:
+                _reply_error(query, body["code"], body["message"], body["details"])
+            query.drop()  # the reply is final: let the querier's get finish now
+
+        self.pool.submit(Job(kind, data, request_id, time.monotonic() + budget, respond))
+
+    def _count_refusal(self, code: str) -> None:
+        if self.pool is not None:
+            self.pool.count("received")
+            self.pool.count(code)
+
+
+def _reply_error(query: zenoh.Query, code: str, message: str,
+                 details: Mapping[str, Any]) -> None:
+    query.reply_err(wire.encode({"error": {"code": code, "message": message,
+                                           "details": dict(details)}}), encoding=JSON)

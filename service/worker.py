@@ -1,0 +1,72 @@
+"""The worker process: load the description once, then answer jobs over a pipe.
+
+Started by :class:`service.pool.WorkerPool` with the forkserver (or spawn) start method,
+never by forking a process that holds a Zenoh session.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import traceback
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+
+from description import load_description
+from planner.errors import PlanningError
+
+from .handlers import Handlers
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class DescriptionSpec:
+    """How a worker loads the robot: the arguments of :func:`description.load_description`."""
+
+    path: str | None = None
+    package_dirs: Sequence[str] = ()
+    args: Mapping[str, str] = field(default_factory=dict)
+
+    def load(self):  # -> Description
+        return load_description(self.path, package_dirs=list(self.package_dirs),
+                                args=dict(self.args))
+
+
+def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:
+    """Serve jobs ``(job_id, kind, data)`` until ``None`` or EOF.
+
+    Sends ``("ready", pid)`` once warmed up (or ``("failed", message)``), then per job
+    ``(job_id, "ok", body)`` or ``(job_id, "err", code, message, details)``.
+    """
+    # Ctrl-C reaches the whole process group: the parent shuts workers down itself.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.basicConfig(level=log_level,
+                        format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
+    try:
+        handlers = Handlers(spec.load())
+        handlers.warm_up()
+    except Exception as e:  # reported to the parent, which refuses to start
+        conn.send(("failed", f"{type(e).__name__}: {e}"))
+        return
+    conn.send(("ready", os.getpid()))
+    while True:
+        try:
+            msg = conn.recv()
+        except EOFError:
+            return
+        if msg is None:
+            return
+        job_id, kind, data = msg
+        try:
+            body = handlers.handle(kind, data)
+        except PlanningError as e:
+            conn.send((job_id, "err", e.code, e.message, e.details))
+        except Exception as e:  # a bug: the request fails INTERNAL, the worker lives on
+            _log.error("job %s (%s) failed:\n%s", job_id, kind, traceback.format_exc())
+            conn.send((job_id, "err", "INTERNAL", f"{type(e).__name__}: {e}",
+                       {"exception": type(e).__name__}))
+        else:
+            conn.send((job_id, "ok", body))

@@ -1,0 +1,37 @@
+"""Zenoh session configuration shared by the service, the client and the tests."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Literal
+
+import zenoh
+
+Mode = Literal["peer", "client", "router"]
+
+#: Where ``arduinobot serve`` listens and the client connects by default.
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+DEFAULT_PREFIX = "arduinobot"
+
+
+def zenoh_config(*, mode: Mode | None = None, listen: Sequence[str] | None = None,
+                 connect: Sequence[str] | None = None, config_file: str | Path | None = None,
+                 multicast_scouting: bool = False) -> zenoh.Config:
+    """A session config: ``config_file`` (zenoh JSON5: TLS, user/password, access
+    control, ...) if given, then each explicit option on top of it.
+
+    Multicast scouting is set off unless ``multicast_scouting``: a service does not
+    announce itself on the LAN unless asked, even when a config file leaves it at
+    zenoh's default (on).
+    """
+    cfg = zenoh.Config.from_file(str(config_file)) if config_file else zenoh.Config()
+    if mode is not None:
+        cfg.insert_json5("mode", json.dumps(mode))
+    if listen is not None:
+        cfg.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    if connect is not None:
+        cfg.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    cfg.insert_json5("scouting/multicast/enabled", json.dumps(bool(multicast_scouting)))
+    return cfg
