@@ -83,3 +83,15 @@ class TrajectoryError(PlanningError):
     """Time parameterisation failed or could not be verified within the limits."""
 
     code = "TRAJECTORY_FAILED"
+
+
+class LimitsError(PlanningError):
+    """A joint's limits are missing or invalid, and no documented rule can derive them."""
+
+    code = "INVALID_LIMITS"
+
+    def __init__(self, message: str, *, joint: str, limit: str,
+                 details: Mapping[str, object] | None = None) -> None:
+        self.joint, self.limit = joint, limit
+        d = {"joint": joint, "limit": limit, **dict(details or {})}
+        super().__init__(f"{joint} {limit}: {message}", details=d)
