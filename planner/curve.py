@@ -133,6 +133,7 @@ class Curve:
 
     sections: tuple[PathCurve, ...]
     corners: tuple[CornerReport, ...]
+    goal: np.ndarray  # the exact last waypoint, shape (dof,)
 
     @property
     def length(self) -> float:
@@ -175,7 +176,7 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | None, *,
     if lens.max() == 0.0:
         z = np.zeros((1, wp.shape[1]))
         sec = PathCurve(wp[:1], z, z, np.zeros(1), ["line"])
-        return Curve((sec,), ())
+        return Curve((sec,), (), wp[-1].copy())
     u = d / lens[:, None]
     radii = np.zeros(len(wp))
     corners: list[CornerReport] = []
@@ -186,6 +187,9 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | None, *,
             continue
         r = min(max_radius, edge_fraction * lens[i - 1], edge_fraction * lens[i])
         shrinks = 0
+        if r <= 0.0:
+            corners.append(CornerReport(i, "stop", 0.0, 0))
+            continue
         while True:
             blend = PathCurve((wp[i] - r * u[i - 1])[None], u[i - 1][None], u[i][None],
                               np.array([2 * r]), ["blend"])
@@ -234,4 +238,4 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | None, *,
             ls.append(float(2 * r1))
             kinds.append("blend")
     flush()
-    return Curve(tuple(sections), tuple(corners))
+    return Curve(tuple(sections), tuple(corners), wp[-1].copy())

@@ -224,7 +224,7 @@ class JerkLimitedTiming:
             secs.append((c, self.section(c, limits, blend_speed=blend_speed)))
         if not secs:
             secs.append((curve.sections[0], RestProfile()))
-        return CurveTiming(secs)
+        return CurveTiming(secs, goal=curve.goal)
 
 
 def _min_ratio(budget: np.ndarray, use: np.ndarray) -> float:

@@ -147,4 +147,4 @@ class TimeOptimalTiming:
         secs = [(c, self.section(c, limits)) for c in curve.sections if c.length > 1e-12]
         if not secs:
             secs = [(curve.sections[0], RestProfile())]
-        return CurveTiming(secs)
+        return CurveTiming(secs, goal=curve.goal)

@@ -57,7 +57,8 @@ class CurveTiming:
     shape (m, dof); times outside [0, duration] are clamped.
     """
 
-    def __init__(self, sections: Sequence[tuple[PathCurve, ScalarProfile]]) -> None:
+    def __init__(self, sections: Sequence[tuple[PathCurve, ScalarProfile]], *,
+                 goal: np.ndarray | None = None) -> None:
         if not sections:
             raise InvalidRequest("a timing needs at least one section", field="sections")
         self.sections = tuple(sections)
@@ -65,7 +66,7 @@ class CurveTiming:
         self.t0 = np.concatenate(([0.0], np.cumsum(durs)[:-1]))
         self.duration = float(durs.sum())
         self.dof = self.sections[0][0].dof
-        self.goal = self.sections[-1][0].end
+        self.goal = self.sections[-1][0].end if goal is None else np.asarray(goal, float)
 
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ts = np.clip(np.atleast_1d(np.asarray(ts, float)), 0.0, self.duration)

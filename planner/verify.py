@@ -145,15 +145,37 @@ class Verifier:
         self.step = step
         self.clearance_states = clearance_states
 
-    def dense_times(self, traj: JointTrajectory) -> np.ndarray:
-        """Times [s] whose states are <= ``step`` apart per joint (re-measured by caller)."""
+    def dense_states(self, traj: JointTrajectory
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(times, q, qd, qdd) with no joint moving more than ``step`` between states.
+
+        The trajectory is evaluated on a fine time grid (from the sampled peak speed plus
+        the acceleration limit times half a sample interval), then thinned: a state is
+        kept whenever the running sum of per-step max joint motions would pass ``step``
+        (that sum bounds every joint's motion between kept states).
+        """
         if traj.duration <= 0.0:
-            return np.array([0.0])
+            t = np.array([0.0])
+            return (t, *traj.evaluate(t))
         h = float(np.max(np.diff(traj.times))) if len(traj.times) > 1 else traj.duration
         vpeak = float(np.max(np.abs(traj.velocities)
                              + 0.5 * h * np.asarray(self.limits.acceleration)[None, :]))
-        n = max(2, int(math.ceil(traj.duration * vpeak / (0.95 * self.step))) + 1)
-        return np.linspace(0.0, traj.duration, n)
+        n = max(2, int(math.ceil(traj.duration * vpeak / (0.25 * self.step))) + 1)
+        t = np.linspace(0.0, traj.duration, n)
+        q, qd, qdd = traj.evaluate(t)
+        inc = np.max(np.abs(np.diff(q, axis=0)), axis=1)
+        if np.any(inc > self.step):  # the bound did not hold: never thin across such a step
+            keep = np.arange(n)
+        else:
+            keep, acc = [0], 0.0
+            for i, d in enumerate(inc, start=1):
+                if acc + d > self.step:
+                    keep.append(i - 1)
+                    acc = 0.0
+                acc += d
+            keep.append(n - 1)
+            keep = np.unique(keep)
+        return t[keep], q[keep], qd[keep], qdd[keep]
 
     def verify(self, traj: JointTrajectory, *, enforce_jerk: bool = True,
                derating: Derating = Derating(), attempts: int = 1) -> VerificationReport:
@@ -162,14 +184,8 @@ class Verifier:
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
         t, q, qd, qdd = traj.times, traj.positions, traj.velocities, traj.accelerations
         # dense states: collisions, and position/velocity/acceleration between samples
-        td = self.dense_times(traj)
-        qx, qdx, qddx = traj.evaluate(td)
-        steps = np.abs(np.diff(qx, axis=0))
-        max_step = float(steps.max()) if len(steps) else 0.0
-        while max_step > self.step:  # the bound was not enough: refine until it holds
-            td = np.linspace(0.0, traj.duration, 2 * len(td) - 1)
-            qx, qdx, qddx = traj.evaluate(td)
-            max_step = float(np.abs(np.diff(qx, axis=0)).max())
+        td, qx, qdx, qddx = self.dense_states(traj)
+        max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
         tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
         jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
             else np.zeros((0, q.shape[1]))

@@ -1,0 +1,281 @@
+"""The motion pipeline: validate, plan a path, blend it, time it, verify it, return it.
+
+:class:`MotionPlanner` is what the service calls. It keeps everything that is slow to
+build: one :class:`CollisionWorld` (and path planner) per obstacle set, the scaled joint
+limits per scaling pair, the inverse dynamics and toppra's constraint objects.
+
+A trajectory is returned only if the :class:`~planner.verify.Verifier` passes it. When a
+check fails (toppra enforces limits only at gridpoints; ruckig's per-piece bounds are
+conservative but sampled), the violated limits are derated by ``0.98 / ratio`` and the
+path is re-timed, up to ``MAX_ATTEMPTS`` times; a collision along the blended curve falls
+back to stopping at every waypoint (straight, re-checked edges). Otherwise
+:class:`TrajectoryError` carries the last report.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from description import Description
+
+from .collision import CollisionWorld
+from .curve import Curve, build_curve
+from .dynamics import InverseDynamics
+from .errors import InvalidRequest, JointLimitViolation, TrajectoryError
+from .goals import JointGoal, NamedGoal, PositionGoal
+from .limits import JointLimits
+from .path_limits import ActiveLimits, Derating
+from .planning import PathPlanner, PathRequest
+from .ruckig_timing import JerkLimitedTiming
+from .scene import Obstacle
+from .toppra_timing import TimeOptimalTiming
+from .trajectory import CurveTiming, JointTrajectory
+from .verify import VerificationReport, Verifier, derate
+
+log = logging.getLogger(__name__)
+
+MAX_ATTEMPTS = 8
+Profile = Literal["jerk_limited", "time_optimal"]
+
+
+@dataclass(frozen=True)
+class MotionRequest:
+    """A motion to plan. Joint values [rad]; ``start`` missing = every actuated joint at 0."""
+
+    goal: JointGoal | NamedGoal | PositionGoal
+    start: Mapping[str, float] | None = None
+    group: Literal["arm", "gripper", "all"] = "arm"
+    obstacles: tuple[Obstacle, ...] = ()
+    planner: str = "RRTConnect"
+    planning_time: float = 1.0          # [s], (0, 60]
+    velocity_scaling: float = 1.0       # (0, 1]
+    acceleration_scaling: float = 1.0   # (0, 1]
+    profile: Profile = "jerk_limited"
+    sample_rate: float = 100.0          # [Hz], [1, 1000]
+    seed: int | None = None
+
+
+@dataclass(frozen=True)
+class MotionResult:
+    """A verified trajectory, the checked path it follows and how long each stage took.
+
+    ``timing``: seconds per stage (validate, plan, simplify, recheck, parameterise,
+    verify, total); ``path`` shape (k, dof) in ``trajectory.joint_names`` order.
+    """
+
+    trajectory: JointTrajectory
+    path: np.ndarray
+    timing: Mapping[str, float]
+    verification: VerificationReport
+    planner: str
+
+
+def _number(value: object, field: str, lo: float, hi: float, *, open_lo: bool) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(float(value)):
+        raise InvalidRequest(f"{value!r} is not a finite number", field=field)
+    v = float(value)
+    if (v <= lo if open_lo else v < lo) or v > hi:
+        raise InvalidRequest(f"{v!r} must be in {'(' if open_lo else '['}{lo:g}, {hi:g}]",
+                             field=field)
+    return v
+
+
+def _obstacle_key(obstacles: tuple[Obstacle, ...]) -> tuple:
+    # ``where`` only names the field in errors; the geometry is what matters
+    return tuple((o.id, o.shape, o.size, o.radius, o.length, o.mesh_path, o.xyz, o.rpy)
+                 for o in obstacles)
+
+
+class MotionPlanner:
+    """Plans verified trajectories for one robot.
+
+    Args:
+        description: the robot.
+        padding: collision padding [m] of every world built.
+        max_worlds: obstacle sets whose worlds are kept (least recently used dropped).
+    """
+
+    def __init__(self, description: Description, *, padding: float = 0.0,
+                 max_worlds: int = 8) -> None:
+        self.description = description
+        self.padding = padding
+        self.max_worlds = max_worlds
+        self._worlds: dict[tuple, tuple[CollisionWorld, PathPlanner]] = {}
+        base = self.world(())
+        self.joint_names: tuple[str, ...] = tuple(base.kin.joint_names)
+        self.dynamics = InverseDynamics(description.robot)
+        self._limits: dict[tuple[float, float], JointLimits] = {}
+        self.jerk_limited = JerkLimitedTiming(self.dynamics)
+        self.time_optimal = TimeOptimalTiming(self.dynamics)
+        full = self.limits(1.0, 1.0)
+        self._lower = np.asarray(full.lower, float)
+        self._upper = np.asarray(full.upper, float)
+        # build toppra's constraint objects for the unscaled limits now, not on a request
+        self.time_optimal.constraints(ActiveLimits.from_limits(full))
+
+    # -- caches -----------------------------------------------------------------------
+    def world(self, obstacles: tuple[Obstacle, ...]) -> CollisionWorld:
+        """The collision world for ``obstacles``, built once per distinct obstacle set."""
+        return self._entry(obstacles)[0]
+
+    def _entry(self, obstacles: tuple[Obstacle, ...]) -> tuple[CollisionWorld, PathPlanner]:
+        key = _obstacle_key(obstacles)
+        found = self._worlds.pop(key, None)
+        if found is None:
+            w = CollisionWorld(self.description, obstacles=obstacles, padding=self.padding)
+            found = (w, PathPlanner(w, self.description))
+        self._worlds[key] = found  # most recently used last
+        while len(self._worlds) > self.max_worlds:
+            self._worlds.pop(next(iter(self._worlds)))
+        return found
+
+    def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits:
+        key = (velocity_scaling, acceleration_scaling)
+        lim = self._limits.get(key)
+        if lim is None:
+            lim = JointLimits.from_description(self.description,
+                                               velocity_scaling=velocity_scaling,
+                                               acceleration_scaling=acceleration_scaling)
+            if len(self._limits) > 32:
+                self._limits.pop(next(iter(self._limits)))
+            self._limits[key] = lim
+        return lim
+
+    # -- validate ---------------------------------------------------------------------
+    def validate(self, req: MotionRequest) -> np.ndarray:
+        """Check every field; the start vector [rad], shape (dof,)."""
+        if not isinstance(req.goal, (JointGoal, NamedGoal, PositionGoal)):
+            raise InvalidRequest(f"unknown goal type {type(req.goal).__name__}", field="goal")
+        if req.group not in ("arm", "gripper", "all"):
+            raise InvalidRequest(f"'{req.group}' is not one of arm, gripper, all", field="group")
+        if not isinstance(req.obstacles, tuple) or \
+                not all(isinstance(o, Obstacle) for o in req.obstacles):
+            raise InvalidRequest("must be a tuple of Obstacle", field="obstacles")
+        ids = [o.id for o in req.obstacles]
+        if len(set(ids)) != len(ids):
+            raise InvalidRequest("obstacle ids must be unique", field="obstacles")
+        if not isinstance(req.planner, str) or not req.planner:
+            raise InvalidRequest(f"{req.planner!r} is not a planner name", field="planner")
+        _number(req.planning_time, "planning_time", 0.0, 60.0, open_lo=True)
+        _number(req.velocity_scaling, "velocity_scaling", 0.0, 1.0, open_lo=True)
+        _number(req.acceleration_scaling, "acceleration_scaling", 0.0, 1.0, open_lo=True)
+        _number(req.sample_rate, "sample_rate", 1.0, 1000.0, open_lo=False)
+        if req.profile not in ("jerk_limited", "time_optimal"):
+            raise InvalidRequest(f"'{req.profile}' is not one of jerk_limited, time_optimal",
+                                 field="profile")
+        if req.seed is not None and (isinstance(req.seed, bool) or not isinstance(req.seed, int)
+                                     or req.seed < 0):
+            raise InvalidRequest(f"{req.seed!r} must be an integer >= 0", field="seed")
+        start = np.zeros(len(self.joint_names))
+        if req.start is None:
+            return start
+        if not isinstance(req.start, Mapping):
+            raise InvalidRequest("must map joint names to values [rad]", field="start")
+        robot = self.description.robot
+        for name, value in req.start.items():
+            field = f"start.{name}"
+            if name not in self.joint_names:
+                j = robot.joints.get(name) if isinstance(name, str) else None
+                if j is not None and j.mimic is not None:
+                    raise InvalidRequest(f"'{name}' mimics '{j.mimic.joint}' and cannot be "
+                                         f"commanded; set '{j.mimic.joint}' instead",
+                                         field=field, details={"leader": j.mimic.joint})
+                raise InvalidRequest(f"'{name}' is not an actuated joint "
+                                     f"({', '.join(self.joint_names)})", field=field)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(float(value)):
+                raise InvalidRequest(f"{value!r} is not a finite number [rad]", field=field)
+            i = self.joint_names.index(name)
+            lo, hi = self._lower[i], self._upper[i]
+            if not (lo - 1e-9 <= float(value) <= hi + 1e-9):
+                raise JointLimitViolation(name, float(value), float(lo), float(hi), field=field)
+            start[i] = float(value)
+        return start
+
+    # -- solve ------------------------------------------------------------------------
+    def solve(self, request: MotionRequest) -> MotionResult:
+        """Plan, time and verify a motion.
+
+        Raises:
+            InvalidRequest, JointLimitViolation, StartInCollision, GoalInCollision,
+            GoalOutOfReach, NoPathFound: from validation and path planning.
+            TrajectoryError: no timing passed verification (details hold the report).
+        """
+        t0 = time.perf_counter()
+        start = self.validate(request)
+        world, paths = self._entry(request.obstacles)
+        t1 = time.perf_counter()
+        res = paths.solve(PathRequest(start=start, goal=request.goal, group=request.group,
+                                      planner=request.planner,
+                                      planning_time=request.planning_time, seed=request.seed))
+        t2 = time.perf_counter()
+        curve = build_curve(res.path, world)
+        t3 = time.perf_counter()
+        lim = self.limits(request.velocity_scaling, request.acceleration_scaling)
+        traj, report, t_param, t_verify = self.time_path(curve, res.path, world, lim,
+                                                         profile=request.profile,
+                                                         sample_rate=request.sample_rate)
+        pt = res.timings
+        timing = {
+            "validate": (t1 - t0) + pt.get("validate", 0.0),
+            "plan": pt.get("straight_line", 0.0) + pt.get("plan", 0.0),
+            "simplify": pt.get("simplify", 0.0),
+            "recheck": pt.get("recheck", 0.0) + (t3 - t2),
+            "parameterise": t_param,
+            "verify": t_verify,
+        }
+        timing["total"] = time.perf_counter() - t0
+        return MotionResult(trajectory=traj, path=np.array(res.path), timing=timing,
+                            verification=report, planner=res.planner)
+
+    def time_path(self, curve: Curve, path: np.ndarray, world: CollisionWorld,
+                  limits: JointLimits, *, profile: Profile = "jerk_limited",
+                  sample_rate: float = 100.0
+                  ) -> tuple[JointTrajectory, VerificationReport, float, float]:
+        """Time ``curve`` (blended from ``path``), verify, derate until it passes.
+
+        Returns the trajectory, its report and the seconds spent timing and verifying.
+        """
+        verifier = Verifier(limits, self.dynamics, world)
+        derating = Derating()
+        t_param = t_verify = 0.0
+        report: VerificationReport | None = None
+        for attempt in range(1, MAX_ATTEMPTS + 1):
+            a = time.perf_counter()
+            active = ActiveLimits.from_limits(limits, derating)
+            timing: CurveTiming
+            if profile == "time_optimal":
+                timing = self.time_optimal.parameterise(curve, active)
+            else:
+                timing = self.jerk_limited.parameterise(curve, active)
+            traj = JointTrajectory.sample(timing, self.dynamics.torques_batch,
+                                          joint_names=self.joint_names,
+                                          sample_rate=sample_rate, profile=profile)
+            b = time.perf_counter()
+            report = verifier.verify(traj, enforce_jerk=profile == "jerk_limited",
+                                     derating=derating, attempts=attempt)
+            c = time.perf_counter()
+            t_param += b - a
+            t_verify += c - b
+            if report.ok:
+                return traj, report, t_param, t_verify
+            log.info("attempt %d failed verification: %s", attempt, report.violations or
+                     "collision")
+            if not report.collision_free or "position" in report.violations:
+                if any(c.kind == "blend" for c in curve.corners):
+                    # stop at every waypoint: the straight edges were re-checked densely
+                    curve = build_curve(path, world, max_radius=0.0)
+                    continue
+                break
+            derating = derate(report, derating)
+        raise TrajectoryError("no timing of the path passed verification",
+                              details={"profile": profile,
+                                       "report": report.to_dict() if report else None})
