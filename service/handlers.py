@@ -46,21 +46,12 @@ class Handlers:
     def __init__(self, description: Description) -> None:
         self.description = description
         self.kin = Kinematics(description.robot)
-        self._world: CollisionWorld | None = None
-        # Scenes repeat (a robot cell's table): keep the last few worlds with obstacles.
+        # Padded scenes are not the planner's (it caches unpadded worlds): keep a few here.
         self._scenes: OrderedDict[tuple[Any, ...], CollisionWorld] = OrderedDict()
         self._planner: Any = None
 
-    @property
-    def world(self) -> CollisionWorld:
-        """The obstacle-free collision world, built on first use (meshes take a while)."""
-        if self._world is None:
-            self._world = CollisionWorld(self.description)
-        return self._world
-
     def warm_up(self) -> None:
-        """Build the collision world and the planner now, not on the first request."""
-        _ = self.world
+        """Build the planner (and its obstacle-free world) now, not on the first request."""
         self._motion_planner()
 
     def _motion_planner(self) -> Any:
@@ -122,8 +113,8 @@ class Handlers:
                 "joints": dict(zip(self.kin.joint_names, map(float, q)))}
 
     def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
-        if not obs and padding == 0.0:
-            return self.world
+        if padding == 0.0:
+            return self._motion_planner().world(obs)
         key = (obs, padding)
         world = self._scenes.pop(key, None)
         if world is None:

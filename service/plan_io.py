@@ -60,12 +60,11 @@ def plan_response(result: Any) -> dict[str, Any]:
     points = [{"positions": _floats(p.positions), "velocities": _floats(p.velocities),
                "accelerations": _floats(p.accelerations), "effort": _floats(p.effort),
                "time_from_start": float(p.time_from_start)} for p in traj.points]
-    path = getattr(result.path, "waypoints", result.path)
     return {
         "trajectory": {"joint_names": list(traj.joint_names), "points": points},
         "duration": float(traj.duration),
-        "path": [_floats(w) for w in path],
+        "path": [_floats(w) for w in result.path],
         "timing": {str(k): float(v) for k, v in dict(result.timing).items()},
-        "verification": result.verification.to_json(),
+        "verification": result.verification.to_dict(),
         "planner": str(result.planner),
     }

@@ -1,0 +1,323 @@
+"""The Python client of the arduinobot service.
+
+    from clients.client import PlannerClient
+    with PlannerClient() as c:                      # tcp/127.0.0.1:7447
+        res = c.plan({"goal": {"named": "reach_forward"}})
+        print(res.duration, res.positions.shape)
+
+Every service error raises its own class (:mod:`clients.errors`); no reply at all raises
+:class:`~clients.errors.ServiceUnavailable` with a hint. With ``spread=True`` requests go
+round-robin to the live instances (found by a liveliness query on ``<prefix>/alive/*``).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import zenoh
+
+from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
+
+from .errors import ServiceUnavailable, error_from_reply
+
+_log = logging.getLogger(__name__)
+
+_HINT = ("start one with `arduinobot serve` (or `./dev arduinobot serve`), or check the "
+         "endpoint (--connect) and the prefix")
+# How long a discovered instance list is trusted before a new liveliness query [s].
+_INSTANCES_TTL = 2.0
+
+
+@dataclass(frozen=True)
+class TrajectoryPoint:
+    positions: tuple[float, ...]        # [rad]
+    velocities: tuple[float, ...]       # [rad/s]
+    accelerations: tuple[float, ...]    # [rad/s^2]
+    effort: tuple[float, ...]           # [N m]
+    time_from_start: float              # [s]
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """A planned trajectory of the actuated joints.
+
+    Attributes:
+        joint_names: column order of every array.
+        points: the samples; ``times``/``positions``/... give them as arrays, shape (m, dof).
+        duration: [s]. path: collision-checked waypoints, shape (k, dof) [rad].
+        timing: seconds per stage. verification: the service's verification report.
+        raw: the reply as received.
+    """
+
+    joint_names: tuple[str, ...]
+    points: tuple[TrajectoryPoint, ...]
+    duration: float
+    path: np.ndarray
+    timing: Mapping[str, float]
+    verification: Mapping[str, Any]
+    planner: str
+    request_id: str
+    raw: Mapping[str, Any]
+
+    @classmethod
+    def from_json(cls, body: Mapping[str, Any]) -> PlanResult:
+        t = body["trajectory"]
+        pts = tuple(TrajectoryPoint(tuple(p["positions"]), tuple(p["velocities"]),
+                                    tuple(p["accelerations"]), tuple(p["effort"]),
+                                    float(p["time_from_start"])) for p in t["points"])
+        return cls(tuple(t["joint_names"]), pts, float(body["duration"]),
+                   np.array(body["path"], float).reshape(-1, len(t["joint_names"])),
+                   dict(body["timing"]), dict(body["verification"]),
+                   str(body.get("planner", "")), str(body.get("request_id", "")), body)
+
+    def _arr(self, attr: str) -> np.ndarray:
+        return np.array([getattr(p, attr) for p in self.points], float)
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.array([p.time_from_start for p in self.points], float)
+
+    @property
+    def positions(self) -> np.ndarray:
+        return self._arr("positions")
+
+    @property
+    def velocities(self) -> np.ndarray:
+        return self._arr("velocities")
+
+    @property
+    def accelerations(self) -> np.ndarray:
+        return self._arr("accelerations")
+
+    @property
+    def efforts(self) -> np.ndarray:
+        return self._arr("effort")
+
+
+@dataclass(frozen=True)
+class Pose:
+    xyz: tuple[float, float, float]     # [m]
+    rpy: tuple[float, float, float]     # [rad]
+    matrix: np.ndarray                  # shape (4, 4)
+
+
+@dataclass(frozen=True)
+class FkResult:
+    joints: Mapping[str, float]
+    links: Mapping[str, Pose]
+    tcp: tuple[float, float, float] | None
+    request_id: str
+
+
+@dataclass(frozen=True)
+class IkSolution:
+    joints: Mapping[str, float]
+    branch: str
+
+
+@dataclass(frozen=True)
+class StateCheckResult:
+    """``valid`` and every colliding ``pairs``; ``clearance`` [m] to the ``closest`` pair."""
+
+    valid: bool
+    pairs: tuple[tuple[str, str], ...]
+    clearance: float | None
+    closest: tuple[str, str] | None
+    joints: Mapping[str, float]
+    request_id: str
+
+
+class PlannerClient:
+    """A Zenoh session to the arduinobot service.
+
+    Args:
+        endpoints: where to connect (a service listening, or a router).
+        prefix: the service's key prefix.
+        timeout: seconds to wait for a reply (plans add their planning_time).
+        mode: the client's Zenoh mode (``client`` needs a reachable endpoint).
+        config_file: a zenoh JSON5 config (TLS, credentials); options here override it.
+        spread: round-robin requests over the live instances.
+
+    Raises:
+        ServiceUnavailable: ``reason="connect_failed"`` if no session could be opened.
+    """
+
+    def __init__(self, endpoints: Sequence[str] | str = (DEFAULT_ENDPOINT,), *,
+                 prefix: str = DEFAULT_PREFIX, timeout: float = 60.0,
+                 mode: Literal["client", "peer"] = "client", config_file: str | Path | None = None,
+                 spread: bool = False) -> None:
+        self.endpoints = [endpoints] if isinstance(endpoints, str) else list(endpoints)
+        self.prefix, self.timeout, self.spread = prefix, float(timeout), spread
+        try:
+            self.session = zenoh.open(zenoh_config(mode=mode, connect=self.endpoints,
+                                                   listen=[] if mode == "client" else None,
+                                                   config_file=config_file))
+        except zenoh.ZError as e:
+            raise ServiceUnavailable(
+                f"cannot reach {', '.join(self.endpoints)}: {e}; {_HINT}",
+                reason="connect_failed", details={"endpoints": self.endpoints}) from None
+        self._rr = itertools.count()
+        self._lock = threading.Lock()
+        self._instances: tuple[str, ...] = ()
+        self._instances_at = -1e9
+
+    # -- lifecycle ---------------------------------------------------------------------
+    def close(self) -> None:
+        if not self.session.is_closed():
+            self.session.close()
+
+    def __enter__(self) -> PlannerClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- discovery ---------------------------------------------------------------------
+    def instances(self, *, refresh: bool = False) -> tuple[str, ...]:
+        """The ids of the live instances (liveliness tokens ``<prefix>/alive/<id>``)."""
+        with self._lock:
+            if not refresh and time.monotonic() - self._instances_at < _INSTANCES_TTL:
+                return self._instances
+        base = f"{self.prefix}/alive/"
+        found = sorted({str(r.ok.key_expr)[len(base):]
+                        for r in self.session.liveliness().get(f"{base}*", timeout=2.0)
+                        if r.ok is not None})
+        with self._lock:
+            self._instances, self._instances_at = tuple(found), time.monotonic()
+        return tuple(found)
+
+    def _key(self, kind: str, instance: str | None) -> str:
+        if instance is None and self.spread:
+            live = self.instances()
+            if live:
+                instance = live[next(self._rr) % len(live)]
+        if instance is None:
+            return f"{self.prefix}/{kind}"
+        return f"{self.prefix}/instance/{instance}/{kind}"
+
+    # -- requests ----------------------------------------------------------------------
+    def request(self, kind: str, body: Mapping[str, Any] | bytes | str | None = None, *,
+                instance: str | None = None, timeout: float | None = None) -> dict[str, Any]:
+        """Send one query and return the decoded JSON reply.
+
+        Args:
+            kind: ``plan``, ``fk``, ``ik``, ``check``, ``health``, ``description``, ``schema``.
+            body: the request (a mapping is JSON-encoded; bytes/str go as they are).
+            instance: address one instance (default: shared key, or round-robin if spread).
+
+        Raises:
+            ServiceError subclasses for error replies; ServiceUnavailable for none.
+        """
+        if isinstance(body, Mapping):
+            payload: bytes | None = json.dumps(body, allow_nan=False).encode()
+        elif isinstance(body, str):
+            payload = body.encode()
+        else:
+            payload = body
+        key = self._key(kind, instance)
+        wait = self.timeout if timeout is None else float(timeout)
+        replies = self._get(key, payload, wait)
+        shared = f"{self.prefix}/{kind}"
+        if not replies and instance is None and key != shared:
+            # the instance we picked has just gone: forget the list, ask any instance
+            with self._lock:
+                self._instances_at = -1e9
+            key = shared
+            replies = self._get(key, payload, wait)
+        if not replies:
+            raise ServiceUnavailable(f"no service answered on '{key}' via "
+                                     f"{', '.join(self.endpoints)}: {_HINT}",
+                                     reason="no_route", details={"key": key})
+        return _decode(replies[0], key, wait)
+
+    def _get(self, key: str, payload: bytes | None, wait: float) -> list[zenoh.Reply]:
+        return list(self.session.get(key, payload=payload, timeout=wait,
+                                     encoding="application/json" if payload else None))
+
+    def plan(self, request: Mapping[str, Any] | None = None, *,
+             instance: str | None = None, **fields: Any) -> PlanResult:
+        """Plan: a whole v1 request, or its fields as keywords (``goal={"named": "home"}``).
+
+        Raises:
+            InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
+            TrajectoryFailed, RequestTimeout, ServiceBusy, InternalError, ServiceUnavailable.
+        """
+        req = {**(request or {}), **fields}
+        wait = self.timeout + _planning_time(req)
+        return PlanResult.from_json(self.request("plan", req, instance=instance,
+                                                 timeout=wait))
+
+    def fk(self, joints: Mapping[str, float] | None = None, *,
+           links: Sequence[str] | None = None) -> FkResult:
+        """Link poses at ``joints`` [rad] (missing joints are 0)."""
+        req: dict[str, Any] = {"joints": dict(joints or {})}
+        if links is not None:
+            req["links"] = list(links)
+        b = self.request("fk", req)
+        return FkResult(b["joints"], {k: Pose(tuple(v["xyz"]), tuple(v["rpy"]),
+                                              np.array(v["matrix"])) for k, v in b["links"].items()},
+                        None if b.get("tcp") is None else tuple(b["tcp"]), b["request_id"])
+
+    def ik(self, position: Sequence[float]) -> tuple[IkSolution, ...]:
+        """Every IK branch putting the tcp at ``position`` [m] (GoalOutOfReach if none)."""
+        b = self.request("ik", {"position": [float(v) for v in position]})
+        return tuple(IkSolution(s["joints"], s["branch"]) for s in b["solutions"])
+
+    def check_state(self, joints: Mapping[str, float] | None = None, *,
+                    obstacles: Sequence[Mapping[str, Any]] = (),
+                    padding: float = 0.0) -> StateCheckResult:
+        """Whether a state is collision-free among ``obstacles``, with clearance [m]."""
+        req: dict[str, Any] = {"joints": dict(joints or {})}
+        if obstacles:
+            req["obstacles"] = list(obstacles)
+        if padding:
+            req["padding"] = padding
+        b = self.request("check", req)
+        return StateCheckResult(bool(b["valid"]), tuple(tuple(p) for p in b["pairs"]),
+                                b.get("clearance"),
+                                None if b.get("closest") is None else tuple(b["closest"]),
+                                b["joints"], b["request_id"])
+
+    def health(self, *, instance: str | None = None) -> dict[str, Any]:
+        return self.request("health", instance=instance)
+
+    def description(self) -> dict[str, Any]:
+        return self.request("description")
+
+    def schema(self) -> dict[str, Any]:
+        return self.request("schema")
+
+
+def _planning_time(req: Mapping[str, Any]) -> float:
+    v = req.get("planning_time", 1.0)
+    return float(v) if isinstance(v, (int, float)) and 0 < v <= 60 else 1.0
+
+
+def _decode(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
+    if reply.ok is not None:
+        return json.loads(reply.ok.payload.to_bytes())
+    err = reply.err
+    text = err.payload.to_bytes().decode("utf-8", "replace")
+    if str(err.encoding).startswith("application/json"):
+        try:
+            body = json.loads(text)
+        except json.JSONDecodeError:
+            body = None
+        if isinstance(body, dict) and "error" in body:
+            raise error_from_reply(body)
+    if text == "Timeout":
+        raise ServiceUnavailable(
+            f"'{key}': a service took the query but sent no reply within {wait:g} s "
+            "(overloaded, or a long request: raise the timeout)", reason="timeout",
+            details={"key": key, "timeout": wait})
+    raise ServiceUnavailable(f"'{key}': Zenoh answered with an error: {text}",
+                             reason="zenoh_error", details={"key": key, "zenoh": text})

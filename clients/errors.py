@@ -1,0 +1,114 @@
+"""The errors a :class:`clients.client.PlannerClient` raises: one class per wire code.
+
+:class:`ServiceError` is the root; ``code``, ``message`` and ``details`` come from the
+service's ``{"error": {...}}`` reply. :class:`ServiceUnavailable` means no reply at all,
+with ``reason`` saying what the client could tell apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Literal
+
+
+class ServiceError(Exception):
+    """Root of every client error. ``details`` is the reply's JSON object."""
+
+    code = "UNKNOWN"
+
+    def __init__(self, message: str, *, code: str | None = None,
+                 details: Mapping[str, Any] | None = None) -> None:
+        if code is not None:
+            self.code = code
+        self.message = message
+        self.details = dict(details or {})
+        super().__init__(f"{self.code}: {message}")
+
+
+class InvalidRequest(ServiceError):
+    """A field is malformed, unknown, non-finite or out of range (``details.field``)."""
+    code = "INVALID_REQUEST"
+
+
+class StartInCollision(ServiceError):
+    """The start state collides (``details.pairs``)."""
+    code = "START_IN_COLLISION"
+
+
+class GoalInCollision(ServiceError):
+    """The goal state collides (``details.pairs``)."""
+    code = "GOAL_IN_COLLISION"
+
+
+class GoalOutOfReach(ServiceError):
+    """No joint state within limits reaches the goal position."""
+    code = "GOAL_OUT_OF_REACH"
+
+
+class NoPathFound(ServiceError):
+    """No collision-free path within the planning time."""
+    code = "NO_PATH_FOUND"
+
+
+class TrajectoryFailed(ServiceError):
+    """No timing of the path passed verification (``details.report``)."""
+    code = "TRAJECTORY_FAILED"
+
+
+class InvalidLimits(ServiceError):
+    """The robot's joint limits are missing or invalid."""
+    code = "INVALID_LIMITS"
+
+
+class RequestTimeout(ServiceError):
+    """The service's deadline for the request passed (it answered TIMEOUT)."""
+    code = "TIMEOUT"
+
+
+class ServiceBusy(ServiceError):
+    """Every worker is busy and the queue is full: retry later or add instances."""
+    code = "BUSY"
+
+
+class InternalError(ServiceError):
+    """The service failed (a bug, or a worker crash: that worker has been replaced)."""
+    code = "INTERNAL"
+
+
+UnavailableReason = Literal["connect_failed", "no_route", "timeout", "zenoh_error"]
+
+
+class ServiceUnavailable(ServiceError):
+    """No answer from any service.
+
+    ``reason``:
+        ``connect_failed``: no Zenoh session could be opened to the endpoints;
+        ``no_route``: the session is up but nothing serves the key (no service running
+        under this prefix, or access control hides it);
+        ``timeout``: a service took the query but no reply came in time;
+        ``zenoh_error``: Zenoh itself answered with an error (``details.zenoh``).
+    """
+
+    code = "UNAVAILABLE"
+
+    def __init__(self, message: str, *, reason: UnavailableReason,
+                 details: Mapping[str, Any] | None = None) -> None:
+        self.reason = reason
+        super().__init__(message, details={**(details or {}), "reason": reason})
+
+
+ERRORS: dict[str, type[ServiceError]] = {c.code: c for c in (
+    InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
+    TrajectoryFailed, InvalidLimits, RequestTimeout, ServiceBusy, InternalError)}
+
+
+def error_from_reply(body: Mapping[str, Any]) -> ServiceError:
+    """The exception for an ``{"error": {"code", "message", "details"}}`` reply; an
+    unknown code gives a plain :class:`ServiceError` carrying it."""
+    err = body.get("error", {}) if isinstance(body, Mapping) else {}
+    code = str(err.get("code", "UNKNOWN"))
+    message = str(err.get("message", ""))
+    details = err.get("details") if isinstance(err.get("details"), Mapping) else {}
+    cls = ERRORS.get(code)
+    return cls(message, details=details) if cls else ServiceError(message, code=code,
+                                                                   details=details)
