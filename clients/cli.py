@@ -6,10 +6,10 @@ import argparse
 import logging
 import sys
 
-from . import cmd_model, cmd_serve, cmd_srdf
+from . import cmd_model, cmd_serve, cmd_srdf, cmd_view
 from .common import run_guarded
 
-_COMMANDS = [cmd_model, cmd_serve, cmd_srdf]
+_COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view]
 
 
 def build_parser() -> argparse.ArgumentParser:

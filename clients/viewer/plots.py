@@ -13,6 +13,7 @@ from typing import Literal
 import numpy as np
 
 from description import Description
+from planner.limits import JointLimits
 
 from . import require
 from .trajectory import PlaybackTrajectory
@@ -43,25 +44,12 @@ class PlotPanel:
 
 
 def joint_limits(description: Description, joints: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Position lower/upper, velocity, acceleration and effort limits per joint, each
-    shape (j,) (nan where the model gives none): the URDF's limits, with the MoveIt
-    joint_limits.yaml overriding velocity and adding acceleration."""
-    out = {k: np.full(len(joints), np.nan)
-           for k in ("lower", "upper", "velocity", "acceleration", "effort")}
-    yaml_limits = description.joint_limits or {}
-    for i, name in enumerate(joints):
-        j = description.robot.joints.get(name)
-        if j is not None and j.limit is not None:
-            out["lower"][i] = np.nan if j.limit.lower is None else j.limit.lower
-            out["upper"][i] = np.nan if j.limit.upper is None else j.limit.upper
-            out["velocity"][i] = j.limit.velocity or np.nan
-            out["effort"][i] = j.limit.effort or np.nan
-        y = yaml_limits.get(name, {})
-        if y.get("has_velocity_limits") and y.get("max_velocity") is not None:
-            out["velocity"][i] = float(y["max_velocity"])
-        if y.get("has_acceleration_limits") and y.get("max_acceleration") is not None:
-            out["acceleration"][i] = float(y["max_acceleration"])
-    return out
+    """Position lower/upper, velocity, acceleration and effort limits of ``joints``, each
+    shape (j,), from :class:`planner.limits.JointLimits` (URDF and joint_limits.yaml)."""
+    lim = JointLimits.from_description(description)
+    idx = [lim.joint_names.index(n) for n in joints]
+    return {k: np.asarray(getattr(lim, k), float)[idx]
+            for k in ("lower", "upper", "velocity", "acceleration", "effort")}
 
 
 def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list[PlotPanel]:

@@ -128,8 +128,14 @@ class PlaybackTrajectory:
 
     @classmethod
     def from_trajectory(cls, trajectory: object) -> PlaybackTrajectory:
-        """From a planner trajectory (anything with ``to_json()`` in the wire format)."""
-        return cls.from_json(trajectory.to_json())  # type: ignore[attr-defined]
+        """From a planner :class:`~planner.trajectory.JointTrajectory` (its sampled arrays)."""
+        t = trajectory
+        return cls(joint_names=tuple(t.joint_names),  # type: ignore[attr-defined]
+                   times=np.asarray(t.times, float),  # type: ignore[attr-defined]
+                   positions=np.asarray(t.positions, float),  # type: ignore[attr-defined]
+                   velocities=np.asarray(t.velocities, float),  # type: ignore[attr-defined]
+                   accelerations=np.asarray(t.accelerations, float),  # type: ignore[attr-defined]
+                   effort=np.asarray(t.efforts, float))  # type: ignore[attr-defined]
 
 
 def _time(value: object, field: str) -> float:

@@ -1,0 +1,71 @@
+"""Where the viewer's Plan button sends its request: in-process or a running service."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping, Sequence
+from typing import Literal, Protocol
+
+from description import Description
+from planner.goals import JointGoal, NamedGoal
+from planner.scene import Obstacle
+
+from .trajectory import PlaybackTrajectory
+
+_log = logging.getLogger(__name__)
+
+Group = Literal["arm", "gripper", "all"]
+Goal = JointGoal | NamedGoal
+
+
+class PlanBackend(Protocol):
+    """Plans a motion and returns it ready to play."""
+
+    name: str
+
+    def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
+        """Raises planner.errors.PlanningError (or a subclass) when no motion is found."""
+        ...
+
+
+class LocalBackend:
+    """Plans in this process with :class:`planner.pipeline.MotionPlanner` (built on the
+    first request: it takes a few seconds)."""
+
+    name = "in-process"
+
+    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
+                 seed: int | None = 0) -> None:
+        self.description = description
+        self.obstacles = tuple(obstacles)
+        self.seed = seed
+        self._planner = None
+
+    def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
+        from planner.pipeline import MotionPlanner, MotionRequest
+
+        if self._planner is None:
+            self._planner = MotionPlanner(self.description)
+        res = self._planner.solve(MotionRequest(goal=goal, start=dict(start), group=group,
+                                                obstacles=self.obstacles, seed=self.seed))
+        _log.info("planned %.2f s of motion with %s in %.3f s", res.trajectory.duration,
+                  res.planner, res.timing.get("total", float("nan")))
+        return PlaybackTrajectory.from_trajectory(res.trajectory)
+
+
+class RemoteBackend:
+    """Plans through a running `arduinobot serve`, with :class:`clients.client.PlannerClient`."""
+
+    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = ()) -> None:
+        self.endpoint = endpoint
+        self.name = f"service at {endpoint}"
+        self.obstacles = tuple(obstacles)
+        self._client = None
+
+    def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
+        from clients.client import PlannerClient
+
+        if self._client is None:
+            self._client = PlannerClient(self.endpoint)
+        res = self._client.plan(goal, start=dict(start), group=group, obstacles=self.obstacles)
+        return PlaybackTrajectory.from_json(res)
