@@ -259,3 +259,30 @@ def test_generic_robot_subset_of_joints(skew):
     sols = position_ik(kin, tcp, target, joints=("yaw", "pitch"), q_fixed=[0.0, 0.0, 0.2])
     assert any(np.allclose(s.q, q, atol=1e-6) for s in sols)
     assert all(s.q[2] == 0.2 for s in sols)
+
+
+def test_branch_labels_mean_what_they_say(bot):
+    # front: the tcp lies ahead of the turntable (its +y); elbow_up: the elbow lies
+    # above the shoulder-tcp line, seen in the arm's plane.
+    kin, tcp = bot
+    rng = np.random.default_rng(13)
+    seen = set()
+    for _ in range(200):
+        q = np.r_[rng.uniform(-1.55, 1.55, 3), 0.0]
+        target = fk(kin, tcp, q)
+        for s in position_ik(kin, tcp, target):
+            poses = kin.link_poses(s.q)
+            plate = poses[kin.link_index["base_plate"]]
+            shoulder = poses[kin.link_index["forward_drive_arm"]][:3, 3]
+            elbow = poses[kin.link_index["horizontal_arm"]][:3, 3]
+            ahead = plate[:3, 1] @ (target - plate[:3, 3])
+            side, elbow_label = s.branch.split("/")
+            assert (ahead >= 0) == (side == "front"), (s.branch, ahead)
+            plane = np.eye(3) - np.outer(plate[:3, 0], plate[:3, 0])  # the arm's plane
+            d, e = plane @ (target - shoulder), plane @ (elbow - shoulder)
+            up = np.array([0, 0, 1.0])
+            normal = up * (d @ d) - (up @ d) * d  # the line's normal pointing up
+            above = normal @ e >= 0
+            assert above == (elbow_label == "elbow_up"), s.branch
+            seen.add(s.branch)
+    assert seen == {"front/elbow_up", "front/elbow_down", "back/elbow_up", "back/elbow_down"}
