@@ -1,0 +1,68 @@
+import fcl
+import numpy as np
+import pytest
+
+from description import load_description
+from planner.collision import CollisionWorld
+from planner.errors import InvalidRequest
+from planner.scene import Obstacle
+
+
+@pytest.fixture(scope="module")
+def d():
+    return load_description()
+
+
+@pytest.fixture(scope="module")
+def world(d):
+    return CollisionWorld(d, obstacles=[Obstacle("table", "box", size=(0.6, 1.2, 0.05),
+                                                 xyz=(0, 1.0, 0.6))])
+
+
+def _brute(w, q):
+    poses = w.kin.link_poses(q)
+    hits = set()
+    for (a, b), nm in zip(w._pairs, w.pair_names):
+        for x in (a, b):
+            if w._frame[x] >= 0:
+                t = poses[w._frame[x]]
+                w._objs[x].setTransform(fcl.Transform(t[:3, :3], t[:3, 3]))
+        if fcl.collide(w._objs[a], w._objs[b], fcl.CollisionRequest(), fcl.CollisionResult()):
+            hits.add(nm)
+    w._placed[:] = -1
+    return hits
+
+
+def test_broad_phase_never_hides_a_collision(world, d):
+    lim = d.robot.position_limits()
+    qs = np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(300, 4))
+    n_hit = 0
+    for q in qs:
+        expect = _brute(world, q)
+        assert set(world.check(q).pairs) == expect
+        assert world.is_valid(q) == (not expect)
+        n_hit += bool(expect)
+    assert 0 < n_hit < len(qs)
+
+
+def test_first_invalid_and_obstacle_pair(world):
+    free = np.zeros(4)
+    blocked = np.array([0.0, -0.75, -0.75, 0.0])
+    chk = world.check(blocked, clearance=True)
+    assert not chk.valid and any("table" in p for p in chk.pairs) and chk.clearance == 0.0
+    qs = np.linspace(free, blocked, 50)
+    i = world.first_invalid(qs)
+    assert i > 0 and not world.is_valid(qs[i]) and world.is_valid(qs[i - 1])
+    assert world.first_invalid(qs[:i]) == -1
+
+
+def test_clearance_and_padding(d):
+    w = CollisionWorld(d)
+    c = w.check(np.zeros(4), clearance=True)
+    assert c.valid and 0 < c.clearance < 0.05 and c.closest is not None
+    d_min, pair = w.min_clearance(np.zeros((2, 4)))
+    assert d_min == pytest.approx(c.clearance)
+    padded = CollisionWorld(d, padding=c.clearance + 0.005)
+    assert not padded.is_valid(np.zeros(4))
+    with pytest.raises(InvalidRequest):
+        CollisionWorld(d, padding=-1)

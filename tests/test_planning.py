@@ -1,0 +1,82 @@
+import numpy as np
+import pytest
+
+from description import load_description
+from planner.collision import CollisionWorld
+from planner.errors import InvalidRequest, NoPathFound, StartInCollision
+from planner.goals import JointGoal, NamedGoal
+from planner.motion_check import interpolate
+from planner.planning import PathPlanner, PathRequest
+from planner.scene import Obstacle
+
+PILLAR = Obstacle("pillar", "box", size=(0.15, 0.15, 3.0), xyz=(0.0, 0.9, 0.6))
+
+
+@pytest.fixture(scope="module")
+def env():
+    d = load_description()
+    w = CollisionWorld(d, obstacles=[PILLAR])
+    return d, w, PathPlanner(w, d)
+
+
+GOAL = JointGoal({"joint_1": -1.2, "joint_2": -0.6, "joint_3": -0.6})
+START = np.array([1.2, -0.6, -0.6, 0.0])
+
+
+def test_straight_line(env):
+    d, _, _ = env
+    pp = PathPlanner(CollisionWorld(d), d)
+    r = pp.solve(PathRequest(start=np.zeros(4), goal=NamedGoal("reach_forward"), seed=1))
+    assert r.straight_line and r.path.shape == (2, 4) and r.planner == "straight line"
+
+
+def test_detour_is_collision_free_densely(env):
+    _, w, pp = env
+    assert w.first_invalid(interpolate(np.array([START, GOAL_Q()]), 0.002)) >= 0
+    r = pp.solve(PathRequest(start=START, goal=GOAL, seed=7))
+    assert not r.straight_line and r.planner == "RRTConnect"
+    assert np.allclose(r.path[0], START) and np.allclose(r.path[-1], GOAL_Q())
+    assert w.first_invalid(interpolate(r.path, 0.0005)) == -1
+    assert set(r.timings) == {"validate", "straight_line", "plan", "simplify", "recheck"}
+    assert r.checks > 0 and r.length > 0
+
+
+def GOAL_Q():
+    return np.array([-1.2, -0.6, -0.6, 0.0])
+
+
+def test_seed_makes_results_reproducible(env):
+    _, _, pp = env
+    a = pp.solve(PathRequest(start=START, goal=GOAL, seed=11))
+    b = pp.solve(PathRequest(start=START, goal=GOAL, seed=11))
+    assert np.array_equal(a.path, b.path)
+
+
+@pytest.mark.parametrize("name", ["RRT", "PRM", "KPIECE1", "LBKPIECE1", "BITstar"])
+def test_other_planners(env, name):
+    _, w, pp = env
+    r = pp.solve(PathRequest(start=START, goal=GOAL, planner=name, seed=3, planning_time=2.0))
+    assert r.planner == name and w.first_invalid(interpolate(r.path, 0.002)) == -1
+
+
+def test_errors(env):
+    _, _, pp = env
+    with pytest.raises(InvalidRequest) as e:
+        pp.solve(PathRequest(start=START, goal=GOAL, planner="Nope"))
+    assert e.value.field == "planner"
+    with pytest.raises(InvalidRequest):
+        pp.solve(PathRequest(start=START, goal=GOAL, group="legs"))  # type: ignore[arg-type]
+    with pytest.raises(StartInCollision) as e:
+        pp.solve(PathRequest(start=np.array([0, -1.5, -1.0, 0.0]), goal=GOAL))
+    assert e.value.pairs
+
+
+def test_no_path_found(env):
+    d, _, _ = env
+    wall = Obstacle("wall", "box", size=(3.0, 0.1, 3.0), xyz=(0, 0.9, 1.0), rpy=(0, 0, 0))
+    w = CollisionWorld(d, obstacles=[Obstacle("cage", "box", size=(0.1, 3, 3), xyz=(0.3, 0, 1)),
+                                     Obstacle("cage2", "box", size=(0.1, 3, 3), xyz=(-0.3, 0, 1))])
+    pp = PathPlanner(w, d)
+    del wall
+    with pytest.raises((NoPathFound, StartInCollision)):
+        pp.solve(PathRequest(start=START, goal=GOAL, planning_time=0.2, seed=1))
