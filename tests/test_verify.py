@@ -1,0 +1,78 @@
+"""The verifier: passes good trajectories, catches each kind of violation, derates."""
+
+import json
+
+import numpy as np
+
+from planner.curve import build_curve
+from planner.path_limits import ActiveLimits, Derating
+from planner.ruckig_timing import JerkLimitedTiming
+from planner.scene import Obstacle
+from planner.collision import CollisionWorld
+from planner.trajectory import JointTrajectory
+from planner.verify import TOLERANCE, Verifier, derate
+
+from .timing_helpers import DESC, DYN, NAMES, WORLD, WP, active_limits
+
+LIMITS = active_limits()
+
+
+def _traj(limits=LIMITS, wp=WP, rate=100.0):
+    tim = JerkLimitedTiming(DYN).parameterise(build_curve(wp, None),
+                                              ActiveLimits.from_limits(limits))
+    return JointTrajectory.sample(tim, DYN.torques_batch, joint_names=NAMES,
+                                  sample_rate=rate)
+
+
+def test_good_trajectory_passes_with_full_report():
+    rep = Verifier(LIMITS, DYN, WORLD, clearance_states=2).verify(_traj())
+    assert rep.ok and rep.collision_free and not rep.violations
+    assert rep.max_step <= 0.002 and rep.checked_states > 500
+    assert set(rep.ratios) == {"position", "velocity", "acceleration", "jerk", "effort"}
+    assert all(len(v) == 4 for v in rep.ratios.values())
+    assert 0.5 < rep.worst["effort"] <= 1 + TOLERANCE
+    assert rep.min_clearance > 0 and all(rep.closest_pair)
+    d = json.loads(rep.to_json())
+    assert d["worst_overall"]["ratio"] == max(d["worst"][k] for k in d["enforced"])
+
+
+def test_tighter_limits_are_caught_and_derating_fixes_them():
+    traj = _traj()
+    tight = active_limits()
+    # verify against half the effort the trajectory was planned for
+    from types import SimpleNamespace
+    half = SimpleNamespace(lower=tight.lower, upper=tight.upper, velocity=tight.velocity,
+                           acceleration=tight.acceleration, jerk=tight.jerk,
+                           effort=np.asarray(tight.effort) * 0.5)
+    rep = Verifier(half, DYN, WORLD, clearance_states=0).verify(traj)
+    assert not rep.ok and "effort" in rep.violations and rep.worst["effort"] > 1.5
+    d = derate(rep, Derating())
+    assert d.effort < 0.98 / rep.worst["effort"] + 1e-12 and d.velocity == 1.0
+    retimed = _traj(half)
+    assert Verifier(half, DYN, WORLD, clearance_states=0).verify(retimed).ok
+
+
+def test_jerk_is_checked_by_finite_differences():
+    from types import SimpleNamespace
+    lim = SimpleNamespace(**{k: getattr(LIMITS, k) for k in
+                             ("lower", "upper", "velocity", "acceleration", "effort")},
+                          jerk=np.asarray(LIMITS.jerk) * 0.5)
+    rep = Verifier(lim, DYN, WORLD, clearance_states=0).verify(_traj())
+    assert "jerk" in rep.violations and 1.9 < rep.worst["jerk"] < 2.1
+    assert Verifier(lim, DYN, WORLD, clearance_states=0).verify(
+        _traj(), enforce_jerk=False).ok
+
+
+def test_collision_between_samples_is_found():
+    # a thin post swept through by the straight motion; 1 Hz samples alone would miss it
+    wp = np.array([[-1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]])
+    traj = _traj(wp=wp, rate=1.0)
+    world = CollisionWorld(DESC, obstacles=(Obstacle("post", "cylinder", radius=0.02,
+                                                     length=3.0, xyz=(0.0, 1.3, 1.5)),))
+    samples_hit = [world.first_invalid(traj.positions[i:i + 1]) >= 0
+                   for i in range(len(traj.times))]
+    rep = Verifier(LIMITS, DYN, world, clearance_states=0).verify(traj)
+    assert not rep.ok and not rep.collision_free
+    assert rep.colliding_pairs and any("post" in p for p in rep.colliding_pairs)
+    assert 0 < rep.colliding_time < traj.duration
+    assert not all(samples_hit)
