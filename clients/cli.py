@@ -6,10 +6,10 @@ import argparse
 import logging
 import sys
 
-from . import cmd_model, cmd_serve, cmd_srdf, cmd_view
+from . import cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
 
-_COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view]
+_COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state]
 
 
 def build_parser() -> argparse.ArgumentParser:

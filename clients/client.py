@@ -79,6 +79,19 @@ class PlanResult:
                    dict(body["timing"]), dict(body["verification"]),
                    str(body.get("planner", "")), str(body.get("request_id", "")), body)
 
+    def to_csv(self) -> str:
+        """One row per sample: time_from_start, then position, velocity, acceleration and
+        effort of each joint (``joint_1.position``, ...)."""
+        header = ["time_from_start"] + [f"{n}.{kind}" for kind in
+                                        ("position", "velocity", "acceleration", "effort")
+                                        for n in self.joint_names]
+        rows = [",".join(header)]
+        for p in self.points:
+            vals = (p.time_from_start, *p.positions, *p.velocities, *p.accelerations,
+                    *p.effort)
+            rows.append(",".join(repr(float(v)) for v in vals))
+        return "\n".join(rows) + "\n"
+
     def _arr(self, attr: str) -> np.ndarray:
         return np.array([getattr(p, attr) for p in self.points], float)
 

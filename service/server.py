@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import zenoh
 
 from planner.errors import PlanningError
@@ -71,6 +72,19 @@ def _package_version() -> str:
         return "unknown"
 
 
+def limits_body(desc: Any) -> dict[str, dict[str, float | None]]:
+    """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort, as
+    the planner enforces them at full scaling (None for an infinite figure)."""
+    from planner.limits import JointLimits
+    lim = JointLimits.from_description(desc)
+    kinds = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
+
+    def fin(v: float) -> float | None:
+        return float(v) if np.isfinite(v) else None
+    return {n: {k: fin(getattr(lim, k)[i]) for k in kinds}
+            for i, n in enumerate(lim.joint_names)}
+
+
 def description_body(desc: Any) -> dict[str, Any]:
     """The ``<p>/description`` reply: expanded URDF, SRDF text, limits, joints, tcp."""
     robot = desc.robot
@@ -90,6 +104,7 @@ def description_body(desc: Any) -> dict[str, Any]:
         "position_limits": {n: [float(lo), float(hi)]
                             for n, (lo, hi) in zip(robot.actuated_joints, lims)},
         "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
+        "limits": limits_body(desc),
         "groups": {} if desc.srdf is None else {g.name: list(g.joints)
                                                 for g in desc.srdf.groups.values()},
         "named_states": {} if desc.srdf is None else {
