@@ -1,0 +1,95 @@
+"""Shared fixtures: free loopback ports and `arduinobot serve` as a real subprocess."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nothing listens on right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@dataclass
+class Server:
+    """A running `arduinobot serve` subprocess."""
+
+    proc: subprocess.Popen
+    endpoint: str
+    ready_line: str
+    stderr_lines: list[str] = field(default_factory=list)
+
+    def stop(self, sig: int = signal.SIGINT, timeout: float = 20.0) -> int:
+        """Send ``sig`` and wait; returns the exit code."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(5)
+        return self.proc.returncode
+
+    @property
+    def instance(self) -> str:
+        return self.ready_line.split("instance ", 1)[1].split(",", 1)[0]
+
+
+def start_server(args: Sequence[str] = (), *, port: int | None = None,
+                 timeout: float = 90.0) -> Server:
+    """Start `arduinobot serve` listening on 127.0.0.1 (multicast scouting off, its
+    default) and wait for its ready line."""
+    port = port or free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    argv = [sys.executable, "-m", "clients.cli", "serve", "--listen", endpoint, *args]
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    ready = threading.Event()
+
+    def pump() -> None:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            lines.append(line.rstrip("\n"))
+            if "service ready" in line:
+                ready.set()
+    threading.Thread(target=pump, daemon=True).start()
+    deadline = time.monotonic() + timeout
+    while not ready.wait(0.2):
+        if proc.poll() is not None or time.monotonic() > deadline:
+            proc.kill()
+            proc.wait(5)
+            raise RuntimeError("arduinobot serve did not start:\n" + "\n".join(lines[-30:]))
+    line = next(ln for ln in lines if "service ready" in ln)
+    return Server(proc, endpoint, line, lines)
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[Server]:
+    """One `arduinobot serve` (2 workers) per test module."""
+    srv = start_server(["--workers", "2"])
+    yield srv
+    srv.stop()
+
+
+@pytest.fixture(scope="module")
+def client(server: Server):
+    from clients.client import PlannerClient
+    with PlannerClient(server.endpoint, timeout=30.0) as c:
+        yield c
