@@ -1,0 +1,87 @@
+"""Planning benchmark: a seeded problem suite in three scenes; prints figures and a JSON line.
+
+Not yet done: the 50k-triangle subdivided variant (see the report).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+from description import load_description
+from planner.collision import CollisionWorld
+from planner.errors import PlanningError
+from planner.goals import JointGoal
+from planner.motion_check import interpolate
+from planner.planning import PathPlanner, PathRequest
+from planner.scene import Obstacle
+
+SCENES = {
+    "self": [],
+    "table": [Obstacle("table", "box", size=(0.6, 1.2, 0.05), xyz=(0, 1.0, 0.6))],
+    "pillars": [Obstacle("p1", "box", size=(0.12, 0.12, 2.0), xyz=(0.5, 0.8, 1.0)),
+                Obstacle("p2", "box", size=(0.12, 0.12, 2.0), xyz=(-0.5, 0.8, 1.0)),
+                Obstacle("beam", "box", size=(1.2, 0.12, 0.12), xyz=(0, 0.8, 2.0))],
+}
+
+
+def problems(w: CollisionWorld, n: int, rng: np.random.Generator) -> list[tuple]:
+    lim = w.description.robot.position_limits(w.kin.joint_names)
+    out, blocked = [], 0
+    while len(out) < n:
+        a = rng.uniform(lim[:, 0], lim[:, 1]); a[3] = 0
+        b = rng.uniform(lim[:, 0], lim[:, 1]); b[3] = 0
+        if not (w.is_valid(a) and w.is_valid(b)):
+            continue
+        is_blocked = w.first_invalid(interpolate(np.array([a, b]), 0.002)) >= 0
+        if not is_blocked and blocked < len(out) / 2 + 1 and len(out) > 0:
+            continue  # keep at least half needing a detour
+        blocked += is_blocked
+        out.append((a, b, is_blocked))
+    return out
+
+
+def main(n: int = 30) -> None:
+    d = load_description()
+    summary = {}
+    for name, obs in SCENES.items():
+        w = CollisionWorld(d, obstacles=obs)
+        pp = PathPlanner(w, d)
+        rng = np.random.default_rng(0)
+        probs = problems(w, n, rng)
+        lim = d.robot.position_limits()
+        qs = rng.uniform(lim[:, 0], lim[:, 1], size=(2000, 4))
+        ts = []
+        for q in qs:
+            t = time.perf_counter(); w.is_valid(q); ts.append(time.perf_counter() - t)
+        tot, ok, lens, checks, bad = [], 0, [], [], 0
+        stages: dict[str, list[float]] = {}
+        for i, (a, b, _) in enumerate(probs):
+            try:
+                r = pp.solve(PathRequest(start=a, goal=JointGoal(dict(zip(w.kin.joint_names[:3], b[:3]))),
+                                         seed=i, planning_time=1.0))
+            except PlanningError:
+                continue
+            ok += 1
+            tot.append(sum(r.timings.values()))
+            for k, v in r.timings.items():
+                stages.setdefault(k, []).append(v)
+            lens.append(r.length); checks.append(r.checks)
+            bad += w.first_invalid(interpolate(r.path, 0.0005)) >= 0
+        fig = {"problems": len(probs), "detours": int(sum(p[2] for p in probs)),
+               "success": ok / len(probs), "median_ms": float(np.median(tot) * 1e3),
+               "p95_ms": float(np.percentile(tot, 95) * 1e3),
+               "stage_median_ms": {k: float(np.median(v) * 1e3) for k, v in stages.items()},
+               "stage_p95_ms": {k: float(np.percentile(v, 95) * 1e3) for k, v in stages.items()},
+               "length_median": float(np.median(lens)), "checks_median": float(np.median(checks)),
+               "state_check_median_us": float(np.median(ts) * 1e6),
+               "paths_in_collision": int(bad)}
+        print(name, fig)
+        summary[name] = fig
+    print(json.dumps(summary))
+
+
+if __name__ == "__main__":
+    main()
