@@ -45,22 +45,18 @@ class Job:
     request_id: str
     deadline: float  # time.monotonic()
     respond: Callable[[Outcome], None] | None
+    waiting: bool = False  # in the queue, counted against queue_size
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     @property
     def done(self) -> bool:
         return self.respond is None
 
-    def finish(self, outcome: Outcome) -> bool:
+    def claim(self) -> Callable[[Outcome], None] | None:
+        """Take the right to reply (once): the responder, or None if already taken."""
         with self._lock:
             fn, self.respond = self.respond, None
-        if fn is None:
-            return False
-        try:
-            fn(outcome)
-        except Exception:  # a reply that cannot be sent must not kill the pool thread
-            _log.exception("request %s: sending the reply failed", self.request_id)
-        return True
+        return fn
 
 
 def error(code: str, message: str, **details: Any) -> Outcome:
@@ -86,7 +82,10 @@ class WorkerPool:
         if start_method == "forkserver":
             # Children fork from a server that already imported the planner.
             self._ctx.set_forkserver_preload(["service.worker"])
-        self._queue: queue.Queue[Job | None] = queue.Queue(maxsize=queue_size)
+        # Unbounded: capacity counts waiting jobs, so one that timed out in the queue
+        # frees its place at once rather than when a worker dequeues it.
+        self._queue: queue.Queue[Job | None] = queue.Queue()
+        self._waiting = 0
         self.queue_size = queue_size
         self.counters: Counter[str] = Counter()
         self._lock = threading.Lock()
@@ -133,12 +132,9 @@ class WorkerPool:
             except queue.Empty:
                 break
             if job is not None:
-                job.finish(error("INTERNAL", "the service is shutting down"))
+                self._finish(job, error("INTERNAL", "the service is shutting down"))
         for _ in range(self.workers):
-            try:
-                self._queue.put_nowait(None)
-            except queue.Full:
-                break
+            self._queue.put(None)
         for t in self._threads:
             t.join(timeout=5.0)
         for p in self._procs:
@@ -158,17 +154,20 @@ class WorkerPool:
         """Queue a job, or answer it BUSY at once when the queue is full."""
         self.count("received")
         if self._stopping:
-            job.finish(error("INTERNAL", "the service is shutting down"))
+            self._finish(job, error("INTERNAL", "the service is shutting down"))
             return
-        try:
-            self._queue.put_nowait(job)
-        except queue.Full:
-            self.count("BUSY")
-            job.finish(error("BUSY", f"all {self.workers} workers are busy and "
+        with self._lock:
+            full = self._waiting >= self.queue_size
+            if not full:
+                self._waiting += 1
+                job.waiting = True
+        if full:
+            self._finish(job, error("BUSY", f"all {self.workers} workers are busy and "
                              f"{self.queue_size} requests are waiting; retry later",
                              workers=self.workers, queue_size=self.queue_size,
                              request_id=job.request_id))
             return
+        self._queue.put(job)
         with self._cond:
             heapq.heappush(self._heap, (job.deadline, next(self._seq), job))
             self._cond.notify()
@@ -179,7 +178,7 @@ class WorkerPool:
             workers = [{"pid": pid, "busy": None if j is None else j.request_id}
                        for pid, j in zip(self._pids, self._busy)]
             counters = dict(self.counters)
-        return {"workers": workers, "queue_depth": self._queue.qsize(),
+        return {"workers": workers, "queue_depth": self._waiting,
                 "queue_size": self.queue_size, "counters": counters}
 
     # -- internals ---------------------------------------------------------------------
@@ -187,9 +186,21 @@ class WorkerPool:
         with self._lock:
             self.counters[key] += 1
 
+    def _dequeued(self, job: Job) -> None:
+        with self._lock:
+            if job.waiting:
+                job.waiting = False
+                self._waiting -= 1
+
     def _finish(self, job: Job, outcome: Outcome) -> None:
-        if job.finish(outcome):
-            self.count("ok" if outcome[0] else outcome[1]["code"])
+        fn = job.claim()
+        if fn is None:
+            return  # already answered (e.g. TIMEOUT while it waited)
+        self.count("ok" if outcome[0] else outcome[1]["code"])
+        try:
+            fn(outcome)
+        except Exception:  # a reply that cannot be sent must not kill the pool thread
+            _log.exception("request %s: sending the reply failed", job.request_id)
 
     def _watch(self) -> None:
         while True:
@@ -205,6 +216,7 @@ class WorkerPool:
                     self._cond.wait(timeout)
                     continue
             for job in expired:
+                self._dequeued(job)
                 if not job.done:
                     self._finish(job, error("TIMEOUT", "the request's deadline passed while "
                                             "it waited for a worker",
@@ -241,9 +253,11 @@ class WorkerPool:
         ready.set()
         while True:
             job = self._queue.get()
+            if job is not None:
+                self._dequeued(job)
             if job is None or self._stopping:
                 if job is not None:
-                    job.finish(error("INTERNAL", "the service is shutting down"))
+                    self._finish(job, error("INTERNAL", "the service is shutting down"))
                 if proc.is_alive():
                     conn.send(None)
                 proc.join(2.0)
@@ -273,6 +287,8 @@ class WorkerPool:
                 how = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0
                        else f"exit code {code}")
                 self.count("worker_crashes")
+                with self._lock:
+                    self._pids[i] = None
                 _log.error("worker %d (pid %s) died (%s) on request %s; replacing it",
                            i, proc.pid, how, job.request_id)
                 self._finish(job, error("INTERNAL", f"the worker process died ({how}) "
