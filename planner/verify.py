@@ -5,7 +5,8 @@ Checks, per joint, the worst ratio of each quantity to its limit:
 - velocity, acceleration: at every sample and every densified state;
 - jerk: finite differences of the sampled accelerations (the mean jerk over each sample
   interval), as a motor controller would see them;
-- effort: inverse dynamics at every sample.
+- effort: inverse dynamics at every sample and every densified state (toppra bounds
+  torque only at its gridpoints, and a blend's torque can peak between two samples).
 Collisions: the trajectory is evaluated at a time step small enough that no joint moves
 more than ``step`` (0.002 rad) between checked states, and every state is checked with
 ``first_invalid``. The step bound uses the sampled peak speed plus the acceleration limit
@@ -187,6 +188,7 @@ class Verifier:
         td, qx, qdx, qddx = self.dense_states(traj)
         max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
         tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
+        tau_dense = np.asarray(self.dynamics.torques_batch(qx, qdx, qddx), float)
         jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
             else np.zeros((0, q.shape[1]))
         ratios = {
@@ -195,7 +197,7 @@ class Verifier:
             "acceleration": np.maximum(_ratio(qdd, lim.acceleration),
                                        _ratio(qddx, lim.acceleration)),
             "jerk": _ratio(jerk, lim.jerk),
-            "effort": _ratio(tau, lim.effort),
+            "effort": np.maximum(_ratio(tau, lim.effort), _ratio(tau_dense, lim.effort)),
         }
         enforced = QUANTITIES if enforce_jerk else tuple(k for k in QUANTITIES if k != "jerk")
         worst = {k: float(np.max(v)) for k, v in ratios.items()}

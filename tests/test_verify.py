@@ -76,3 +76,22 @@ def test_collision_between_samples_is_found():
     assert rep.colliding_pairs and any("post" in p for p in rep.colliding_pairs)
     assert 0 < rep.colliding_time < traj.duration
     assert not all(samples_hit)
+
+
+def test_effort_peak_between_samples_is_found():
+    # toppra bounds torque at gridpoints only: a peak between two samples must still fail
+    from types import SimpleNamespace
+    traj = _traj(rate=1.0)
+    sampled = np.max(np.abs(traj.efforts), axis=0)
+    ts = np.linspace(0.0, traj.duration, 20001)
+    fine = np.max(np.abs(DYN.torques_batch(*traj.evaluate(ts))), axis=0)
+    j = int(np.argmax(fine / sampled))
+    assert fine[j] > 1.05 * sampled[j]  # the 1 Hz samples miss the peak
+    effort = np.maximum(np.asarray(LIMITS.effort, float), fine * 2)
+    effort[j] = 0.5 * (sampled[j] + fine[j])
+    lim = SimpleNamespace(**{k: getattr(LIMITS, k) for k in
+                             ("lower", "upper", "velocity", "acceleration", "jerk")},
+                          effort=effort)
+    rep = Verifier(lim, DYN, WORLD, clearance_states=0).verify(traj, enforce_jerk=False)
+    assert not rep.ok and rep.violations == ("effort",)
+    assert rep.ratios["effort"][j] > 1.0 + TOLERANCE
