@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import threading
 
+from clients.errors import ServiceError
 from planner.errors import InvalidRequest, PlanningError
 from planner.goals import JointGoal, NamedGoal
 
@@ -41,7 +42,7 @@ class PlanningPanel:
             self._plan = gui.add_button("Plan")
             self._plan.on_click(lambda _e: self.plan_async())
             self._status = gui.add_markdown("")
-        self.last_error: PlanningError | None = None
+        self.last_error: PlanningError | ServiceError | None = None
         self.done = threading.Event()
 
     def mark_goal(self) -> None:
@@ -84,7 +85,7 @@ class PlanningPanel:
             self.playback.load(traj, source="planned")
             self._status.content = f"Planned {traj.duration:.2f} s; playing."
             self.playback.toggle()
-        except PlanningError as e:
+        except (PlanningError, ServiceError) as e:
             self.last_error = e
             self._status.content = f"**{type(e).__name__}**: {e}"
         except Exception as e:  # the page must say why, whatever failed; logged in full

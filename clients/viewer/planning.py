@@ -54,18 +54,42 @@ class LocalBackend:
 
 
 class RemoteBackend:
-    """Plans through a running `arduinobot serve`, with :class:`clients.client.PlannerClient`."""
+    """Plans through a running `arduinobot serve`, with :class:`clients.client.PlannerClient`
+    (connected on the first request). Its failures raise :class:`clients.errors.ServiceError`
+    subclasses."""
 
-    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = ()) -> None:
+    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = (),
+                 seed: int | None = 0) -> None:
         self.endpoint = endpoint
-        self.name = f"service at {endpoint}"
+        self.name = f"through the service at {endpoint}"
         self.obstacles = tuple(obstacles)
+        self.seed = seed
         self._client = None
+
+    def request(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> dict:
+        """The v1 plan request (service/schema/plan_request.json)."""
+        wire_goal = ({"named": goal.name} if isinstance(goal, NamedGoal)
+                     else {"joints": dict(goal.values)})
+        req: dict = {"goal": wire_goal, "start": dict(start), "group": group,
+                     "obstacles": [obstacle_json(o) for o in self.obstacles]}
+        if self.seed is not None:
+            req["seed"] = self.seed
+        return req
 
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
         from clients.client import PlannerClient
 
         if self._client is None:
             self._client = PlannerClient(self.endpoint)
-        res = self._client.plan(goal, start=dict(start), group=group, obstacles=self.obstacles)
-        return PlaybackTrajectory.from_json(res)
+        res = self._client.plan(self.request(goal, start=start, group=group))
+        return PlaybackTrajectory.from_json(res.raw)
+
+
+def obstacle_json(o: Obstacle) -> dict:
+    """An obstacle in the service's wire format."""
+    out: dict = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz), "rpy": list(o.rpy)}
+    for key in ("size", "radius", "length", "mesh_path"):
+        v = getattr(o, key)
+        if v is not None:
+            out[key] = list(v) if isinstance(v, tuple) else v
+    return out
