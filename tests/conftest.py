@@ -54,30 +54,42 @@ def start_server(args: Sequence[str] = (), *, port: int | None = None,
                  timeout: float = 90.0) -> Server:
     """Start `arduinobot serve` listening on 127.0.0.1 (multicast scouting off, its
     default) and wait for its ready line."""
-    port = port or free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
-    argv = [sys.executable, "-m", "clients.cli", "serve", "--listen", endpoint, *args]
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
-    lines: list[str] = []
-    ready = threading.Event()
+    return start_servers([args], timeout=timeout, ports=[port])[0]
 
-    def pump() -> None:
-        assert proc.stderr is not None
-        for line in proc.stderr:
-            lines.append(line.rstrip("\n"))
-            if "service ready" in line:
-                ready.set()
-    threading.Thread(target=pump, daemon=True).start()
+
+def start_servers(arg_lists: Sequence[Sequence[str]], *, timeout: float = 90.0,
+                  ports: Sequence[int | None] | None = None) -> list[Server]:
+    """Start several servers at once (their workers load in parallel), wait for all."""
+    launched = []
+    for args, port in zip(arg_lists, ports or [None] * len(arg_lists)):
+        endpoint = f"tcp/127.0.0.1:{port or free_port()}"
+        argv = [sys.executable, "-m", "clients.cli", "serve", "--listen", endpoint, *args]
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE, text=True)
+        lines: list[str] = []
+        ready = threading.Event()
+        threading.Thread(target=_pump, args=(proc, lines, ready), daemon=True).start()
+        launched.append((proc, endpoint, lines, ready))
     deadline = time.monotonic() + timeout
-    while not ready.wait(0.2):
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            proc.wait(5)
-            raise RuntimeError("arduinobot serve did not start:\n" + "\n".join(lines[-30:]))
-    line = next(ln for ln in lines if "service ready" in ln)
-    return Server(proc, endpoint, line, lines)
+    servers = []
+    for proc, endpoint, lines, ready in launched:
+        while not ready.wait(0.2):
+            if proc.poll() is not None or time.monotonic() > deadline:
+                for p, *_ in launched:
+                    p.kill()
+                    p.wait(5)
+                raise RuntimeError("arduinobot serve did not start:\n" + "\n".join(lines[-30:]))
+        line = next(ln for ln in lines if "service ready" in ln)
+        servers.append(Server(proc, endpoint, line, lines))
+    return servers
+
+
+def _pump(proc: subprocess.Popen, lines: list[str], ready: threading.Event) -> None:
+    for line in proc.stderr:  # type: ignore[union-attr]
+        lines.append(line.rstrip("\n"))
+        if "service ready" in line:
+            ready.set()
 
 
 @pytest.fixture(scope="module")
