@@ -1,0 +1,140 @@
+"""The Python client's error handling and the plan/fk/ik/check-state commands."""
+
+from __future__ import annotations
+
+import json
+import threading
+
+import pytest
+import zenoh
+
+from clients import errors
+from clients.cli import main
+from clients.client import PlannerClient, PlanResult
+from service.zconfig import zenoh_config
+
+from .conftest import free_port
+
+
+def test_every_wire_code_has_its_class():
+    for code, cls in errors.ERRORS.items():
+        e = errors.error_from_reply({"error": {"code": code, "message": "m",
+                                               "details": {"x": 1}}})
+        assert type(e) is cls and e.code == code and e.details == {"x": 1}
+    odd = errors.error_from_reply({"error": {"code": "NEW_CODE", "message": "m"}})
+    assert type(odd) is errors.ServiceError and odd.code == "NEW_CODE"
+
+
+def test_no_endpoint_is_connect_failed_with_a_hint():
+    with pytest.raises(errors.ServiceUnavailable) as e:
+        PlannerClient(f"tcp/127.0.0.1:{free_port()}")
+    assert e.value.reason == "connect_failed" and "arduinobot serve" in e.value.message
+
+
+@pytest.fixture
+def fake_service():
+    """A real zenoh peer whose queryables misbehave: one never replies, one sends a
+    non-JSON reply_err (as Zenoh itself or a foreign service would)."""
+    port = free_port()
+    s = zenoh.open(zenoh_config(mode="peer", listen=[f"tcp/127.0.0.1:{port}"]))
+    held, done = [], threading.Event()
+    qs = [s.declare_queryable("fake/fk", held.append, complete=True),
+          s.declare_queryable("fake/ik", lambda q: q.reply_err(b"access denied"),
+                              complete=True)]
+    yield f"tcp/127.0.0.1:{port}"
+    done.set()
+    for q in held:
+        q.drop()
+    for q in qs:
+        q.undeclare()
+    s.close()
+
+
+def test_silent_queryable_is_timeout_and_foreign_error_is_zenoh_error(fake_service):
+    with PlannerClient(fake_service, prefix="fake", timeout=0.5) as c:
+        with pytest.raises(errors.ServiceUnavailable) as e:
+            c.fk({})
+        assert e.value.reason == "timeout"
+        with pytest.raises(errors.ServiceUnavailable) as e:
+            c.ik([0, 1, 1])
+        assert e.value.reason == "zenoh_error" and "access denied" in e.value.message
+        with pytest.raises(errors.ServiceUnavailable) as e:
+            c.health()
+        assert e.value.reason == "no_route"
+
+
+def test_local_and_service_plans_agree(server, tmp_path, capsys):
+    req = {"start": {"joint_1": 0.3}, "goal": {"named": "reach_right"}, "seed": 5,
+           "sample_rate": 40}
+    path = tmp_path / "req.json"
+    path.write_text(json.dumps(req))
+    assert main(["plan", "--request", str(path), "--local", "--json", "-"]) == 0
+    local = json.loads(capsys.readouterr().out)
+    assert main(["plan", "--request", str(path), "--connect", server.endpoint,
+                 "--json", "-"]) == 0
+    remote = json.loads(capsys.readouterr().out)
+    assert local["trajectory"] == remote["trajectory"]
+    assert local["path"] == remote["path"]
+
+
+def test_plan_command_prints_a_summary_and_writes_files(server, tmp_path, capsys):
+    csv_path, json_path = tmp_path / "t.csv", tmp_path / "t.json"
+    rc = main(["plan", "--goal", "0.5,0.3,-0.4", "--start", "joint_2=0.1", "--seed", "1",
+               "--connect", server.endpoint,
+               "--csv", str(csv_path), "--json", str(json_path)])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert "duration" in out and "joint_3" in out and "timing:" in out
+    body = json.loads(json_path.read_text())
+    res = PlanResult.from_json(body)
+    rows = csv_path.read_text().splitlines()
+    assert rows[0].startswith("time_from_start,joint_1.position")
+    assert len(rows) == len(res.points) + 1
+    assert res.positions[-1][:3] == pytest.approx([0.5, 0.3, -0.4], abs=1e-6)
+    assert res.positions[0][1] == pytest.approx(0.1)
+
+
+def test_plan_command_errors(server, capsys):
+    assert main(["plan", "--goal", "joint_5=0.2", "--connect", server.endpoint]) == 1
+    err = capsys.readouterr().err
+    assert "INVALID_REQUEST" in err and "joint_4" in err
+    assert main(["plan", "--named", "home", "--connect",
+                 f"tcp/127.0.0.1:{free_port()}"]) == 3
+    assert "arduinobot serve" in capsys.readouterr().err
+
+
+def test_fk_ik_check_state_commands(server, capsys):
+    ep = ["--connect", server.endpoint]
+    assert main(["fk", "--joints", "0,0,0", "--link", "claw_support", *ep]) == 0
+    assert "claw_support" in capsys.readouterr().out
+    assert main(["ik", "--position", "0,1.0,1.2", "--json", *ep]) == 0
+    assert json.loads(capsys.readouterr().out)["solutions"]
+    assert main(["check-state", "--joints", "0,0.3", *ep]) == 0
+    assert "VALID" in capsys.readouterr().out
+    assert main(["check-state", "--joints", "0,0.3", "--obstacle",
+                 "box:b:1,1,1@0,0.5,1.5", *ep]) == 1
+    assert "b" in capsys.readouterr().out
+
+
+def test_check_state_help_tells_it_apart_from_the_model_checker(capsys):
+    with pytest.raises(SystemExit):
+        main(["check-state", "--help"])
+    text = capsys.readouterr().out
+    assert "arduinobot check" in text and "MODEL" in text
+
+
+def test_obstacle_and_joint_options_parse():
+    from clients.cmd_plan import joint_map, obstacle
+    assert obstacle("box:table:1,1,0.1@0,1,0.5@0,0,0.3") == {
+        "id": "table", "shape": "box", "size": [1, 1, 0.1], "xyz": [0, 1, 0.5],
+        "rpy": [0, 0, 0.3]}
+    assert obstacle("sphere:s:0.2@1,2,3") == {"id": "s", "shape": "sphere", "radius": 0.2,
+                                               "xyz": [1, 2, 3]}
+    assert obstacle("cylinder:c:0.1,2")["length"] == 2
+    with pytest.raises(SystemExit):
+        obstacle("cone:c:1")
+    names = ("joint_1", "joint_2", "joint_3")
+    assert joint_map("0.5,0.3", names, "--goal") == {"joint_1": 0.5, "joint_2": 0.3}
+    assert joint_map("joint_3=-0.4", names, "--goal") == {"joint_3": -0.4}
+    with pytest.raises(SystemExit):
+        joint_map("1,2,3,4", names, "--goal")
