@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import io
 import json
 import math
 import shutil
@@ -208,14 +209,27 @@ class Browser:
             assert time.monotonic() < deadline, f"the page never showed {text!r}"
             time.sleep(0.2)
 
-    def screenshot(self, out: Path, *, frames: int = 3) -> np.ndarray:
-        """Let the 3D canvas draw ``frames`` frames, then capture, as (h, w, 3) uint8."""
+    def capture(self) -> np.ndarray:
+        """The page now, after the canvas drew a couple more frames, as (h, w, 3) uint8."""
         assert self.eval("document.querySelectorAll('canvas').length") >= 1, "no 3D canvas"
-        self.eval("new Promise(r => { let n = 0; const f = () => (++n >= %d) ? r(n) : "
-                  "requestAnimationFrame(f); requestAnimationFrame(f); })" % frames)
+        self.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
         data = self.call("Page.captureScreenshot", session=True, format="png")["data"]
-        out.write_bytes(base64.b64decode(data))
-        return np.asarray(Image.open(out).convert("RGB"))
+        return np.asarray(Image.open(io.BytesIO(base64.b64decode(data))).convert("RGB"))
+
+    def screenshot(self, out: Path, *, timeout: float = 60.0) -> np.ndarray:
+        """Capture once the picture has settled (the page fades the scene in over a moment
+        of wall-clock time): two captures 0.3 s apart that agree. Saved to ``out``."""
+        deadline = time.monotonic() + timeout
+        prev = self.capture()
+        while True:
+            time.sleep(0.3)
+            img = self.capture()
+            if np.abs(img.astype(int) - prev).mean() < 0.2:
+                break
+            assert time.monotonic() < deadline, "the page never settled"
+            prev = img
+        Image.fromarray(img).save(out)
+        return img
 
     def close(self) -> None:
         self.ws.close()
