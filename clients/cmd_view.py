@@ -104,10 +104,8 @@ def cmd_view(ns: argparse.Namespace) -> int:
     except TrajectoryFileError as e:
         print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
         return EXIT_FAIL
-    except PlanningError as e:
-        field = getattr(e, "field", None)
-        print(f"arduinobot: {type(e).__name__}: {field + ': ' if field else ''}{e}",
-              file=sys.stderr)
+    except PlanningError as e:  # its message names the field
+        print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
         return EXIT_FAIL
 
 

@@ -273,7 +273,7 @@ def test_page_shows_robot_and_collision_in_chromium(description, tmp_path):
         home = _scene_region(browser.screenshot(tmp_path / "home.png"))
         coloured = _coloured(home)
         assert coloured.mean() > 0.04, f"only {coloured.mean():.1%} robot pixels: blank page?"
-        ys, xs = np.nonzero(coloured)
+        ys, _ = np.nonzero(coloured)
         # framed: the robot spans most of the scene region's height
         assert (ys.max() - ys.min()) > 0.5 * home.shape[0]
         assert _is_red(home).mean() < 1e-4  # nothing collides at zero

@@ -20,8 +20,15 @@ from planner.collision import CollisionWorld, StateCheck
 from planner.scene import Obstacle
 
 from . import require
-from .geometry import (COLLISION_RGB, OBSTACLE_RGB, frame_box, link_meshes, matrix_to_wxyz,
-                       obstacle_mesh, world_bounds)
+from .geometry import (
+    COLLISION_RGB,
+    OBSTACLE_RGB,
+    frame_box,
+    link_meshes,
+    matrix_to_wxyz,
+    obstacle_mesh,
+    world_bounds,
+)
 
 _log = logging.getLogger(__name__)
 
