@@ -9,6 +9,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+import numpy as np
+
 from description import Description
 from planner.errors import InvalidRequest
 from planner.goals import JointGoal, NamedGoal, PositionGoal
@@ -48,22 +50,20 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
         **opts)
 
 
-def _floats(v: Any) -> list[float]:
-    return [float(x) for x in v]
-
-
 def plan_response(result: Any) -> dict[str, Any]:
     """A :class:`planner.pipeline.MotionResult` as the v1 response (without request_id):
     trajectory (actuated joints), duration [s], path (waypoints in joint_names order),
     timing (seconds per stage), verification, planner."""
     traj = result.trajectory
-    points = [{"positions": _floats(p.positions), "velocities": _floats(p.velocities),
-               "accelerations": _floats(p.accelerations), "effort": _floats(p.effort),
-               "time_from_start": float(p.time_from_start)} for p in traj.points]
+    # from the sample arrays (m, dof): much faster than per-point objects
+    columns = zip(traj.positions.tolist(), traj.velocities.tolist(),
+                  traj.accelerations.tolist(), traj.efforts.tolist(), traj.times.tolist())
+    points = [{"positions": q, "velocities": qd, "accelerations": qdd, "effort": tau,
+               "time_from_start": t} for q, qd, qdd, tau, t in columns]
     return {
         "trajectory": {"joint_names": list(traj.joint_names), "points": points},
         "duration": float(traj.duration),
-        "path": [_floats(w) for w in result.path],
+        "path": np.asarray(result.path, float).tolist(),
         "timing": {str(k): float(v) for k, v in dict(result.timing).items()},
         "verification": result.verification.to_dict(),
         "planner": str(result.planner),

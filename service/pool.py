@@ -27,8 +27,8 @@ from .worker import DescriptionSpec, worker_main
 
 _log = logging.getLogger(__name__)
 
-#: ``(True, body)`` or ``(False, {"code", "message", "details"})``.
-Outcome = tuple[bool, dict[str, Any]]
+#: ``(True, reply JSON bytes)`` or ``(False, {"code", "message", "details"})``.
+Outcome = tuple[bool, Any]
 
 
 class PoolStartError(RuntimeError):

@@ -225,9 +225,8 @@ class PlannerService:
 
         def respond(outcome: Outcome, query: zenoh.Query = query) -> None:
             ok, body = outcome
-            if ok:
-                query.reply(key, wire.encode({**body, "request_id": request_id}),
-                            encoding=JSON)
+            if ok:  # the worker encoded it, request_id included
+                query.reply(key, body, encoding=JSON)
             else:
                 _reply_error(query, body["code"], body["message"], body["details"])
             query.drop()  # the reply is final: let the querier's get finish now

@@ -17,6 +17,7 @@ from multiprocessing.connection import Connection
 from description import load_description
 from planner.errors import PlanningError
 
+from . import wire
 from .handlers import Handlers
 
 _log = logging.getLogger(__name__)
@@ -39,7 +40,7 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     """Serve jobs ``(job_id, kind, data)`` until ``None`` or EOF.
 
     Sends ``("ready", pid)`` once warmed up (or ``("failed", message)``), then per job
-    ``(job_id, "ok", body)`` or ``(job_id, "err", code, message, details)``.
+    ``(job_id, "ok", json_bytes)`` (the reply, request_id included) or ``(job_id, "err", code, message, details)``.
     """
     # Ctrl-C reaches the whole process group: the parent shuts workers down itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -69,4 +70,5 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
             conn.send((job_id, "err", "INTERNAL", f"{type(e).__name__}: {e}",
                        {"exception": type(e).__name__}))
         else:
-            conn.send((job_id, "ok", body))
+            # encoded here, in parallel across workers, not in the serving process
+            conn.send((job_id, "ok", wire.encode({**body, "request_id": job_id})))
