@@ -24,10 +24,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from clients.client import PlannerClient  # noqa: E402
-from description import load_description  # noqa: E402
-from service import wire  # noqa: E402
-from service.handlers import Handlers  # noqa: E402
+from clients.client import PlannerClient
+from description import load_description
+from service import wire
+from service.handlers import Handlers
 
 # A 100 Hz trajectory of about 2 s (base swing from reach_right to reach_left).
 REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},

@@ -215,8 +215,8 @@ def cmd_plan(ns: argparse.Namespace) -> int:
 def summary(res: Any, limits: Mapping[str, Mapping[str, float | None]] | None) -> str:
     """Duration, per-joint peaks against limits, stage timings."""
     import numpy as np
-    lines = [f"trajectory: {len(res.points)} points, duration {res.duration:.3f} s, "
-             f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}"]
+    lines = [(f"trajectory: {len(res.points)} points, duration {res.duration:.3f} s, "
+              f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}")]
     lines.append(f"{'joint':<10}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
                  f"{'|effort|':>10}{'limit':>8}")
     peaks = {k: np.abs(getattr(res, k)).max(axis=0) if len(res.points) else

@@ -199,7 +199,7 @@ class WorkerPool:
         self.count("ok" if outcome[0] else outcome[1]["code"])
         try:
             fn(outcome)
-        except Exception:  # a reply that cannot be sent must not kill the pool thread
+        except Exception:  # noqa: BLE001 -- a failed reply must not kill the pool thread
             _log.exception("request %s: sending the reply failed", job.request_id)
 
     def _watch(self) -> None:

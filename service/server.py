@@ -16,7 +16,6 @@ from __future__ import annotations
 import itertools
 import logging
 import os
-import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -200,7 +199,7 @@ class PlannerService:
             # Runs on Zenoh's thread: only cheap checks here, planning goes to the pool.
             try:
                 self._on_query(kind, key, query)
-            except Exception:
+            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
                 _log.exception("%s: unexpected failure handling a query", key)
                 _reply_error(query, "INTERNAL", "unexpected failure in the service", {})
         return on_query

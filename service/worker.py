@@ -49,7 +49,7 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     try:
         handlers = Handlers(spec.load())
         handlers.warm_up()
-    except Exception as e:  # reported to the parent, which refuses to start
+    except Exception as e:  # noqa: BLE001 -- reported to the parent, which refuses to start
         conn.send(("failed", f"{type(e).__name__}: {e}"))
         return
     conn.send(("ready", os.getpid()))
@@ -65,7 +65,7 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
             body = handlers.handle(kind, data)
         except PlanningError as e:
             conn.send((job_id, "err", e.code, e.message, e.details))
-        except Exception as e:  # a bug: the request fails INTERNAL, the worker lives on
+        except Exception as e:  # noqa: BLE001 -- a bug: INTERNAL, the worker lives on
             _log.error("job %s (%s) failed:\n%s", job_id, kind, traceback.format_exc())
             conn.send((job_id, "err", "INTERNAL", f"{type(e).__name__}: {e}",
                        {"exception": type(e).__name__}))

@@ -92,15 +92,15 @@ def _pump(proc: subprocess.Popen, lines: list[str], ready: threading.Event) -> N
             ready.set()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def server() -> Iterator[Server]:
-    """One `arduinobot serve` (2 workers) per test module."""
+    """One `arduinobot serve` (2 workers) shared by the modules that only query it."""
     srv = start_server(["--workers", "2"])
     yield srv
     srv.stop()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def client(server: Server):
     from clients.client import PlannerClient
     with PlannerClient(server.endpoint, timeout=30.0) as c:

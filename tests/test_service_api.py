@@ -185,7 +185,7 @@ def test_instances_are_discovered_and_addressable(client, server):
 
 
 def test_wrong_prefix_is_no_route(server):
-    with PlannerClient(server.endpoint, prefix="nobody", timeout=5) as c:
-        with pytest.raises(errors.ServiceUnavailable) as e:
-            c.health()
+    with PlannerClient(server.endpoint, prefix="nobody", timeout=5) as c, \
+            pytest.raises(errors.ServiceUnavailable) as e:
+        c.health()
     assert e.value.reason == "no_route" and "arduinobot serve" in e.value.message

@@ -26,8 +26,8 @@ LONG_PLAN = {"start": {"joint_1": -1.2, "joint_2": 1.2, "joint_3": 0.3},
 
 @pytest.fixture(scope="module")
 def small_server():
-    """One worker, one queue slot, 1 s deadline (plus planning_time for plans)."""
-    srv = start_server(["--workers", "1", "--queue", "1", "--timeout", "1.0"])
+    """One worker, one queue slot, 0.3 s deadline (plus planning_time for plans)."""
+    srv = start_server(["--workers", "1", "--queue", "1", "--timeout", "0.3"])
     yield srv
     code = srv.stop(signal.SIGINT)
     assert code == 0, "\n".join(srv.stderr_lines[-20:])
@@ -40,7 +40,7 @@ def _in_thread(fn):
     def run():
         try:
             out["value"] = fn()
-        except Exception as e:  # collected for the assertions below
+        except Exception as e:  # noqa: BLE001 -- collected for the assertions below
             out["error"] = e
     t = threading.Thread(target=run, daemon=True)
     t.start()
@@ -87,3 +87,24 @@ def test_busy_timeout_and_a_killed_worker(small_server):
         # exactly one reply per request: received == answered (health is not counted)
         answered = sum(cnt.get(k, 0) for k in ("ok", "BUSY", "TIMEOUT", "INTERNAL"))
         assert cnt["received"] == 4 and answered == 4
+
+
+def test_a_request_past_its_deadline_in_a_worker_times_out_and_the_worker_is_replaced(
+        small_server):
+    # A new obstacle set makes the worker build a collision world from the link meshes
+    # (seconds), far past this request's 0.3 s + planning_time budget.
+    req = {**LONG_PLAN, "planning_time": 0.5,
+           "obstacles": [{"id": f"s{i}", "shape": "sphere", "radius": 0.05,
+                          "xyz": [2.0, 2.0, 0.2 * i]} for i in range(40)]}
+    with PlannerClient(small_server.endpoint, timeout=60) as c:
+        _wait_for(lambda: c.health()["workers"][0]["pid"])
+        before = c.health()
+        pid0 = before["workers"][0]["pid"]
+        with pytest.raises(errors.RequestTimeout) as e:
+            c.plan(req)
+        assert "worker" in e.value.message
+        _wait_for(lambda: c.health()["workers"][0]["pid"] not in (None, pid0))
+        assert c.fk({"joint_2": 0.1}).joints["joint_2"] == pytest.approx(0.1)
+        cnt = c.health()["counters"]
+        assert cnt["timeouts_in_worker"] == before["counters"].get("timeouts_in_worker", 0) + 1
+        assert cnt["worker_restarts"] == before["counters"]["worker_restarts"] + 1
