@@ -1,21 +1,31 @@
-"""Trajectory benchmark: time parameterisation + verification per scene; JSON line at the end.
+"""Trajectory benchmark, ours vs MPlib on the same problems; figures, then one JSON line.
 
-Scenes and problems are bench/planning.py's. Per problem: plan once, then time the path
-with ruckig (jerk-limited) and toppra (time-optimal), each verified; report the compute
-time of parameterise+verify, the jerk-limited / time-optimal duration ratio, and the
-violations an independent re-check finds: finite differences of positions evaluated
-on a fine grid (velocity, acceleration, jerk), torques at those finite-difference
-derivatives, and a dense collision check by linear interpolation between fine states.
+Per scene (bench/scenes.py, the planning benchmark's scenes and seeded problems):
 
-MPlib comparison: not run yet (see ``MPLIB``): the wheel (mplib 0.2.1, cp311) installs
-into .bench-venvs/mplib, but the runner that loads our URDF/SRDF into it is not written.
+- ours end to end: ``MotionPlanner.solve`` (validate, plan, blend, jerk-limited timing,
+  verification), wall clock, RRTConnect with a 1 s budget;
+- param+verify: on each planned path, ``time_path`` with ruckig (jerk-limited) and with
+  toppra (time-optimal), each verified, timed; and the jerk-limited duration over the
+  time-optimal one;
+- MPlib 0.2.1 (OMPL RRTConnect, FCL, TOPP-RA: the peer with our stack) in its own venv
+  (.bench-venvs/mplib, created on demand) through bench/mplib_runner.py, on the same
+  problems with the same budget and our velocity/acceleration limits: plan + TOPP time;
+- violations in every returned trajectory, both ours and MPlib's, by our verifier
+  (planner.verify.Verifier) and by the independent re-check (bench/recheck.py).
+  MPlib's trajectories are rebuilt from its toppra data (checked against its samples).
+
+Both sides get one warm-up problem per scene that is not counted. Usage:
+``python bench/trajectory.py [problems per scene]`` (default 8).
 """
 
 from __future__ import annotations
 
 import json
+import multiprocessing as mp_
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -23,84 +33,237 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from planning import SCENES, problems  # noqa: E402
+from recheck import IndependentModel, Limits, recheck  # noqa: E402
+from scenes import SCENES, obstacle_dicts, problems, write_model  # noqa: E402
 
 from description import load_description  # noqa: E402
 from planner.curve import build_curve  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
 from planner.goals import JointGoal  # noqa: E402
-from planner.motion_check import interpolate  # noqa: E402
-from planner.pipeline import MotionPlanner  # noqa: E402
-from planner.planning import PathRequest  # noqa: E402
+from planner.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from planner.trajectory import JointTrajectory  # noqa: E402
+from planner.verify import Verifier  # noqa: E402
 
-MPLIB = {"status": "not run", "reason": "runner for our URDF/SRDF in .bench-venvs/mplib "
-         "not written yet (mplib-0.2.1-cp311 wheel downloads and installs)"}
-
-
-def independent_violations(traj, limits, dynamics, world, *, dt: float = 5e-4) -> int:
-    """Count violated limit kinds found by re-deriving everything from positions."""
-    ts = np.arange(0.0, traj.duration, dt)
-    ts = np.append(ts, traj.duration)
-    q = traj.evaluate(ts)[0]
-    h = np.diff(ts)
-    v = np.diff(q, axis=0) / h[:, None]
-    a = np.diff(v, axis=0) / (0.5 * (h[1:] + h[:-1]))[:, None]
-    j = np.diff(a, axis=0) / h[1:-1, None]
-    tol = 1.02  # finite differences of a smooth curve at 0.5 ms: ~1 % discretisation error
-    bad = 0
-    bad += bool(np.any(q < limits.lower - 1e-9) or np.any(q > limits.upper + 1e-9))
-    bad += bool(np.any(np.abs(v) > limits.velocity * tol))
-    bad += bool(np.any(np.abs(a) > limits.acceleration * tol))
-    if traj.profile == "jerk_limited":
-        bad += bool(np.any(np.abs(j) > limits.jerk * tol))
-    tau = dynamics.torques_batch(q[1:-1], 0.5 * (v[1:] + v[:-1]), a)
-    bad += bool(np.any(np.abs(tau) > limits.effort * tol))
-    bad += world.first_invalid(interpolate(q, 0.002)) >= 0
-    return bad
+ROOT = Path(__file__).resolve().parent.parent
+VENV = ROOT / ".bench-venvs" / "mplib"
+PLANNING_TIME = 1.0
+ARM = ("joint_1", "joint_2", "joint_3")
 
 
-def main(n: int = 10) -> None:
+def mplib_python() -> Path:
+    """The MPlib venv's python, creating the venv and installing mplib on first use."""
+    py = VENV / "bin" / "python"
+    if not py.exists():
+        subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
+    if subprocess.run([str(py), "-c", "import mplib"], capture_output=True).returncode:
+        subprocess.run([str(py), "-m", "pip", "install", "-q", "mplib==0.2.1"], check=True)
+    return py
+
+
+class MplibTiming:
+    """MPlib's trajectory, continuous: toppra's const-accel profile on its spline, j4 fixed."""
+
+    def __init__(self, res: dict, dof: int, rest: np.ndarray) -> None:
+        import toppra as ta
+        from toppra.parametrizer import ParametrizeConstAccel
+        path = np.array(res["path"])
+        spline = ta.SplineInterpolator(np.linspace(0, 1, len(path)), path)
+        self.traj = ParametrizeConstAccel(spline, np.array(res["gridpoints"]),
+                                          np.array(res["sd"]))
+        self.duration = float(self.traj.duration)
+        self.dof, self.rest, self.n = dof, rest, path.shape[1]
+        self.goal = self.evaluate(np.array([self.duration]))[0][0]
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ts = np.clip(np.atleast_1d(np.asarray(ts, float)), 0.0, self.duration)
+        out = []
+        for order in range(3):
+            x = np.zeros((len(ts), self.dof)) if order else np.tile(self.rest, (len(ts), 1))
+            x[:, :self.n] = self.traj(ts, order)
+            out.append(x)
+        return out[0], out[1], out[2]
+
+
+def stats(xs: list[float]) -> dict:
+    if not xs:
+        return {"median_ms": None, "p95_ms": None}
+    return {"median_ms": 1e3 * statistics.median(xs), "p95_ms": 1e3 * float(np.percentile(xs, 95))}
+
+
+# re-check tasks, read by forked workers (no pickling of trajectories)
+TASKS: list[tuple] = []
+MODEL_FILES: tuple = ()
+
+
+def _recheck_task(i: int):
+    global _MODEL
+    if "_MODEL" not in globals():
+        _MODEL = IndependentModel(*MODEL_FILES)
+    positions, duration, limits, obstacles, jerk = TASKS[i]
+    return recheck(_MODEL, positions, duration, limits, obstacles=obstacles,
+                   enforce_jerk=jerk)
+
+
+def main(n: int = 8) -> None:
+    global MODEL_FILES
     d = load_description()
     mp = MotionPlanner(d)
-    summary: dict[str, dict] = {}
+    names = mp.joint_names
+    lim = mp.limits(1.0, 1.0)
+    rl = Limits(*(np.asarray(getattr(lim, k), float) for k in
+                  ("lower", "upper", "velocity", "acceleration", "jerk", "effort")))
+    tmp = Path(tempfile.mkdtemp(prefix="bench-trajectory-"))
+    urdf, srdf = write_model(tmp / "model")
+    MODEL_FILES = (urdf, srdf, names)
+    rows: dict[str, dict] = {}
+    spec = {"urdf": str(urdf), "srdf": str(srdf), "move_group": "claw_support",
+            "velocity": [float(lim.velocity[names.index(j)]) for j in ARM],
+            "acceleration": [float(lim.acceleration[names.index(j)]) for j in ARM],
+            "time_step": 0.01, "warmup": True, "output": str(tmp / "mplib.json"),
+            "scenes": {}}
+    probs_of: dict[str, list] = {}
+    recheck_of: dict[str, list] = {}  # scene -> [(kind, task index)]
     for scene, obs in SCENES.items():
         obs = tuple(obs)
         world = mp.world(obs)
-        _, paths = mp._entry(obs)
-        limits = mp.limits(1.0, 1.0)
-        rng = np.random.default_rng(7)
-        compute = {"jerk_limited": [], "time_optimal": []}
-        ratios, violations, fails = [], 0, 0
-        for i, (a, b, _) in enumerate(problems(world, n, rng)):
+        probs = problems(world, n, np.random.default_rng(7))
+        probs_of[scene] = probs
+        spec["scenes"][scene] = {"obstacles": obstacle_dicts(list(obs)), "problems": [
+            {"start": dict(zip(names, map(float, a))), "goal": dict(zip(ARM, map(float, b[:3]))),
+             "planning_time": PLANNING_TIME} for a, b, _ in probs]}
+
+        def request(i: int, a: np.ndarray, b: np.ndarray) -> MotionRequest:
+            return MotionRequest(goal=JointGoal(dict(zip(ARM, map(float, b[:3])))),
+                                 start=dict(zip(names, map(float, a))), obstacles=obs,
+                                 planning_time=PLANNING_TIME, seed=i)
+
+        try:  # warm-up, not counted
+            mp.solve(request(0, *probs[0][:2]))
+        except PlanningError:
+            pass
+        e2e, ok, compute, ratios, ours_verifier_bad, tasks = [], 0, {"jerk_limited": [],
+                                                                   "time_optimal": []}, [], 0, []
+        at_mismatch = 0.0
+        for i, (a, b, _) in enumerate(probs):
+            t0 = time.perf_counter()
             try:
-                res = paths.solve(PathRequest(start=a, goal=JointGoal(
-                    dict(zip(world.kin.joint_names[:3], map(float, b[:3])))),
-                    planning_time=2.0, seed=i))
+                res = mp.solve(request(i, a, b))
             except PlanningError:
-                fails += 1
+                e2e.append(time.perf_counter() - t0)
                 continue
+            e2e.append(time.perf_counter() - t0)
+            ok += 1
+            ours_verifier_bad += not res.verification.ok
             curve = build_curve(res.path, world)
             dur = {}
             for prof in ("jerk_limited", "time_optimal"):
-                t0 = time.perf_counter()
-                traj, rep, _, _ = mp.time_path(curve, res.path, world, limits, profile=prof)
-                compute[prof].append(time.perf_counter() - t0)
+                t1 = time.perf_counter()
+                try:
+                    traj, rep, _, _ = mp.time_path(curve, res.path, world, lim, profile=prof)
+                except PlanningError:
+                    compute[prof].append(time.perf_counter() - t1)
+                    continue
+                compute[prof].append(time.perf_counter() - t1)
                 dur[prof] = traj.duration
-                violations += independent_violations(traj, limits, mp.dynamics, world)
-            ratios.append(dur["jerk_limited"] / dur["time_optimal"])
-        row = {
-            "problems": n, "plan_failures": fails,
+                ours_verifier_bad += not rep.ok
+                # the re-check reads positions through evaluate(), the vectorised at(t)
+                for t in np.random.default_rng(i).uniform(0, traj.duration, 5):
+                    at_mismatch = max(at_mismatch, float(np.max(np.abs(
+                        np.array(traj.at(float(t)).positions) - traj.evaluate([t])[0][0]))))
+                TASKS.append((lambda ts, tr=traj: tr.evaluate(ts)[0], traj.duration, rl,
+                              obstacle_dicts(list(obs)), prof == "jerk_limited"))
+                tasks.append((prof, len(TASKS) - 1))
+            if len(dur) == 2:
+                ratios.append(dur["jerk_limited"] / dur["time_optimal"])
+        recheck_of[scene] = tasks
+        rows[scene] = {
+            "problems": n,
+            "ours": {"success": ok / n, **stats(e2e),
+                     "verifier_violations": ours_verifier_bad},
             "ruckig_param_verify_ms_median": 1e3 * statistics.median(compute["jerk_limited"]),
             "toppra_param_verify_ms_median": 1e3 * statistics.median(compute["time_optimal"]),
-            "duration_ratio_median": statistics.median(ratios),
-            "duration_ratio_max": max(ratios),
-            "independent_violations": violations,
+            "duration_ratio_median": statistics.median(ratios) if ratios else None,
+            "duration_ratio_max": max(ratios) if ratios else None,
+            "at_vs_evaluate_max_diff": at_mismatch,
         }
-        summary[scene] = row
-        print(scene, {k: round(v, 3) if isinstance(v, float) else v for k, v in row.items()})
-    summary["mplib"] = MPLIB
-    print(json.dumps(summary))
+
+    # MPlib, same problems, same machine, same run
+    py = mplib_python()
+    t0 = time.perf_counter()
+    subprocess.run([str(py), str(Path(__file__).with_name("mplib_runner.py"))],
+                   input=json.dumps(spec), text=True, check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
+    mplib_wall = time.perf_counter() - t0
+    out = json.loads((tmp / "mplib.json").read_text())
+    for scene, results in out["scenes"].items():
+        obs = tuple(SCENES[scene])
+        world = mp.world(obs)
+        verifier = Verifier(lim, mp.dynamics, world, clearance_states=0)
+        row = rows[scene]
+        e2e = [r["total_s"] for r in results]
+        kinds: dict[str, int] = {}
+        bad, rebuild, tasks = 0, 0.0, []
+        for (a, _, _), r in zip(probs_of[scene], results):
+            if not r["success"]:
+                continue
+            timing = MplibTiming(r, len(names), np.asarray(a, float))
+            rebuild = max(rebuild, float(np.max(np.abs(
+                timing.evaluate(np.array(r["sample_times"]))[0][:, :3]
+                - np.array(r["sample_positions"])))))
+            traj = JointTrajectory.sample(timing, mp.dynamics.torques_batch, joint_names=names,
+                                          sample_rate=100.0, profile="time_optimal")
+            rep = verifier.verify(traj, enforce_jerk=False)
+            found = list(rep.violations) + ([] if rep.collision_free else ["collision"])
+            bad += bool(found)
+            for k in found:
+                kinds[k] = kinds.get(k, 0) + 1
+            TASKS.append((lambda ts, tm=timing: tm.evaluate(ts)[0], timing.duration, rl,
+                          obstacle_dicts(list(obs)), False))
+            tasks.append(("mplib", len(TASKS) - 1))
+        recheck_of[scene] += tasks
+        row["mplib"] = {"success": sum(r["success"] for r in results) / len(results),
+                        "start_valid": sum(r["start_valid"] for r in results),
+                        **stats(e2e),
+                        "plan_ms_median": 1e3 * statistics.median(r["plan_s"] for r in results),
+                        "topp_ms_median": 1e3 * statistics.median(
+                            [r["param_s"] for r in results if r["success"]] or [0.0]),
+                        "verifier_violations": bad, "verifier_kinds": kinds,
+                        "rebuild_max_diff_rad": rebuild}
+        m, o = row["mplib"]["median_ms"], row["ours"]["median_ms"]
+        row["speed_ratio_median"] = m / o if m and o else None
+
+    # the independent re-check of every returned trajectory (not timed; 2 processes)
+    with mp_.get_context("fork").Pool(2) as pool:
+        reports = pool.map(_recheck_task, range(len(TASKS)))
+    for scene, tasks in recheck_of.items():
+        rc: dict[str, dict] = {}
+        for kind, idx in tasks:
+            rep = reports[idx]
+            e = rc.setdefault(kind, {"checked": 0, "violating": 0, "kinds": {}})
+            e["checked"] += 1
+            e["violating"] += bool(rep.violations)
+            for k in rep.violations:
+                e["kinds"][k] = e["kinds"].get(k, 0) + 1
+            if rep.violations:
+                print(f"  re-check {scene} {kind}: {rep.violations} worst={rep.worst} "
+                      f"first_collision={rep.first_collision}")
+        rows[scene]["recheck"] = rc
+    rows["mplib_wall_s"] = mplib_wall
+    for scene in SCENES:
+        r = rows[scene]
+        o, m = r["ours"], r["mplib"]
+        rc = r["recheck"]
+        print(f"{scene:8s} success ours {o['success']:.2f} mplib {m['success']:.2f} | e2e ms "
+              f"ours {o['median_ms']:.1f}/{o['p95_ms']:.1f} mplib {m['median_ms']:.1f}/"
+              f"{m['p95_ms']:.1f} (median/p95) ratio {r['speed_ratio_median']:.2f}x | "
+              f"param+verify ms ruckig {r['ruckig_param_verify_ms_median']:.1f} toppra "
+              f"{r['toppra_param_verify_ms_median']:.1f} | duration ratio "
+              f"{r['duration_ratio_median']:.3f} | violations verifier ours "
+              f"{o['verifier_violations']} mplib {m['verifier_violations']} {m['verifier_kinds']}"
+              f" | re-check " + ", ".join(f"{k} {v['violating']}/{v['checked']} {v['kinds']}"
+                                           for k, v in rc.items()))
+    print(json.dumps(rows))
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 10)
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 8)
