@@ -121,8 +121,9 @@ class WorkerPool:
         w.start()
         self._threads.append(w)
 
-    def close(self) -> None:
-        """Refuse new jobs, answer waiting ones with INTERNAL, stop the workers."""
+    def close(self, *, grace: float = 2.0) -> None:
+        """Refuse new jobs, answer waiting ones with INTERNAL, give running ones ``grace``
+        seconds [s], then stop the workers (their jobs get INTERNAL)."""
         with self._cond:
             self._stopping = True
             self._cond.notify_all()
@@ -135,12 +136,15 @@ class WorkerPool:
                 self._finish(job, error("INTERNAL", "the service is shutting down"))
         for _ in range(self.workers):
             self._queue.put(None)
+        end = time.monotonic() + grace
         for t in self._threads:
-            t.join(timeout=5.0)
+            t.join(timeout=max(0.0, end - time.monotonic()))
         for p in self._procs:
             if p is not None and p.is_alive():
                 p.kill()
                 p.join(1.0)
+        for t in self._threads:
+            t.join(timeout=2.0)
 
     def __enter__(self) -> WorkerPool:
         self.start()
@@ -286,13 +290,16 @@ class WorkerPool:
                 code = proc.exitcode
                 how = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0
                        else f"exit code {code}")
-                self.count("worker_crashes")
                 with self._lock:
                     self._pids[i] = None
-                _log.error("worker %d (pid %s) died (%s) on request %s; replacing it",
-                           i, proc.pid, how, job.request_id)
-                self._finish(job, error("INTERNAL", f"the worker process died ({how}) "
-                                        "while planning this request; it has been replaced",
+                if not self._stopping:
+                    self.count("worker_crashes")
+                    _log.error("worker %d (pid %s) died (%s) on request %s; replacing it",
+                               i, proc.pid, how, job.request_id)
+                self._finish(job, error("INTERNAL", "the service is shutting down"
+                                        if self._stopping else
+                                        f"the worker process died ({how}) while planning "
+                                        "this request; it has been replaced",
                                         request_id=job.request_id, worker_exit=how))
             finally:
                 with self._lock:

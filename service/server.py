@@ -167,18 +167,20 @@ class PlannerService:
                   self.instance)
 
     def close(self) -> None:
+        """Stop taking queries, answer those in flight (INTERNAL past a short grace), then
+        close the session."""
         for e in reversed(self._entities):
             try:
                 e.undeclare()
             except zenoh.ZError:
                 pass  # already gone with the session
         self._entities.clear()
-        if self.session is not None:
-            self.session.close()
-            self.session = None
         if self.pool is not None:
             self.pool.close()
             self.pool = None
+        if self.session is not None:
+            self.session.close()
+            self.session = None
 
     def __enter__(self) -> PlannerService:
         self.start()

@@ -108,3 +108,16 @@ def test_a_request_past_its_deadline_in_a_worker_times_out_and_the_worker_is_rep
         cnt = c.health()["counters"]
         assert cnt["timeouts_in_worker"] == before["counters"].get("timeouts_in_worker", 0) + 1
         assert cnt["worker_restarts"] == before["counters"]["worker_restarts"] + 1
+
+
+def test_ctrl_c_answers_the_request_in_flight_and_exits_cleanly(small_server):
+    # last in this module: it stops the module's server
+    with PlannerClient(small_server.endpoint, timeout=60) as c:
+        t, out = _in_thread(lambda: c.plan(LONG_PLAN))
+        _wait_for(lambda: c.health()["workers"][0]["busy"])
+        t0 = time.monotonic()
+        assert small_server.stop(signal.SIGINT) == 0
+        t.join(10)
+        assert time.monotonic() - t0 < 10
+        err = out.get("error")
+        assert isinstance(err, errors.InternalError) and "shutting down" in err.message, out
