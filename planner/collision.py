@@ -22,6 +22,7 @@ from description import Description
 from description.meshes import shape_mesh
 
 from .acm import AllowedCollisionMatrix
+from .advance import pair_weights, sweep
 from .errors import InvalidRequest
 from .kinematics import Kinematics
 from .obbtree import Forest, ObbTree, box_tree, build_tree, pair_candidates, \
@@ -92,7 +93,7 @@ class CollisionWorld:
         self.obstacles = validate_obstacles(obstacles, link_names=self.kin.link_names)
         self.checks = 0
         robot = description.robot
-        names, frames, trees, objs, statics = [], [], [], [], []
+        names, frames, trees, objs, statics, points = [], [], [], [], [], []
         for link in self.kin.link_names:
             shapes = robot.links[link].collisions
             if not shapes:
@@ -104,6 +105,7 @@ class CollisionWorld:
             trees.append(build_tree(mesh.vertices, mesh.faces))
             objs.append(fcl.CollisionObject(_bvh(mesh), fcl.Transform()))
             statics.append(not any(j.movable for j in robot.link_path(link)))
+            points.append((link, np.asarray(mesh.vertices, float)))
         self.link_bodies = tuple(names)
         static_pose = np.tile(np.eye(4), (len(names) + len(self.obstacles), 1, 1))
         for i, o in enumerate(self.obstacles):
@@ -114,6 +116,7 @@ class CollisionWorld:
             trees.append(tree)
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
             statics.append(True)
+            points.append((None, np.zeros((1, 3))))
             static_pose[len(self.link_bodies) + i] = pose
         self.body_names = tuple(names)
         self._frame = np.array(frames, dtype=np.int64)
@@ -132,6 +135,8 @@ class CollisionWorld:
         self._pairs = np.array(moving, dtype=np.int64).reshape(-1, 2)
         self.pair_names: tuple[tuple[str, str], ...] = tuple(
             (names[a], names[b]) for a, b in self._pairs)
+        # [m/rad] how fast each pair can close in per joint, for conservative advancement
+        self._weight = pair_weights(robot, self.kin.joint_names, points, self._pairs)
         self._placed = np.full(len(names), -1, dtype=np.int64)
         self._stamp = 0
         self._creq = fcl.CollisionRequest()
@@ -144,6 +149,10 @@ class CollisionWorld:
         self._poses = np.empty((len(self.kin.link_names), 4, 4))
         self._cand = np.zeros(len(self._pairs), dtype=np.int64)
         self._stack = np.empty((_STACK, 2), dtype=np.int64)
+        self._gaps = np.empty(_STACK)
+        self._sweep_poses = np.empty_like(self._poses)
+        # [m] how far ahead one distance bound is asked to prove a pair free
+        self.horizon = 0.1
         _log.info("collision world: %d bodies, %d moving pairs, %d fixed pairs (%d colliding)",
                   len(names), len(self._pairs), len(fixed), len(self._fixed_hits))
 
@@ -251,27 +260,57 @@ class CollisionWorld:
                               self._stack, out)
         return poses, out
 
+    def _sweep(self, qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray,
+               budget: np.ndarray, out: np.ndarray) -> int:
+        f = self._forest
+        return sweep(qs, start, stop_early, cum, budget, *self.kin._args(), self._frame,
+                     self._static_pose, self._pairs, self._weight, f.root, f.center, f.axes,
+                     f.half, f.left, f.right, self.padding, self.horizon, self._sweep_poses,
+                     self._stack, self._gaps, out)
+
+    def sweep_candidates(self, qs: ArrayLike) -> np.ndarray:
+        """(state, pair) flags, shape (m, n_pairs) int8, for states ``qs`` (m, dof) walked
+        in order: 0 where conservative advancement proves the pair apart (farther than
+        the padding), 1 where the narrow phase must decide."""
+        qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
+        out = np.zeros((len(qs), len(self._pairs)), dtype=np.int8)
+        self._sweep(qs, 0, False, np.empty_like(qs), np.empty(len(self._pairs)), out)
+        return out
+
     def first_invalid(self, qs: ArrayLike, *, order: np.ndarray | None = None) -> int:
         """Index of the first colliding state of ``qs`` (shape (m, dof)), -1 if none.
 
-        ``order`` (a permutation of range(m)) sets the order states are narrow-phased
-        in; the answer is then the first colliding state in that order.
+        Every state is decided (nothing between states is implied): pairs that
+        conservative advancement (:mod:`planner.advance`) proves apart are skipped, the
+        rest go to the narrow phase. Without ``order`` the walk stops at the first
+        colliding state. ``order`` (a permutation of range(m)) sets the order states are
+        narrow-phased in; the answer is then the first colliding state in that order.
         """
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
         self.checks += len(qs)
-        if len(qs) == 0:
+        m = len(qs)
+        if m == 0:
             return -1
         if self._fixed_hits:
             return 0 if order is None else int(order[0])
-        poses, cand = self.candidates_batch(qs)
-        rows = np.flatnonzero(cand.any(axis=1))
-        if order is not None and len(rows):
+        out = np.zeros((m, len(self._pairs)), dtype=np.int8)
+        cum, budget = np.empty_like(qs), np.empty(len(self._pairs))
+        if order is not None:
+            self._sweep(qs, 0, False, cum, budget, out)
+            rows = np.flatnonzero(out.any(axis=1))
             rank = np.empty(len(order), dtype=np.int64)
             rank[order] = np.arange(len(order))
-            rows = rows[np.argsort(rank[rows])]
-        for i in rows:
-            if self._state_hits(poses[i], cand[i], first=True):
+            for i in rows[np.argsort(rank[rows])]:
+                poses = self.kin.link_poses(qs[i], out=self._poses)
+                if self._state_hits(poses, out[i], first=True):
+                    return int(i)
+            return -1
+        i = self._sweep(qs, 0, True, cum, budget, out)
+        while i < m:
+            poses = self.kin.link_poses(qs[i], out=self._poses)
+            if self._state_hits(poses, out[i], first=True):
                 return int(i)
+            i = self._sweep(qs, i + 1, True, cum, budget, out)
         return -1
 
     def min_clearance(self, qs: ArrayLike) -> tuple[float, tuple[str, str]]:

@@ -1,9 +1,9 @@
 """Checking straight joint-space motions densely, and OMPL's checkers built on it.
 
 An edge is sampled at a fixed maximum joint step [rad] (not OMPL's fraction of the
-space's extent) and checked in one batched call: FK and the broad phase for every
-sample in numba, FCL only where the broad phase cannot decide, samples visited in
-bisection order so a blocked edge fails after few narrow-phase calls.
+space's extent) and checked in one call: conservative advancement in numba proves most
+pairs apart over long stretches of samples (:mod:`planner.advance`), FCL decides only
+where leaf boxes touch, and the walk stops at the first colliding sample.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def motion_valid(world: CollisionWorld, a: np.ndarray, b: np.ndarray, step: floa
         return world.is_valid(b)
     t = np.arange(1, n + 1)[:, None] / n
     qs = a + t * (b - a)
-    return world.first_invalid(qs, order=bisection_order(n)) < 0
+    return world.first_invalid(qs) < 0
 
 
 class StateCodec:
