@@ -63,6 +63,11 @@ def error(code: str, message: str, **details: Any) -> Outcome:
     return False, {"code": code, "message": message, "details": details}
 
 
+def _waited_too_long(job: Job) -> Outcome:
+    return error("TIMEOUT", "the request's deadline passed while it waited for a worker",
+                 request_id=job.request_id)
+
+
 class WorkerPool:
     """``workers`` processes, each with the description loaded once.
 
@@ -190,11 +195,14 @@ class WorkerPool:
         with self._lock:
             self.counters[key] += 1
 
-    def _dequeued(self, job: Job) -> None:
+    def _dequeued(self, job: Job) -> bool:
+        """Take ``job`` out of the waiting count; False if someone else already did."""
         with self._lock:
-            if job.waiting:
-                job.waiting = False
-                self._waiting -= 1
+            if not job.waiting:
+                return False
+            job.waiting = False
+            self._waiting -= 1
+            return True
 
     def _finish(self, job: Job, outcome: Outcome) -> None:
         fn = job.claim()
@@ -220,11 +228,9 @@ class WorkerPool:
                     self._cond.wait(timeout)
                     continue
             for job in expired:
-                self._dequeued(job)
-                if not job.done:
-                    self._finish(job, error("TIMEOUT", "the request's deadline passed while "
-                                            "it waited for a worker",
-                                            request_id=job.request_id))
+                # only jobs still waiting: a worker's slot times out its own job
+                if self._dequeued(job):
+                    self._finish(job, _waited_too_long(job))
 
     def _spawn(self, i: int) -> tuple[Any, Any]:
         parent, child = self._ctx.Pipe()
@@ -257,8 +263,10 @@ class WorkerPool:
         ready.set()
         while True:
             job = self._queue.get()
-            if job is not None:
-                self._dequeued(job)
+            if job is not None and self._dequeued(job) and \
+                    job.deadline <= time.monotonic():
+                self._finish(job, _waited_too_long(job))
+                continue
             if job is None or self._stopping:
                 if job is not None:
                     self._finish(job, error("INTERNAL", "the service is shutting down"))
