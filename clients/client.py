@@ -276,8 +276,9 @@ class PlannerClient:
         if links is not None:
             req["links"] = list(links)
         b = self.request("fk", req)
-        return FkResult(b["joints"], {k: Pose(tuple(v["xyz"]), tuple(v["rpy"]),
-                                              np.array(v["matrix"])) for k, v in b["links"].items()},
+        links = {k: Pose(tuple(v["xyz"]), tuple(v["rpy"]), np.array(v["matrix"]))
+                 for k, v in b["links"].items()}
+        return FkResult(b["joints"], links,
                         None if b.get("tcp") is None else tuple(b["tcp"]), b["request_id"])
 
     def ik(self, position: Sequence[float]) -> tuple[IkSolution, ...]:

@@ -214,9 +214,12 @@ class PlannerService:
             query.reply(key, wire.encode(self.health()), encoding=JSON)
             return
         request_id = f"{self.instance[:8]}-{next(self._ids)}"
-        payload = query.payload.to_bytes() if query.payload is not None else b""
         try:
-            data = wire.decode(kind, payload)  # type: ignore[arg-type]
+            zb = query.payload
+            if zb is not None and len(zb) > wire.MAX_PAYLOAD:  # refuse before copying it
+                wire.check_size(len(zb))
+            raw = zb.to_bytes() if zb is not None else b""
+            data = wire.decode(kind, raw)  # type: ignore[arg-type]
         except PlanningError as e:
             self._count_refusal(e.code)
             _reply_error(query, e.code, e.message, {**e.details, "request_id": request_id})

@@ -58,6 +58,13 @@ def field_path(parts: Any) -> str:
     return out
 
 
+def check_size(size: int) -> None:
+    """Refuse a payload of ``size`` bytes over :data:`MAX_PAYLOAD`."""
+    if size > MAX_PAYLOAD:
+        raise InvalidRequest(f"payload of {size} bytes exceeds the {MAX_PAYLOAD}-byte cap",
+                             details={"size": size, "limit": MAX_PAYLOAD})
+
+
 def parse_json(payload: bytes | str) -> Any:
     """Decode a payload: at most :data:`MAX_PAYLOAD` bytes, UTF-8, strict JSON.
 
@@ -66,9 +73,7 @@ def parse_json(payload: bytes | str) -> Any:
             (``details.line``/``column``), or a NaN/Infinity token or an overflowing number.
     """
     size = len(payload.encode("utf-8") if isinstance(payload, str) else payload)
-    if size > MAX_PAYLOAD:
-        raise InvalidRequest(f"payload of {size} bytes exceeds the {MAX_PAYLOAD}-byte cap",
-                             details={"size": size, "limit": MAX_PAYLOAD})
+    check_size(size)
     if size == 0:
         raise InvalidRequest("empty payload: send a JSON object")
     try:

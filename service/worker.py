@@ -40,7 +40,8 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     """Serve jobs ``(job_id, kind, data)`` until ``None`` or EOF.
 
     Sends ``("ready", pid)`` once warmed up (or ``("failed", message)``), then per job
-    ``(job_id, "ok", json_bytes)`` (the reply, request_id included) or ``(job_id, "err", code, message, details)``.
+    ``(job_id, "ok", json_bytes)`` (the reply, request_id included) or
+    ``(job_id, "err", code, message, details)``.
     """
     # Ctrl-C reaches the whole process group: the parent shuts workers down itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)

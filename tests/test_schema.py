@@ -46,7 +46,8 @@ def test_minimal_and_full_plan_requests_pass():
      "obstacles[0].size"),
     ('{"goal": {"named": "home"}, "obstacles": [{"id": "t", "shape": "box", "size": [1, 1, 0]}]}',
      "obstacles[0].size[2]"),
-    ('{"goal": {"named": "home"}, "obstacles": [{"id": "t", "shape": "mesh", "mesh_path": "/etc/passwd"}]}',
+    (('{"goal": {"named": "home"}, "obstacles": [{"id": "t", "shape": "mesh", '
+      '"mesh_path": "/etc/passwd"}]}'),
      "obstacles[0].mesh_path"),
     ('{"goal": {"named": "home"}, "group": "legs"}', "group"),
     ('{"start": {"joint_1": 0}}', "(root)"),
