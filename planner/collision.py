@@ -22,7 +22,7 @@ from description import Description
 from description.meshes import shape_mesh
 
 from .acm import AllowedCollisionMatrix
-from .advance import pair_weights, sweep
+from .advance import pair_weights, sweep, tree_lower_bound
 from .errors import InvalidRequest
 from .kinematics import Kinematics
 from .obbtree import Forest, ObbTree, box_tree, build_tree, pair_candidates, \
@@ -31,6 +31,8 @@ from .scene import Obstacle, validate_obstacles
 
 _log = logging.getLogger(__name__)
 _STACK = 4096
+# [m] distance bounds for the clearance stop here: pairs farther apart sort last
+_CLEARANCE_CAP = 0.3
 
 
 @dataclass(frozen=True)
@@ -152,7 +154,7 @@ class CollisionWorld:
         self._gaps = np.empty(_STACK)
         self._sweep_poses = np.empty_like(self._poses)
         # [m] how far ahead one distance bound is asked to prove a pair free
-        self.horizon = 0.1
+        self.horizon = 0.06
         _log.info("collision world: %d bodies, %d moving pairs, %d fixed pairs (%d colliding)",
                   len(names), len(self._pairs), len(fixed), len(self._fixed_hits))
 
@@ -226,23 +228,26 @@ class CollisionWorld:
         return StateCheck(valid=not pairs, pairs=pairs, clearance=dist, closest=closest)
 
     def _clearance(self, poses: np.ndarray, best: float = np.inf) -> tuple[float, tuple[str, str]]:
-        # Bounding spheres give a lower bound per pair; FCL distance only where it could win.
+        # OBB-tree lower bounds per pair (capped: far pairs sort last at the cap); FCL's
+        # exact distance only for pairs whose bound could beat the best distance so far.
         self._stamp += 1
-        cw = np.empty((len(self.body_names), 3))
-        for b in range(len(self.body_names)):
-            t = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
-            cw[b] = t[:3, :3] @ self._center[b] + t[:3, 3]
         allp = list(map(tuple, self._pairs)) + list(self._fixed_pairs)
         if not allp:
             return float("inf"), ("", "")
-        ia = np.array([p[0] for p in allp])
-        ib = np.array([p[1] for p in allp])
-        lb = np.linalg.norm(cw[ia] - cw[ib], axis=1) - self._radius[ia] - self._radius[ib]
-        closest = (self.body_names[ia[0]], self.body_names[ib[0]])
-        for k in np.argsort(lb):
+        f = self._forest
+        scratch = np.empty((8, 3, 3))
+        lb = np.empty(len(allp))
+        for k, (a, b) in enumerate(allp):
+            ta = poses[self._frame[a]] if self._frame[a] >= 0 else self._static_pose[a]
+            tb = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
+            lb[k] = tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes, f.half,
+                                     f.left, f.right, 0.0, _CLEARANCE_CAP, self._stack,
+                                     self._gaps, scratch)
+        closest = (self.body_names[allp[0][0]], self.body_names[allp[0][1]])
+        for k in np.argsort(lb, kind="stable"):
             if lb[k] >= best:
                 break
-            a, b = int(ia[k]), int(ib[k])
+            a, b = int(allp[k][0]), int(allp[k][1])
             self._place(poses, a)
             self._place(poses, b)
             d = self._distance(a, b)

@@ -251,9 +251,10 @@ class PathPlanner:
         del svc, mv
         return out
 
-    def _shortcut(self, path: np.ndarray, *, seed: int | None,
-                  attempts: int = 40) -> np.ndarray:
-        """Drop waypoints a straight segment can skip, then random shortcuts (seeded)."""
+    def _shortcut(self, path: np.ndarray, *, seed: int | None, attempts: int = 40,
+                  patience: int = 8) -> np.ndarray:
+        """Drop waypoints a straight segment can skip, then random shortcuts (seeded),
+        stopping after ``attempts`` or ``patience`` attempts in a row that gained nothing."""
         path = [p for p in path]
         i = 0
         while i < len(path) - 2:  # greedy vertex reduction from the start
@@ -264,9 +265,11 @@ class PathPlanner:
             i += 1
         rng = np.random.default_rng(seed)
         pts = np.array(path)
+        idle = 0
         for _ in range(attempts):
-            if len(pts) < 3:
+            if len(pts) < 3 or idle >= patience:
                 break
+            idle += 1
             seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
             cum = np.concatenate([[0.0], np.cumsum(seg)])
             ta, tb = np.sort(rng.uniform(0, cum[-1], 2))
@@ -282,4 +285,5 @@ class PathPlanner:
                 continue
             if motion_valid(self.world, qa, qb, self.step):
                 pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
+                idle = 0
         return pts
