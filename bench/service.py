@@ -93,32 +93,45 @@ def latency(repeats: int) -> dict[str, float]:
             "overhead_paired_median_ms": 1000 * statistics.median(paired)}
 
 
-def throughput(workers: int, clients: int, requests: int) -> float:
-    proc, endpoint = serve(workers)
-    try:
-        with PlannerClient(endpoint) as c:
-            c.request("plan", REQUEST)  # warm
-            per = requests // clients
+def rate(endpoint: str, clients: int, requests: int) -> float:
+    """Plans per second with ``clients`` threads sharing ``requests`` plans."""
+    with PlannerClient(endpoint) as c:
+        c.request("plan", REQUEST)  # warm
+        per = requests // clients
 
-            def run() -> None:
-                for _ in range(per):
-                    c.request("plan", REQUEST)
-            threads = [threading.Thread(target=run) for _ in range(clients)]
-            t = time.perf_counter()
-            for th in threads:
-                th.start()
-            for th in threads:
-                th.join()
-            return per * clients / (time.perf_counter() - t)
+        def run() -> None:
+            for _ in range(per):
+                c.request("plan", REQUEST)
+        threads = [threading.Thread(target=run) for _ in range(clients)]
+        t = time.perf_counter()
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+        return per * clients / (time.perf_counter() - t)
+
+
+def throughput(workers: int, clients: int, requests: int, rounds: int) -> tuple[float, float]:
+    """Median rates of a 1-worker and a ``workers``-worker server, measured in
+    alternation so that drifting machine load hits both alike."""
+    (p1, e1), (pn, en) = serve(1), serve(workers)
+    try:
+        ones, manys = [], []
+        for _ in range(rounds):
+            ones.append(rate(e1, clients, requests))
+            manys.append(rate(en, clients, requests))
     finally:
-        stop(proc)
+        stop(p1)
+        stop(pn)
+    return statistics.median(ones), statistics.median(manys)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--clients", type=int, default=4)
-    ap.add_argument("--requests", type=int, default=40)
+    ap.add_argument("--requests", type=int, default=48)
+    ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     a = ap.parse_args()
     lat = latency(a.repeats)
@@ -129,8 +142,7 @@ def main() -> None:
     print(f"overhead: difference of medians {lat['overhead_median_ms']:.2f} ms; paired "
           f"(round trip - solve time in the reply) {lat['overhead_paired_median_ms']:.2f} ms; "
           "target <= 2 ms")
-    one = throughput(1, a.clients, a.requests)
-    many = throughput(a.workers, a.clients, a.requests)
+    one, many = throughput(a.workers, a.clients, a.requests, a.rounds)
     print(f"throughput with {a.clients} concurrent clients: 1 worker {one:.2f} plans/s, "
           f"{a.workers} workers {many:.2f} plans/s, x{many / one:.2f} (target >= 1.8 on 2 "
           f"cores; load average {os.getloadavg()[0]:.1f})")

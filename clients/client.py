@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+import orjson
 import zenoh
 
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
@@ -318,7 +319,7 @@ def _planning_time(req: Mapping[str, Any]) -> float:
 
 def _decode(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
     if reply.ok is not None:
-        return json.loads(reply.ok.payload.to_bytes())
+        return orjson.loads(reply.ok.payload.to_bytes())  # strict JSON, ~3x json's speed
     err = reply.err
     text = err.payload.to_bytes().decode("utf-8", "replace")
     if str(err.encoding).startswith("application/json"):

@@ -12,11 +12,12 @@ from typing import Any
 import numpy as np
 
 from description import Description
-from planner.errors import InvalidRequest
+from planner.errors import InvalidRequest, PlanningError
 from planner.goals import JointGoal, NamedGoal, PositionGoal
 from planner.pipeline import MotionRequest
 
 from .requests import joint_values, obstacles
+from .wire import check_finite
 
 
 def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | NamedGoal | PositionGoal:
@@ -55,12 +56,18 @@ def plan_response(result: Any) -> dict[str, Any]:
     trajectory (actuated joints), duration [s], path (waypoints in joint_names order),
     timing (seconds per stage), verification, planner."""
     traj = result.trajectory
+    arrays = {"positions": traj.positions, "velocities": traj.velocities,
+              "accelerations": traj.accelerations, "effort": traj.efforts,
+              "time_from_start": traj.times, "path": result.path}
+    for name, a in arrays.items():
+        if not np.isfinite(np.asarray(a, float)).all():
+            raise PlanningError(f"the planner returned non-finite {name}")
     # from the sample arrays (m, dof): much faster than per-point objects
     columns = zip(traj.positions.tolist(), traj.velocities.tolist(),
                   traj.accelerations.tolist(), traj.efforts.tolist(), traj.times.tolist())
     points = [{"positions": q, "velocities": qd, "accelerations": qdd, "effort": tau,
                "time_from_start": t} for q, qd, qdd, tau, t in columns]
-    return {
+    body = {
         "trajectory": {"joint_names": list(traj.joint_names), "points": points},
         "duration": float(traj.duration),
         "path": np.asarray(result.path, float).tolist(),
@@ -68,3 +75,5 @@ def plan_response(result: Any) -> dict[str, Any]:
         "verification": result.verification.to_dict(),
         "planner": str(result.planner),
     }
+    check_finite({k: body[k] for k in ("duration", "timing", "verification")})
+    return body  # every number finite: wire.encode(..., finite=True) may take it

@@ -14,6 +14,7 @@ from importlib import resources
 from typing import Any, Literal
 
 import jsonschema
+import orjson
 
 from planner.errors import InvalidRequest
 
@@ -139,8 +140,14 @@ def decode(kind: Kind, payload: bytes | str) -> dict[str, Any]:
     return validate(kind, parse_json(payload))
 
 
-def encode(value: Any) -> bytes:
-    """Compact JSON; refuses NaN/Infinity rather than emitting invalid JSON."""
+def encode(value: Any, *, finite: bool = False) -> bytes:
+    """Compact JSON; refuses NaN/Infinity rather than emitting invalid JSON.
+
+    ``finite=True``: the caller guarantees every number is finite (orjson would write
+    NaN as null), so the large plan replies take orjson, ~20x faster than :mod:`json`.
+    """
+    if finite:
+        return orjson.dumps(value, default=_plain, option=orjson.OPT_SERIALIZE_NUMPY)
     return json.dumps(value, allow_nan=False, separators=(",", ":"),
                       default=_plain).encode("utf-8")
 

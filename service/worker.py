@@ -72,4 +72,5 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
                        {"exception": type(e).__name__}))
         else:
             # encoded here, in parallel across workers, not in the serving process
-            conn.send((job_id, "ok", wire.encode({**body, "request_id": job_id})))
+            conn.send((job_id, "ok", wire.encode({**body, "request_id": job_id},
+                                                 finite=kind == "plan")))
