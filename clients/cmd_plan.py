@@ -91,6 +91,9 @@ def run_request(ns: argparse.Namespace, kind: str, req: Mapping[str, Any]
         data = wire.decode(kind, wire.encode(req))  # type: ignore[arg-type]
         return {**Handlers(desc).handle(kind, data), "request_id": "local"}, \
             limits_body(desc)
+    if ns.file or ns.package_dir or ns.arg:
+        raise SystemExit("arduinobot: error: FILE, --package-dir and --arg choose the model "
+                         "for --local; the service plans for the model it serves")
     from .client import PlannerClient
     with PlannerClient(ns.connect or ("tcp/127.0.0.1:7447",), prefix=ns.prefix,
                        timeout=ns.timeout, config_file=ns.config) as c:
