@@ -106,15 +106,17 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
         L = self.lengths[k]
         x = np.where(L > 0, sigma / np.where(L > 0, L, 1.0), 0.0)[:, None]
         Lc = L[:, None]
+        # a zero-length piece (start == goal) has no curvature: its derivatives are 0
+        inv_l = np.where(Lc > 0, 1.0 / np.where(Lc > 0, Lc, 1.0), 0.0)
         du = self.u2[k] - self.u1[k]
         if order == 0:
             out = self.starts[k] + self.u1[k] * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4)
         elif order == 1:
             out = self.u1[k] + du * (3 * x**2 - 2 * x**3)
         elif order == 2:
-            out = du * (6 * x - 6 * x**2) / Lc
+            out = du * (6 * x - 6 * x**2) * inv_l
         elif order == 3:
-            out = du * (6 - 12 * x) / Lc**2
+            out = du * (6 - 12 * x) * inv_l**2
         else:
             raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
         return out[0] if scalar else out
