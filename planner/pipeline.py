@@ -112,6 +112,7 @@ class MotionPlanner:
         self.padding = padding
         self.max_worlds = max_worlds
         self._worlds: dict[tuple, tuple[CollisionWorld, PathPlanner]] = {}
+        self._robot_world: CollisionWorld | None = None
         base = self.world(())
         self.joint_names: tuple[str, ...] = tuple(base.kin.joint_names)
         self.dynamics = InverseDynamics(description.robot)
@@ -133,12 +134,18 @@ class MotionPlanner:
         key = _obstacle_key(obstacles)
         found = self._worlds.pop(key, None)
         if found is None:
-            w = CollisionWorld(self.description, obstacles=obstacles, padding=self.padding)
+            w = self._base_world().with_scene(obstacles)
             found = (w, PathPlanner(w, self.description))
         self._worlds[key] = found  # most recently used last
         while len(self._worlds) > self.max_worlds:
             self._worlds.pop(next(iter(self._worlds)))
         return found
+
+    def _base_world(self) -> CollisionWorld:
+        # The robot-only world is built once; every obstacle set shares its geometry.
+        if self._robot_world is None:
+            self._robot_world = CollisionWorld(self.description, padding=self.padding)
+        return self._robot_world
 
     def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits:
         key = (velocity_scaling, acceleration_scaling)

@@ -118,7 +118,7 @@ class Handlers:
         key = (obs, padding)
         world = self._scenes.pop(key, None)
         if world is None:
-            world = CollisionWorld(self.description, obstacles=obs, padding=padding)
+            world = self._motion_planner().world(()).with_scene(obs, padding=padding)
         self._scenes[key] = world
         while len(self._scenes) > _SCENE_CACHE:
             self._scenes.popitem(last=False)

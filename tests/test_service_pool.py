@@ -89,14 +89,21 @@ def test_busy_timeout_and_a_killed_worker(small_server):
         assert cnt["received"] == 4 and answered == 4
 
 
+@pytest.fixture(scope="module")
+def tight_server():
+    """One worker and a 1 ms deadline beyond planning_time: a plan's work after planning
+    (simplification, dense re-check, timing, verification) always takes longer."""
+    srv = start_server(["--workers", "1", "--queue", "1", "--timeout", "0.001"])
+    yield srv
+    assert srv.stop(signal.SIGINT) == 0, "\n".join(srv.stderr_lines[-20:])
+
+
 def test_a_request_past_its_deadline_in_a_worker_times_out_and_the_worker_is_replaced(
-        small_server):
-    # A new obstacle set makes the worker build a collision world from the link meshes
-    # (seconds), far past this request's 0.3 s + planning_time budget.
-    req = {**LONG_PLAN, "planning_time": 0.5,
-           "obstacles": [{"id": f"s{i}", "shape": "sphere", "radius": 0.05,
-                          "xyz": [2.0, 2.0, 0.2 * i]} for i in range(40)]}
-    with PlannerClient(small_server.endpoint, timeout=60) as c:
+        tight_server):
+    # RRTstar spends its whole 0.05 s planning time; the rest of the pipeline then runs
+    # past the deadline inside the worker, which must be replaced.
+    req = {**LONG_PLAN, "planning_time": 0.05}
+    with PlannerClient(tight_server.endpoint, timeout=60) as c:
         _wait_for(lambda: c.health()["workers"][0]["pid"])
         before = c.health()
         pid0 = before["workers"][0]["pid"]
@@ -104,10 +111,9 @@ def test_a_request_past_its_deadline_in_a_worker_times_out_and_the_worker_is_rep
             c.plan(req)
         assert "worker" in e.value.message
         _wait_for(lambda: c.health()["workers"][0]["pid"] not in (None, pid0))
-        assert c.fk({"joint_2": 0.1}).joints["joint_2"] == pytest.approx(0.1)
         cnt = c.health()["counters"]
         assert cnt["timeouts_in_worker"] == before["counters"].get("timeouts_in_worker", 0) + 1
-        assert cnt["worker_restarts"] == before["counters"]["worker_restarts"] + 1
+        assert cnt["worker_restarts"] == before["counters"].get("worker_restarts", 0) + 1
 
 
 def test_ctrl_c_answers_the_request_in_flight_and_exits_cleanly(small_server):
