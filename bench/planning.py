@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 import trimesh
+from scenes import SCENES, problems
 
 from description import Description, load_description
 from planner.collision import CollisionWorld
@@ -24,31 +24,6 @@ from planner.errors import PlanningError
 from planner.goals import JointGoal
 from planner.motion_check import interpolate
 from planner.planning import PathPlanner, PathRequest
-from planner.scene import Obstacle
-
-SCENES = {
-    "self": [],
-    "table": [Obstacle("table", "box", size=(0.6, 1.2, 0.05), xyz=(0, 1.0, 0.6))],
-    "pillars": [Obstacle("p1", "box", size=(0.12, 0.12, 2.0), xyz=(0.5, 0.8, 1.0)),
-                Obstacle("p2", "box", size=(0.12, 0.12, 2.0), xyz=(-0.5, 0.8, 1.0)),
-                Obstacle("beam", "box", size=(1.2, 0.12, 0.12), xyz=(0, 0.8, 2.0))],
-}
-
-
-def problems(w: CollisionWorld, n: int, rng: np.random.Generator) -> list[tuple]:
-    lim = w.description.robot.position_limits(w.kin.joint_names)
-    out, blocked = [], 0
-    while len(out) < n:
-        a = rng.uniform(lim[:, 0], lim[:, 1]); a[3] = 0
-        b = rng.uniform(lim[:, 0], lim[:, 1]); b[3] = 0
-        if not (w.is_valid(a) and w.is_valid(b)):
-            continue
-        is_blocked = w.first_invalid(interpolate(np.array([a, b]), 0.002)) >= 0
-        if not is_blocked and blocked < len(out) / 2 + 1 and len(out) > 0:
-            continue  # keep at least half needing a detour
-        blocked += is_blocked
-        out.append((a, b, is_blocked))
-    return out
 
 
 def fine_variant(tmp: Path, *, min_faces: int = 50_000) -> tuple[Description, dict[str, int]]:
@@ -79,7 +54,9 @@ def suite(d: Description, n: int) -> dict[str, dict]:
         qs = rng.uniform(lim[:, 0], lim[:, 1], size=(2000, 4))
         ts = []
         for q in qs:
-            t = time.perf_counter(); w.is_valid(q); ts.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            w.is_valid(q)
+            ts.append(time.perf_counter() - t)
         tot, ok, lens, checks, bad = [], 0, [], [], 0
         stages: dict[str, list[float]] = {}
         for i, (a, b, _) in enumerate(probs):
@@ -92,7 +69,8 @@ def suite(d: Description, n: int) -> dict[str, dict]:
             tot.append(sum(r.timings.values()))
             for k, v in r.timings.items():
                 stages.setdefault(k, []).append(v)
-            lens.append(r.length); checks.append(r.checks)
+            lens.append(r.length)
+            checks.append(r.checks)
             bad += w.first_invalid(interpolate(r.path, 0.0005)) >= 0
         fig = {"problems": len(probs), "detours": int(sum(p[2] for p in probs)),
                "success": ok / len(probs), "median_ms": float(np.median(tot) * 1e3),
@@ -108,6 +86,8 @@ def suite(d: Description, n: int) -> dict[str, dict]:
 
 
 def main(n: int = 30) -> None:
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("none")
     summary = suite(load_description(), n)
     with tempfile.TemporaryDirectory() as tmp:
         fine, faces = fine_variant(Path(tmp))

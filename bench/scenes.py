@@ -30,8 +30,9 @@ def problems(w: CollisionWorld, n: int, rng: np.random.Generator) -> list[tuple]
     lim = w.description.robot.position_limits(w.kin.joint_names)
     out, blocked = [], 0
     while len(out) < n:
-        a = rng.uniform(lim[:, 0], lim[:, 1]); a[3] = 0
-        b = rng.uniform(lim[:, 0], lim[:, 1]); b[3] = 0
+        a = rng.uniform(lim[:, 0], lim[:, 1])
+        b = rng.uniform(lim[:, 0], lim[:, 1])
+        a[3] = b[3] = 0  # the gripper stays closed
         if not (w.is_valid(a) and w.is_valid(b)):
             continue
         is_blocked = w.first_invalid(interpolate(np.array([a, b]), 0.002)) >= 0

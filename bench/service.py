@@ -24,10 +24,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from clients.client import PlannerClient
-from description import load_description
-from service import wire
-from service.handlers import Handlers
+from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
+from description import load_description  # noqa: E402 -- after the sys.path line
+from service import wire  # noqa: E402 -- after the sys.path line
+from service.handlers import Handlers  # noqa: E402 -- after the sys.path line
 
 # A 100 Hz trajectory of about 2 s (base swing from reach_right to reach_left).
 REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
@@ -127,6 +127,8 @@ def throughput(workers: int, clients: int, requests: int, rounds: int) -> tuple[
 
 
 def main() -> None:
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("none")
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=30)
     ap.add_argument("--clients", type=int, default=4)

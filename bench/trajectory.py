@@ -105,6 +105,8 @@ def _recheck_task(i: int):
 
 
 def main(n: int = 8) -> None:
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("none")
     global MODEL_FILES
     d = load_description()
     mp = MotionPlanner(d)
@@ -132,7 +134,8 @@ def main(n: int = 8) -> None:
             {"start": dict(zip(names, map(float, a))), "goal": dict(zip(ARM, map(float, b[:3]))),
              "planning_time": PLANNING_TIME} for a, b, _ in probs]}
 
-        def request(i: int, a: np.ndarray, b: np.ndarray) -> MotionRequest:
+        def request(i: int, a: np.ndarray, b: np.ndarray,
+                    obs: tuple = obs) -> MotionRequest:
             return MotionRequest(goal=JointGoal(dict(zip(ARM, map(float, b[:3])))),
                                  start=dict(zip(names, map(float, a))), obstacles=obs,
                                  planning_time=PLANNING_TIME, seed=i)

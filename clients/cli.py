@@ -9,6 +9,8 @@ import sys
 from . import cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
 
+# Commands that run OMPL, whose own console log follows -v (quiet by default).
+_PLANNING_COMMANDS = {"plan", "serve", "srdf", "view", "ik"}
 _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state]
 
 
@@ -34,6 +36,9 @@ def main(argv: list[str] | None = None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
+    if ns.command in _PLANNING_COMMANDS:
+        from planner.planning import set_ompl_log_level
+        set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     return run_guarded(ns.func, ns)
 
 

@@ -6,7 +6,7 @@ import argparse
 import sys
 from collections.abc import Callable
 
-from description import DescriptionError, Description, load_description
+from description import Description, DescriptionError, load_description
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 

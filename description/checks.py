@@ -14,12 +14,12 @@ from typing import Literal
 import numpy as np
 
 from .errors import DescriptionError
+from .loader import _default_srdf, find_package_root, read_model_text
 from .meshes import load_mesh
 from .model import Inertial, Link, Robot
 from .packages import build_package_index
 from .srdf import parse_srdf
 from .urdf import parse_urdf
-from .loader import _default_srdf, find_package_root, read_model_text
 
 Level = Literal["PASS", "WARN", "FAIL"]
 

@@ -89,7 +89,7 @@ def _proven_apart(world: CollisionWorld, a: str, b: str, *, grid: int,
     ia, ib = world.body_names.index(a), world.body_names.index(b)
     t = world._forest
     centers, radii, errs = [], [], []
-    for body, link, chain in ((ia, a, ca[common:]), (ib, b, cb[common:])):
+    for body, _link, chain in ((ia, a, ca[common:]), (ib, b, cb[common:])):
         c = t.center[t.root[body]]
         centers.append(c)
         radii.append(float(np.linalg.norm(t.half[t.root[body]])))

@@ -25,8 +25,7 @@ from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
 from .errors import InvalidRequest
 from .kinematics import Kinematics
-from .obbtree import Forest, ObbTree, box_tree, build_tree, pair_candidates, \
-    pair_candidates_batch
+from .obbtree import Forest, ObbTree, box_tree, build_tree, pair_candidates, pair_candidates_batch
 from .scene import Obstacle, validate_obstacles
 
 _log = logging.getLogger(__name__)

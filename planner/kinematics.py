@@ -17,7 +17,6 @@ from description.model import Robot
 
 from .errors import InvalidRequest
 
-
 _FIXED, _REVOLUTE, _PRISMATIC = 0, 1, 2
 
 

@@ -24,8 +24,7 @@ from description import Description
 from .collision import CollisionWorld
 from .errors import InvalidRequest, NoPathFound, StartInCollision
 from .goals import Goal, JointGoal, NamedGoal, PositionGoal, check_limits, resolve_goal
-from .motion_check import MotionChecker, StateCodec, ValidityChecker, interpolate, \
-    motion_valid
+from .motion_check import MotionChecker, StateCodec, ValidityChecker, interpolate, motion_valid
 
 _log = logging.getLogger(__name__)
 
@@ -43,6 +42,26 @@ def available_planners() -> tuple[str, ...]:
     """The planner names this OMPL build offers."""
     return tuple(p for p in PLANNERS if hasattr(og, p))
 
+
+OmplLogLevel = Literal["debug", "info", "warn", "error", "none"]
+
+
+def set_ompl_log_level(level: OmplLogLevel) -> None:
+    """How much OMPL writes to the console by itself (it logs past Python's logging).
+
+    Process-wide, as OMPL has one log: applications call it once at start (the
+    ``arduinobot`` command and the service's workers use "none" by default, as every
+    failure reaches the caller as a :class:`PlanningError`; "info" with -v). OMPL
+    reports a reseed after its first plan as an *error* ("Random number generation
+    already started"), although every planner and sampler created after the reseed
+    does draw from the new seed: that line is noise.
+    """
+    levels = {"debug": ou.LogLevel.LOG_DEBUG, "info": ou.LogLevel.LOG_INFO,
+              "warn": ou.LogLevel.LOG_WARN, "error": ou.LogLevel.LOG_ERROR,
+              "none": ou.LogLevel.LOG_NONE}
+    if level not in levels:
+        raise InvalidRequest(f"'{level}' is not one of {', '.join(levels)}", field="level")
+    ou.setLogLevel(levels[level])
 
 @dataclass(frozen=True)
 class PathRequest:

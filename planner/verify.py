@@ -193,7 +193,8 @@ class Verifier:
         return t[keep], q[keep], qd[keep], qdd[keep]
 
     def verify(self, traj: JointTrajectory, *, enforce_jerk: bool = True,
-               derating: Derating = Derating(), attempts: int = 1) -> VerificationReport:
+               derating: Derating | None = None, attempts: int = 1) -> VerificationReport:
+        derating = Derating() if derating is None else derating
         lim = self.limits
         lo, hi = np.asarray(lim.lower, float), np.asarray(lim.upper, float)
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)

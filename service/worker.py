@@ -47,6 +47,8 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     logging.basicConfig(level=log_level,
                         format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("info" if log_level <= logging.INFO else "none")
     try:
         handlers = Handlers(spec.load())
         handlers.warm_up()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 import fcl
@@ -163,7 +163,7 @@ def _sweep(joint_name: str) -> Iterator[float]:
 # ----------------------------------------------------------------- meshes
 
 
-@lru_cache(maxsize=None)
+@cache
 def _file_mesh(name: str) -> trimesh.Trimesh:
     mesh = trimesh.load(MESH_DIR / name, force="mesh")
     assert isinstance(mesh, trimesh.Trimesh)
@@ -177,7 +177,7 @@ def _link_vertices(link: str) -> tuple[np.ndarray, np.ndarray]:
     return vertices, np.asarray(mesh.faces)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _bvh(link: str) -> fcl.BVHModel:
     vertices, faces = _link_vertices(link)
     model = fcl.BVHModel()

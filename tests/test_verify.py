@@ -4,11 +4,11 @@ import json
 
 import numpy as np
 
+from planner.collision import CollisionWorld
 from planner.curve import build_curve
 from planner.path_limits import ActiveLimits, Derating
 from planner.ruckig_timing import JerkLimitedTiming
 from planner.scene import Obstacle
-from planner.collision import CollisionWorld
 from planner.trajectory import JointTrajectory
 from planner.verify import TOLERANCE, Verifier, derate
 
