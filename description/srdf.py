@@ -172,4 +172,9 @@ def replace_disabled_collisions(text: str, pairs: Iterable[DisabledCollision]) -
         el.tail = "\n    "
     if len(root):
         root[-1].tail = "\n"
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + etree.tostring(root, encoding="unicode") + "\n"
+    # Serialise the whole document so comments before <robot> survive too; lxml drops
+    # the line breaks between top-level nodes, so put one after each.
+    body = etree.tostring(root.getroottree(), encoding="unicode")
+    cut = body.index("<" + root.tag)
+    body = body[:cut].replace("-->", "-->\n") + body[cut:]
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + body + "\n"

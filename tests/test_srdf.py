@@ -49,3 +49,8 @@ def test_replace_disabled_collisions_keeps_the_rest(desc):
     assert srdf.disabled_collisions == tuple(pairs)
     assert srdf.groups == desc.srdf.groups and srdf.group_states == desc.srdf.group_states
     assert "<!--" in text  # comments survive
+
+
+def test_rewriting_the_same_pairs_is_the_identity(desc):
+    original = desc.srdf.source.read_text()
+    assert replace_disabled_collisions(original, desc.srdf.disabled_collisions) == original
