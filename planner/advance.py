@@ -25,6 +25,7 @@ import numpy as np
 from description.model import Joint, Robot
 
 from .kinematics import _fk_into
+from .obbtree import relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
 # absorbs rounding in poses, boxes and weights, far below any mesh feature
@@ -159,15 +160,7 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
     rel_t = scratch[1, 0]
     rb = scratch[2]
     cb = scratch[1, 1]
-    for i in range(3):
-        rel_t[i] = 0.0
-        for k in range(3):
-            rel_t[i] += ta[k, i] * (tb[k, 3] - ta[k, 3])
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += ta[k, i] * tb[k, j]
-            rel_r[i, j] = acc
+    relative_pose(ta, tb, rel_r, rel_t)
     best = cap
     stack[0, 0] = a
     stack[0, 1] = b

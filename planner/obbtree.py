@@ -149,6 +149,20 @@ def _sep(ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, rb: np.ndarray, cb: np.
 
 
 @numba.njit(cache=True, nogil=True)
+def relative_pose(ta: np.ndarray, tb: np.ndarray, rel_r: np.ndarray, rel_t: np.ndarray) -> None:
+    """Write inv(ta) @ tb into ``rel_r`` (3, 3) and ``rel_t`` (3,): b's pose in a's frame."""
+    for i in range(3):
+        rel_t[i] = 0.0
+        for k in range(3):
+            rel_t[i] += ta[k, i] * (tb[k, 3] - ta[k, 3])
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += ta[k, i] * tb[k, j]
+            rel_r[i, j] = acc
+
+
+@numba.njit(cache=True, nogil=True)
 def trees_overlap(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.ndarray,
                   axes: np.ndarray, half: np.ndarray, left: np.ndarray, right: np.ndarray,
                   pad: float, stack: np.ndarray, scratch: np.ndarray) -> bool:
@@ -161,15 +175,7 @@ def trees_overlap(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.nda
     rel_t = scratch[1, 0]
     rb = scratch[2]
     cb = scratch[1, 1]
-    for i in range(3):
-        rel_t[i] = 0.0
-        for k in range(3):
-            rel_t[i] += ta[k, i] * (tb[k, 3] - ta[k, 3])
-        for j in range(3):
-            acc = 0.0
-            for k in range(3):
-                acc += ta[k, i] * tb[k, j]
-            rel_r[i, j] = acc
+    relative_pose(ta, tb, rel_r, rel_t)
     # quick reject on the roots' bounding spheres
     ca, cr = center[a], center[b]
     dd = 0.0
