@@ -235,9 +235,11 @@ def summary(res: Any, limits: Mapping[str, Mapping[str, float | None]] | None) -
     v = res.verification
     if "worst_overall" in v:
         w = v["worst_overall"]
+        gap = v.get("min_clearance")
+        gap_text = f"{1000 * gap:.1f} mm" if isinstance(gap, (int, float)) else "not measured"
         lines.append(f"verification: {'ok' if v.get('ok') else 'FAILED'}; closest to its "
                      f"limit: {w['quantity']} at {100 * w['ratio']:.1f}% (of the scaled "
-                     f"limits); min clearance {v.get('min_clearance')} m")
+                     f"limits); min clearance {gap_text}")
     lines.append("timing: " + ", ".join(f"{k} {1000 * t:.1f} ms" for k, t in res.timing.items()))
     return "\n".join(lines)
 
