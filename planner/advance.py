@@ -25,7 +25,7 @@ import numpy as np
 from description.model import Joint, Robot
 
 from .kinematics import _fk_into
-from .obbtree import relative_pose
+from .obbtree import box_in_frame, relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
 # absorbs rounding in poses, boxes and weights, far below any mesh feature
@@ -171,15 +171,7 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
         na, nb = stack[top, 0], stack[top, 1]
         if gaps[top] >= best:
             continue
-        for i in range(3):
-            cb[i] = rel_t[i]
-            for k in range(3):
-                cb[i] += rel_r[i, k] * center[nb, k]
-            for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    acc += rel_r[i, k] * axes[nb, k, j]
-                rb[i, j] = acc
+        box_in_frame(rel_r, rel_t, center[nb], axes[nb], rb, cb)
         g = _box_gap(axes[na], center[na], half[na], rb, cb, half[nb], best, scratch[3],
                      scratch[4], scratch[1, 2])
         if g >= best:

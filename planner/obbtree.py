@@ -149,6 +149,21 @@ def _sep(ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, rb: np.ndarray, cb: np.
 
 
 @numba.njit(cache=True, nogil=True)
+def box_in_frame(rel_r: np.ndarray, rel_t: np.ndarray, center: np.ndarray, axes: np.ndarray,
+                 rb: np.ndarray, cb: np.ndarray) -> None:
+    """Write a box's axes (3, 3) and centre (3,), moved by (rel_r, rel_t), into rb, cb."""
+    for i in range(3):
+        cb[i] = rel_t[i]
+        for k in range(3):
+            cb[i] += rel_r[i, k] * center[k]
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += rel_r[i, k] * axes[k, j]
+            rb[i, j] = acc
+
+
+@numba.njit(cache=True, nogil=True)
 def relative_pose(ta: np.ndarray, tb: np.ndarray, rel_r: np.ndarray, rel_t: np.ndarray) -> None:
     """Write inv(ta) @ tb into ``rel_r`` (3, 3) and ``rel_t`` (3,): b's pose in a's frame."""
     for i in range(3):
@@ -193,15 +208,7 @@ def trees_overlap(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.nda
     while top > 0:
         top -= 1
         na, nb = stack[top, 0], stack[top, 1]
-        for i in range(3):
-            cb[i] = rel_t[i]
-            for k in range(3):
-                cb[i] += rel_r[i, k] * center[nb, k]
-            for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    acc += rel_r[i, k] * axes[nb, k, j]
-                rb[i, j] = acc
+        box_in_frame(rel_r, rel_t, center[nb], axes[nb], rb, cb)
         if _sep(axes[na], center[na], half[na], rb, cb, half[nb], pad, scratch[3],
                 scratch[4], scratch[1, 2]):
             continue
