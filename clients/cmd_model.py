@@ -10,7 +10,14 @@ from description import read_model_text
 from description.checks import check_model
 from description.packages import build_package_index
 
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, parse_xacro_args
+from .common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    add_model_args,
+    load_from_args,
+    model_options,
+    parse_xacro_args,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,7 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_check(ns: argparse.Namespace) -> int:
-    report = check_model(ns.file, package_dirs=ns.package_dir, args=parse_xacro_args(ns.arg))
+    report = check_model(ns.file, **model_options(ns))  # type: ignore[arg-type]
     if ns.json:
         print(json.dumps(report.to_json(), indent=2))
     else:
@@ -90,12 +97,19 @@ def cmd_info(ns: argparse.Namespace) -> int:
 
     print(r.root)
     walk(r.root, 0)
+    for line in d.config.lines():
+        print(line)
     if d.srdf is not None:
         for g in d.srdf.groups.values():
-            print(f"group {g.name}: {', '.join(g.joints)}")
-        for s in d.srdf.group_states.values():
+            print(f"group {g.name}: {', '.join(g.joints)} (tip {g.tip_link})")
+        for s in d.srdf.states:
             vals = ", ".join(f"{k}={v:g}" for k, v in s.values.items())
             print(f"named state {s.name} ({s.group}): {vals}")
+    print(f"default group: {d.default_group()}")
     if d.tcp is not None:
-        print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link}")
+        print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link} [{d.tcp.source}]")
+    print(f"default scaling: velocity x{d.default_velocity_scaling:g}, acceleration "
+          f"x{d.default_acceleration_scaling:g}")
+    for w in d.warnings:
+        print(f"warning: {w}")
     return EXIT_OK

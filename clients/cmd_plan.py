@@ -9,7 +9,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_chosen
 
 EXIT_UNAVAILABLE = 3
 
@@ -91,9 +91,10 @@ def run_request(ns: argparse.Namespace, kind: str, req: Mapping[str, Any]
         data = wire.decode(kind, wire.encode(req))  # type: ignore[arg-type]
         return {**Handlers(desc).handle(kind, data), "request_id": "local"}, \
             limits_body(desc)
-    if ns.file or ns.package_dir or ns.arg:
-        raise SystemExit("arduinobot: error: FILE, --package-dir and --arg choose the model "
-                         "for --local; the service plans for the model it serves")
+    if model_chosen(ns):
+        raise SystemExit("arduinobot: error: FILE, --package-dir, --arg, --moveit-config, "
+                         "--srdf and --joint-limits choose the model for --local; the "
+                         "service plans for the model it serves")
     from .client import PlannerClient
     with PlannerClient(ns.connect or ("tcp/127.0.0.1:7447",), prefix=ns.prefix,
                        timeout=ns.timeout, config_file=ns.config) as c:

@@ -24,7 +24,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n  arduinobot serve\n  arduinobot serve --listen tcp/0.0.0.0:7447 "
         "--workers 4\n  arduinobot serve --mode client --connect tcp/router.lan:7447\n"
         "  arduinobot serve --config zenoh.json5   # TLS, user/password, access control\n"
-        "  arduinobot serve my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description",
+        "  arduinobot serve my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description\n"
+        "  arduinobot serve ~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro "
+        "--package-dir ~/ws/src --moveit-config ~/ws/src/arduinobot_moveit",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     add_model_args(p)
     p.add_argument("--description", metavar="PATH", dest="description_path",
@@ -70,7 +72,9 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         return EXIT_FAIL
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
-                           package_dirs=tuple(ns.package_dir), args=parse_xacro_args(ns.arg))
+                           package_dirs=tuple(ns.package_dir), args=parse_xacro_args(ns.arg),
+                           moveit_config=ns.moveit_config, srdf=ns.srdf,
+                           joint_limits=ns.joint_limits)
     listen = ns.listen if ns.listen or ns.config else [DEFAULT_ENDPOINT]
     opts = ServeOptions(prefix=ns.prefix, mode=ns.mode or ("peer" if not ns.config else None),
                         listen=listen, connect=ns.connect, config_file=ns.config,

@@ -22,6 +22,14 @@ def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None
                    "and AMENT_PREFIX_PATH")
     p.add_argument("--arg", action="append", default=[], metavar="NAME=VALUE",
                    help="a xacro argument; repeatable")
+    p.add_argument("--moveit-config", metavar="DIR",
+                   help="the MoveIt config package (config/<robot>.srdf, joint_limits.yaml); "
+                   "default: the model package's config/ if it has an SRDF, else a "
+                   "<robot>_moveit_config or <robot>_moveit package found among the "
+                   "package folders")
+    p.add_argument("--srdf", metavar="FILE", help="an SRDF file, overriding the config's")
+    p.add_argument("--joint-limits", metavar="FILE",
+                   help="a MoveIt joint_limits.yaml, overriding the config's")
 
 
 def parse_xacro_args(items: list[str]) -> dict[str, str]:
@@ -34,9 +42,22 @@ def parse_xacro_args(items: list[str]) -> dict[str, str]:
     return out
 
 
+def model_options(ns: argparse.Namespace) -> dict[str, object]:
+    """The keyword arguments of :func:`description.load_description` the model options
+    in ``ns`` give (everything but the model file)."""
+    return {"package_dirs": list(ns.package_dir), "args": parse_xacro_args(ns.arg),
+            "moveit_config": ns.moveit_config, "srdf": ns.srdf,
+            "joint_limits": ns.joint_limits}
+
+
+def model_chosen(ns: argparse.Namespace) -> bool:
+    """True if any model option (FILE included) was given."""
+    return bool(getattr(ns, "file", None) or ns.package_dir or ns.arg or ns.moveit_config
+                or ns.srdf or ns.joint_limits)
+
+
 def load_from_args(ns: argparse.Namespace) -> Description:
-    return load_description(getattr(ns, "file", None), package_dirs=ns.package_dir,
-                            args=parse_xacro_args(ns.arg))
+    return load_description(getattr(ns, "file", None), **model_options(ns))  # type: ignore[arg-type]
 
 
 def run_guarded(fn: Callable[[argparse.Namespace], int], ns: argparse.Namespace) -> int:

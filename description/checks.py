@@ -6,6 +6,7 @@ any FAIL is not ready for planning or simulation.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,12 +15,15 @@ from typing import Literal
 import numpy as np
 
 from .errors import DescriptionError
-from .loader import _default_srdf, find_package_root, read_model_text
+from .loader import find_package_root, read_model_text
 from .meshes import load_mesh
 from .model import Inertial, Link, Robot
-from .packages import build_package_index
+from .moveit_config import resolve_config
+from .packages import PackageIndex, build_package_index
 from .srdf import parse_srdf
 from .urdf import parse_urdf
+
+_log = logging.getLogger(__name__)
 
 Level = Literal["PASS", "WARN", "FAIL"]
 
@@ -75,10 +79,17 @@ def check_model(
     *,
     package_dirs: Sequence[str | Path] = (),
     args: Mapping[str, str] | None = None,
+    moveit_config: str | Path | None = None,
+    srdf: str | Path | None = None,
+    joint_limits: str | Path | None = None,
     env: Mapping[str, str] | None = None,
 ) -> CheckReport:
-    """Check a URDF or xacro file (default: the shipped arduinobot); never raises for a
-    problem in the model, it reports it."""
+    """Check a URDF or xacro file (default: the shipped arduinobot) and the planning
+    configuration found for it (see :func:`description.load_description`); never raises
+    for a problem in the model, it reports it.
+
+    Only what breaks loading, planning or simulation FAILs; what CAD exports and the
+    MoveIt Setup Assistant normally leave (open meshes, a stale SRDF) WARNs."""
     packages = build_package_index(package_dirs, env=env)
     try:
         text, p = read_model_text(path, args=args, packages=packages)
@@ -87,6 +98,9 @@ def check_model(
         return CheckReport(str(path or "shipped model"), (_fail_from(e, "load"),))
     findings: list[Finding] = []
     findings.extend(_fail_from(e, "parse") for e in report.problems)
+    findings.extend(Finding("WARN", "parse", e.element or "model",
+                            e.message + (f" (fix: {e.hint})" if e.hint else ""))
+                    for e in report.warnings)
     robot = report.robot
     if robot is None:
         return CheckReport(str(p), tuple(findings))
@@ -95,7 +109,8 @@ def check_model(
                             f"{len(robot.joints)} joints, every name resolves"))
     for fn in (_check_links, _check_inertials, _check_meshes, _check_joints):
         findings.extend(fn(robot))
-    findings.extend(_check_srdf(robot, p))
+    findings.extend(_check_config(robot, p, packages, moveit_config=moveit_config, srdf=srdf,
+                                  joint_limits=joint_limits))
     return CheckReport(str(p), tuple(findings))
 
 
@@ -149,10 +164,11 @@ def _check_inertials(robot: Robot) -> Iterator[Finding]:
                           "mass > 0, inertia positive definite and physically realisable")
 
 
-def mesh_inertia(link: Link, mass: float) -> np.ndarray | None:
+def mesh_inertia(link: Link, mass: float) -> tuple[np.ndarray, bool] | None:
     """The inertia tensor [kg m^2] about the centre of mass that the link's collision
-    meshes imply at ``mass`` and uniform density, in the link frame; None if the meshes
-    cannot say (missing, or not closed)."""
+    meshes imply at ``mass`` and uniform density, in the link frame, and whether it is
+    reliable: an open (not watertight) CAD mesh has no volume, so its convex hull stands
+    in and the figure is only indicative. None if the meshes cannot say."""
     from .meshes import shape_mesh
     try:
         parts = [shape_mesh(s) for s in link.collisions]
@@ -162,33 +178,46 @@ def mesh_inertia(link: Link, mass: float) -> np.ndarray | None:
         return None
     import trimesh
     mesh = trimesh.util.concatenate(parts)
-    if not mesh.is_volume or mesh.volume <= 0:
-        return None
+    reliable = bool(mesh.is_volume and mesh.volume > 0)
+    if not reliable:
+        try:
+            mesh = mesh.convex_hull
+        except Exception:  # noqa: BLE001 -- qhull refuses degenerate input: no figure
+            _log.debug("no convex hull for %s", link.name, exc_info=True)
+            return None
+        if not mesh.volume > 0:
+            return None
     mesh.density = mass / mesh.volume
-    return np.asarray(mesh.moment_inertia)
+    return np.asarray(mesh.moment_inertia), reliable
 
 
 def _plausibility(link: Link) -> Iterator[Finding]:
     ine = link.inertial
     if ine is None or not ine.mass > 0:
         return
-    implied = mesh_inertia(link, ine.mass)
-    if implied is None:
+    got = mesh_inertia(link, ine.mass)
+    if got is None:
         return
+    implied, reliable = got
     given, expected = _principal(ine).max(), np.linalg.eigvalsh(implied).max()
     if expected > 0 and given > PLAUSIBLE_INERTIA_RATIO * expected:
         t = np.round(implied, 8)
+        src = "the mesh implies" if reliable else \
+            "the convex hull of the open mesh implies (unreliable: the mesh has no volume)"
         yield Finding(
             "WARN", "inertial.plausible", link.name,
-            f"inertia {given:g} kg m^2 is {given / expected:,.0f}x what the mesh implies for "
-            f"{ine.mass:g} kg; the mesh implies ixx={t[0, 0]:.3g} ixy={t[0, 1]:.3g} "
+            f"inertia {given:g} kg m^2 is {given / expected:,.0f}x what {src} for "
+            f"{ine.mass:g} kg: ixx={t[0, 0]:.3g} ixy={t[0, 1]:.3g} "
             f"ixz={t[0, 2]:.3g} iyy={t[1, 1]:.3g} iyz={t[1, 2]:.3g} izz={t[2, 2]:.3g}",
-            {"given_max": float(given), "implied": t.tolist(), "ratio": float(given / expected)})
+            {"given_max": float(given), "implied": t.tolist(), "ratio": float(given / expected),
+             "reliable": reliable})
 
 
 def _check_meshes(robot: Robot) -> Iterator[Finding]:
     bad: list[Finding] = []
     subjects = []
+    # the robot's size from its kinematics, to spot meshes in the wrong unit
+    span = float(sum(np.linalg.norm(j.origin.xyz) for j in robot.joints.values()))
     for link in robot.links.values():
         for tag, shapes in (("visual", link.visuals), ("collision", link.collisions)):
             for i, s in enumerate(shapes):
@@ -206,11 +235,37 @@ def _check_meshes(robot: Robot) -> Iterator[Finding]:
                     bad.append(Finding("FAIL", "mesh", subj, e.message))
                     continue
                 if not mesh.is_watertight:
-                    level: Level = "FAIL" if tag == "collision" else "WARN"
-                    bad.append(Finding(level, "mesh", subj,
-                                       f"{g.path.name} is not watertight (open edges): its "
-                                       "volume, inertia and inside/outside are undefined"))
-    yield from _summarise("mesh", subjects, bad, "every mesh resolves, loads and is watertight")
+                    # CAD exports often are; FCL, MuJoCo and Gazebo use them as they are
+                    bad.append(Finding("WARN", "mesh", subj,
+                                       f"{g.path.name} is not watertight (open edges): fine "
+                                       "for collision checking, but an inertia derived from "
+                                       "it is unreliable", {"watertight": False}))
+                size = float(np.max(mesh.extents))
+                factor = _scale_factor(size, span)
+                if factor is not None:
+                    bad.append(Finding(
+                        "WARN", "mesh.scale", subj,
+                        f"{g.path.name} is {size:.4g} m across at scale {_fmt(g.scale)} on a "
+                        f"robot whose joints span {span:.3g} m: likely in the wrong unit; try "
+                        f"scale=\"{_fmt(tuple(x * factor for x in g.scale))}\" "
+                        f"(x{factor:g})", {"extent": size, "factor": factor}))
+    yield from _summarise("mesh", subjects, bad, "every mesh resolves and loads")
+
+
+def _fmt(scale: tuple[float, ...]) -> str:
+    return " ".join(f"{x:g}" for x in scale)
+
+
+def _scale_factor(size: float, span: float) -> float | None:
+    """The power of ten that brings a mesh ``size`` [m] across to the scale of a robot
+    whose joints span ``span`` [m], if it is off by 100x or more (the missing
+    ``scale="0.001 0.001 0.001"`` of a millimetre CAD export is 1000x)."""
+    if span <= 0 or size <= 0:
+        return None
+    ratio = size / span
+    if 0.01 < ratio < 100:
+        return None
+    return float(10.0 ** -round(np.log10(ratio)))
 
 
 def _check_joints(robot: Robot) -> Iterator[Finding]:
@@ -238,17 +293,28 @@ def _check_joints(robot: Robot) -> Iterator[Finding]:
                                 f" + {j.mimic.offset:g}" for j in mimics if j.mimic))
 
 
-def _check_srdf(robot: Robot, path: Path) -> Iterator[Finding]:
-    root = find_package_root(path.parent)
-    srdf_path = _default_srdf(root / "config" if root else None, robot.name)
-    if srdf_path is None:
+def _check_config(robot: Robot, path: Path, packages: PackageIndex, *,
+                  moveit_config: str | Path | None, srdf: str | Path | None,
+                  joint_limits: str | Path | None) -> Iterator[Finding]:
+    try:
+        files = resolve_config(robot.name, description_root=find_package_root(path.parent),
+                               packages=packages, moveit_config=moveit_config, srdf=srdf,
+                               joint_limits=joint_limits)
+    except DescriptionError as e:
+        yield _fail_from(e, "config")
+        return
+    yield Finding("PASS" if files.srdf else "WARN", "config", "files",
+                  "; ".join(x.strip() for x in files.lines()), files.to_json())
+    if files.srdf is None:
         return
     try:
-        srdf = parse_srdf(srdf_path.read_text(encoding="utf-8"), robot, source=srdf_path)
+        parsed = parse_srdf(files.srdf.read_text(encoding="utf-8"), robot, source=files.srdf)
     except DescriptionError as e:
         yield _fail_from(e, "srdf")
         return
-    yield Finding("PASS", "srdf", srdf_path.name,
-                  f"groups {', '.join(srdf.groups)}; named states "
-                  f"{', '.join(srdf.group_states)}; {len(srdf.disabled_collisions)} disabled "
-                  "collision pairs")
+    for w in parsed.warnings:
+        yield Finding("WARN", "srdf", files.srdf.name, w)
+    yield Finding("PASS", "srdf", files.srdf.name,
+                  f"groups {', '.join(parsed.groups)}; named states "
+                  f"{', '.join(f'{s.group}/{s.name}' for s in parsed.states)}; "
+                  f"{len(parsed.disabled_collisions)} disabled collision pairs")

@@ -8,14 +8,15 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from .errors import DescriptionError, InvalidModel, SrdfError
+from .errors import DescriptionError, InvalidModel
 from .model import Origin, Robot
+from .moveit_config import ConfigFiles, resolve_config
 from .packages import SHIPPED_PACKAGE_DIR, PackageIndex, build_package_index
 from .srdf import Srdf, parse_srdf
 from .urdf import parse_urdf
@@ -28,10 +29,12 @@ DEFAULT_MODEL = SHIPPED_PACKAGE_DIR / "urdf" / "arduinobot.urdf.xacro"
 
 @dataclass(frozen=True)
 class Tcp:
-    """The tool centre point: ``xyz`` [m] in ``parent_link``'s frame."""
+    """The tool centre point: ``xyz`` [m] in ``parent_link``'s frame; ``source`` says
+    where it came from (``config/tcp.yaml``, or the rule that chose a default)."""
 
     parent_link: str
     xyz: tuple[float, float, float]
+    source: str = "config/tcp.yaml"
 
     def origin(self) -> Origin:
         return Origin(xyz=self.xyz)
@@ -47,8 +50,17 @@ class Description:
         tcp: the tool centre point from ``config/tcp.yaml``, if present.
         joint_limits: the parsed ``config/joint_limits.yaml`` (``joint_limits`` mapping),
             empty if absent.
-        package_root: the package folder holding the model (where ``config/`` lives).
+        package_root: the package folder holding the model.
         packages: the package index URIs were resolved with.
+        config: which SRDF, joint limits, tcp and initial positions files were used, and
+            how they were found (a MoveIt config package, or the model's own config/).
+        default_velocity_scaling, default_acceleration_scaling: MoveIt's
+            ``default_*_scaling_factor`` of joint_limits.yaml, in (0, 1] (1 if absent):
+            the scaling of a request that sets none.
+        initial_positions: joint values [rad] the hardware starts at
+            (``initial_positions.yaml``), empty if absent.
+        warnings: what loading tolerated (open meshes are the checker's business; this is
+            e.g. a ``<material>`` inside ``<geometry>`` or SRDF pairs naming lost links).
     """
 
     robot: Robot
@@ -57,10 +69,17 @@ class Description:
     joint_limits: Mapping[str, Mapping[str, object]]
     package_root: Path | None
     packages: PackageIndex
+    config: ConfigFiles = field(default_factory=ConfigFiles)
+    default_velocity_scaling: float = 1.0
+    default_acceleration_scaling: float = 1.0
+    initial_positions: Mapping[str, float] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
 
-    @property
-    def config_dir(self) -> Path | None:
-        return self.package_root / "config" if self.package_root else None
+    def default_group(self) -> str:
+        """The planning group of a request that names none (see
+        :meth:`Srdf.default_group`); ``all`` without an SRDF."""
+        g = self.srdf.default_group() if self.srdf is not None else None
+        return g or "all"
 
 
 def find_package_root(path: Path) -> Path | None:
@@ -97,18 +116,25 @@ def load_description(
     *,
     package_dirs: Sequence[str | Path] = (),
     args: Mapping[str, str] | None = None,
+    moveit_config: str | Path | None = None,
     srdf: str | Path | None = None,
+    joint_limits: str | Path | None = None,
     env: Mapping[str, str] | None = None,
 ) -> Description:
-    """Load a robot description.
+    """Load a robot description and the files that configure planning for it.
 
     Args:
         path: a ``.urdf`` or ``.xacro`` file; None for the shipped arduinobot.
         package_dirs: extra package folders for ``package://`` and ``$(find)``, searched
             before ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH``.
         args: xacro arguments.
-        srdf: an SRDF file; by default ``config/<robot name>.srdf`` of the model's
-            package, or its only ``config/*.srdf``.
+        moveit_config: a MoveIt config package folder. By default: the model package's
+            own ``config/`` if it has an SRDF, else a ``<robot>_moveit_config`` or
+            ``<robot>_moveit`` package (or one whose ``.setup_assistant`` names the
+            description package) among the known packages and the model package's
+            siblings (see :func:`description.moveit_config.resolve_config`).
+        srdf: an SRDF file, overriding the config package's.
+        joint_limits: a joint_limits.yaml, overriding the config package's.
         env: environment to read package paths from (default ``os.environ``).
 
     Raises:
@@ -116,34 +142,70 @@ def load_description(
     """
     packages = build_package_index(package_dirs, env=env)
     text, p = read_model_text(path, args=args, packages=packages)
-    robot = parse_urdf(text, packages=packages, source=p).robot
+    report = parse_urdf(text, packages=packages, source=p)
+    robot = report.robot
     if robot is None:  # strict parsing raises first; this guards a future lenient path
         raise InvalidModel("the model has no valid tree", file=p)
     root = find_package_root(p.parent)
-    cfg = root / "config" if root else None
+    files = resolve_config(robot.name, description_root=root, packages=packages,
+                           moveit_config=moveit_config, srdf=srdf, joint_limits=joint_limits)
+    warnings = [str(w) for w in report.warnings]
     srdf_obj = None
-    srdf_path = Path(srdf) if srdf is not None else _default_srdf(cfg, robot.name)
-    if srdf_path is not None:
-        if not srdf_path.is_file():
-            raise SrdfError("file does not exist", file=srdf_path)
-        srdf_obj = parse_srdf(srdf_path.read_text(encoding="utf-8"), robot, source=srdf_path)
-    tcp = _read_tcp(cfg / "tcp.yaml", robot) if cfg and (cfg / "tcp.yaml").is_file() else None
-    limits = _read_joint_limits(cfg / "joint_limits.yaml", robot) \
-        if cfg and (cfg / "joint_limits.yaml").is_file() else {}
-    _log.info("loaded robot '%s' from %s: %d links, %d joints", robot.name, p,
-              len(robot.links), len(robot.joints))
+    if files.srdf is not None:
+        srdf_obj = parse_srdf(files.srdf.read_text(encoding="utf-8"), robot, source=files.srdf)
+        warnings.extend(f"{files.srdf.name}: {w}" for w in srdf_obj.warnings)
+    tcp = _read_tcp(files.tcp, robot) if files.tcp is not None else default_tcp(robot, srdf_obj)
+    limits: dict[str, dict[str, object]] = {}
+    scaling = (1.0, 1.0)
+    if files.joint_limits is not None:
+        limits, scaling = _read_joint_limits(files.joint_limits, robot)
+    initial = _read_initial_positions(files.initial_positions, robot) \
+        if files.initial_positions is not None else {}
+    for w in warnings:
+        _log.warning("%s", w)
+    _log.info("loaded robot '%s' from %s: %d links, %d joints; %s", robot.name, p,
+              len(robot.links), len(robot.joints), "; ".join(files.lines()))
     return Description(robot=robot, srdf=srdf_obj, tcp=tcp, joint_limits=limits,
-                       package_root=root, packages=packages)
+                       package_root=root, packages=packages, config=files,
+                       default_velocity_scaling=scaling[0],
+                       default_acceleration_scaling=scaling[1], initial_positions=initial,
+                       warnings=tuple(warnings))
 
 
-def _default_srdf(cfg: Path | None, robot_name: str) -> Path | None:
-    if cfg is None or not cfg.is_dir():
-        return None
-    named = cfg / f"{robot_name}.srdf"
-    if named.is_file():
-        return named
-    found = sorted(cfg.glob("*.srdf"))
-    return found[0] if len(found) == 1 else None
+def main_chain_tip(robot: Robot) -> str:
+    """The last link of the robot's main chain: from the root, follow the one child
+    joint whose subtree moves, until the tree ends or branches (e.g. into fingers).
+    Rigid side branches (a camera on a fixed joint) are not branches here."""
+    children = robot.child_joints
+    moves: dict[str, bool] = {}
+
+    def has_movable(link: str) -> bool:
+        if link not in moves:
+            moves[link] = any(j.movable or has_movable(j.child) for j in children.get(link, ()))
+        return moves[link]
+
+    link = robot.root
+    while True:
+        live = [j for j in children.get(link, ()) if j.movable or has_movable(j.child)]
+        if len(live) != 1:
+            return link
+        link = live[0].child
+
+
+def default_tcp(robot: Robot, srdf: Srdf | None) -> Tcp:
+    """The tool point without a tcp file: the origin of the default group's tool link
+    (an SRDF end effector's ``parent_link``, else the tip of the group's chain), or
+    without an SRDF the end of the robot's main chain."""
+    if srdf is not None:
+        group = srdf.default_group()
+        tip = srdf.tip_link(group) if group else None
+        if tip is not None:
+            eff = next((e for e in srdf.end_effectors if e.parent_group == group), None)
+            why = (f"end effector '{eff.name}' parent_link" if eff is not None
+                   else f"tip of group '{group}'")
+            return Tcp(tip, (0.0, 0.0, 0.0), f"default: origin of {tip} ({why})")
+    tip = main_chain_tip(robot)
+    return Tcp(tip, (0.0, 0.0, 0.0), f"default: origin of {tip} (end of the main chain)")
 
 
 def _read_yaml(path: Path) -> object:
@@ -173,7 +235,10 @@ def _read_tcp(path: Path, robot: Robot) -> Tcp:
     return Tcp(parent_link=str(parent), xyz=vec)  # type: ignore[arg-type]
 
 
-def _read_joint_limits(path: Path, robot: Robot) -> dict[str, dict[str, object]]:
+def _read_joint_limits(path: Path, robot: Robot
+                       ) -> tuple[dict[str, dict[str, object]], tuple[float, float]]:
+    """MoveIt's joint_limits.yaml: per-joint entries, and the default velocity and
+    acceleration scaling factors (1 when absent)."""
     data = _read_yaml(path)
     limits = data.get("joint_limits") if isinstance(data, dict) else None
     if not isinstance(limits, dict):
@@ -185,4 +250,28 @@ def _read_joint_limits(path: Path, robot: Robot) -> dict[str, dict[str, object]]
         if not isinstance(entry, dict):
             raise InvalidModel("must be a mapping of MoveIt limit keys", file=path,
                                element=f"joint_limits.{name}")
-    return limits
+    scaling = []
+    for key in ("default_velocity_scaling_factor", "default_acceleration_scaling_factor"):
+        raw = data.get(key, 1.0)  # type: ignore[union-attr]
+        ok = isinstance(raw, (int, float)) and not isinstance(raw, bool) and 0 < raw <= 1
+        if not ok:
+            raise InvalidModel(f"{raw!r} must be a number in (0, 1]", file=path, element=key)
+        scaling.append(float(raw))
+    return limits, (scaling[0], scaling[1])
+
+
+def _read_initial_positions(path: Path, robot: Robot) -> dict[str, float]:
+    data = _read_yaml(path)
+    values = data.get("initial_positions") if isinstance(data, dict) else None
+    if not isinstance(values, dict):
+        raise InvalidModel("needs an 'initial_positions' mapping of joint values", file=path)
+    out = {}
+    for name, v in values.items():
+        if name not in robot.joints:
+            raise InvalidModel(f"joint '{name}' is not in the URDF", file=path,
+                               element=f"initial_positions.{name}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise InvalidModel(f"{v!r} is not a finite number [rad]", file=path,
+                               element=f"initial_positions.{name}")
+        out[str(name)] = float(v)
+    return out

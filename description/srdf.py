@@ -18,10 +18,20 @@ from .model import Robot
 
 @dataclass(frozen=True)
 class Group:
-    """A planning group: its joints in order (from ``<joint>`` and ``<chain>`` entries)."""
+    """A planning group.
+
+    Attributes:
+        joints: its movable joints in chain order (from ``<joint>``, ``<chain>``,
+            ``<link>`` and subgroup entries); fixed and virtual joints are left out.
+        links: every link the group's entries name or imply, in order.
+        tip_link: the deepest link of the group (its chain's tip), or None for a group
+            without links.
+    """
 
     name: str
     joints: tuple[str, ...]
+    links: tuple[str, ...] = ()
+    tip_link: str | None = None
 
 
 @dataclass(frozen=True)
@@ -34,7 +44,8 @@ class EndEffector:
 
 @dataclass(frozen=True)
 class GroupState:
-    """A named state such as ``home``: joint values [rad] for one group."""
+    """A named state such as ``home``: joint values [rad] for one group. Names are unique
+    per group, not per file: MoveIt's setup assistant writes a ``home`` for each group."""
 
     name: str
     group: str
@@ -44,7 +55,8 @@ class GroupState:
 @dataclass(frozen=True)
 class DisabledCollision:
     """A link pair the collision checker skips, and why (MoveIt's reasons:
-    ``Adjacent``, ``Never``, ``Always``, ``Default``, ``User``)."""
+    ``Adjacent``, ``Never``, ``Always``, ``Default``, ``User``; ours add
+    ``Never-proven`` and ``Never-sampled``)."""
 
     link1: str
     link2: str
@@ -53,23 +65,85 @@ class DisabledCollision:
 
 @dataclass(frozen=True)
 class Srdf:
+    """A parsed SRDF.
+
+    Attributes:
+        states: every ``<group_state>``, in file order.
+        warnings: what was skipped and why (e.g. disabled pairs naming links the URDF
+            lacks, written before the model changed).
+    """
+
     robot_name: str
     groups: dict[str, Group]
     end_effectors: tuple[EndEffector, ...]
-    group_states: dict[str, GroupState]
+    states: tuple[GroupState, ...]
     disabled_collisions: tuple[DisabledCollision, ...]
     source: Path | None = None
+    warnings: tuple[str, ...] = ()
 
     def disabled_pairs(self) -> frozenset[frozenset[str]]:
         return frozenset(frozenset((d.link1, d.link2)) for d in self.disabled_collisions)
 
-    def named_state(self, name: str) -> GroupState:
-        try:
-            return self.group_states[name]
-        except KeyError:
-            known = ", ".join(sorted(self.group_states)) or "none"
+    def state_names(self, group: str | None = None) -> tuple[str, ...]:
+        """Names of the named states (of ``group`` only, if given), without repeats."""
+        return tuple(dict.fromkeys(s.name for s in self.states
+                                   if group is None or s.group == group))
+
+    def labelled_states(self) -> dict[str, GroupState]:
+        """Every state under a unique label: its name, or ``group/name`` where several
+        groups use the name (for menus and listings)."""
+        counts: dict[str, int] = {}
+        for s in self.states:
+            counts[s.name] = counts.get(s.name, 0) + 1
+        return {(s.name if counts[s.name] == 1 else f"{s.group}/{s.name}"): s
+                for s in self.states}
+
+    def named_state(self, name: str, group: str | None = None) -> GroupState:
+        """The state ``name`` of ``group``; without a group the name must be unique.
+
+        Raises:
+            SrdfError: no such state (naming the known ones), or a name several groups
+                define and no group to choose (naming those groups).
+        """
+        found = [s for s in self.states if s.name == name]
+        where = f"group_state '{name}'"
+        if group is not None:
+            mine = [s for s in found if s.group == group]
+            if mine:
+                return mine[0]
+            others = sorted({s.group for s in found})
+            hint = (f"'{name}' is defined for group {', '.join(others)}: set group to it"
+                    if others else None)
+            known = ", ".join(self.state_names(group)) or "none"
+            raise SrdfError(f"group '{group}' has no named state '{name}' (its states: "
+                            f"{known})", file=self.source, element=where, hint=hint)
+        if not found:
+            known = ", ".join(self.state_names()) or "none"
             raise SrdfError(f"no named state '{name}' (known: {known})", file=self.source,
-                            element=f"group_state '{name}'") from None
+                            element=where)
+        groups = sorted({s.group for s in found})
+        if len(groups) > 1:
+            raise SrdfError(f"named state '{name}' is ambiguous: groups {', '.join(groups)} "
+                            "each define it", file=self.source, element=where,
+                            hint=f"set group to one of {', '.join(groups)}")
+        return found[0]
+
+    def default_group(self) -> str | None:
+        """The group a request without one plans for: ``arm`` if declared (the
+        arduinobot's and most setup assistant configs' name), else the first declared
+        group that has movable joints."""
+        if "arm" in self.groups and self.groups["arm"].joints:
+            return "arm"
+        return next((g.name for g in self.groups.values() if g.joints), None)
+
+    def tip_link(self, group: str) -> str | None:
+        """The group's tool link: the parent link of an end effector attached to it,
+        else the tip of its chain."""
+        for e in self.end_effectors:
+            if e.parent_group == group:
+                return e.parent_link
+        g = self.groups.get(group)
+        return g.tip_link if g is not None else None
 
 
 def _chain_joints(robot: Robot, base: str, tip: str, where: str, source: Path | None) -> list[str]:
@@ -82,14 +156,67 @@ def _chain_joints(robot: Robot, base: str, tip: str, where: str, source: Path | 
     return [j.name for j in path[start:]]
 
 
+def _group(robot: Robot, el: etree._Element, raw: dict[str, etree._Element],
+           done: dict[str, Group], virtual: set[str], source: Path | None,
+           need_link, need_joint, visiting: tuple[str, ...] = ()) -> Group:  # type: ignore[no-untyped-def]
+    name = el.get("name", "")
+    if name in done:
+        return done[name]
+    where = f"group '{name}'"
+    if name in visiting:
+        raise SrdfError(f"subgroups form a cycle: {' -> '.join((*visiting, name))}",
+                        file=source, element=where)
+    joints: list[str] = []
+    links: list[str] = []
+    for child in el:
+        if not isinstance(child.tag, str):
+            continue
+        if child.tag == "joint":
+            jn = child.get("name")
+            if jn in virtual and jn not in robot.joints:
+                continue  # an SRDF virtual joint with no URDF counterpart
+            j = robot.joints[need_joint(jn, where)]
+            joints.append(j.name)
+            links.append(j.child)
+        elif child.tag == "chain":
+            names = _chain_joints(robot, need_link(child.get("base_link"), where),
+                                  need_link(child.get("tip_link"), where), where, source)
+            joints.extend(names)
+            links.extend(robot.joints[n].child for n in names)
+        elif child.tag == "link":
+            link = need_link(child.get("name"), where)
+            links.append(link)
+            parent = robot.parent_joint.get(link)
+            if parent is not None:
+                joints.append(parent.name)
+        elif child.tag == "group":
+            sub_el = raw.get(child.get("name", ""))
+            if sub_el is None:
+                raise SrdfError(f"subgroup '{child.get('name')}' is not declared",
+                                file=source, element=where)
+            sub = _group(robot, sub_el, raw, done, virtual, source, need_link, need_joint,
+                         (*visiting, name))
+            joints.extend(sub.joints)
+            links.extend(sub.links)
+    links = list(dict.fromkeys(links))
+    tip = max(links, key=lambda x: len(robot.link_path(x)), default=None)
+    movable = tuple(j for j in dict.fromkeys(joints) if robot.joints[j].movable)
+    done[name] = Group(name, movable, tuple(links), tip)
+    return done[name]
+
+
 def parse_srdf(text: str, robot: Robot, *, source: Path | None = None) -> Srdf:
     """Parse SRDF text and check that every name in it exists in ``robot``.
+
+    Disabled pairs naming a link the URDF lacks are skipped with a warning (an SRDF
+    written before a link was renamed or removed); everything else must resolve.
 
     Raises:
         SrdfError: malformed XML, or a name the URDF lacks.
     """
     try:
-        root = etree.fromstring(text.encode("utf-8"))
+        root = etree.fromstring(text.encode("utf-8"),
+                                parser=etree.XMLParser(remove_comments=True))
     except etree.XMLSyntaxError as e:
         raise SrdfError(f"not well-formed XML: {e}", file=source) from e
 
@@ -103,25 +230,12 @@ def parse_srdf(text: str, robot: Robot, *, source: Path | None = None) -> Srdf:
             raise SrdfError(f"joint '{name}' is not in the URDF", file=source, element=where)
         return name
 
-    groups: dict[str, Group] = {}
-    for g in root.findall("group"):
-        name = g.get("name", "")
-        where = f"group '{name}'"
-        joints: list[str] = []
-        for child in g:
-            if child.tag == "joint":
-                joints.append(need_joint(child.get("name"), where))
-            elif child.tag == "chain":
-                joints.extend(_chain_joints(robot, need_link(child.get("base_link"), where),
-                                            need_link(child.get("tip_link"), where), where, source))
-            elif child.tag == "group":
-                sub = groups.get(child.get("name", ""))
-                if sub is None:
-                    raise SrdfError(f"subgroup '{child.get('name')}' must be declared first",
-                                    file=source, element=where)
-                joints.extend(sub.joints)
-        movable = tuple(j for j in dict.fromkeys(joints) if robot.joints[j].movable)
-        groups[name] = Group(name, movable)
+    virtual = {v.get("name", "") for v in root.findall("virtual_joint")}
+    raw = {g.get("name", ""): g for g in root.findall("group")}
+    done: dict[str, Group] = {}
+    for g in raw.values():
+        _group(robot, g, raw, done, virtual, source, need_link, need_joint)
+    groups = {name: done[name] for name in raw}
     effs = []
     for e in root.findall("end_effector"):
         where = f"end_effector '{e.get('name')}'"
@@ -130,7 +244,9 @@ def parse_srdf(text: str, robot: Robot, *, source: Path | None = None) -> Srdf:
             raise SrdfError(f"group '{group}' is not declared", file=source, element=where)
         effs.append(EndEffector(e.get("name", ""), need_link(e.get("parent_link"), where), group,
                                 e.get("parent_group")))
-    states: dict[str, GroupState] = {}
+    states: list[GroupState] = []
+    seen: set[tuple[str, str]] = set()
+    warnings: list[str] = []
     for s in root.findall("group_state"):
         name, group = s.get("name", ""), s.get("group", "")
         where = f"group_state '{name}'"
@@ -144,15 +260,24 @@ def parse_srdf(text: str, robot: Robot, *, source: Path | None = None) -> Srdf:
             except ValueError:
                 raise SrdfError(f"joint '{jn}' value=\"{j.get('value')}\" is not a number",
                                 file=source, element=where) from None
-        states[name] = GroupState(name, group, values)
+        if (group, name) in seen:
+            warnings.append(f"group_state '{name}' of group '{group}' is declared twice; "
+                            "the first is used")
+            continue
+        seen.add((group, name))
+        states.append(GroupState(name, group, values))
     disabled = []
     for d in root.findall("disable_collisions"):
-        where = f"disable_collisions {d.get('link1')}/{d.get('link2')}"
-        disabled.append(DisabledCollision(need_link(d.get("link1"), where),
-                                          need_link(d.get("link2"), where),
-                                          d.get("reason", "User")))
+        a, b = d.get("link1"), d.get("link2")
+        missing = [x for x in (a, b) if not x or x not in robot.links]
+        if missing:
+            warnings.append(f"disable_collisions {a}/{b}: link {', '.join(map(repr, missing))} "
+                            "is not in the URDF; the pair is skipped")
+            continue
+        disabled.append(DisabledCollision(str(a), str(b), d.get("reason", "User")))
     return Srdf(robot_name=root.get("name", ""), groups=groups, end_effectors=tuple(effs),
-                group_states=states, disabled_collisions=tuple(disabled), source=source)
+                states=tuple(states), disabled_collisions=tuple(disabled), source=source,
+                warnings=tuple(warnings))
 
 
 def replace_disabled_collisions(text: str, pairs: Iterable[DisabledCollision]) -> str:

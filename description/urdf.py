@@ -25,6 +25,7 @@ from .model import (
 )
 from .packages import PackageIndex, resolve_uri
 
+_SHAPES = ("mesh", "box", "sphere", "cylinder")
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 
 
@@ -34,6 +35,7 @@ class ParseReport:
 
     robot: Robot | None = None
     problems: list[DescriptionError] = field(default_factory=list)
+    warnings: list[DescriptionError] = field(default_factory=list)
 
 
 class _Ctx:
@@ -41,6 +43,11 @@ class _Ctx:
         self.source = source
         self.packages = packages
         self.problems: list[DescriptionError] = []
+        self.warnings: list[DescriptionError] = []
+
+    def warn(self, message: str, element: str, hint: str | None = None) -> None:
+        self.warnings.append(InvalidModel(message, file=self.source, element=element,
+                                          hint=hint))
 
     def fail(self, message: str, element: str, hint: str | None = None) -> None:
         self.problems.append(InvalidModel(message, file=self.source, element=element, hint=hint))
@@ -80,12 +87,20 @@ def _origin(ctx: _Ctx, el: etree._Element | None, where: str) -> Origin:
 
 
 def _geometry(ctx: _Ctx, el: etree._Element | None, where: str) -> Geometry | None:
-    if el is None or len(el) == 0:
+    kids = [] if el is None else [c for c in el if isinstance(c.tag, str)]
+    shapes = [c for c in kids if c.tag in _SHAPES]
+    for c in kids:
+        if c.tag not in _SHAPES:
+            # e.g. a <material> written inside <geometry>: URDF parsers read the shape
+            # and ignore the rest, so do we, but say so
+            ctx.warn(f"<{c.tag}> inside <geometry> is ignored", where,
+                     hint=f"move <{c.tag}> out of <geometry> (into <visual>)")
+    if not kids or (not shapes and all(c.tag == "material" for c in kids)):
         ctx.fail("has no <geometry> shape", where, hint="add <geometry> with a mesh, box, "
                  "cylinder or sphere")
         return None
-    g = el[0]
-    tag = g.tag if isinstance(g.tag, str) else ""
+    g = shapes[0] if shapes else kids[0]
+    tag = g.tag
     if tag == "mesh":
         uri = g.get("filename")
         if not uri:
@@ -304,4 +319,4 @@ def parse_urdf(
     if not structural:
         robot = Robot(name=root.get("name", ""), links=links, joints=joints, urdf=text,
                       source=source, package_dirs=dict(packages.packages))
-    return ParseReport(robot=robot, problems=problems)
+    return ParseReport(robot=robot, problems=problems, warnings=ctx.warnings)

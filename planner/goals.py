@@ -64,6 +64,36 @@ class PositionGoal:
 Goal = JointGoal | NamedGoal | PositionGoal
 
 
+def group_names(description: Description) -> tuple[str, ...]:
+    """The groups a request may name: the SRDF's, and ``all``."""
+    srdf = description.srdf
+    return (*(srdf.groups if srdf is not None else ()), "all")
+
+
+def resolve_group(description: Description, group: str | None, goal: Goal) -> str:
+    """The planning group of a request: ``group`` if given (it must exist); for a named
+    goal, the group that defines the state; else the description's default group.
+
+    Raises:
+        InvalidRequest: an unknown group (naming the known ones), or a named state that
+            several groups define when no group was given (naming them).
+    """
+    known = group_names(description)
+    if group is not None:
+        if not isinstance(group, str) or group not in known:
+            raise InvalidRequest(f"{group!r} is not a group of this robot (groups: "
+                                 f"{', '.join(known)})", field="group",
+                                 details={"groups": list(known)})
+        return group
+    if isinstance(goal, NamedGoal) and description.srdf is not None:
+        try:
+            return description.srdf.named_state(goal.name).group
+        except SrdfError as e:
+            raise InvalidRequest(e.message, field="goal.named",
+                                 details={"hint": e.hint} if e.hint else None) from None
+    return description.default_group()
+
+
 def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
     """Raise :class:`JointLimitViolation` naming the first joint outside its limits."""
     from .errors import JointLimitViolation
@@ -75,8 +105,30 @@ def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
                                       field=f"{field}.{name}")
 
 
+def named_values(description: Description, name: str, group: str,
+                 actuated: Mapping[str, int]) -> dict[str, float]:
+    """The actuated joint values [rad] of named state ``name``, looked up in ``group``
+    (for ``all``: the one group that defines it).
+
+    Raises:
+        InvalidRequest: no SRDF, an unknown state, or an ambiguous name.
+    """
+    srdf = description.srdf
+    if srdf is None:
+        raise InvalidRequest("the model has no SRDF, so no named states (give "
+                             "--moveit-config)", field="goal.named")
+    try:
+        state = srdf.named_state(name, None if group == "all" else group)
+    except SrdfError as e:
+        raise InvalidRequest(e.message + (f" ({e.hint})" if e.hint else ""),
+                             field="goal.named",
+                             details={"known": list(srdf.state_names())}) from None
+    return {k: v for k, v in state.values.items() if k in actuated}
+
+
 def resolve_goal(goal: Goal, *, world: CollisionWorld, description: Description,
-                 start: np.ndarray, group_joints: Sequence[str]) -> np.ndarray:
+                 start: np.ndarray, group_joints: Sequence[str],
+                 group: str = "all") -> np.ndarray:
     """Every candidate goal state for ``goal``, shape (k, dof), k >= 1, collision-free.
 
     Joints outside ``group_joints`` keep their ``start`` value.
@@ -90,14 +142,7 @@ def resolve_goal(goal: Goal, *, world: CollisionWorld, description: Description,
     names = world.kin.joint_names
     idx = {n: i for i, n in enumerate(names)}
     if isinstance(goal, NamedGoal):
-        srdf = description.srdf
-        if srdf is None:
-            raise InvalidRequest("the model has no SRDF, so no named states", field="goal.name")
-        try:
-            state = srdf.named_state(goal.name)
-        except SrdfError as e:
-            raise InvalidRequest(str(e.args[0] if e.args else e), field="goal.name") from None
-        goal = JointGoal({k: v for k, v in state.values.items() if k in idx})
+        goal = JointGoal(named_values(description, goal.name, group, idx))
     if isinstance(goal, JointGoal):
         q = start.copy()
         for k, v in goal.values.items():
@@ -125,12 +170,15 @@ def _position_candidates(goal: PositionGoal, *, world: CollisionWorld,
                          group_joints: Sequence[str]) -> np.ndarray:
     from .ik import position_ik  # written alongside; imported late to keep startup light
 
-    if description.tcp is None:
-        raise InvalidRequest("the model has no tcp (config/tcp.yaml)", field="goal.position")
-    ik_joints = tuple(j for j in ("joint_1", "joint_2", "joint_3") if j in group_joints)
-    if len(ik_joints) < 3:
-        raise InvalidRequest("a tcp position goal needs a group holding joint_1..joint_3 "
-                             f"(got {', '.join(group_joints)})", field="group")
+    tcp = description.tcp
+    if tcp is None:
+        raise InvalidRequest("the model has no tcp", field="goal.position")
+    # the group's joints that move the tool point
+    above = {j.name for j in description.robot.link_path(tcp.parent_link) if j.movable}
+    ik_joints = tuple(j for j in group_joints if j in above)
+    if not ik_joints:
+        raise InvalidRequest(f"no joint of the group ({', '.join(group_joints)}) moves the "
+                             f"tcp on {tcp.parent_link}", field="group")
     sols = position_ik(world.kin, description.tcp, goal.position, joints=ik_joints,
                        q_fixed=start)
     if not sols:

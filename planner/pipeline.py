@@ -29,7 +29,7 @@ from .collision import CollisionWorld
 from .curve import Curve, build_curve
 from .dynamics import InverseDynamics
 from .errors import InvalidRequest, JointLimitViolation, TrajectoryError
-from .goals import JointGoal, NamedGoal, PositionGoal
+from .goals import JointGoal, NamedGoal, PositionGoal, resolve_group
 from .limits import JointLimits
 from .path_limits import ActiveLimits, Derating
 from .planning import PathPlanner, PathRequest
@@ -47,16 +47,22 @@ Profile = Literal["jerk_limited", "time_optimal"]
 
 @dataclass(frozen=True)
 class MotionRequest:
-    """A motion to plan. Joint values [rad]; ``start`` missing = every actuated joint at 0."""
+    """A motion to plan. Joint values [rad]; ``start`` missing = every actuated joint at 0.
+
+    ``group``: any SRDF group or ``all``; None plans for a named goal's own group, else
+    the description's default group. ``velocity_scaling``/``acceleration_scaling`` in
+    (0, 1] multiply the full limits (MoveIt's semantics); None takes the MoveIt config's
+    ``default_*_scaling_factor`` (1 without one).
+    """
 
     goal: JointGoal | NamedGoal | PositionGoal
     start: Mapping[str, float] | None = None
-    group: Literal["arm", "gripper", "all"] = "arm"
+    group: str | None = None
     obstacles: tuple[Obstacle, ...] = ()
     planner: str = "RRTConnect"
     planning_time: float = 1.0          # [s], (0, 60]
-    velocity_scaling: float = 1.0       # (0, 1]
-    acceleration_scaling: float = 1.0   # (0, 1]
+    velocity_scaling: float | None = None       # (0, 1]
+    acceleration_scaling: float | None = None   # (0, 1]
     profile: Profile = "jerk_limited"
     sample_rate: float = 100.0          # [Hz], [1, 1000]
     seed: int | None = None
@@ -159,13 +165,21 @@ class MotionPlanner:
             self._limits[key] = lim
         return lim
 
+    def scaling(self, request: MotionRequest) -> tuple[float, float]:
+        """The request's (velocity, acceleration) scaling, or the MoveIt config's
+        default for each one it leaves unset."""
+        d = self.description
+        return (d.default_velocity_scaling if request.velocity_scaling is None
+                else request.velocity_scaling,
+                d.default_acceleration_scaling if request.acceleration_scaling is None
+                else request.acceleration_scaling)
+
     # -- validate ---------------------------------------------------------------------
     def validate(self, req: MotionRequest) -> np.ndarray:
         """Check every field; the start vector [rad], shape (dof,)."""
         if not isinstance(req.goal, (JointGoal, NamedGoal, PositionGoal)):
             raise InvalidRequest(f"unknown goal type {type(req.goal).__name__}", field="goal")
-        if req.group not in ("arm", "gripper", "all"):
-            raise InvalidRequest(f"'{req.group}' is not one of arm, gripper, all", field="group")
+        resolve_group(self.description, req.group, req.goal)
         if not isinstance(req.obstacles, tuple) or \
                 not all(isinstance(o, Obstacle) for o in req.obstacles):
             raise InvalidRequest("must be a tuple of Obstacle", field="obstacles")
@@ -175,8 +189,9 @@ class MotionPlanner:
         if not isinstance(req.planner, str) or not req.planner:
             raise InvalidRequest(f"{req.planner!r} is not a planner name", field="planner")
         _number(req.planning_time, "planning_time", 0.0, 60.0, open_lo=True)
-        _number(req.velocity_scaling, "velocity_scaling", 0.0, 1.0, open_lo=True)
-        _number(req.acceleration_scaling, "acceleration_scaling", 0.0, 1.0, open_lo=True)
+        for name in ("velocity_scaling", "acceleration_scaling"):
+            if getattr(req, name) is not None:
+                _number(getattr(req, name), name, 0.0, 1.0, open_lo=True)
         _number(req.sample_rate, "sample_rate", 1.0, 1000.0, open_lo=False)
         if req.profile not in ("jerk_limited", "time_optimal"):
             raise InvalidRequest(f"'{req.profile}' is not one of jerk_limited, time_optimal",
@@ -229,7 +244,7 @@ class MotionPlanner:
         t2 = time.perf_counter()
         curve = build_curve(res.path, world)
         t3 = time.perf_counter()
-        lim = self.limits(request.velocity_scaling, request.acceleration_scaling)
+        lim = self.limits(*self.scaling(request))
         traj, report, t_param, t_verify = self.time_path(curve, res.path, world, lim,
                                                          profile=request.profile,
                                                          sample_rate=request.sample_rate)

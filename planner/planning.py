@@ -1,6 +1,6 @@
 """Joint-space path planning with OMPL: build, validate, solve.
 
-A request names a group (``arm``, ``gripper`` or ``all``); joints outside it keep their
+A request names a group (any SRDF group, or ``all``); joints outside it keep their
 start values. Solving validates start and goal (limits, collisions), tries the straight
 line, runs the chosen OMPL planner, shortcuts the path and re-checks it densely, so a
 returned path never grazes anything between checks.
@@ -23,12 +23,19 @@ from description import Description
 
 from .collision import CollisionWorld
 from .errors import InvalidRequest, NoPathFound, StartInCollision
-from .goals import Goal, JointGoal, NamedGoal, PositionGoal, check_limits, resolve_goal
+from .goals import (
+    Goal,
+    JointGoal,
+    NamedGoal,
+    PositionGoal,
+    check_limits,
+    resolve_goal,
+    resolve_group,
+)
 from .motion_check import MotionChecker, StateCodec, ValidityChecker, interpolate, motion_valid
 
 _log = logging.getLogger(__name__)
 
-GroupName = Literal["arm", "gripper", "all"]
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
             "LBKPIECE1", "BKPIECE1", "EST", "FMT", "BFMT", "InformedRRTstar", "SORRTstar",
             "AORRTC")
@@ -78,7 +85,7 @@ class PathRequest:
 
     start: np.ndarray
     goal: Goal
-    group: GroupName = "arm"
+    group: str | None = None  # None: the named state's group, else the default group
     planner: str = "RRTConnect"
     planning_time: float = 1.0
     seed: int | None = None
@@ -127,11 +134,11 @@ class PathPlanner:
         self.description = description
         self.step = step
         names = world.kin.joint_names
-        self._groups: dict[str, tuple[str, ...]] = {"all": tuple(names)}
         srdf = description.srdf
-        for g in ("arm", "gripper"):
-            if srdf is not None and g in srdf.groups:
-                self._groups[g] = tuple(j for j in srdf.groups[g].joints if j in names)
+        self._groups: dict[str, tuple[str, ...]] = {
+            g.name: tuple(j for j in g.joints if j in names)
+            for g in (srdf.groups.values() if srdf is not None else ())}
+        self._groups["all"] = tuple(names)
         self._limits = description.robot.position_limits(names)
 
     def group_joints(self, group: str) -> tuple[str, ...]:
@@ -152,7 +159,10 @@ class PathPlanner:
             raise InvalidRequest(f"{req.planning_time!r} must be > 0 [s]", field="planning_time")
         if req.seed is not None and (not isinstance(req.seed, int) or req.seed < 0):
             raise InvalidRequest(f"{req.seed!r} must be an integer >= 0", field="seed")
-        joints = self.group_joints(req.group)
+        group = resolve_group(self.description, req.group, req.goal)
+        joints = self.group_joints(group)
+        if not joints:
+            raise InvalidRequest(f"group '{group}' has no actuated joint", field="group")
         start = np.asarray(req.start, dtype=float)
         names = self.world.kin.joint_names
         if start.shape != (len(names),) or not np.all(np.isfinite(start)):
@@ -164,7 +174,7 @@ class PathPlanner:
             raise StartInCollision("the start state collides", pairs=chk.pairs,
                                    q=dict(zip(names, map(float, start))))
         goals = resolve_goal(req.goal, world=self.world, description=self.description,
-                             start=start, group_joints=joints)
+                             start=start, group_joints=joints, group=group)
         return start, goals, joints
 
     # -- solve ------------------------------------------------------------------------

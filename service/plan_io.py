@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from description import Description
-from planner.errors import InvalidRequest, PlanningError
+from planner.errors import PlanningError
 from planner.goals import JointGoal, NamedGoal, PositionGoal
 from planner.pipeline import MotionRequest
 
@@ -26,12 +26,7 @@ def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | Named
         return JointGoal(joint_values(description, data["joints"], field="goal.joints",
                                       fill=False))
     if "named" in data:
-        name = data["named"]
-        states = description.srdf.group_states if description.srdf is not None else {}
-        if name not in states:
-            raise InvalidRequest(f"no named state '{name}'; known: {', '.join(states)}",
-                                 field="goal.named", details={"known": list(states)})
-        return NamedGoal(name)
+        return NamedGoal(data["named"])  # looked up in the request's group by the planner
     return PositionGoal(tuple(float(v) for v in data["position"]))  # type: ignore[arg-type]
 
 

@@ -95,7 +95,6 @@ def description_body(desc: Any) -> dict[str, Any]:
         "robot": robot.name,
         "urdf": robot.urdf,
         "srdf": srdf_text,
-        "actuated_joints": list(robot.actuated_joints),
         "mimic_joints": {n: {"leader": robot.joints[n].mimic.joint,
                              "multiplier": robot.joints[n].mimic.multiplier,
                              "offset": robot.joints[n].mimic.offset}
@@ -104,12 +103,30 @@ def description_body(desc: Any) -> dict[str, Any]:
                             for n, (lo, hi) in zip(robot.actuated_joints, lims)},
         "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
         "limits": limits_body(desc),
-        "groups": {} if desc.srdf is None else {g.name: list(g.joints)
-                                                for g in desc.srdf.groups.values()},
-        "named_states": {} if desc.srdf is None else {
-            s.name: dict(s.values) for s in desc.srdf.group_states.values()},
+        **robot_summary(desc),
         "tcp": None if desc.tcp is None else {"parent_link": desc.tcp.parent_link,
-                                              "xyz": list(desc.tcp.xyz)},
+                                              "xyz": list(desc.tcp.xyz),
+                                              "source": desc.tcp.source},
+        "config": desc.config.to_json(),
+        "default_scaling": {"velocity": desc.default_velocity_scaling,
+                            "acceleration": desc.default_acceleration_scaling},
+        "warnings": list(desc.warnings),
+    }
+
+
+def robot_summary(desc: Any) -> dict[str, Any]:
+    """What a request may name for this robot: groups (with their joints), the default
+    group, named states (name, group, values) and actuated joints."""
+    srdf = desc.srdf
+    groups = {"all": list(desc.robot.actuated_joints)}
+    if srdf is not None:
+        groups = {**{g.name: list(g.joints) for g in srdf.groups.values()}, **groups}
+    return {
+        "groups": groups,
+        "default_group": desc.default_group(),
+        "named_states": [] if srdf is None else [
+            {"name": s.name, "group": s.group, "values": dict(s.values)} for s in srdf.states],
+        "actuated_joints": list(desc.robot.actuated_joints),
     }
 
 
@@ -129,6 +146,7 @@ class PlannerService:
         self._ids = itertools.count(1)
         self._started = time.monotonic()
         self._static: dict[str, bytes] = {}
+        self._config: dict[str, str | None] = {}
 
     @property
     def keys(self) -> list[str]:
@@ -139,7 +157,9 @@ class PlannerService:
         o = self.options
         desc = o.description.load()  # fails here, clearly, before any worker starts
         self._static["description"] = wire.encode(description_body(desc))
-        self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas()})
+        self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas(),
+                                              "robot": robot_summary(desc)})
+        self._config = desc.config.to_json()
         qsize = o.queue_size if o.queue_size is not None else 4 * o.workers
         self.pool = WorkerPool(o.description, workers=o.workers, queue_size=qsize,
                                start_method=o.start_method)
@@ -193,7 +213,7 @@ class PlannerService:
         st = self.pool.status() if self.pool is not None else {}
         return {"version": _package_version(), "api": VERSION, "instance": self.instance,
                 "prefix": self.options.prefix, "uptime": time.monotonic() - self._started,
-                "workers": self.options.workers, **st}
+                "workers": self.options.workers, "config": self._config, **st}
 
     # -- queries -----------------------------------------------------------------------
     def _callback(self, kind: str, key: str):

@@ -30,10 +30,14 @@ class DescriptionSpec:
     path: str | None = None
     package_dirs: Sequence[str] = ()
     args: Mapping[str, str] = field(default_factory=dict)
+    moveit_config: str | None = None
+    srdf: str | None = None
+    joint_limits: str | None = None
 
     def load(self):  # -> Description
         return load_description(self.path, package_dirs=list(self.package_dirs),
-                                args=dict(self.args))
+                                args=dict(self.args), moveit_config=self.moveit_config,
+                                srdf=self.srdf, joint_limits=self.joint_limits)
 
 
 def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import trimesh
 
 from description.checks import check_model
@@ -67,8 +68,11 @@ def test_defects_are_each_reported(tmp_path):
     assert any(c == "inertial.mass" and s == "a" for c, s, _ in fails)
     assert any(c == "inertial.inertia" and s == "a" and "triangle inequality" in m
                for c, s, m in fails)
+    # an open collision mesh is what CAD exports: a WARN (FCL, MuJoCo and Gazebo use it)
+    warns = {(f.check, f.subject, f.message) for f in report.findings if f.level == "WARN"}
     assert any(c == "mesh" and s.startswith("a collision") and "not watertight" in m
-               for c, s, m in fails)
+               for c, s, m in warns)
+    assert not any("not watertight" in m for _, _, m in fails)
     assert any(c == "mesh" and s.startswith("b visual") and "cannot read" in m
                for c, s, m in fails)
     assert any(c == "joint.limits" and s == "j1" and "lower 1.0 must be < upper -1.0" in m
@@ -113,7 +117,7 @@ def test_cli_exit_codes_and_json(tmp_path):
     bad = _cli("check", str(_defective(tmp_path)), "--json")
     assert bad.returncode == 1
     data = json.loads(bad.stdout)
-    assert data["ok"] is False and data["counts"]["FAIL"] >= 8
+    assert data["ok"] is False and data["counts"]["FAIL"] >= 7
     assert {"level", "check", "subject", "message", "details"} <= set(data["findings"][0])
 
 
@@ -126,3 +130,25 @@ def test_cli_urdf_and_info():
     assert "└─ base_plate  via joint_1: revolute axis (0 0 1)" in info.stdout
     assert "mimic -1*joint_4+0" in info.stdout
     assert "group arm: joint_1, joint_2, joint_3" in info.stdout
+
+
+def test_cad_traits_warn_and_name_the_fix(tmp_path):
+    # a millimetre mesh without scale, an open mesh, a <material> inside <geometry>
+    open_box = trimesh.creation.box(extents=(300.0, 200.0, 100.0))  # [mm]
+    open_box.update_faces(np.arange(len(open_box.faces) - 2))
+    open_box.export(tmp_path / "part.stl")
+    (tmp_path / "r.urdf").write_text("""<robot name="r"><link name="base"/><link name="a">
+      <inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+      <visual><geometry><material name="grey"/><mesh filename="part.stl"/></geometry></visual>
+      <collision><geometry><mesh filename="part.stl"/></geometry></collision></link>
+      <joint name="j" type="revolute"><parent link="base"/><child link="a"/>
+        <origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>
+        <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>""")
+    report = check_model(tmp_path / "r.urdf", env={})
+    assert not report.failed, [f.line() for f in report.findings if f.level == "FAIL"]
+    warns = [f for f in report.findings if f.level == "WARN"]
+    scale = [f for f in warns if f.check == "mesh.scale"]
+    assert scale and all(f.details["factor"] == pytest.approx(0.001) for f in scale)
+    assert 'scale="0.001 0.001 0.001"' in scale[0].message
+    assert any(f.check == "parse" and "<material> inside <geometry>" in f.message for f in warns)
+    assert any(f.check == "mesh" and "not watertight" in f.message for f in warns)

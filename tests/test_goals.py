@@ -47,3 +47,15 @@ def test_position_goal_gives_collision_free_ik(env):
     for q in qs:
         assert w.is_valid(q)
         assert np.allclose(w.kin.point_position(q, d.tcp.parent_link, d.tcp.xyz), tcp, atol=1e-5)
+
+
+def test_groups_come_from_the_robot(env):
+    from planner.goals import resolve_group
+    desc = env[0]
+    assert resolve_group(desc, None, NamedGoal("gripper_open")) == "gripper"
+    assert resolve_group(desc, None, JointGoal({"joint_1": 0.1})) == "arm"
+    assert resolve_group(desc, "all", NamedGoal("home")) == "all"
+    with pytest.raises(InvalidRequest, match="'legs' is not a group of this robot "
+                       r"\(groups: arm, gripper, all\)") as e:
+        resolve_group(desc, "legs", NamedGoal("home"))
+    assert e.value.field == "group"

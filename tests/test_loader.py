@@ -36,9 +36,12 @@ def test_shipped_model_loads_with_srdf_tcp_and_limits():
     assert d.srdf is not None and set(d.srdf.groups) >= {"arm", "gripper"}
     assert d.srdf.groups["arm"].joints == ("joint_1", "joint_2", "joint_3")
     assert d.srdf.groups["gripper"].joints == ("joint_4", "joint_5")
-    assert d.srdf.group_states["home"].values == {"joint_1": 0.0, "joint_2": 0.0, "joint_3": 0.0}
+    assert d.srdf.named_state("home").values == {"joint_1": 0.0, "joint_2": 0.0, "joint_3": 0.0}
     assert d.srdf.end_effectors[0].parent_link == "claw_support"
     assert d.tcp is not None and d.tcp.parent_link == "claw_support"
+    assert d.tcp.source == "config/tcp.yaml"
+    assert d.config.found_by == "the description package's config/"
+    assert (d.default_velocity_scaling, d.default_acceleration_scaling) == (1.0, 1.0)
     assert set(d.joint_limits) == {"joint_1", "joint_2", "joint_3", "joint_4"}
 
 

@@ -49,7 +49,7 @@ def test_minimal_and_full_plan_requests_pass():
     (('{"goal": {"named": "home"}, "obstacles": [{"id": "t", "shape": "mesh", '
       '"mesh_path": "/etc/passwd"}]}'),
      "obstacles[0].mesh_path"),
-    ('{"goal": {"named": "home"}, "group": "legs"}', "group"),
+    ('{"goal": {"named": "home"}, "group": ""}', "group"),
     ('{"start": {"joint_1": 0}}', "(root)"),
 ])
 def test_refusals_name_the_field(payload, field):

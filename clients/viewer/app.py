@@ -155,7 +155,7 @@ class RobotViewer:
         srdf = self.description.srdf
         if srdf is None:
             return {}
-        return {s.name: dict(s.values) for s in srdf.group_states.values()}
+        return {label: dict(st.values) for label, st in srdf.labelled_states().items()}
 
     # -- state -------------------------------------------------------------------------
     @property

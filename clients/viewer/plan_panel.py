@@ -29,7 +29,9 @@ class PlanningPanel:
         self.marked: dict[str, float] | None = None
         self._busy = threading.Lock()
         srdf = viewer.description.srdf
-        self._states = {s.name: s.group for s in srdf.group_states.values()} if srdf else {}
+        self._states = {label: (st.name, st.group)
+                        for label, st in srdf.labelled_states().items()} if srdf else {}
+        groups = ("all", *(srdf.groups if srdf is not None else ()))
         gui = viewer.server.gui
         with gui.add_folder("Planning"):
             gui.add_markdown(f"Plans from the shown pose, {backend.name}.")
@@ -37,8 +39,7 @@ class PlanningPanel:
             self._mark.on_click(lambda _e: self.mark_goal())
             self._goal = gui.add_dropdown("Goal", (MARKED,) + tuple(self._states),
                                           initial_value=next(iter(self._states), MARKED))
-            self._group = gui.add_dropdown("Group (marked pose)", ("all", "arm", "gripper"),
-                                           initial_value="all")
+            self._group = gui.add_dropdown("Group (marked pose)", groups, initial_value="all")
             self._plan = gui.add_button("Plan")
             self._plan.on_click(lambda _e: self.plan_async())
             self._status = gui.add_markdown("")
@@ -57,7 +58,8 @@ class PlanningPanel:
         """The chosen goal and the group that moves."""
         name = self._goal.value
         if name != MARKED:
-            return NamedGoal(name), self._states[name]  # type: ignore[return-value]
+            state, group = self._states[name]
+            return NamedGoal(state), group
         if self.marked is None:
             raise InvalidRequest("mark a goal first (move the sliders, press 'Mark sliders "
                                  "as goal', move them back to the start)", field="goal")

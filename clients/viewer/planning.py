@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from typing import Literal, Protocol
+from typing import Protocol
 
 from description import Description
 from planner.goals import JointGoal, NamedGoal
@@ -14,7 +14,7 @@ from .trajectory import PlaybackTrajectory
 
 _log = logging.getLogger(__name__)
 
-Group = Literal["arm", "gripper", "all"]
+Group = str  # an SRDF group of the robot, or "all"
 Goal = JointGoal | NamedGoal
 
 
