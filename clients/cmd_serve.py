@@ -55,6 +55,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--timeout", type=float, default=30.0, metavar="S",
                    help="a request's deadline [s], plus planning_time for plans; then "
                    "TIMEOUT (default 30)")
+    p.add_argument("--cache-dir", metavar="DIR",
+                   help="where to keep what is derived from the robot between starts, keyed "
+                   "by content (default: $ARDUINOBOT_CACHE, else $XDG_CACHE_HOME/arduinobot, "
+                   "else ~/.cache/arduinobot)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="keep nothing between starts (recompute at every start)")
     p.set_defaults(func=cmd_serve)
 
 
@@ -74,7 +80,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     spec = DescriptionSpec(path=ns.file or ns.description_path,
                            package_dirs=tuple(ns.package_dir), args=parse_xacro_args(ns.arg),
                            moveit_config=ns.moveit_config, srdf=ns.srdf,
-                           joint_limits=ns.joint_limits)
+                           joint_limits=ns.joint_limits,
+                           cache_dir="" if ns.no_cache else ns.cache_dir)
     listen = ns.listen if ns.listen or ns.config else [DEFAULT_ENDPOINT]
     opts = ServeOptions(prefix=ns.prefix, mode=ns.mode or ("peer" if not ns.config else None),
                         listen=listen, connect=ns.connect, config_file=ns.config,

@@ -21,7 +21,7 @@ import numpy as np
 from description import Description
 from description.srdf import DisabledCollision
 
-from .acm import AllowedCollisionMatrix
+from .acm import AllowedCollisionMatrix, adjacent_pairs
 from .collision import CollisionWorld
 
 _log = logging.getLogger(__name__)
@@ -45,21 +45,6 @@ class AcmReport:
     collision_counts: dict[tuple[str, str], int]
     samples: int
     seconds: float
-
-
-def _adjacent(description: Description, bodies: set[str]) -> set[frozenset[str]]:
-    robot = description.robot
-    out = set()
-    for link in bodies:
-        # walk up through links without geometry, as MoveIt does
-        cur = link
-        while cur in robot.parent_joint:
-            parent = robot.parent_joint[cur].parent
-            if parent in bodies:
-                out.add(frozenset((link, parent)))
-                break
-            cur = parent
-    return out
 
 
 def _chain(robot, link: str) -> list:  # type: ignore[no-untyped-def]
@@ -127,7 +112,7 @@ def compute_acm(description: Description, *, samples: int = 10000, seed: int = 0
     t0 = time.perf_counter()
     probe = CollisionWorld(description, acm=AllowedCollisionMatrix())
     bodies = probe.link_bodies
-    adjacent = _adjacent(description, set(bodies))
+    adjacent = adjacent_pairs(description.robot, bodies)
     # adjacent pairs touch by construction: sampling them only costs narrow-phase calls
     world = CollisionWorld(description, acm=AllowedCollisionMatrix.from_pairs(
         tuple(tuple(sorted(p)) for p in adjacent), reason="Adjacent"))

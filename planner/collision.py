@@ -122,7 +122,8 @@ class CollisionWorld:
         description: the loaded robot.
         obstacles: scene obstacles (ids must be unique and differ from link names).
         padding: a state is invalid when a checked pair is closer than this [m].
-        acm: pairs to skip; default: the SRDF's disabled pairs.
+        acm: pairs to skip; default: joint-connected and rigidly attached links plus
+            the SRDF's disabled pairs (:meth:`AllowedCollisionMatrix.for_description`).
         bodies: the robot's collision geometry from another world of the same
             description (see :meth:`with_scene`); built here if not given.
     """
@@ -136,7 +137,7 @@ class CollisionWorld:
         self.description = description
         self.kin = Kinematics(description.robot)
         self.padding = float(padding)
-        self.acm = acm if acm is not None else AllowedCollisionMatrix.from_srdf(description.srdf)
+        self.acm = acm if acm is not None else AllowedCollisionMatrix.for_description(description)
         self.obstacles = validate_obstacles(obstacles, link_names=self.kin.link_names)
         self.checks = 0
         robot = description.robot
@@ -203,12 +204,14 @@ class CollisionWorld:
 
     # -- internals -------------------------------------------------------------------
     def with_scene(self, obstacles: Sequence[Obstacle] = (), *,
-                   padding: float | None = None) -> CollisionWorld:
-        """A world for other obstacles (and padding [m]), sharing this one's robot
-        geometry and allowed-collision matrix: milliseconds instead of a rebuild."""
+                   padding: float | None = None,
+                   acm: AllowedCollisionMatrix | None = None) -> CollisionWorld:
+        """A world for other obstacles (and padding [m], or allowed pairs), sharing this
+        one's robot geometry (and by default its allowed-collision matrix): milliseconds
+        instead of a rebuild."""
         return CollisionWorld(self.description, obstacles=obstacles,
                               padding=self.padding if padding is None else padding,
-                              acm=self.acm, bodies=self.bodies)
+                              acm=self.acm if acm is None else acm, bodies=self.bodies)
 
     def _place(self, poses: np.ndarray, b: int) -> None:
         # move body b's FCL object once per state (stamped), never for obstacles

@@ -39,44 +39,125 @@ class ObbTree:
         return float(np.linalg.norm(self.half[0]))
 
 
-def _fit(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    mean = points.mean(axis=0)
-    cov = np.cov((points - mean).T) if len(points) > 3 else np.eye(3)
-    _, vecs = np.linalg.eigh(cov)
-    proj = (points - mean) @ vecs
-    lo, hi = proj.min(axis=0), proj.max(axis=0)
-    # a tiny pad keeps boxes of flat triangles from having zero width
-    half = (hi - lo) / 2 + 1e-9
-    return mean + vecs @ ((lo + hi) / 2), vecs, half
+@numba.njit(cache=True, nogil=True)
+def _eigvecs3(a: np.ndarray) -> np.ndarray:
+    # Eigenvectors (columns) of a symmetric 3x3 matrix by cyclic Jacobi rotations: exact
+    # enough for box axes (any orthonormal frame gives a valid box) and, unlike LAPACK's
+    # eigh in numba, quick to compile.
+    a = a.copy()
+    v = np.eye(3)
+    for _ in range(32):
+        off = a[0, 1] ** 2 + a[0, 2] ** 2 + a[1, 2] ** 2
+        if off < 1e-30 * (a[0, 0] ** 2 + a[1, 1] ** 2 + a[2, 2] ** 2 + 1e-300):
+            break
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            if a[p, q] == 0.0:
+                continue
+            theta = (a[q, q] - a[p, p]) / (2.0 * a[p, q])
+            t = (1.0 if theta >= 0 else -1.0) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+            c = 1.0 / np.sqrt(t * t + 1.0)
+            s = t * c
+            for k in range(3):  # a <- a J
+                akp, akq = a[k, p], a[k, q]
+                a[k, p] = c * akp - s * akq
+                a[k, q] = s * akp + c * akq
+            for k in range(3):  # a <- J^T a
+                apk, aqk = a[p, k], a[q, k]
+                a[p, k] = c * apk - s * aqk
+                a[q, k] = s * apk + c * aqk
+            for k in range(3):
+                vkp, vkq = v[k, p], v[k, q]
+                v[k, p] = c * vkp - s * vkq
+                v[k, q] = s * vkp + c * vkq
+    return v
+
+
+@numba.njit(cache=True, nogil=True)
+def _build(tri: np.ndarray, cent: np.ndarray, leaf_size: int, center: np.ndarray,
+           axes: np.ndarray, half: np.ndarray, left: np.ndarray, right: np.ndarray) -> int:
+    # Top down: fit each node's box to its triangles' vertices (principal axes of their
+    # covariance), split at the median of the centroids along the longest box axis.
+    # Returns the node count; the output arrays hold at least 2 * len(tri) nodes.
+    n = len(tri)
+    perm = np.arange(n)
+    stack = np.empty((2 * n + 2, 4), dtype=np.int64)  # start, end, parent, is_right
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, n, -1, 0
+    top, count = 1, 0
+    pts = np.empty((3 * n, 3))
+    while top > 0:
+        top -= 1
+        s, e, parent, is_right = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        node = count
+        count += 1
+        m = 3 * (e - s)
+        for i in range(s, e):
+            for v in range(3):
+                pts[3 * (i - s) + v] = tri[perm[i], v]
+        mean = np.zeros(3)
+        for i in range(m):
+            mean += pts[i]
+        mean /= m
+        vecs = np.eye(3)
+        if m > 3:
+            cov = np.zeros((3, 3))
+            for i in range(m):
+                d = pts[i] - mean
+                for a in range(3):
+                    for b in range(3):
+                        cov[a, b] += d[a] * d[b]
+            cov /= m - 1
+            vecs = _eigvecs3(cov)
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for i in range(m):
+            for a in range(3):
+                t = ((pts[i, 0] - mean[0]) * vecs[0, a] + (pts[i, 1] - mean[1]) * vecs[1, a]
+                     + (pts[i, 2] - mean[2]) * vecs[2, a])
+                lo[a] = min(lo[a], t)
+                hi[a] = max(hi[a], t)
+        c = mean.copy()
+        for a in range(3):
+            mid = (lo[a] + hi[a]) / 2
+            for r in range(3):
+                c[r] += vecs[r, a] * mid
+        center[node] = c
+        axes[node] = vecs
+        # a tiny pad keeps boxes of flat triangles from having zero width
+        half[node] = (hi - lo) / 2 + 1e-9
+        left[node] = -1
+        right[node] = -1
+        if parent >= 0:
+            if is_right:
+                right[parent] = node
+            else:
+                left[parent] = node
+        if e - s <= leaf_size:
+            continue
+        k = np.argmax(half[node])
+        proj = np.empty(e - s)
+        for i in range(s, e):
+            p = cent[perm[i]]
+            proj[i - s] = ((p[0] - c[0]) * vecs[0, k] + (p[1] - c[1]) * vecs[1, k]
+                           + (p[2] - c[2]) * vecs[2, k])
+        order = np.argsort(proj, kind="mergesort")
+        perm[s:e] = perm[s:e][order]
+        mid = s + (e - s) // 2
+        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = mid, e, node, 1
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = s, mid, node, 0
+        top += 2
+    return count
 
 
 def build_tree(vertices: np.ndarray, faces: np.ndarray, *, leaf_size: int = 8) -> ObbTree:
     """Build a tree over a triangle mesh (vertices shape (v, 3) [m], faces (f, 3))."""
-    tri = np.asarray(vertices, float)[np.asarray(faces)]  # (f, 3, 3)
-    cent = tri.mean(axis=1)
-    centers, axes, halves, left, right = [], [], [], [], []
-    stack = [(np.arange(len(tri)), -1, False)]
-    while stack:
-        idx, parent, is_right = stack.pop()
-        node = len(centers)
-        c, a, h = _fit(tri[idx].reshape(-1, 3))
-        centers.append(c)
-        axes.append(a)
-        halves.append(h)
-        left.append(-1)
-        right.append(-1)
-        if parent >= 0:
-            (right if is_right else left)[parent] = node
-        if len(idx) <= leaf_size:
-            continue
-        k = int(np.argmax(h))
-        proj = (cent[idx] - c) @ a[:, k]
-        order = np.argsort(proj, kind="stable")
-        mid = len(idx) // 2
-        stack.append((idx[order[mid:]], node, True))
-        stack.append((idx[order[:mid]], node, False))
-    return ObbTree(np.array(centers), np.array(axes), np.array(halves),
-                   np.array(left, dtype=np.int64), np.array(right, dtype=np.int64))
+    tri = np.ascontiguousarray(np.asarray(vertices, float)[np.asarray(faces)])  # (f, 3, 3)
+    cent = np.ascontiguousarray(tri.mean(axis=1))
+    cap = 2 * len(tri) + 1
+    center, axes, half = np.empty((cap, 3)), np.empty((cap, 3, 3)), np.empty((cap, 3))
+    left, right = np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int64)
+    n = _build(tri, cent, leaf_size, center, axes, half, left, right)
+    return ObbTree(center[:n].copy(), np.ascontiguousarray(axes[:n]), half[:n].copy(),
+                   left[:n].copy(), right[:n].copy())
 
 
 def box_tree(half: np.ndarray) -> ObbTree:

@@ -25,6 +25,8 @@ import numpy as np
 
 from description import Description
 
+from .acm_proof import proven_never_pairs
+from .cache import ArtifactCache
 from .collision import CollisionWorld
 from .curve import Curve, build_curve
 from .dynamics import InverseDynamics
@@ -109,11 +111,15 @@ class MotionPlanner:
         max_worlds: obstacle sets whose worlds are kept (least recently used dropped).
         clearance_states: states the reported clearance is measured on (FCL distance
             queries cost ~10 ms each here; collision-freedom is checked on every state).
+        cache: keeps what is slow to compute between runs (the pairs proven never to
+            collide of a robot without an SRDF), keyed by content.
     """
 
     def __init__(self, description: Description, *, padding: float = 0.0,
-                 max_worlds: int = 8, clearance_states: int = 1) -> None:
+                 max_worlds: int = 8, clearance_states: int = 1,
+                 cache: ArtifactCache | None = None) -> None:
         self.description = description
+        self.cache = cache
         self.clearance_states = clearance_states
         self.padding = padding
         self.max_worlds = max_worlds
@@ -150,7 +156,15 @@ class MotionPlanner:
     def _base_world(self) -> CollisionWorld:
         # The robot-only world is built once; every obstacle set shares its geometry.
         if self._robot_world is None:
-            self._robot_world = CollisionWorld(self.description, padding=self.padding)
+            world = CollisionWorld(self.description, padding=self.padding)
+            if self.description.srdf is None:
+                # No SRDF: beyond the joint-connected pairs, skip only pairs proven apart
+                # everywhere in the joint limits (farther than the padding).
+                never = proven_never_pairs(world, cache=self.cache,
+                                           margin=self.padding + 1e-3)
+                world = world.with_scene((), acm=world.acm.with_pairs(
+                    never, reason="Never-proven"))
+            self._robot_world = world
         return self._robot_world
 
     def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from description import Description
+from planner.cache import ArtifactCache
 from planner.collision import CollisionWorld
 from planner.errors import InvalidRequest
 from planner.ik import position_ik
@@ -43,8 +44,10 @@ def _rpy(m: np.ndarray) -> list[float]:
 class Handlers:
     """The request handlers of one worker process, for one robot description."""
 
-    def __init__(self, description: Description) -> None:
+    def __init__(self, description: Description, *, cache: ArtifactCache | None = None
+                 ) -> None:
         self.description = description
+        self.cache = cache
         self.kin = Kinematics(description.robot)
         # Padded scenes are not the planner's (it caches unpadded worlds): keep a few here.
         self._scenes: OrderedDict[tuple[Any, ...], CollisionWorld] = OrderedDict()
@@ -57,7 +60,7 @@ class Handlers:
     def _motion_planner(self) -> Any:
         if self._planner is None:
             from planner.pipeline import MotionPlanner  # the heaviest import: only if used
-            self._planner = MotionPlanner(self.description)
+            self._planner = MotionPlanner(self.description, cache=self.cache)
         return self._planner
 
     def _q(self, values: Mapping[str, float] | None, field: str) -> np.ndarray:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import os
 import signal
+import time
 import traceback
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -18,6 +19,7 @@ from description import load_description
 from planner.errors import PlanningError
 
 from . import wire
+from .disk_cache import DiskCache
 from .handlers import Handlers
 
 _log = logging.getLogger(__name__)
@@ -33,6 +35,12 @@ class DescriptionSpec:
     moveit_config: str | None = None
     srdf: str | None = None
     joint_limits: str | None = None
+    #: where to keep what is derived from the robot between starts (None: the user's
+    #: cache folder, see :mod:`service.disk_cache`; "" to keep nothing)
+    cache_dir: str | None = None
+
+    def cache(self) -> DiskCache | None:
+        return None if self.cache_dir == "" else DiskCache(self.cache_dir)
 
     def load(self):  # -> Description
         return load_description(self.path, package_dirs=list(self.package_dirs),
@@ -53,12 +61,19 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
                         format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
     from planner.planning import set_ompl_log_level
     set_ompl_log_level("info" if log_level <= logging.INFO else "none")
+    # say what a slow start is doing: CAD meshes make the geometry the long part
+    logging.getLogger("service").setLevel(min(logging.INFO, log_level))
+    t0 = time.perf_counter()
     try:
-        handlers = Handlers(spec.load())
+        _log.info("loading the robot")
+        description = spec.load()
+        _log.info("building the planner: collision geometry, limits, dynamics")
+        handlers = Handlers(description, cache=spec.cache())
         handlers.warm_up()
     except Exception as e:  # noqa: BLE001 -- reported to the parent, which refuses to start
         conn.send(("failed", f"{type(e).__name__}: {e}"))
         return
+    _log.info("ready in %.1f s", time.perf_counter() - t0)
     conn.send(("ready", os.getpid()))
     while True:
         try:

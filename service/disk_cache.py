@@ -1,0 +1,67 @@
+"""A content-keyed cache on disk, in the user's cache folder.
+
+``$ARDUINOBOT_CACHE``, else ``$XDG_CACHE_HOME/arduinobot``, else ``~/.cache/arduinobot``.
+Each entry is one ``.npz`` written to a temporary file and renamed into place, so
+concurrent starts (several workers, several services) never read half a file; a full or
+read-only disk costs the speed-up, not the service.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+_log = logging.getLogger(__name__)
+
+
+def default_cache_dir(env: Mapping[str, str] | None = None) -> Path:
+    env = os.environ if env is None else env
+    if env.get("ARDUINOBOT_CACHE"):
+        return Path(env["ARDUINOBOT_CACHE"]).expanduser()
+    base = Path(env["XDG_CACHE_HOME"]).expanduser() if env.get("XDG_CACHE_HOME") \
+        else Path.home() / ".cache"
+    return base / "arduinobot"
+
+
+class DiskCache:
+    """:class:`planner.cache.ArtifactCache` on disk under ``root``."""
+
+    def __init__(self, root: str | Path | None = None) -> None:
+        self.root = Path(root) if root is not None else default_cache_dir()
+
+    def _path(self, kind: str, key: str) -> Path:
+        return self.root / kind / f"{key}.npz"
+
+    def load(self, kind: str, key: str) -> Mapping[str, np.ndarray] | None:
+        path = self._path(kind, key)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, zipfile.BadZipFile) as e:
+            _log.warning("cache entry %s is unreadable (%s); recomputing", path, e)
+            return None
+
+    def store(self, kind: str, key: str, arrays: Mapping[str, np.ndarray]) -> None:
+        path = self._path(kind, key)
+        tmp = None
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".npz")
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, **arrays)
+            os.replace(tmp, path)
+            tmp = None
+        except OSError as e:
+            _log.warning("cannot write the cache entry %s (%s): the next start recomputes it",
+                         path, e)
+        finally:
+            if tmp is not None:
+                Path(tmp).unlink(missing_ok=True)
