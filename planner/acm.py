@@ -56,7 +56,11 @@ class AllowedCollisionMatrix:
 
     @classmethod
     def from_srdf(cls, srdf: Srdf | None) -> AllowedCollisionMatrix:
-        return cls(tuple(srdf.disabled_collisions) if srdf is not None else ())
+        """The SRDF's disabled pairs, except ``Never-sampled`` ones: recorded for MoveIt,
+        but a sample that missed a contact is no proof, so they stay checked here."""
+        if srdf is None:
+            return cls()
+        return cls(tuple(d for d in srdf.disabled_collisions if d.reason != "Never-sampled"))
 
     @classmethod
     def for_description(cls, description: Description) -> AllowedCollisionMatrix:

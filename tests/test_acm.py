@@ -19,10 +19,11 @@ def test_generation_adjacent_and_sound_never():
     for (a, b), n in r.collision_counts.items():
         if n:
             assert reasons.get(frozenset((a, b))) in (None, "Adjacent", "Always")
+    assert "Never-proven" in reasons.values()
     for a, b in r.unproven:
         assert frozenset((a, b)) not in reasons
     # the fingers are 6 mm apart when closed: no bound may call them "Never"
-    assert reasons.get(frozenset(("gripper_right", "gripper_left"))) != "Never"
+    assert reasons.get(frozenset(("gripper_right", "gripper_left"))) is None
 
 
 def _no_srdf(d):
@@ -105,3 +106,14 @@ def test_planner_without_srdf_skips_only_adjacent_and_proven_pairs():
     mp = MotionPlanner(_no_srdf(load_description()))
     reasons = {e.reason for e in mp.world(()).acm}
     assert reasons == {"Adjacent", "Never-proven"}
+
+
+def test_sampled_pairs_are_written_but_never_skipped():
+    d = load_description()
+    r = compute_acm(d, samples=200, seed=1, include_sampled=True)
+    sampled = [p for p in r.disabled if p.reason == "Never-sampled"]
+    assert sampled and {(p.link1, p.link2) for p in sampled} == set(r.unproven)
+    from dataclasses import replace
+    srdf = replace(d.srdf, disabled_collisions=r.disabled)
+    acm = AllowedCollisionMatrix.from_srdf(srdf)
+    assert not any(acm.allowed(p.link1, p.link2) for p in sampled)
