@@ -81,5 +81,5 @@ def write_model(folder: Path) -> tuple[Path, Path]:
     link.symlink_to(meshes, target_is_directory=True)
     urdf, srdf = folder / "arduinobot.urdf", folder / "arduinobot.srdf"
     urdf.write_text(text)
-    srdf.write_text((d.config_dir / "arduinobot.srdf").read_text())
+    srdf.write_text(d.config.srdf.read_text())  # type: ignore[union-attr]
     return urdf, srdf

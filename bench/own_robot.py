@@ -1,0 +1,160 @@
+"""Your own robot: a course-like ROS 2 workspace, as users bring it.
+
+The workspace (tests/helpers/course_workspace.py): millimetre CAD meshes with open edges,
+a camera on a fixed joint, a separate MoveIt package with a stale SRDF and default
+scaling 0.1. Prints, then one JSON line:
+
+1. start-up through a real ``arduinobot serve --moveit-config`` (2 workers): seconds
+   from launch to the first plan answered, cold (empty result cache and an empty numba
+   cache: a fresh machine) and warm (the same caches again);
+2. with no SRDF at all (the MoveIt package removed), 3 scenes x N seeded problems
+   in-process through the whole pipeline (plan, time, verify): success on feasible
+   problems, median / p95 ms, and an independent re-check of every trajectory
+   (bench/recheck.py: yourdfpy + FCL at 0.0005 rad, finite differences, MuJoCo) with
+   only joint-connected link pairs allowed.
+
+Usage: ./dev bench own_robot [N]   (default 40 problems per scene)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from recheck import IndependentModel, Limits, recheck  # noqa: E402
+from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
+
+from clients import errors  # noqa: E402
+from clients.client import PlannerClient  # noqa: E402
+from description import Description, load_description  # noqa: E402
+from description.loader import read_model_text  # noqa: E402
+from planner.errors import PlanningError  # noqa: E402
+from planner.goals import JointGoal  # noqa: E402
+from planner.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from tests.conftest import free_port  # noqa: E402
+from tests.helpers.course_workspace import make_course_workspace  # noqa: E402
+
+ARM = ("joint_1", "joint_2", "joint_3")
+
+
+def time_to_first_plan(args: list[str], env: dict[str, str], *, limit: float = 300.0
+                       ) -> float:
+    """Seconds from launching ``arduinobot serve ARGS`` to its first plan answered."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--listen",
+                             endpoint, "--workers", "2", *args], cwd=REPO, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        with PlannerClient(endpoint, timeout=5) as c:
+            while time.perf_counter() - t0 < limit:
+                if proc.poll() is not None:
+                    raise RuntimeError(f"serve exited with {proc.returncode}")
+                try:
+                    c.plan(goal={"named": "home"}, group="arm",
+                           start={"joint_1": 0.3, "joint_2": 0.2, "joint_3": 0.1})
+                    return time.perf_counter() - t0
+                except errors.ServiceUnavailable:
+                    time.sleep(0.1)
+        raise RuntimeError(f"no plan within {limit} s")
+    finally:
+        proc.terminate()
+        proc.wait(30)
+
+
+def independent_files(d: Description, folder: Path) -> tuple[Path, Path]:
+    """The expanded URDF with absolute mesh paths, and an SRDF allowing only the link
+    pairs a joint connects (read from the URDF, not from the planner)."""
+    text, _ = read_model_text(d.robot.source, packages=d.packages)
+    text = re.sub(r"package://([^/]+)/",
+                  lambda m: str(d.packages.find(m.group(1))) + "/", text)
+    folder.mkdir(parents=True, exist_ok=True)
+    urdf, srdf = folder / "robot.urdf", folder / "joint_connected.srdf"
+    urdf.write_text(text)
+    pairs = "".join(f'<disable_collisions link1="{j.parent}" link2="{j.child}" '
+                    'reason="Adjacent"/>' for j in d.robot.joints.values())
+    srdf.write_text(f'<robot name="{d.robot.name}">{pairs}</robot>')
+    return urdf, srdf
+
+
+def no_srdf_suite(d: Description, n: int, folder: Path) -> dict[str, dict]:
+    mp = MotionPlanner(d)
+    names = mp.joint_names
+    lim = mp.limits(*mp.scaling(MotionRequest(goal=JointGoal({"joint_1": 0.0}))))
+    rl = Limits(*(np.asarray(getattr(lim, k), float) for k in
+                  ("lower", "upper", "velocity", "acceleration", "jerk", "effort")))
+    model = IndependentModel(*independent_files(d, folder), names)
+    out = {}
+    for scene, obs in SCENES.items():
+        obs = tuple(obs)
+        world = mp.world(obs)
+        probs = problems(world, n, np.random.default_rng(11))
+        times, ok, bad, failures = [], 0, 0, []
+        for i, (a, b, _) in enumerate(probs):
+            req = MotionRequest(goal=JointGoal(dict(zip(ARM, map(float, b[:3])))),
+                                start=dict(zip(names, map(float, a))), obstacles=obs,
+                                planning_time=5.0, seed=i)
+            t0 = time.perf_counter()
+            try:
+                res = mp.solve(req)
+            except PlanningError as e:
+                failures.append(f"{type(e).__name__}: {e}")
+                continue
+            times.append(time.perf_counter() - t0)
+            ok += 1
+            traj = res.trajectory
+            rep = recheck(model, lambda ts, t=traj: np.array([t.at(x).positions for x in ts]),
+                          traj.duration, rl, obstacles=obstacle_dicts(list(obs)))
+            if rep.violations:
+                bad += 1
+                failures.append(f"re-check {rep.violations} first collision "
+                                f"{rep.first_collision}")
+        row = {"problems": len(probs), "success": ok / len(probs),
+               "median_ms": float(np.median(times) * 1e3) if times else None,
+               "p95_ms": float(np.percentile(times, 95) * 1e3) if times else None,
+               "recheck_violations": bad, "failures": failures[:5]}
+        print(f"no SRDF, {scene}: {row}", flush=True)
+        out[scene] = row
+    return out
+
+
+def main(n: int = 40) -> None:
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("none")
+    tmp = Path(tempfile.mkdtemp(prefix="bench-own-robot-"))
+    t0 = time.perf_counter()
+    ws = make_course_workspace(tmp / "ws")
+    print(f"workspace generated in {time.perf_counter() - t0:.1f} s: {ws.src}")
+    serve_args = [str(ws.xacro), "--package-dir", str(ws.src), "--moveit-config",
+                  str(ws.moveit_pkg), "--cache-dir", str(tmp / "cache")]
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba")}
+    cold = time_to_first_plan(serve_args, env)
+    warm = time_to_first_plan(serve_args, env)
+    usual = time_to_first_plan(serve_args, dict(os.environ))  # the project's numba cache
+    print(f"start to first plan: cold {cold:.1f} s (fresh machine: empty caches), "
+          f"warm {warm:.1f} s, with this checkout's JIT cache {usual:.1f} s")
+    bare = tmp / "bare" / "src"
+    shutil.copytree(ws.src, bare, ignore=shutil.ignore_patterns("arduinobot_moveit"))
+    d = load_description(bare / ws.xacro.relative_to(ws.src), package_dirs=[bare])
+    if d.srdf is not None:
+        raise RuntimeError("the bare workspace still has an SRDF")
+    suite = no_srdf_suite(d, n, tmp / "independent")
+    print(json.dumps({"startup_s": {"cold": cold, "warm": warm, "jit_cached": usual},
+                      "no_srdf": suite}))
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 40)
