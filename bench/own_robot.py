@@ -35,6 +35,7 @@ sys.path.insert(0, str(REPO))
 
 from recheck import IndependentModel, Limits, recheck  # noqa: E402
 from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
+from tests.helpers.course_workspace import make_course_workspace  # noqa: E402
 
 from clients import errors  # noqa: E402
 from clients.client import PlannerClient  # noqa: E402
@@ -44,7 +45,6 @@ from planner.errors import PlanningError  # noqa: E402
 from planner.goals import JointGoal  # noqa: E402
 from planner.pipeline import MotionPlanner, MotionRequest  # noqa: E402
 from tests.conftest import free_port  # noqa: E402
-from tests.helpers.course_workspace import make_course_workspace  # noqa: E402
 
 ARM = ("joint_1", "joint_2", "joint_3")
 
