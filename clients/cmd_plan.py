@@ -79,6 +79,38 @@ def obstacle(text: str) -> dict[str, Any]:
     return o
 
 
+def robot_joints(ns: argparse.Namespace) -> Mapping[str, Any]:
+    """The planned-for robot's groups, default group and actuated joints
+    (:meth:`description.Description.summary`): from the model with --local, else from
+    the service's ``<prefix>/description``. Only asked for when positional joint values
+    need the joints' order."""
+    if ns.local:
+        return _local_description(ns).summary()
+    from .client import PlannerClient
+    with PlannerClient(ns.connect or ("tcp/127.0.0.1:7447",), prefix=ns.prefix,
+                       timeout=ns.timeout, config_file=ns.config) as c:
+        return c.description()
+
+
+def _local_description(ns: argparse.Namespace) -> Any:
+    # one load per command, shared by the joint order and the request
+    if getattr(ns, "_description", None) is None:
+        ns._description = load_from_args(ns)
+    return ns._description
+
+
+def joint_order(ns: argparse.Namespace, group: str | None) -> tuple[str, ...]:
+    """The joints positional values follow: ``group``'s (the default group if None),
+    or every actuated joint for ``all``."""
+    info = robot_joints(ns)
+    name = group or info["default_group"]
+    groups = info["groups"]
+    if name not in groups:
+        raise SystemExit(f"arduinobot: error: --group '{name}' is not a group of this robot "
+                         f"({', '.join(groups)})")
+    return tuple(groups[name])
+
+
 def run_request(ns: argparse.Namespace, kind: str, req: Mapping[str, Any]
                 ) -> tuple[dict[str, Any], Mapping[str, Any] | None]:
     """Send ``req`` to the service, or with --local run it as a worker would (same
@@ -87,7 +119,7 @@ def run_request(ns: argparse.Namespace, kind: str, req: Mapping[str, Any]
         from service import wire
         from service.handlers import Handlers
         from service.server import limits_body
-        desc = load_from_args(ns)
+        desc = _local_description(ns)
         data = wire.decode(kind, wire.encode(req))  # type: ignore[arg-type]
         return {**Handlers(desc).handle(kind, data), "request_id": "local"}, \
             limits_body(desc)
@@ -138,17 +170,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", metavar="Q", help="joint goal: values of the group's joints "
-                      "in order (arm: joint_1,joint_2,joint_3), or name=value,...")
+                      "in the model's order (the arduinobot's arm: joint_1,joint_2,joint_3), "
+                      "or name=value,...")
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", help="a tcp position [m]")
     goal.add_argument("--request", metavar="REQ.json", help="a whole v1 request from a file "
                       "(options given here override its fields)")
-    p.add_argument("--start", metavar="Q", help="start: actuated joint values in order "
-                   "(joint_1..joint_4) or name=value,...; default all 0")
+    p.add_argument("--start", metavar="Q", help="start: every actuated joint's value in the "
+                   "model's order (the arduinobot's: joint_1..joint_4) or name=value,...; "
+                   "default all 0")
     p.add_argument("--obstacle", action="append", default=[], metavar="SPEC",
                    help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
                    "cylinder:ID:r,l@x,y,z; repeatable")
-    p.add_argument("--group", choices=("arm", "gripper", "all"))
+    p.add_argument("--group", metavar="NAME", help="a planning group of the model's SRDF, "
+                   "or all (default: a named goal's own group, else arm, else the first)")
     p.add_argument("--planner", metavar="NAME", help="an OMPL planner (default RRTConnect)")
     p.add_argument("--planning-time", type=float, metavar="S")
     p.add_argument("--velocity-scaling", type=float, metavar="F")
@@ -166,19 +201,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=guarded(cmd_plan))
 
 
-_ARM = ("joint_1", "joint_2", "joint_3")
-_ALL = ("joint_1", "joint_2", "joint_3", "joint_4")
-
-
 def build_request(ns: argparse.Namespace) -> dict[str, Any]:
     req: dict[str, Any] = {}
     if ns.request:
         req = json.loads(Path(ns.request).read_text("utf-8"))
         if not isinstance(req, dict):
             raise SystemExit(f"arduinobot: error: {ns.request} must hold a JSON object")
-    group = ns.group or req.get("group", "arm")
-    order = {"arm": _ARM, "gripper": ("joint_4",), "all": _ALL}.get(group, _ALL)
+    group = ns.group or req.get("group")
     if ns.goal:
+        order = () if "=" in ns.goal else joint_order(ns, group)
         req["goal"] = {"joints": joint_map(ns.goal, order, "--goal")}
     elif ns.named:
         req["goal"] = {"named": ns.named}
@@ -188,7 +219,8 @@ def build_request(ns: argparse.Namespace) -> dict[str, Any]:
         raise SystemExit("arduinobot: error: give a goal: --goal, --named, --position or "
                          "--request")
     if ns.start:
-        req["start"] = joint_map(ns.start, _ALL, "--start")
+        order = () if "=" in ns.start else joint_order(ns, "all")
+        req["start"] = joint_map(ns.start, order, "--start")
     if ns.obstacle:
         req["obstacles"] = [*req.get("obstacles", []), *map(obstacle, ns.obstacle)]
     for key in ("group", "planner", "planning_time", "velocity_scaling",

@@ -6,10 +6,16 @@ from __future__ import annotations
 import argparse
 import json
 
-from .cmd_plan import add_service_args, floats, guarded, joint_map, obstacle, run_request
+from .cmd_plan import (
+    add_service_args,
+    floats,
+    guarded,
+    joint_map,
+    joint_order,
+    obstacle,
+    run_request,
+)
 from .common import EXIT_FAIL, EXIT_OK
-
-_ALL = ("joint_1", "joint_2", "joint_3", "joint_4")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,7 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        epilog="example:\n  arduinobot fk --joints 0.5,0.3,-0.4 --link "
                        "claw_support", formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--joints", default="", metavar="Q",
-                   help="joint_1..joint_4 values in order, or name=value,... [rad]")
+                   help="every actuated joint's value in the model's order (the "
+                   "arduinobot's: joint_1..joint_4), or name=value,... [rad]")
     p.add_argument("--link", action="append", metavar="LINK", help="a link to report, "
                    "repeatable (default all)")
     p.add_argument("--json", action="store_true", help="print the reply as JSON")
@@ -46,7 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example:\n  arduinobot check-state --joints 0,0.8,0.6 --obstacle "
         "box:table:1,1,0.1@0,1,0.5", formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--joints", default="", metavar="Q",
-                   help="joint_1..joint_4 values in order, or name=value,... [rad]")
+                   help="every actuated joint's value in the model's order (the "
+                   "arduinobot's: joint_1..joint_4), or name=value,... [rad]")
     p.add_argument("--obstacle", action="append", default=[], metavar="SPEC",
                    help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
                    "cylinder:ID:r,l@x,y,z; repeatable")
@@ -56,12 +64,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=guarded(cmd_check_state))
 
 
-def _joints(text: str) -> dict[str, float]:
-    return joint_map(text, _ALL, "--joints") if text else {}
+def _joints(ns: argparse.Namespace) -> dict[str, float]:
+    text = ns.joints
+    if not text:
+        return {}
+    return joint_map(text, () if "=" in text else joint_order(ns, "all"), "--joints")
 
 
 def cmd_fk(ns: argparse.Namespace) -> int:
-    req: dict = {"joints": _joints(ns.joints)}
+    req: dict = {"joints": _joints(ns)}
     if ns.link:
         req["links"] = ns.link
     body, _ = run_request(ns, "fk", req)
@@ -89,7 +100,7 @@ def cmd_ik(ns: argparse.Namespace) -> int:
 
 
 def cmd_check_state(ns: argparse.Namespace) -> int:
-    req: dict = {"joints": _joints(ns.joints)}
+    req: dict = {"joints": _joints(ns)}
     if ns.obstacle:
         req["obstacles"] = [obstacle(o) for o in ns.obstacle]
     if ns.padding is not None:

@@ -75,6 +75,21 @@ class Description:
     initial_positions: Mapping[str, float] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
 
+    def summary(self) -> dict[str, object]:
+        """What a request may name for this robot, JSON-ready: ``groups`` (name -> its
+        actuated joints, ``all`` included), ``default_group``, ``named_states`` (name,
+        group, values) and ``actuated_joints``."""
+        srdf = self.srdf
+        actuated = self.robot.actuated_joints
+        groups = {g.name: [j for j in g.joints if j in actuated]
+                  for g in (srdf.groups.values() if srdf is not None else ())}
+        groups["all"] = list(actuated)
+        return {"groups": groups, "default_group": self.default_group(),
+                "named_states": [] if srdf is None else [
+                    {"name": s.name, "group": s.group, "values": dict(s.values)}
+                    for s in srdf.states],
+                "actuated_joints": list(actuated)}
+
     def default_group(self) -> str:
         """The planning group of a request that names none (see
         :meth:`Srdf.default_group`); ``all`` without an SRDF."""

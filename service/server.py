@@ -103,7 +103,7 @@ def description_body(desc: Any) -> dict[str, Any]:
                             for n, (lo, hi) in zip(robot.actuated_joints, lims)},
         "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
         "limits": limits_body(desc),
-        **robot_summary(desc),
+        **desc.summary(),
         "tcp": None if desc.tcp is None else {"parent_link": desc.tcp.parent_link,
                                               "xyz": list(desc.tcp.xyz),
                                               "source": desc.tcp.source},
@@ -111,22 +111,6 @@ def description_body(desc: Any) -> dict[str, Any]:
         "default_scaling": {"velocity": desc.default_velocity_scaling,
                             "acceleration": desc.default_acceleration_scaling},
         "warnings": list(desc.warnings),
-    }
-
-
-def robot_summary(desc: Any) -> dict[str, Any]:
-    """What a request may name for this robot: groups (with their joints), the default
-    group, named states (name, group, values) and actuated joints."""
-    srdf = desc.srdf
-    groups = {"all": list(desc.robot.actuated_joints)}
-    if srdf is not None:
-        groups = {**{g.name: list(g.joints) for g in srdf.groups.values()}, **groups}
-    return {
-        "groups": groups,
-        "default_group": desc.default_group(),
-        "named_states": [] if srdf is None else [
-            {"name": s.name, "group": s.group, "values": dict(s.values)} for s in srdf.states],
-        "actuated_joints": list(desc.robot.actuated_joints),
     }
 
 
@@ -158,7 +142,7 @@ class PlannerService:
         desc = o.description.load()  # fails here, clearly, before any worker starts
         self._static["description"] = wire.encode(description_body(desc))
         self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas(),
-                                              "robot": robot_summary(desc)})
+                                              "robot": desc.summary()})
         self._config = desc.config.to_json()
         qsize = o.queue_size if o.queue_size is not None else 4 * o.workers
         self.pool = WorkerPool(o.description, workers=o.workers, queue_size=qsize,
