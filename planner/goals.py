@@ -105,6 +105,23 @@ def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
                                       field=f"{field}.{name}")
 
 
+def tcp_joints(description: Description, group_joints: Sequence[str]) -> tuple[str, ...]:
+    """The joints of ``group_joints`` that move the tool point (those IK solves for).
+
+    Raises:
+        InvalidRequest: the model has no tcp, or no joint of the group moves it.
+    """
+    tcp = description.tcp
+    if tcp is None:
+        raise InvalidRequest("the model has no tcp", field="goal.position")
+    above = {j.name for j in description.robot.link_path(tcp.parent_link) if j.movable}
+    joints = tuple(j for j in group_joints if j in above)
+    if not joints:
+        raise InvalidRequest(f"no joint of the group ({', '.join(group_joints)}) moves the "
+                             f"tcp on {tcp.parent_link}", field="group")
+    return joints
+
+
 def named_values(description: Description, name: str, group: str,
                  actuated: Mapping[str, int]) -> dict[str, float]:
     """The actuated joint values [rad] of named state ``name``, looked up in ``group``
@@ -170,15 +187,7 @@ def _position_candidates(goal: PositionGoal, *, world: CollisionWorld,
                          group_joints: Sequence[str]) -> np.ndarray:
     from .ik import position_ik  # written alongside; imported late to keep startup light
 
-    tcp = description.tcp
-    if tcp is None:
-        raise InvalidRequest("the model has no tcp", field="goal.position")
-    # the group's joints that move the tool point
-    above = {j.name for j in description.robot.link_path(tcp.parent_link) if j.movable}
-    ik_joints = tuple(j for j in group_joints if j in above)
-    if not ik_joints:
-        raise InvalidRequest(f"no joint of the group ({', '.join(group_joints)}) moves the "
-                             f"tcp on {tcp.parent_link}", field="group")
+    ik_joints = tcp_joints(description, group_joints)
     sols = position_ik(world.kin, description.tcp, goal.position, joints=ik_joints,
                        q_fixed=start)
     if not sols:

@@ -20,6 +20,7 @@ from description import Description
 from planner.cache import ArtifactCache
 from planner.collision import CollisionWorld
 from planner.errors import InvalidRequest
+from planner.goals import tcp_joints
 from planner.ik import position_ik
 from planner.kinematics import Kinematics
 
@@ -94,10 +95,13 @@ class Handlers:
 
     def ik(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """Every tcp position IK branch within the joint limits (GOAL_OUT_OF_REACH if none)."""
-        tcp = self.description.tcp
-        if tcp is None:
+        desc = self.description
+        if desc.tcp is None:
             raise InvalidRequest("this description has no tcp (config/tcp.yaml)")
-        sols = position_ik(self.kin, tcp, [float(v) for v in data["position"]])
+        # the default group's joints that move the tcp (the arduinobot's arm: joint_1..3)
+        joints = tcp_joints(desc, desc.summary()["groups"][desc.default_group()])
+        sols = position_ik(self.kin, desc.tcp, [float(v) for v in data["position"]],
+                           joints=joints)
         return {"solutions": [{"joints": dict(zip(self.kin.joint_names, map(float, s.q))),
                                "branch": s.branch} for s in sols]}
 
