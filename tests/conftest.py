@@ -105,3 +105,10 @@ def client(server: Server):
     from clients.client import PlannerClient
     with PlannerClient(server.endpoint, timeout=30.0) as c:
         yield c
+
+
+@pytest.fixture(scope="session")
+def course_ws(tmp_path_factory):
+    """A user's colcon workspace as ROS 2 and the MoveIt Setup Assistant leave it."""
+    from .helpers.course_workspace import make_course_workspace
+    return make_course_workspace(tmp_path_factory.mktemp("course_ws"))
