@@ -1,0 +1,237 @@
+"""What the executor plays: a planned trajectory read back from JSON, and ruckig motions.
+
+A segment has ``joint_names``, ``duration`` [s] and ``evaluate(t) -> (q, qd, qdd)``
+[rad, rad/s, rad/s^2], each shape (dof,), with ``t`` clamped to [0, duration].
+
+- :class:`SampledTrajectory`: what ``arduinobot plan --json`` writes (the plan reply, or a
+  bare ``JointTrajectory`` dict). Between samples it is the quintic that matches position,
+  velocity and acceleration at both ends, so replaying at any rate follows the plan.
+- :func:`stop_segment`: ruckig's time-optimal, jerk-limited stop from a moving state.
+- :func:`move_segment`: ruckig's jerk-limited move from rest to rest.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
+
+from .robots.base import RobotError
+
+
+class InvalidTrajectory(RobotError):
+    """A trajectory file or body that cannot be played (shape, order, non-finite)."""
+
+    code = "INVALID_TRAJECTORY"
+
+
+class MotionError(RobotError):
+    """ruckig could not compute a stop or a move."""
+
+    code = "MOTION_ERROR"
+
+
+class Segment(Protocol):
+    joint_names: tuple[str, ...]
+
+    @property
+    def duration(self) -> float: ...
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
+@dataclass(frozen=True, eq=False)
+class SampledTrajectory:
+    """A timed trajectory given by samples: ``times`` (m,) [s] from 0, increasing;
+    ``positions``, ``velocities``, ``accelerations`` (m, dof)."""
+
+    joint_names: tuple[str, ...]
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+
+    def __post_init__(self) -> None:
+        m, dof = len(self.times), len(self.joint_names)
+        if m < 1 or dof < 1:
+            raise InvalidTrajectory("a trajectory needs joint names and at least one point")
+        for name in ("positions", "velocities", "accelerations"):
+            a = np.asarray(getattr(self, name), float)
+            if a.shape != (m, dof):
+                raise InvalidTrajectory(f"{name} has shape {a.shape}, expected ({m}, {dof})",
+                                        details={"field": name})
+            if not np.all(np.isfinite(a)):
+                raise InvalidTrajectory(f"{name} holds a non-finite value",
+                                        details={"field": name})
+            object.__setattr__(self, name, a)
+        t = np.asarray(self.times, float)
+        if not np.all(np.isfinite(t)) or abs(t[0]) > 1e-9 or np.any(np.diff(t) <= 0):
+            raise InvalidTrajectory("time_from_start must start at 0 and increase strictly",
+                                    details={"field": "time_from_start"})
+        object.__setattr__(self, "times", t)
+
+    @property
+    def duration(self) -> float:
+        return float(self.times[-1])
+
+    @classmethod
+    def from_json(cls, body: Mapping[str, Any]) -> SampledTrajectory:
+        """From a plan reply (``{"trajectory": {...}, ...}``) or a JointTrajectory dict
+        (``{"joint_names": [...], "points": [{"positions", "velocities",
+        "accelerations", "time_from_start"}, ...]}``); missing velocities or
+        accelerations are 0."""
+        t = body.get("trajectory", body) if isinstance(body, Mapping) else None
+        if not isinstance(t, Mapping) or "joint_names" not in t or "points" not in t:
+            raise InvalidTrajectory("not a trajectory: expected a plan reply (plan --json) or "
+                                    "{joint_names, points}")
+        names = tuple(str(n) for n in t["joint_names"])
+        pts = t["points"]
+        try:
+            times = [float(p["time_from_start"]) for p in pts]
+            q = [list(map(float, p["positions"])) for p in pts]
+            qd = [list(map(float, p.get("velocities") or [0.0] * len(names))) for p in pts]
+            qdd = [list(map(float, p.get("accelerations") or [0.0] * len(names)))
+                   for p in pts]
+        except (KeyError, TypeError, ValueError) as e:
+            raise InvalidTrajectory(f"malformed trajectory point: {e}") from None
+        try:
+            return cls(names, np.array(times), np.array(q), np.array(qd), np.array(qdd))
+        except ValueError as e:  # ragged rows
+            raise InvalidTrajectory(f"malformed trajectory: {e}") from None
+
+    @classmethod
+    def load(cls, path: str | Path) -> SampledTrajectory:
+        p = Path(path)
+        try:
+            body = json.loads(p.read_text("utf-8"))
+        except (OSError, json.JSONDecodeError) as e:
+            raise InvalidTrajectory(f"cannot read {p}: {e}") from None
+        return cls.from_json(body)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        ts = self.times
+        if t <= 0.0 or len(ts) == 1:
+            return self.positions[0].copy(), self.velocities[0].copy(), \
+                self.accelerations[0].copy()
+        if t >= ts[-1]:
+            return self.positions[-1].copy(), self.velocities[-1].copy(), \
+                self.accelerations[-1].copy()
+        k = int(np.searchsorted(ts, t, side="right")) - 1
+        h = ts[k + 1] - ts[k]
+        p0, v0, a0 = self.positions[k], self.velocities[k], self.accelerations[k]
+        p1, v1, a1 = self.positions[k + 1], self.velocities[k + 1], self.accelerations[k + 1]
+        d = p1 - p0 - v0 * h - 0.5 * a0 * h * h
+        dv = v1 - v0 - a0 * h
+        da = a1 - a0
+        c3 = (10 * d - 4 * dv * h + 0.5 * da * h * h) / h**3
+        c4 = (-15 * d + 7 * dv * h - da * h * h) / h**4
+        c5 = (6 * d - 3 * dv * h + 0.5 * da * h * h) / h**5
+        s = t - ts[k]
+        q = p0 + s * (v0 + s * (0.5 * a0 + s * (c3 + s * (c4 + s * c5))))
+        qd = v0 + s * (a0 + s * (3 * c3 + s * (4 * c4 + s * 5 * c5)))
+        qdd = a0 + s * (6 * c3 + s * (12 * c4 + s * 20 * c5))
+        return q, qd, qdd
+
+    def for_joints(self, names: Sequence[str], hold: np.ndarray) -> SampledTrajectory:
+        """The trajectory over ``names`` (the robot's joints, in its order): columns
+        reordered, joints the trajectory does not name held at ``hold`` [rad].
+
+        Raises:
+            InvalidTrajectory: the trajectory names a joint the robot does not have.
+        """
+        extra = [n for n in self.joint_names if n not in names]
+        if extra:
+            raise InvalidTrajectory(f"the trajectory moves {', '.join(extra)}, which this "
+                                    f"robot does not command ({', '.join(names)})",
+                                    details={"joints": extra})
+        m = len(self.times)
+        cols = {n: i for i, n in enumerate(self.joint_names)}
+
+        def take(a: np.ndarray, fill: np.ndarray) -> np.ndarray:
+            return np.stack([a[:, cols[n]] if n in cols else np.full(m, fill[j])
+                             for j, n in enumerate(names)], axis=1)
+        z = np.zeros(len(names))
+        return SampledTrajectory(tuple(names), self.times, take(self.positions, hold),
+                                 take(self.velocities, z), take(self.accelerations, z))
+
+
+class RuckigSegment:
+    """A ruckig trajectory as a segment (positions [rad])."""
+
+    def __init__(self, joint_names: Sequence[str], trajectory: Trajectory) -> None:
+        self.joint_names = tuple(joint_names)
+        self.trajectory = trajectory
+
+    @property
+    def duration(self) -> float:
+        return float(self.trajectory.duration)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p, v, a = self.trajectory.at_time(min(max(float(t), 0.0), self.duration))
+        return np.array(p, float), np.array(v, float), np.array(a, float)
+
+    def position_extrema(self) -> tuple[np.ndarray, np.ndarray]:
+        ext = self.trajectory.position_extrema
+        return np.array([e.min for e in ext]), np.array([e.max for e in ext])
+
+
+def _limits_input(dof: int, velocity: np.ndarray, acceleration: np.ndarray,
+                  jerk: np.ndarray) -> InputParameter:
+    inp = InputParameter(dof)
+    inp.max_velocity = [float(v) for v in velocity]
+    inp.max_acceleration = [float(v) for v in acceleration]
+    inp.max_jerk = [float(v) for v in jerk]
+    return inp
+
+
+def _calculate(inp: InputParameter, dof: int, what: str) -> Trajectory:
+    tr = Trajectory(dof)
+    res = Ruckig(dof).calculate(inp, tr)
+    if res not in (Result.Working, Result.Finished):
+        raise MotionError(f"ruckig could not compute the {what}: {res}",
+                          details={"result": str(res)})
+    return tr
+
+
+def stop_segment(joint_names: Sequence[str], q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                 *, velocity: np.ndarray, acceleration: np.ndarray, jerk: np.ndarray
+                 ) -> RuckigSegment:
+    """The time-optimal jerk-limited stop from (q, qd, qdd) to rest (zero velocity and
+    acceleration), every joint within ``velocity`` [rad/s], ``acceleration`` [rad/s^2]
+    and ``jerk`` [rad/s^3], all joints reaching rest together."""
+    dof = len(joint_names)
+    inp = _limits_input(dof, velocity, acceleration, jerk)
+    inp.control_interface = ControlInterface.Velocity
+    inp.current_position = [float(v) for v in q]
+    inp.current_velocity = [float(v) for v in qd]
+    inp.current_acceleration = [float(v) for v in qdd]
+    inp.target_velocity = [0.0] * dof
+    inp.target_acceleration = [0.0] * dof
+    return RuckigSegment(joint_names, _calculate(inp, dof, "stop"))
+
+
+def move_segment(joint_names: Sequence[str], start: np.ndarray, goal: np.ndarray, *,
+                 velocity: np.ndarray, acceleration: np.ndarray, jerk: np.ndarray
+                 ) -> RuckigSegment:
+    """A jerk-limited, time-synchronised move from rest at ``start`` to rest at ``goal``
+    [rad] (a straight line in joint space: no collision check)."""
+    dof = len(joint_names)
+    inp = _limits_input(dof, velocity, acceleration, jerk)
+    inp.current_position = [float(v) for v in start]
+    inp.current_velocity = [0.0] * dof
+    inp.current_acceleration = [0.0] * dof
+    inp.synchronization = Synchronization.Phase  # rest to rest: a straight line
+    inp.target_position = [float(v) for v in goal]
+    inp.target_velocity = [0.0] * dof
+    inp.target_acceleration = [0.0] * dof
+    return RuckigSegment(joint_names, _calculate(inp, dof, "move"))
+
+
+def finite_or_none(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None

@@ -1,0 +1,214 @@
+"""The serial driver against a real pseudo-terminal: every byte the arm would receive is
+read back and decoded with the issue's formulas, written out here independently."""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import select
+import shutil
+import threading
+import time
+import tty
+
+import numpy as np
+import pytest
+
+from clients.execute import ExecuteOptions, Executor
+from clients.robots import PortBusy, PortNotFound, UnsupportedRobot
+from clients.robots.serial_arduinobot import SerialArduinobot, hardware_params
+from clients.segments import SampledTrajectory
+from description import load_description
+from description.packages import SHIPPED_PACKAGE_DIR
+
+MSG = re.compile(rb"b(\d{3}),s(\d{3}),e(\d{3}),g(\d{3}),")
+DEG = math.pi / 180
+
+
+def angles(q):
+    """The issue's formulas, verbatim (integer truncation), then the servos' 0..180."""
+    q1, q2, q3, q4 = q
+    b = int((q1 + math.pi / 2) * 180 / math.pi)
+    s = 180 - int((q2 + math.pi / 2) * 180 / math.pi)
+    e = int((q3 + math.pi / 2) * 180 / math.pi)
+    g = 180 - int((-q4 * 180) / (math.pi / 2))
+    return tuple(min(180, max(0, v)) for v in (b, s, e, g))
+
+
+def decode(a):
+    """Joint positions [rad] a message's angles stand for (the lower end of each
+    truncation interval)."""
+    b, s, e, g = a
+    return np.array([b * DEG - math.pi / 2, (180 - s) * DEG - math.pi / 2,
+                     e * DEG - math.pi / 2, -(180 - g) * (math.pi / 2) / 180])
+
+
+class PtyReader:
+    """The far end of a pty pair: the slave is the 'Arduino' port, raw mode."""
+
+    def __init__(self) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.path = os.ttyname(self.slave)
+        self.chunks: list[tuple[float, bytes]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            r, _, _ = select.select([self.master], [], [], 0.02)
+            if r:
+                self.chunks.append((time.monotonic(), os.read(self.master, 4096)))
+
+    def close(self) -> list[tuple[float, bytes]]:
+        time.sleep(0.1)
+        self._stop.set()
+        self._thread.join()
+        os.close(self.master)
+        os.close(self.slave)
+        return self.chunks
+
+
+def messages(chunks):
+    """(arrival time, angles) per message; the stream must be nothing but messages."""
+    data = b"".join(c for _, c in chunks)
+    assert MSG.sub(b"", data) == b"", f"stray bytes in the stream: {data[:80]!r}"
+    assert b"\n" not in data and b"\r" not in data
+    out, pos = [], 0
+    ends = np.cumsum([len(c) for _, c in chunks])
+    for m in MSG.finditer(data):
+        assert m.start() == pos
+        pos = m.end()
+        t = chunks[int(np.searchsorted(ends, m.end() - 1, side="right"))][0]
+        out.append((t, tuple(int(x) for x in m.groups()), m.group(0)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def desc():
+    return load_description()
+
+
+@pytest.fixture(scope="module")
+def planned(desc):
+    from planner.goals import NamedGoal
+    from planner.pipeline import MotionPlanner, MotionRequest
+    mp = MotionPlanner(desc)
+    res = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=3, sample_rate=100))
+    return res.trajectory
+
+
+def test_bytes_on_the_tty_follow_the_plan_tick_by_tick(desc, planned):
+    body = {"trajectory": planned.to_dict()}  # what plan --json writes
+    traj = SampledTrajectory.from_json(body)
+    pty = PtyReader()
+    with SerialArduinobot.from_description(desc, pty.path, rate=100.0) as robot:
+        report = Executor.for_description(robot, desc, options=ExecuteOptions(
+            rate=100.0)).execute(traj)
+    msgs = messages(pty.close())
+
+    # the ticks: every 10 ms from 0, the last one the final state
+    n = math.ceil(planned.duration * 100 - 1e-9)
+    tick_t = [min(k / 100, planned.duration) for k in range(n + 1)]
+    exact = np.array([planned.at(t).positions for t in tick_t])
+    due = [angles(q) for q in exact]
+    expected, sent_at = [], []
+    for k, a in enumerate(due):
+        if not expected or a != expected[-1]:
+            expected.append(a)
+            sent_at.append(k)
+    got = [a for _, a, _ in msgs]
+    assert got == expected  # one message per changed tick, none otherwise, nothing else
+    assert all(x != y for x, y in zip(got, got[1:]))  # never a resend
+    assert got[-1] == angles(planned.positions[-1])  # the final state
+    assert all(len(raw) == 20 for _, _, raw in msgs)  # %03d: zero-padded
+    assert any(raw.startswith(b"b0") or b",s0" in raw or b",e0" in raw or b",g0" in raw
+               for _, _, raw in msgs)  # the padding is exercised (some angle < 100)
+
+    # at every tick, the angles on the arm are within 1 degree of the trajectory
+    held = None
+    worst = 0.0
+    for k in range(n + 1):
+        if k in sent_at:
+            held = decode(expected[sent_at.index(k)])
+        err = np.abs(exact[k] - held)
+        worst = max(worst, float(err.max()))
+    assert worst < 1 * DEG, f"worst {worst / DEG:.3f} deg"
+
+    # the stream lasts the trajectory: arrivals 10 ms apart per tick, +- scheduling
+    span = msgs[-1][0] - msgs[0][0]
+    due_span = (sent_at[-1] - sent_at[0]) / 100
+    assert abs(span - due_span) < 0.04, (span, due_span)
+    assert abs(report.duration - planned.duration) <= 0.01 + 1e-9
+    assert report.outcome == "completed"
+    print(f"\n{len(msgs)} messages over {span:.3f} s (due {due_span:.3f} s), trajectory "
+          f"{planned.duration:.3f} s; worst tick error {worst / DEG:.3f} deg; late ticks "
+          f"{report.late_ticks}, max lateness {1000 * report.max_lateness:.1f} ms")
+
+
+def test_a_jump_is_limited_to_one_ticks_motion_and_angles_clamp(desc):
+    pty = PtyReader()
+    with SerialArduinobot.from_description(desc, pty.path, rate=100.0) as robot:
+        robot.command([1.0, 0.0, 0.0, 0.0])  # 1 rad in one tick: 10 rad/s allows 0.1
+        first = robot.state().positions[0]
+        robot.command([1.0, 0.0, 0.0, 0.0])
+        second = robot.state().positions[0]
+        for _ in range(40):
+            robot.command([5.0, -5.0, 5.0, -5.0])  # beyond every limit
+        last = robot.state()
+    msgs = messages(pty.close())
+    assert first == pytest.approx(0.1) and second == pytest.approx(0.2)
+    assert [a for _, a, _ in msgs][:2] == [angles([0.1, 0, 0, 0]), angles([0.2, 0, 0, 0])]
+    assert msgs[-1][1] == (179, 180, 179, 1)  # at the limits (PI = 3.14159 in the xacro)
+    assert all(0 <= v <= 180 for _, a, _ in msgs for v in a)
+    assert last.names == ("joint_1", "joint_2", "joint_3", "joint_4", "joint_5")
+    assert last.positions[4] == pytest.approx(-last.positions[3])  # the mimic follows
+
+
+def test_missing_and_busy_ports_are_refused_clearly(desc):
+    with pytest.raises(PortNotFound, match="does not exist"):
+        SerialArduinobot.from_description(desc, "/dev/ttyACM_nothing_here")
+    pty = PtyReader()
+    try:
+        with SerialArduinobot.from_description(desc, pty.path):
+            with pytest.raises(PortBusy, match="busy"):
+                SerialArduinobot.from_description(desc, pty.path)
+    finally:
+        pty.close()
+
+
+def test_the_port_comes_from_the_ros2_control_block(tmp_path):
+    pkg = tmp_path / "arduinobot_description"
+    shutil.copytree(SHIPPED_PACKAGE_DIR, pkg)
+    pty = PtyReader()
+    xacro = pkg / "urdf" / "arduinobot.urdf.xacro"
+    text = xacro.read_text()
+    block = f"""
+  <ros2_control name="RobotSystem" type="system">
+    <hardware>
+      <plugin>arduinobot_controller/ArduinobotInterface</plugin>
+      <param name="port">{pty.path}</param>
+    </hardware>
+    <joint name="joint_1"><command_interface name="position"/></joint>
+  </ros2_control>
+</robot>"""
+    xacro.write_text(text.replace("</robot>", block))
+    (pkg / "config" / "initial_positions.yaml").write_text(
+        "initial_positions:\n  joint_1: 0.3\n  joint_4: -0.5\n")
+    d = load_description(xacro, package_dirs=[tmp_path])
+    assert hardware_params(d.robot.urdf)["port"] == pty.path
+    with SerialArduinobot.from_description(d) as robot:
+        st = robot.state()
+        assert robot.port == pty.path
+        assert st.positions[:4] == pytest.approx((0.3, 0.0, 0.0, -0.5))  # initial_positions
+        robot.command(st.positions[:4])
+    msgs = messages(pty.close())
+    assert [a for _, a, _ in msgs] == [angles([0.3, 0.0, 0.0, -0.5])]
+
+
+def test_a_robot_without_four_joints_is_refused(desc):
+    with pytest.raises(UnsupportedRobot, match="4 joints"):
+        SerialArduinobot("/dev/null", joint_names=["a", "b"], velocity=[1, 1], lower=[0, 0],
+                         upper=[1, 1])
