@@ -294,8 +294,9 @@ class Executor:
                         break
                     t = min(i * dt, seg.duration)
                     cur = seg.evaluate(t)
+                    jerk = (seg.evaluate(t + dt)[2] - cur[2]) / dt
                     prog_t = t if phase == "trajectory" else 0.0
-                    self._tick(k, clock, dt, phase, prog_t, traj.duration, cur, rec)
+                    self._tick(k, clock, dt, phase, prog_t, traj.duration, cur, jerk, rec)
                     k += 1
                 if cancel.is_set():
                     cancelled_at = rec.traj_time
@@ -314,8 +315,11 @@ class Executor:
                          cancelled_at, stop_time)
                 n = int(math.ceil(stop.duration * o.rate - 1e-9))
                 for i in range(1, n + 1):
-                    cur = stop.evaluate(min(i * dt, stop.duration))
-                    self._tick(k, clock, dt, "stop", cancelled_at, traj.duration, cur, rec)
+                    t = min(i * dt, stop.duration)
+                    cur = stop.evaluate(t)
+                    jerk = (stop.evaluate(t + dt)[2] - cur[2]) / dt
+                    self._tick(k, clock, dt, "stop", cancelled_at, traj.duration, cur, jerk,
+                               rec)
                     k += 1
         except BaseException:
             # the driver failed or we are interrupted mid-motion: hold the last setpoint
@@ -326,11 +330,11 @@ class Executor:
 
     def _tick(self, k: int, clock: _Clock, dt: float, phase: Phase, traj_t: float,
               traj_duration: float, cur: tuple[np.ndarray, np.ndarray, np.ndarray],
-              rec: _Recorder) -> None:
+              jerk: np.ndarray, rec: _Recorder) -> None:
         clock.wait_until(k * dt)
         late = clock.now() - k * dt
         q, qd, qdd = cur
-        self.robot.command(q, qd, qdd)
+        self.robot.command(q, qd, qdd, jerks=jerk)
         self.robot.advance(dt)
         st = self.robot.state()
         rec.add(k * dt, phase, traj_t, q, qd, qdd, st, self.robot.joint_names, late, dt)

@@ -155,10 +155,12 @@ class Robot(abc.ABC):
     @abc.abstractmethod
     def command(self, positions: Sequence[float] | np.ndarray,
                 velocities: Sequence[float] | np.ndarray | None = None,
-                accelerations: Sequence[float] | np.ndarray | None = None) -> None:
+                accelerations: Sequence[float] | np.ndarray | None = None, *,
+                jerks: Sequence[float] | np.ndarray | None = None) -> None:
         """The setpoint for the coming tick: ``positions`` [rad], optionally the
-        ``velocities`` [rad/s] and ``accelerations`` [rad/s^2] along the trajectory
-        (feed-forward for a servo that can use them; hardware may ignore them)."""
+        ``velocities`` [rad/s], ``accelerations`` [rad/s^2] and the tick's mean ``jerks``
+        [rad/s^3] along the trajectory (for a servo that interpolates within the tick
+        and feeds forward; hardware may ignore them)."""
 
     @abc.abstractmethod
     def advance(self, dt: float) -> None:

@@ -192,9 +192,10 @@ class SerialArduinobot(Robot):
 
     def command(self, positions: Sequence[float] | np.ndarray,
                 velocities: Sequence[float] | np.ndarray | None = None,
-                accelerations: Sequence[float] | np.ndarray | None = None) -> None:
+                accelerations: Sequence[float] | np.ndarray | None = None, *,
+                jerks: Sequence[float] | np.ndarray | None = None) -> None:
         """Send the servo angles of ``positions`` [rad] if they changed (the protocol
-        carries positions only: velocities and accelerations are ignored)."""
+        carries positions only: the rest is ignored)."""
         q = check_setpoint(positions, self.joint_names)
         step = self.velocity * self.period
         # one tick never moves a joint further than its velocity limit allows

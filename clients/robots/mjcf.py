@@ -1,0 +1,197 @@
+"""A MuJoCo model (MJCF) of a loaded description, for the simulated twin.
+
+From :class:`description.Robot`: one body per link (the root welded to the world), its
+inertial as given, one hinge/slide per movable joint with the URDF position limits, a
+mimic joint as an equality constraint on its leader (``q = offset + multiplier *
+q_leader``), collision shapes as contact geoms (meshes as MuJoCo mesh assets with the
+URDF scale; MuJoCo collides their convex hulls), and per actuated joint a position servo
+with velocity feed-forward (see :func:`servo_ctrl`) whose force is capped at the URDF
+effort. Contacts between a link and its parent, and the SRDF's disabled pairs (what the
+planner trusts never to touch), are excluded; every other pair is live, and so are
+obstacles (box, sphere, cylinder in the world frame).
+
+The physics is MuJoCo's semi-implicit Euler: unlike ``implicitfast``, the actuator force
+it reports is the force it applies (the implicit integrators fold part of the damping
+into the step), so peak forces are comparable with the effort limits; with the default
+servos ``kv h / M = 2 w h`` stays far below Euler's stability bound.
+
+The servo force is ``kp (q_ref - q) + kv (qd_ref - qd)``, clamped to +-effort: a
+``general`` actuator with gain ``kp`` and affine bias ``(0, -kp, -kv)`` driven by
+``ctrl = q_ref + kv / kp * qd_ref``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from description.model import Robot, Shape, rpy_matrix
+
+TIMESTEP = 0.001  # [s]
+
+
+@dataclass(frozen=True)
+class Gains:
+    """A position servo's stiffness ``kp`` [N m/rad] and damping ``kv`` [N m s/rad]."""
+
+    kp: float
+    kv: float
+
+
+def _f(v: Sequence[float] | np.ndarray) -> str:
+    return " ".join(repr(float(x)) for x in np.ravel(v))
+
+
+def _quat(rot: np.ndarray) -> str:
+    import mujoco
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(rot, float).ravel())
+    return _f(q)
+
+
+def _esc(name: str) -> str:
+    return name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+
+
+def _geom(shape: Shape, name: str, assets: list[str], *, visual: bool) -> str | None:
+    g = shape.geometry
+    pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
+    flags = ('contype="0" conaffinity="0" group="1" rgba="0.8 0.5 0.2 1"' if visual
+             else 'contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4"')
+    common = f'name="{_esc(name)}" {pose} {flags} mass="0"'
+    if g.kind == "mesh":
+        if g.path is None:
+            return None
+        assets.append(f'<mesh name="{_esc(name)}" file="{_esc(str(g.path))}" '
+                      f'scale="{_f(g.scale)}"/>')
+        return f'<geom type="mesh" mesh="{_esc(name)}" {common}/>'
+    if g.kind == "box":
+        return f'<geom type="box" size="{_f(0.5 * np.asarray(g.size))}" {common}/>'
+    if g.kind == "sphere":
+        return f'<geom type="sphere" size="{g.radius!r}" {common}/>'
+    if g.kind == "cylinder":
+        return f'<geom type="cylinder" size="{g.radius!r} {0.5 * g.length!r}" {common}/>'
+    return None
+
+
+def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]]) -> list[str]:
+    """World geoms for plain obstacles (``{"id", "shape", "size"|"radius"|"length",
+    "xyz", "rpy"}``, the plan request's form) [m, rad]."""
+    out = []
+    for o in obstacles:
+        pose = (f'pos="{_f(o.get("xyz", (0, 0, 0)))}" '
+                f'quat="{_quat(rpy_matrix(tuple(o.get("rpy", (0, 0, 0)))))}"')
+        name = f'obstacle:{o["id"]}'
+        if o["shape"] == "box":
+            size = _f(0.5 * np.asarray(o["size"], float))
+        elif o["shape"] == "sphere":
+            size = repr(float(o["radius"]))
+        elif o["shape"] == "cylinder":
+            size = f'{float(o["radius"])!r} {0.5 * float(o["length"])!r}'
+        else:
+            raise ValueError(f"obstacle shape {o['shape']!r} is not box, sphere or cylinder")
+        out.append(f'<geom name="{_esc(name)}" type="{o["shape"]}" size="{size}" {pose} '
+                   'contype="1" conaffinity="1" rgba="0.3 0.6 0.9 0.5"/>')
+    return out
+
+
+def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
+            excluded: Sequence[tuple[str, str]] = (),
+            obstacles: Sequence[Mapping[str, Any]] = (), visual: bool = False,
+            timestep: float = TIMESTEP) -> str:
+    """The MJCF text of ``robot`` (see the module doc).
+
+    Args:
+        gains: per actuated joint.
+        excluded: link pairs whose contacts are ignored (besides parent/child pairs).
+        obstacles: world obstacles, as in a plan request.
+        visual: add the visual shapes too (non-colliding, for a viewer).
+        timestep: the physics step [s].
+    """
+    assets: list[str] = []
+
+    def body(link: str, indent: str) -> list[str]:
+        out = []
+        lk = robot.links[link]
+        inertial = lk.inertial
+        if inertial is not None and inertial.mass > 0 and link != "world":
+            rot = rpy_matrix(inertial.origin.rpy)
+            t = rot @ inertial.tensor() @ rot.T
+            out.append(f'{indent}<inertial pos="{_f(inertial.origin.xyz)}" '
+                       f'mass="{inertial.mass!r}" fullinertia="'
+                       f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
+        for i, s in enumerate(lk.collisions):
+            g = _geom(s, f"{link}/collision/{i}", assets, visual=False)
+            if g:
+                out.append(indent + g)
+        if visual:
+            for i, s in enumerate(lk.visuals):
+                g = _geom(s, f"{link}/visual/{i}", assets, visual=True)
+                if g:
+                    out.append(indent + g)
+        for j in robot.child_joints[link]:
+            out.append(f'{indent}<body name="{_esc(j.child)}" pos="{_f(j.origin.xyz)}" '
+                       f'quat="{_quat(rpy_matrix(j.origin.rpy))}">')
+            if j.type in ("revolute", "continuous", "prismatic"):
+                kind = "slide" if j.type == "prismatic" else "hinge"
+                lim = j.limit
+                rng = ""
+                if j.type != "continuous" and lim is not None and lim.lower is not None \
+                        and lim.upper is not None:
+                    rng = f'limited="true" range="{lim.lower!r} {lim.upper!r}"'
+                else:
+                    rng = 'limited="false"'
+                out.append(f'{indent}  <joint name="{_esc(j.name)}" type="{kind}" '
+                           f'axis="{_f(j.axis)}" {rng}/>')
+            out.extend(body(j.child, indent + "  "))
+            out.append(f"{indent}</body>")
+        return out
+
+    root = robot.root
+    if root == "world":  # URDF's conventional world link is MuJoCo's worldbody
+        tree = body(root, "    ")
+    else:
+        tree = [f'    <body name="{_esc(root)}">', *body(root, "      "), "    </body>"]
+    pairs = {frozenset((j.parent, j.child)) for j in robot.joints.values()
+             if "world" not in (j.parent, j.child)}
+    pairs |= {frozenset(p) for p in excluded if p[0] != p[1]}
+    exclude = [f'    <exclude body1="{_esc(a)}" body2="{_esc(b)}"/>'
+               for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
+    eq = []
+    for n in robot.mimic_joints:
+        m = robot.joints[n].mimic
+        eq.append(f'    <joint joint1="{_esc(n)}" joint2="{_esc(m.joint)}" '  # type: ignore
+                  f'polycoef="{m.offset!r} {m.multiplier!r} 0 0 0"/>')  # type: ignore
+    act = []
+    for n in robot.actuated_joints:
+        g, lim = gains[n], robot.joints[n].limit
+        effort = lim.effort if lim is not None and lim.effort > 0 else 1e6
+        act.append(f'    <general name="{_esc(n)}" joint="{_esc(n)}" gainprm="{g.kp!r}" '
+                   f'biastype="affine" biasprm="0 {-g.kp!r} {-g.kv!r}" ctrllimited="false" '
+                   f'forcelimited="true" forcerange="{-effort!r} {effort!r}"/>')
+    parts = [f'<mujoco model="{_esc(robot.name)}">',
+             '  <compiler angle="radian" inertiafromgeom="false" balanceinertia="false" '
+             'boundmass="1e-6" boundinertia="1e-9"/>',
+             f'  <option timestep="{timestep!r}" integrator="Euler" '
+             'gravity="0 0 -9.81"/>',
+             "  <asset>", *("    " + a for a in assets), "  </asset>",
+             "  <worldbody>", *("    " + g for g in obstacle_geoms(obstacles)), *tree,
+             "  </worldbody>",
+             "  <contact>", *exclude, "  </contact>"]
+    if eq:
+        parts += ["  <equality>", *eq, "  </equality>"]
+    parts += ["  <actuator>", *act, "  </actuator>", "</mujoco>"]
+    return "\n".join(parts) + "\n"
+
+
+def servo_ctrl(q_ref: np.ndarray, qd_ref: np.ndarray | None, gains: Sequence[Gains]
+               ) -> np.ndarray:
+    """The ``ctrl`` that makes the actuators' force ``kp (q_ref - q) + kv (qd_ref - qd)``."""
+    q_ref = np.asarray(q_ref, float)
+    if qd_ref is None:
+        return q_ref.copy()
+    ratio = np.array([g.kv / g.kp for g in gains], float)
+    return q_ref + ratio * np.asarray(qd_ref, float)

@@ -1,0 +1,340 @@
+"""The simulated twin: the loaded description running in MuJoCo.
+
+Position servos (force capped at the URDF effort) follow the setpoints, with velocity
+and, when the setpoint carries an acceleration, computed-torque feed-forward (MuJoCo's
+inverse dynamics of the reference motion), so feedback only corrects; the physics
+steps at :data:`~clients.robots.mjcf.TIMESTEP` with contacts on. Servo gains come from a
+ros2_control controllers yaml (``gains: {joint: {p, d}}`` of a joint_trajectory_controller)
+when the packages have one, else each joint is a critically damped servo of
+``bandwidth`` Hz at its inertia in the initial pose: ``kp = M_ii w^2``, ``kv = 2 M_ii w``.
+
+:meth:`SimArduinobot.advance` steps the physics as fast as it can; the executor's clock
+decides whether that is paced in real time.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from description import Description
+
+from .base import JointState, MimicMap, Robot, RobotError, check_setpoint
+from .mjcf import TIMESTEP, Gains, servo_ctrl, to_mjcf
+from .serial_arduinobot import initial_positions
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BANDWIDTH = 10.0  # [Hz]
+
+
+class SimulationError(RobotError):
+    """MuJoCo could not build or step the model."""
+
+    code = "SIMULATION_ERROR"
+
+
+@dataclass(frozen=True)
+class SimStats:
+    """What the physics did since the last reset.
+
+    Attributes:
+        peak_force: per actuated joint, the largest |actuator force| [N m or N].
+        effort: the actuators' force limits (URDF effort), same order.
+        saturated_steps: physics steps with some actuator at its force limit.
+        contacts: the body pairs (link/link or link/obstacle) that touched.
+        contact_steps: physics steps with any live contact.
+        steps: physics steps taken; time [s] the simulated time they cover.
+    """
+
+    peak_force: tuple[float, ...]
+    effort: tuple[float, ...]
+    saturated_steps: int
+    contacts: tuple[tuple[str, str], ...]
+    contact_steps: int
+    steps: int
+    time: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"peak_force": list(self.peak_force), "effort": list(self.effort),
+                "saturated_steps": self.saturated_steps,
+                "contacts": [list(p) for p in self.contacts],
+                "contact_steps": self.contact_steps, "steps": self.steps, "time": self.time}
+
+
+def find_controllers_yaml(description: Description) -> Path | None:
+    """A ros2_control controllers yaml next to the robot's config: ``config/*controllers*.yaml``
+    of the MoveIt package, the description package, or a ``<robot>_controller`` package."""
+    dirs: list[Path] = []
+    cfg = description.config
+    for p in (cfg.srdf.parent if cfg.srdf else None,
+              cfg.moveit_package / "config" if cfg.moveit_package else None,
+              description.package_root / "config" if description.package_root else None):
+        if p is not None:
+            dirs.append(p)
+    pkgs = description.packages.packages
+    for name in (f"{description.robot.name}_controller", f"{description.robot.name}_control"):
+        if name in pkgs:
+            dirs.append(Path(pkgs[name]) / "config")
+    for d in dict.fromkeys(dirs):
+        found = sorted(d.glob("*controllers*.yaml")) if d.is_dir() else []
+        if found:
+            return found[0]
+    return None
+
+
+def controller_gains(path: Path, joints: Sequence[str]) -> dict[str, Gains]:
+    """``gains: {joint: {p: .., d: ..}}`` of any controller in a ros2_control yaml, for
+    ``joints`` that have a positive ``p`` (``d`` defaults to 0)."""
+    data = yaml.safe_load(path.read_text("utf-8"))
+    out: dict[str, Gains] = {}
+
+    def walk(node: Any) -> None:
+        if isinstance(node, dict):
+            g = node.get("gains")
+            if isinstance(g, dict):
+                for j, v in g.items():
+                    if j in joints and isinstance(v, dict):
+                        p, d = float(v.get("p", 0.0) or 0.0), float(v.get("d", 0.0) or 0.0)
+                        if p > 0 and math.isfinite(p) and math.isfinite(d):
+                            out[j] = Gains(p, max(0.0, d))
+            for v in node.values():
+                walk(v)
+    walk(data)
+    return out
+
+
+class SimArduinobot(Robot):
+    """The description in MuJoCo.
+
+    Args:
+        description: the robot.
+        obstacles: world obstacles (the plan request's form).
+        gains: per actuated joint (overrides the controllers yaml and the defaults).
+        controllers: a controllers yaml (default: :func:`find_controllers_yaml`).
+        initial: actuated positions [rad] to start at (default: initial_positions.yaml, else 0).
+        bandwidth: [Hz] of the default servos.
+        timestep: physics step [s].
+        visual: add the visual meshes (for a viewer).
+
+    Raises:
+        SimulationError: MuJoCo refused the model.
+    """
+
+    realtime_only = False
+
+    def __init__(self, description: Description, *, obstacles: Sequence[Mapping[str, Any]] = (),
+                 gains: Mapping[str, Gains] | None = None, controllers: Path | None = None,
+                 initial: Sequence[float] | None = None, bandwidth: float = DEFAULT_BANDWIDTH,
+                 timestep: float = TIMESTEP, visual: bool = False) -> None:
+        import mujoco  # optional dependency (the `sim` extra)
+
+        self._mj = mujoco
+        robot = description.robot
+        self.mimic = MimicMap.from_description(description)
+        self.joint_names = self.mimic.actuated
+        self.state_names = self.mimic.names
+        ctl = controllers or find_controllers_yaml(description)
+        chosen = dict(controller_gains(ctl, self.joint_names)) if ctl else {}
+        self.gain_source = {n: f"{ctl}" for n in chosen}
+        chosen.update(gains or {})
+        self.gain_source.update({n: "given" for n in (gains or {})})
+        placeholder = {n: chosen.get(n, Gains(1.0, 0.0)) for n in self.joint_names}
+        excluded = [(d.link1, d.link2) for d in description.srdf.disabled_collisions] \
+            if description.srdf is not None else []
+        q0 = initial_positions(description, self.joint_names) if initial is None \
+            else check_setpoint(initial, self.joint_names, "initial positions")
+        self.hull_excluded: tuple[tuple[str, str], ...] = ()
+        for _ in range(2):
+            self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded,
+                               obstacles=obstacles, visual=visual, timestep=timestep)
+            self._build(robot.name)
+            self._set_positions(q0)
+            # MuJoCo collides meshes as convex hulls: hulls of concave links (fingers, an
+            # L-shaped arm) can overlap in a pose the planner proved free. Such pairs are
+            # excluded, with a warning naming them.
+            touching = [p for p in self.contacts_now() if not any(
+                n.startswith("obstacle:") for n in p)]
+            if not touching:
+                break
+            log.warning("MuJoCo (convex hulls) sees %s touching in the initial pose; their "
+                        "contacts are ignored", ", ".join(f"{a}/{b}" for a, b in touching))
+            self.hull_excluded += tuple(touching)
+            excluded = [*excluded, *touching]
+        m = self.model
+        self.effort = np.array([m.actuator_forcerange[a, 1] for a in self._act])
+        # default gains: a critically damped servo of `bandwidth` Hz at each joint's inertia
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, self.data, full)
+        w = 2 * math.pi * bandwidth
+        self.gains: list[Gains] = []
+        for i, n in enumerate(self.joint_names):
+            if n in chosen:
+                g = chosen[n]
+            else:
+                inertia = float(full[self._dadr[i], self._dadr[i]])
+                g = Gains(inertia * w * w, 2.0 * inertia * w)
+                self.gain_source[n] = f"default: critically damped {bandwidth:g} Hz servo"
+            self.gains.append(g)
+            a = self._act[i]
+            m.actuator_gainprm[a, 0] = g.kp
+            m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
+        self._q_ref: np.ndarray = np.asarray(q0, float)
+        self._qd_ref: np.ndarray | None = None
+        self._qdd_ref: np.ndarray | None = None
+        self._jerk: np.ndarray | None = None
+        self._tick = 0.0
+        self._scratch = mujoco.MjData(m)
+        self.data.ctrl[self._act] = servo_ctrl(q0, None, self.gains)
+        self.reset_stats()
+        log.info("MuJoCo twin of '%s': %d bodies, %d geoms, timestep %g s; gains %s",
+                 robot.name, m.nbody, m.ngeom, timestep,
+                 {n: (round(g.kp, 1), round(g.kv, 1)) for n, g in zip(self.joint_names,
+                                                                       self.gains)})
+
+    def _build(self, name: str) -> None:
+        mujoco = self._mj
+        try:
+            self.model = m = mujoco.MjModel.from_xml_string(self.xml)
+        except ValueError as e:
+            raise SimulationError(f"MuJoCo refused the model of '{name}': {e}") from e
+        self.data = mujoco.MjData(m)
+        jid = {n: mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, n) for n in self.state_names}
+        self._qadr = np.array([m.jnt_qposadr[jid[n]] for n in self.state_names])
+        self._dadr = np.array([m.jnt_dofadr[jid[n]] for n in self.state_names])
+        self._act = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, n)
+                              for n in self.joint_names])
+        self._body_of_geom = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or "world"
+                              for b in m.geom_bodyid]
+        self._geom_names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+                            for g in range(m.ngeom)]
+
+    def _set_positions(self, q: np.ndarray) -> None:
+        full = self.mimic.expand(q)
+        self.data.qpos[self._qadr] = full
+        self.data.qvel[:] = 0.0
+        self._mj.mj_forward(self.model, self.data)
+
+    # -- Robot -------------------------------------------------------------------------
+    def command(self, positions: Sequence[float] | np.ndarray,
+                velocities: Sequence[float] | np.ndarray | None = None,
+                accelerations: Sequence[float] | np.ndarray | None = None, *,
+                jerks: Sequence[float] | np.ndarray | None = None) -> None:
+        """The setpoint; with velocities and accelerations the servos also get the
+        rigid-body torque of the reference motion as feed-forward (computed torque)."""
+        q = check_setpoint(positions, self.joint_names)
+        qd = None if velocities is None else check_setpoint(velocities, self.joint_names,
+                                                            "velocities")
+        qdd = None if accelerations is None else check_setpoint(
+            accelerations, self.joint_names, "accelerations")
+        # within the tick the reference moves on with the tick's jerk: given, else the
+        # one the last two accelerations imply (a jerk-limited trajectory's jerk is
+        # piecewise constant; at a switch that guess overshoots for one tick)
+        prev = self._qdd_ref
+        if jerks is not None:
+            self._jerk = check_setpoint(jerks, self.joint_names, "jerks")
+        else:
+            self._jerk = None if qdd is None or prev is None or self._tick <= 0 else \
+                (qdd - prev) / self._tick
+        self._q_ref, self._qd_ref, self._qdd_ref = q, qd, qdd
+
+    def _inverse(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """The actuator torques [N m] of the rigid-body motion (q, qd, qdd) by MuJoCo's
+        inverse dynamics without constraints, mimic torques folded into their leaders."""
+        mj, m, d = self._mj, self.model, self._scratch
+        d.qpos[self._qadr] = self.mimic.expand(q)
+        d.qvel[self._dadr] = self.mimic.expand(qd, rate=True)
+        d.qacc[self._dadr] = self.mimic.expand(qdd, rate=True)
+        flags = m.opt.disableflags
+        m.opt.disableflags = flags | int(mj.mjtDisableBit.mjDSBL_CONSTRAINT)
+        try:
+            mj.mj_inverse(m, d)
+        finally:
+            m.opt.disableflags = flags
+        f = d.qfrc_inverse[self._dadr]
+        tau = f[:len(self.joint_names)].copy()
+        for k, (lead, mult) in enumerate(zip(self.mimic.leader, self.mimic.multiplier)):
+            tau[lead] += mult * f[len(self.joint_names) + k]
+        return tau
+
+    def advance(self, dt: float) -> None:
+        """Step the physics for ``dt`` [s]. Within the tick the servos' setpoint moves on
+        with the commanded velocity and acceleration (as an interpolating servo does),
+        with the reference motion's torque as feed-forward; a bare position is held."""
+        mj, m, d = self._mj, self.model, self.data
+        h = m.opt.timestep
+        n = max(1, int(round(dt / h)))
+        self._tick = dt
+        kp = np.array([g.kp for g in self.gains])
+        q0, qd0, qdd0 = self._q_ref, self._qd_ref, self._qdd_ref
+        for i in range(n):
+            tau = i * h
+            if qd0 is None:
+                ctrl = servo_ctrl(q0, None, self.gains)
+            elif qdd0 is None:
+                ctrl = servo_ctrl(q0 + qd0 * tau, qd0, self.gains)
+            else:
+                j = self._jerk if self._jerk is not None else 0.0
+                q = q0 + tau * (qd0 + tau * (0.5 * qdd0 + tau * j / 6))
+                qd = qd0 + tau * (qdd0 + 0.5 * tau * j)
+                qdd = qdd0 + tau * j
+                ctrl = servo_ctrl(q, qd, self.gains) + self._inverse(q, qd, qdd) / kp
+            d.ctrl[self._act] = ctrl
+            mj.mj_step(m, d)
+            f = np.abs(d.actuator_force[self._act])
+            np.maximum(self._peak, f, out=self._peak)
+            if np.any(f >= self.effort * (1 - 1e-9)):
+                self._saturated += 1
+            if d.ncon:
+                live = False
+                for c in d.contact[:d.ncon]:
+                    if c.dist > 0:
+                        continue
+                    live = True
+                    self._contacts.add(self._pair(int(c.geom1), int(c.geom2)))
+                self._contact_steps += live
+            self._steps += 1
+        if not np.all(np.isfinite(d.qpos)):
+            raise SimulationError("the simulation diverged (non-finite positions)",
+                                  details={"time": float(d.time)})
+
+    def _pair(self, g1: int, g2: int) -> tuple[str, str]:
+        def name(g: int) -> str:
+            n = self._geom_names[g]
+            return n if n.startswith("obstacle:") else self._body_of_geom[g]
+        return tuple(sorted((name(g1), name(g2))))  # type: ignore[return-value]
+
+    def state(self) -> JointState:
+        d = self.data
+        eff = np.concatenate([d.actuator_force[self._act],
+                              d.qfrc_constraint[self._dadr[len(self.joint_names):]]])
+        return JointState(self.state_names, tuple(map(float, d.qpos[self._qadr])),
+                          tuple(map(float, d.qvel[self._dadr])), tuple(map(float, eff)),
+                          float(d.time))
+
+    # -- simulation figures ------------------------------------------------------------
+    def reset_stats(self) -> None:
+        self._peak = np.zeros(len(self.joint_names))
+        self._saturated = 0
+        self._contacts: set[tuple[str, str]] = set()
+        self._contact_steps = 0
+        self._steps = 0
+        self._t0 = float(self.data.time)
+
+    def stats(self) -> SimStats:
+        return SimStats(tuple(map(float, self._peak)), tuple(map(float, self.effort)),
+                        self._saturated, tuple(sorted(self._contacts)), self._contact_steps,
+                        self._steps, float(self.data.time) - self._t0)
+
+    def contacts_now(self) -> list[tuple[str, str]]:
+        """Body pairs in contact in the current state."""
+        d = self.data
+        return sorted({self._pair(int(c.geom1), int(c.geom2))
+                       for c in d.contact[:d.ncon] if c.dist <= 0})

@@ -1,0 +1,135 @@
+"""The MuJoCo twin: built from the loaded description, stepped for real."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from clients.execute import ExecuteOptions, Executor
+from clients.robots.mjcf import Gains
+from clients.robots.sim_arduinobot import SimArduinobot
+from clients.segments import SampledTrajectory
+from description import load_description
+
+
+@pytest.fixture(scope="module")
+def desc():
+    return load_description()
+
+
+@pytest.fixture(scope="module")
+def planner(desc):
+    from planner.pipeline import MotionPlanner
+    return MotionPlanner(desc)
+
+
+def plan(planner, name, seed=5, **kw):
+    from planner.goals import NamedGoal
+    from planner.pipeline import MotionRequest
+    return planner.solve(MotionRequest(goal=NamedGoal(name), seed=seed, **kw)).trajectory
+
+
+def test_the_model_is_the_description(desc):
+    sim = SimArduinobot(desc)
+    m = sim.model
+    robot = desc.robot
+    for name in robot.actuated_joints + robot.mimic_joints:
+        j = robot.joints[name]
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        assert tuple(m.jnt_range[jid]) == pytest.approx((j.limit.lower, j.limit.upper))
+    for name, link in robot.links.items():
+        if link.inertial is None or name == "world":
+            continue
+        bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+        assert m.body_mass[bid] == pytest.approx(link.inertial.mass)
+        assert sorted(m.body_inertia[bid]) == pytest.approx(
+            sorted(np.linalg.eigvalsh(link.inertial.tensor())))
+    assert m.ngeom == sum(len(lk.collisions) for lk in robot.links.values())
+    assert int(np.sum(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)) == m.ngeom
+    for i, name in enumerate(robot.actuated_joints):
+        aid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+        eff = robot.joints[name].limit.effort
+        assert tuple(m.actuator_forcerange[aid]) == (-eff, eff)
+        assert sim.gains[i].kp > 0 and sim.gains[i].kv > 0
+    assert m.neq == 1  # joint_5 = -joint_4
+
+
+def test_mimic_follows_and_servos_hold_against_gravity(desc):
+    sim = SimArduinobot(desc)
+    q = np.array([0.4, 0.6, -0.5, -1.0])
+    for k in range(1, 201):  # a slow ramp over 2 s, then 1 s of holding
+        sim.command(q * min(1.0, k / 100))
+        sim.advance(0.01)
+    for _ in range(100):
+        sim.command(q)
+        sim.advance(0.01)
+    st = sim.state()
+    pos = dict(zip(st.names, st.positions))
+    assert [pos[n] for n in ("joint_1", "joint_2", "joint_3", "joint_4")] == pytest.approx(
+        q, abs=1e-3)
+    assert pos["joint_5"] == pytest.approx(-pos["joint_4"], abs=1e-3)
+    assert max(abs(v) for v in st.velocities) < 1e-3
+    assert st.stamp == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("goal", ["reach_left", "reach_forward", "reach_right"])
+def test_a_plan_replays_within_its_limits(desc, planner, goal):
+    traj = plan(planner, goal)
+    body = {"trajectory": traj.to_dict()}
+    sim = SimArduinobot(desc)
+    rep = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False)).execute(
+        SampledTrajectory.from_json(body))
+    st = sim.stats()
+    err = max(rep.max_tracking_error)
+    final = np.abs(rep.measured[-1] - traj.positions[-1]).max()
+    print(f"\n{goal}: {traj.duration:.3f} s, tracking error {1000 * err:.3f} mrad, final "
+          f"{1000 * final:.3f} mrad, peak force {np.round(st.peak_force, 2)} of "
+          f"{st.effort}, saturated {st.saturated_steps}/{st.steps} steps, contacts "
+          f"{st.contacts}")
+    assert err < 2e-3  # rad
+    assert final < 1e-3
+    assert max(f / e for f, e in zip(st.peak_force, st.effort)) < 1.0
+    assert st.saturated_steps == 0
+    assert st.contacts == ()
+
+
+def test_contacts_with_an_obstacle_are_reported(desc, planner):
+    traj = plan(planner, "reach_forward")
+    tip = traj.positions[-1]
+    # a ball where the claw ends up: the plan ignored it, the twin must not
+    from planner.kinematics import Kinematics
+    kin = Kinematics(desc.robot)
+    xyz = kin.link_poses(tip)[kin.link_index["claw_support"]][:3, 3]
+    ball = {"id": "ball", "shape": "sphere", "radius": 0.15, "xyz": [float(v) for v in xyz]}
+    sim = SimArduinobot(desc, obstacles=[ball])
+    Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False)).execute(
+        SampledTrajectory.from_json({"trajectory": traj.to_dict()}))
+    st = sim.stats()
+    assert any("obstacle:ball" in p for p in st.contacts), st.contacts
+    assert st.contact_steps > 0
+
+
+def test_gains_come_from_the_controllers_yaml(desc, tmp_path):
+    y = tmp_path / "arduinobot_controllers.yaml"
+    y.write_text("arm_controller:\n  ros__parameters:\n    joints: [joint_1, joint_2]\n"
+                 "    gains:\n      joint_1: {p: 800.0, d: 12.5, i: 0.0}\n"
+                 "      joint_2: {p: 900.0}\n")
+    sim = SimArduinobot(desc, controllers=y)
+    assert sim.gains[0] == Gains(800.0, 12.5)
+    assert sim.gains[1] == Gains(900.0, 0.0)
+    assert "default" in sim.gain_source["joint_3"]
+    aid = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_ACTUATOR, "joint_1")
+    assert sim.model.actuator_gainprm[aid, 0] == 800.0
+    assert tuple(sim.model.actuator_biasprm[aid, :3]) == (0.0, -800.0, -12.5)
+
+
+def test_default_servo_bandwidth(desc):
+    sim = SimArduinobot(desc, bandwidth=10.0)
+    full = np.zeros((sim.model.nv, sim.model.nv))
+    mujoco.mj_fullM(sim.model, sim.data, full)
+    w = 2 * math.pi * 10.0
+    assert sim.gains[0].kp == pytest.approx(full[0, 0] * w * w)
+    assert sim.gains[0].kv == pytest.approx(2 * full[0, 0] * w)
