@@ -5,8 +5,9 @@ a camera on a fixed joint, a separate MoveIt package with a stale SRDF and defau
 scaling 0.1. Prints, then one JSON line:
 
 1. start-up through a real ``arduinobot serve --moveit-config`` (2 workers): seconds
-   from launch to the first plan answered, cold (empty result cache and an empty numba
-   cache: a fresh machine) and warm (the same caches again);
+   from launch to the first plan answered: fresh (a machine just set up by ``./dev``,
+   whose install step compiled the numba kernels, with an empty result cache), next
+   (the same cache again), and without any compiled kernels (a bare ``pip install``);
 2. with no SRDF at all (the MoveIt package removed), 3 scenes x N seeded problems
    in-process through the whole pipeline (plan, time, verify): success on feasible
    problems, median / p95 ms, and an independent re-check of every trajectory
@@ -140,19 +141,19 @@ def main(n: int = 40) -> None:
     print(f"workspace generated in {time.perf_counter() - t0:.1f} s: {ws.src}")
     serve_args = [str(ws.xacro), "--package-dir", str(ws.src), "--moveit-config",
                   str(ws.moveit_pkg), "--cache-dir", str(tmp / "cache")]
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba")}
-    cold = time_to_first_plan(serve_args, env)
-    warm = time_to_first_plan(serve_args, env)
-    usual = time_to_first_plan(serve_args, dict(os.environ))  # the project's numba cache
-    print(f"start to first plan: cold {cold:.1f} s (fresh machine: empty caches), "
-          f"warm {warm:.1f} s, with this checkout's JIT cache {usual:.1f} s")
-    bare = tmp / "bare" / "src"
-    shutil.copytree(ws.src, bare, ignore=shutil.ignore_patterns("arduinobot_moveit"))
-    d = load_description(bare / ws.xacro.relative_to(ws.src), package_dirs=[bare])
+    cold = time_to_first_plan(serve_args, dict(os.environ))
+    warm = time_to_first_plan(serve_args, dict(os.environ))
+    bare = [*serve_args[:-1], str(tmp / "cache-bare")]
+    no_jit = time_to_first_plan(bare, {**os.environ, "NUMBA_CACHE_DIR": str(tmp / "numba")})
+    print(f"start to first plan: fresh {cold:.1f} s (set up by ./dev, empty result cache), "
+          f"next {warm:.1f} s, with no compiled kernels at all {no_jit:.1f} s")
+    bare_src = tmp / "bare" / "src"
+    shutil.copytree(ws.src, bare_src, ignore=shutil.ignore_patterns("arduinobot_moveit"))
+    d = load_description(bare_src / ws.xacro.relative_to(ws.src), package_dirs=[bare_src])
     if d.srdf is not None:
         raise RuntimeError("the bare workspace still has an SRDF")
     suite = no_srdf_suite(d, n, tmp / "independent")
-    print(json.dumps({"startup_s": {"cold": cold, "warm": warm, "jit_cached": usual},
+    print(json.dumps({"startup_s": {"fresh": cold, "next": warm, "no_compiled_kernels": no_jit},
                       "no_srdf": suite}))
     shutil.rmtree(tmp, ignore_errors=True)
 

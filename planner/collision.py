@@ -23,9 +23,18 @@ from description.meshes import shape_mesh
 
 from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
+from .cache import ArtifactCache
 from .errors import InvalidRequest
 from .kinematics import Kinematics
-from .obbtree import Forest, ObbTree, box_tree, build_tree, pair_candidates, pair_candidates_batch
+from .obbtree import (
+    Forest,
+    ObbTree,
+    box_tree,
+    build_tree,
+    cached_tree,
+    pair_candidates,
+    pair_candidates_batch,
+)
 from .scene import Obstacle, validate_obstacles
 
 _log = logging.getLogger(__name__)
@@ -96,7 +105,9 @@ class RobotBodies:
     points: tuple[tuple[str, np.ndarray], ...]
 
     @classmethod
-    def build(cls, description: Description, kin: Kinematics) -> RobotBodies:
+    def build(cls, description: Description, kin: Kinematics, *,
+              cache: ArtifactCache | None = None) -> RobotBodies:
+        """Build every link's geometry; trees come from ``cache`` when it has them."""
         robot = description.robot
         names, frames, trees, geoms, statics, points = [], [], [], [], [], []
         for link in kin.link_names:
@@ -107,7 +118,7 @@ class RobotBodies:
             mesh = meshes[0] if len(meshes) == 1 else trimesh.util.concatenate(meshes)
             names.append(link)
             frames.append(kin.link_index[link])
-            trees.append(build_tree(mesh.vertices, mesh.faces))
+            trees.append(cached_tree(mesh.vertices, mesh.faces, cache))
             geoms.append(_bvh(mesh))
             statics.append(not any(j.movable for j in robot.link_path(link)))
             points.append((link, np.asarray(mesh.vertices, float)))
@@ -126,11 +137,13 @@ class CollisionWorld:
             the SRDF's disabled pairs (:meth:`AllowedCollisionMatrix.for_description`).
         bodies: the robot's collision geometry from another world of the same
             description (see :meth:`with_scene`); built here if not given.
+        cache: where built OBB trees are kept between runs (by content), if anywhere.
     """
 
     def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
                  padding: float = 0.0, acm: AllowedCollisionMatrix | None = None,
-                 bodies: RobotBodies | None = None) -> None:
+                 bodies: RobotBodies | None = None, cache: ArtifactCache | None = None
+                 ) -> None:
         if not np.isfinite(padding) or padding < 0:
             raise InvalidRequest(f"{padding!r} must be a finite number >= 0 [m]",
                                  field="padding")
@@ -142,7 +155,7 @@ class CollisionWorld:
         self.checks = 0
         robot = description.robot
         if bodies is None:
-            bodies = RobotBodies.build(description, self.kin)
+            bodies = RobotBodies.build(description, self.kin, cache=cache)
         elif bodies.description is not description:
             raise InvalidRequest("bodies were built for another description", field="bodies")
         self.bodies = bodies

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from .cache import ArtifactCache, content_key
+
 
 @dataclass(frozen=True)
 class ObbTree:
@@ -146,6 +148,28 @@ def _build(tri: np.ndarray, cent: np.ndarray, leaf_size: int, center: np.ndarray
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = s, mid, node, 0
         top += 2
     return count
+
+
+#: bump when the tree builder changes: cached trees of an older builder are never read
+TREE_VERSION = "1"
+
+
+def cached_tree(vertices: np.ndarray, faces: np.ndarray, cache: ArtifactCache | None, *,
+                leaf_size: int = 8) -> ObbTree:
+    """:func:`build_tree`, from ``cache`` when the same triangles were built before."""
+    if cache is None:
+        return build_tree(vertices, faces, leaf_size=leaf_size)
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, np.int64)
+    key = content_key([TREE_VERSION, str(leaf_size), v, f])
+    hit = cache.load("obb-tree", key)
+    if hit is not None:
+        return ObbTree(hit["center"], np.ascontiguousarray(hit["axes"]), hit["half"],
+                       hit["left"], hit["right"])
+    tree = build_tree(v, f, leaf_size=leaf_size)
+    cache.store("obb-tree", key, {"center": tree.center, "axes": tree.axes, "half": tree.half,
+                                  "left": tree.left, "right": tree.right})
+    return tree
 
 
 def build_tree(vertices: np.ndarray, faces: np.ndarray, *, leaf_size: int = 8) -> ObbTree:

@@ -111,8 +111,8 @@ class MotionPlanner:
         max_worlds: obstacle sets whose worlds are kept (least recently used dropped).
         clearance_states: states the reported clearance is measured on (FCL distance
             queries cost ~10 ms each here; collision-freedom is checked on every state).
-        cache: keeps what is slow to compute between runs (the pairs proven never to
-            collide of a robot without an SRDF), keyed by content.
+        cache: keeps what is slow to compute between runs (each link's OBB tree; the
+            pairs proven never to collide of a robot without an SRDF), keyed by content.
     """
 
     def __init__(self, description: Description, *, padding: float = 0.0,
@@ -156,7 +156,7 @@ class MotionPlanner:
     def _base_world(self) -> CollisionWorld:
         # The robot-only world is built once; every obstacle set shares its geometry.
         if self._robot_world is None:
-            world = CollisionWorld(self.description, padding=self.padding)
+            world = CollisionWorld(self.description, padding=self.padding, cache=self.cache)
             if self.description.srdf is None:
                 # No SRDF: beyond the joint-connected pairs, skip only pairs proven apart
                 # everywhere in the joint limits (farther than the padding).

@@ -55,8 +55,28 @@ class Handlers:
         self._planner: Any = None
 
     def warm_up(self) -> None:
-        """Build the planner (and its obstacle-free world) now, not on the first request."""
-        self._motion_planner()
+        """Build the planner (and its obstacle-free world) and plan one short motion now,
+        not on the first request: every compiled kernel is loaded (or, on a machine's
+        first start, compiled and cached) before the service says it is ready."""
+        from planner.errors import PlanningError
+        from planner.goals import JointGoal
+        from planner.pipeline import MotionRequest
+
+        mp = self._motion_planner()
+        desc = self.description
+        joints = desc.summary()["groups"][desc.default_group()]
+        if not joints:
+            return
+        name = joints[0]
+        lo, hi = desc.robot.position_limits((name,))[0]
+        step = 0.05 if hi >= 0.05 else -0.05
+        if not lo <= step <= hi:
+            return
+        try:
+            mp.solve(MotionRequest(goal=JointGoal({name: step}), group="all", seed=0))
+        except PlanningError as e:
+            # e.g. the robot collides at all zeros: nothing to warm with, not a failure
+            _log.info("warm-up motion not planned (%s: %s)", e.code, e.message)
 
     def _motion_planner(self) -> Any:
         if self._planner is None:

@@ -86,7 +86,9 @@ class WorkerPool:
         self._ctx = mp.get_context(start_method)
         if start_method == "forkserver":
             # Children fork from a server that already imported the planner.
-            self._ctx.set_forkserver_preload(["service.worker"])
+            # the planner's imports (trimesh, toppra, OMPL: ~2 s) are paid once, in the
+            # forkserver, not again by every worker it forks
+            self._ctx.set_forkserver_preload(["service.worker", "planner.pipeline"])
         # Unbounded: capacity counts waiting jobs, so one that timed out in the queue
         # frees its place at once rather than when a worker dequeues it.
         self._queue: queue.Queue[Job | None] = queue.Queue()

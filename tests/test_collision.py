@@ -66,3 +66,22 @@ def test_clearance_and_padding(d):
     assert not padded.is_valid(np.zeros(4))
     with pytest.raises(InvalidRequest):
         CollisionWorld(d, padding=-1)
+
+
+def test_link_trees_are_cached_by_content(tmp_path):
+    import numpy as np
+
+    from description import load_description
+    from planner.collision import CollisionWorld
+    from service.disk_cache import DiskCache
+    d = load_description()
+    first = CollisionWorld(d, cache=DiskCache(tmp_path))
+    files = sorted((tmp_path / "obb-tree").glob("*.npz"))
+    assert len(files) == len(first.link_bodies)
+    again = CollisionWorld(d, cache=DiskCache(tmp_path))
+    for a, b in zip(first.bodies.trees, again.bodies.trees):
+        for k in ("center", "axes", "half", "left", "right"):
+            assert np.array_equal(getattr(a, k), getattr(b, k))
+    assert sorted((tmp_path / "obb-tree").glob("*.npz")) == files
+    q = np.array([0.3, 0.5, -0.2, -0.4])
+    assert again.check(q) == first.check(q)

@@ -1,0 +1,28 @@
+"""``python -m service.warmup``: compile and cache every numerical kernel once.
+
+numba compiles the planner's kernels the first time they run and keeps them on disk;
+``./dev setup`` runs this after installing, so a fresh machine's first ``arduinobot
+serve`` loads them instead of spending ~30 s compiling.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+
+def main() -> int:
+    t0 = time.perf_counter()
+    from description import load_description
+    from planner.planning import set_ompl_log_level
+
+    from .handlers import Handlers
+    set_ompl_log_level("none")
+    Handlers(load_description()).warm_up()
+    print(f"arduinobot: numerical kernels compiled and cached in {time.perf_counter() - t0:.1f} s",
+          file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
