@@ -89,6 +89,9 @@ class WorkerPool:
             # the planner's imports (trimesh, toppra, OMPL: ~2 s) are paid once, in the
             # forkserver, not again by every worker it forks
             self._ctx.set_forkserver_preload(["service.worker", "planner.pipeline"])
+            # start it now: its imports run while the caller loads the description
+            from multiprocessing import forkserver
+            forkserver.ensure_running()
         # Unbounded: capacity counts waiting jobs, so one that timed out in the queue
         # frees its place at once rather than when a worker dequeues it.
         self._queue: queue.Queue[Job | None] = queue.Queue()

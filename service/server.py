@@ -139,14 +139,15 @@ class PlannerService:
 
     def start(self) -> None:
         o = self.options
+        qsize = o.queue_size if o.queue_size is not None else 4 * o.workers
+        # the pool's forkserver imports the planner meanwhile; no worker starts yet
+        self.pool = WorkerPool(o.description, workers=o.workers, queue_size=qsize,
+                               start_method=o.start_method)
         desc = o.description.load()  # fails here, clearly, before any worker starts
         self._static["description"] = wire.encode(description_body(desc))
         self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas(),
                                               "robot": desc.summary()})
         self._config = desc.config.to_json()
-        qsize = o.queue_size if o.queue_size is not None else 4 * o.workers
-        self.pool = WorkerPool(o.description, workers=o.workers, queue_size=qsize,
-                               start_method=o.start_method)
         self.pool.start()
         try:
             cfg = zenoh_config(mode=o.mode, listen=o.listen, connect=o.connect,
