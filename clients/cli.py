@@ -6,12 +6,12 @@ import argparse
 import logging
 import sys
 
-from . import cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
+from . import cmd_execute, cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
 
 # Commands that run OMPL, whose own console log follows -v (quiet by default).
-_PLANNING_COMMANDS = {"plan", "serve", "srdf", "view", "ik"}
-_COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state]
+_PLANNING_COMMANDS = {"plan", "serve", "srdf", "view", "ik", "execute"}
+_COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_execute]
 
 
 def build_parser() -> argparse.ArgumentParser:

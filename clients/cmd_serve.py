@@ -61,6 +61,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "else ~/.cache/arduinobot)")
     p.add_argument("--no-cache", action="store_true",
                    help="keep nothing between starts (recompute at every start)")
+    from .cmd_execute import add_serve_args
+    add_serve_args(p)
     p.set_defaults(func=cmd_serve)
 
 
@@ -68,6 +70,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     from service.server import PlannerService, ServeOptions
     from service.worker import DescriptionSpec
     from service.zconfig import DEFAULT_ENDPOINT
+
+    from .cmd_execute import robot_spec
 
     if ns.file and ns.description_path:
         print("arduinobot: error: give the model as FILE or --description, not both",
@@ -86,7 +90,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     opts = ServeOptions(prefix=ns.prefix, mode=ns.mode or ("peer" if not ns.config else None),
                         listen=listen, connect=ns.connect, config_file=ns.config,
                         multicast_scouting=ns.multicast_scouting, description=spec,
-                        workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout)
+                        workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout,
+                        robot=robot_spec(ns))
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -97,7 +102,9 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         import zenoh
 
         from service.pool import PoolStartError
-        if isinstance(e, (PoolStartError, zenoh.ZError)):
+
+        from .robots import RobotError
+        if isinstance(e, (PoolStartError, zenoh.ZError, RobotError)):
             print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
             return EXIT_FAIL
         raise

@@ -11,12 +11,10 @@ only) no wall clock paces the ticks.
   first point (:class:`NotAtStart` otherwise); ``move_to_start`` first plays a
   jerk-limited ruckig move there (a straight line in joint space, not collision-checked).
 - Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
-  the next tick to ruckig's time-optimal jerk-limited stop from the commanded state,
-  within the robot's full velocity, acceleration and jerk limits and, given the inverse
-  dynamics, within 95% of the effort limits (acceleration and jerk scaled down until
-  the stop's torques fit; never below the acceleration the arm already has). The stop
-  leaves the planned path (each joint brakes on its own line): it is short, not
-  collision-checked.
+  the next tick to a jerk-limited stop within every limit (:meth:`Executor.choose_stop`):
+  preferably braking along the planned path (so the arm stays on the collision-checked
+  path), else ruckig's per-joint stop from the commanded state when it stays within the
+  position limits, else the rest of the motion (which ends at rest).
 - Every tick goes to ``on_tick`` (e.g. the ``<prefix>/joint_states`` publisher).
 """
 
@@ -36,15 +34,24 @@ from description import Description
 from planner.limits import JointLimits
 
 from .robots.base import JointState, Robot, RobotError
-from .segments import RuckigSegment, SampledTrajectory, Segment, move_segment, stop_segment
+from .segments import (
+    PathStop,
+    RestOf,
+    RuckigSegment,
+    SampledTrajectory,
+    Segment,
+    move_segment,
+    stop_segment,
+)
 
 # Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
 TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 log = logging.getLogger(__name__)
 
-Phase = Literal["move_to_start", "trajectory", "stop"]
+Phase = Literal["move_to_start", "trajectory", "stop", "settle"]
 Outcome = Literal["completed", "cancelled"]
+StopKind = Literal["path", "joint", "finish"]
 
 
 class NotAtStart(RobotError):
@@ -69,6 +76,9 @@ class ExecuteOptions:
         move_to_start: move there first (jerk-limited) instead of refusing.
         move_scaling: velocity, acceleration and jerk scaling of that move, in (0, 1].
         realtime: pace ticks by the wall clock (hardware always is).
+        settle: after the last setpoint, hold it for up to this long [s] while any
+            joint still moves faster than ``settle_velocity`` [rad/s] (a servo's lag),
+            so the last state reported is at rest.
     """
 
     rate: float = 100.0
@@ -76,6 +86,8 @@ class ExecuteOptions:
     move_to_start: bool = False
     move_scaling: float = 0.5
     realtime: bool = True
+    settle: float = 0.5
+    settle_velocity: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -145,6 +157,15 @@ class ExecutionReport:
                 "final_positions": [float(v) for v in self.measured[-1]]}
 
 
+def plan_start(robot: Robot, description: Description) -> dict[str, float]:
+    """The robot's state as a plan request's ``start`` [rad]: measured positions clipped to
+    the position limits (a servo resting on a limit reads a hair beyond it)."""
+    names = robot.joint_names
+    q = robot.state().actuated(names)
+    lim = description.robot.position_limits(tuple(names))
+    return dict(zip(names, map(float, np.clip(q, lim[:, 0], lim[:, 1]))))
+
+
 class _Clock:
     """Seconds since ``start``: the wall clock (``realtime``) or a virtual one."""
 
@@ -191,6 +212,7 @@ class Executor:
             raise RobotError("hardware runs in real time only (drop --fast)")
         self.robot, self.limits, self.options, self.on_tick = robot, limits, options, on_tick
         self.torques = torques
+        self.last_stop: StopKind | None = None
         self._lock = threading.Lock()
 
     @classmethod
@@ -202,6 +224,58 @@ class Executor:
         lim = JointLimits.from_description(description, joint_names=robot.joint_names)
         dyn = InverseDynamics(description.robot, robot.joint_names)
         return cls(robot, lim, torques=dyn.torques_batch, options=options, on_tick=on_tick)
+
+    def choose_stop(self, seg: Segment, s: float,
+                    cur: tuple[np.ndarray, np.ndarray, np.ndarray]
+                    ) -> tuple[StopKind, Segment]:
+        """How to stop ``seg`` played up to its time ``s`` [s], at commanded ``cur``.
+
+        1. ``path``: brake along the segment's own path (it stays on the collision-checked
+           path), the hardest braking tried (path-time deceleration 8, 5.6, 3.9, ...
+           [1/s^2]) whose motion keeps every velocity, acceleration, jerk and effort limit
+           (checked on 1 ms samples).
+        2. ``finish``: when braking on the path needs more path than is left, the rest of
+           the segment is the stop (it ends at rest, within every limit).
+        3. ``joint``: ruckig's per-joint time-optimal stop (effort-safe), if it stays within
+           the position limits.
+        4. ``finish`` otherwise.
+        """
+        lim = self.limits
+        dec = 8.0
+        for _ in range(10):
+            ps = PathStop(seg, s, dec, dec / 0.05)
+            if ps.passes_end:
+                return "finish", RestOf(seg, s)
+            if self.within_limits(ps):
+                return "path", ps
+            dec *= 0.7
+        q, qd, qdd = cur
+        js = self.effort_safe(lambda f: stop_segment(
+            self.robot.joint_names, q, qd, qdd, velocity=lim.velocity,
+            acceleration=np.maximum(f * lim.acceleration, np.abs(qdd)), jerk=f * lim.jerk))
+        lo, hi = js.position_extrema()
+        if np.all(lo >= lim.lower - 1e-9) and np.all(hi <= lim.upper + 1e-9):
+            return "joint", js
+        log.warning("no stop within the limits leaves the path early: finishing the motion")
+        return "finish", RestOf(seg, s)
+
+    def within_limits(self, seg: Segment, *, step: float = 1e-3) -> bool:
+        """Whether ``seg`` keeps positions, velocities, accelerations, jerks (finite
+        differences) and, given the inverse dynamics, efforts within the limits on
+        ``step`` [s] samples."""
+        lim = self.limits
+        ts = np.linspace(0.0, seg.duration, max(3, int(math.ceil(seg.duration / step)) + 1))
+        q, qd, qdd = (np.array(x) for x in zip(*(seg.evaluate(t) for t in ts)))
+        h = ts[1] - ts[0]
+        tol = 1 + 1e-6
+        ok = bool(np.all(q >= lim.lower - 1e-9) and np.all(q <= lim.upper + 1e-9)
+                  and np.all(np.abs(qd) <= lim.velocity * tol)
+                  and np.all(np.abs(qdd) <= lim.acceleration * tol)
+                  and np.all(np.abs(np.diff(qdd, axis=0)) <= lim.jerk * h * tol))
+        if ok and self.torques is not None:
+            ok = bool(np.all(np.abs(np.asarray(self.torques(q, qd, qdd)))
+                             <= lim.effort * tol))
+        return ok
 
     def effort_safe(self, make: Callable[[float], RuckigSegment]) -> RuckigSegment:
         """``make(scale)`` with the largest scale in (0, 1] (tried as 1, 0.8, 0.64, ...)
@@ -285,6 +359,7 @@ class Executor:
         cur = traj.evaluate(0.0)
         cancelled_at: float | None = None
         stop_time: float | None = None
+        last: tuple[Segment, float] = (plan[0][1], 0.0)
         try:
             for phase, seg in plan:
                 n = int(math.ceil(seg.duration * o.rate - 1e-9))
@@ -297,22 +372,17 @@ class Executor:
                     jerk = (seg.evaluate(t + dt)[2] - cur[2]) / dt
                     prog_t = t if phase == "trajectory" else 0.0
                     self._tick(k, clock, dt, phase, prog_t, traj.duration, cur, jerk, rec)
+                    last = (seg, t)
                     k += 1
                 if cancel.is_set():
                     cancelled_at = rec.traj_time
                     break
             if cancelled_at is not None:
-                at = cur
-                stop = self.effort_safe(lambda f: stop_segment(
-                    names, *at, velocity=lim.velocity,
-                    acceleration=np.maximum(f * lim.acceleration, np.abs(at[2])),
-                    jerk=f * lim.jerk))
-                lo, hi = stop.position_extrema()
-                if np.any(lo < lim.lower - 1e-9) or np.any(hi > lim.upper + 1e-9):
-                    log.warning("the stop overshoots a position limit; the robot clamps it")
+                how, stop = self.choose_stop(*last, cur)
                 stop_time = stop.duration
-                log.info("cancelled at %.3f s of the trajectory: stopping in %.3f s",
-                         cancelled_at, stop_time)
+                self.last_stop = how
+                log.info("cancelled at %.3f s of the trajectory: stopping (%s) in %.3f s",
+                         cancelled_at, how, stop_time)
                 n = int(math.ceil(stop.duration * o.rate - 1e-9))
                 for i in range(1, n + 1):
                     t = min(i * dt, stop.duration)
@@ -321,6 +391,14 @@ class Executor:
                     self._tick(k, clock, dt, "stop", cancelled_at, traj.duration, cur, jerk,
                                rec)
                     k += 1
+            held = (cur[0], np.zeros_like(cur[0]), np.zeros_like(cur[0]))
+            for _ in range(int(round(o.settle * o.rate))):
+                v = np.abs(rec.rows[-1][6]) if rec.rows else np.zeros(1)
+                if np.all(v < o.settle_velocity):
+                    break
+                self._tick(k, clock, dt, "settle", rec.traj_time, traj.duration, held,
+                           held[2], rec)
+                k += 1
         except BaseException:
             # the driver failed or we are interrupted mid-motion: hold the last setpoint
             log.exception("execution aborted at tick %d", k)

@@ -235,3 +235,66 @@ def move_segment(joint_names: Sequence[str], start: np.ndarray, goal: np.ndarray
 
 def finite_or_none(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
+
+
+class PathStop:
+    """Braking along a segment's own path: the segment's time ``s`` slows from speed 1 to
+    0 with a jerk-limited ruckig profile, ``q(t) = Q(s(t))``. The positions stay on the
+    planned (collision-checked, within-limits) path and never pass its end.
+
+    Joint velocity ``Q' s'``, acceleration ``Q'' s'^2 + Q' s''``.
+    """
+
+    def __init__(self, segment: Segment, s0: float, deceleration: float, jerk: float
+                 ) -> None:
+        self.segment, self.s0 = segment, float(s0)
+        self.joint_names = segment.joint_names
+        inp = InputParameter(1)
+        inp.control_interface = ControlInterface.Velocity
+        inp.current_position = [self.s0]
+        inp.current_velocity = [1.0]
+        inp.current_acceleration = [0.0]
+        inp.target_velocity = [0.0]
+        inp.target_acceleration = [0.0]
+        inp.max_velocity = [1.0 + 1e-9]
+        inp.max_acceleration = [float(deceleration)]
+        inp.max_jerk = [float(jerk)]
+        self.profile = _calculate(inp, 1, "stop along the path")
+        self.s_end = float(self.profile.position_extrema[0].max)
+
+    @property
+    def duration(self) -> float:
+        return float(self.profile.duration)
+
+    @property
+    def passes_end(self) -> bool:
+        """True if braking would need more path than is left."""
+        return self.s_end > self.segment.duration
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        p, v, a = self.profile.at_time(min(max(float(t), 0.0), self.duration))
+        s, sd, sdd = float(p[0]), float(v[0]), float(a[0])
+        if t >= self.duration:
+            sd = sdd = 0.0
+        q, q1, q2 = self.segment.evaluate(s)
+        return q, q1 * sd, q2 * sd * sd + q1 * sdd
+
+
+def remainder(segment: Segment, s0: float) -> RestOf:
+    """The rest of ``segment`` from its time ``s0`` (it ends at rest)."""
+    return RestOf(segment, s0)
+
+
+class RestOf:
+    """``segment`` from its time ``s0`` on, re-timed from 0."""
+
+    def __init__(self, segment: Segment, s0: float) -> None:
+        self.segment, self.s0 = segment, float(s0)
+        self.joint_names = segment.joint_names
+
+    @property
+    def duration(self) -> float:
+        return max(0.0, self.segment.duration - self.s0)
+
+    def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.segment.evaluate(self.s0 + min(max(float(t), 0.0), self.duration))

@@ -28,6 +28,7 @@ import zenoh
 from planner.errors import PlanningError
 
 from . import wire
+from .execute import ExecuteService, RobotSpec
 from .pool import Job, Outcome, WorkerPool
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
@@ -61,6 +62,7 @@ class ServeOptions:
     queue_size: int | None = None
     timeout: float = 30.0
     start_method: str = "forkserver"
+    robot: RobotSpec = field(default_factory=RobotSpec)  # what <prefix>/execute drives
 
 
 def _package_version() -> str:
@@ -131,6 +133,7 @@ class PlannerService:
         self._started = time.monotonic()
         self._static: dict[str, bytes] = {}
         self._config: dict[str, str | None] = {}
+        self._execute: ExecuteService | None = None
 
     @property
     def keys(self) -> list[str]:
@@ -162,6 +165,9 @@ class PlannerService:
                         key, self._callback(kind, key), complete=True))
             self._entities.append(
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
+            self._execute = ExecuteService(self.session, p, desc, o.robot,
+                                           submit_plan=self._submit_plan)
+            self._execute.start()
         except Exception:
             self.close()
             raise
@@ -174,6 +180,9 @@ class PlannerService:
     def close(self) -> None:
         """Stop taking queries, answer those in flight (INTERNAL past a short grace), then
         close the session."""
+        if self._execute is not None:  # stops a moving arm smoothly first
+            self._execute.close()
+            self._execute = None
         for e in reversed(self._entities):
             try:
                 e.undeclare()
@@ -241,6 +250,12 @@ class PlannerService:
             query.drop()  # the reply is final: let the querier's get finish now
 
         self.pool.submit(Job(kind, data, request_id, time.monotonic() + budget, respond))
+
+    def _submit_plan(self, data: dict[str, Any], respond: Any) -> None:
+        """A plan job for ``<prefix>/execute``'s own planning, through the same pool."""
+        budget = self.options.timeout + float(data.get("planning_time", 1.0))
+        self.pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
+                             time.monotonic() + budget, respond))
 
     def _count_refusal(self, code: str) -> None:
         if self.pool is not None:

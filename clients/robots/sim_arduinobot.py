@@ -164,8 +164,8 @@ class SimArduinobot(Robot):
                 n.startswith("obstacle:") for n in p)]
             if not touching:
                 break
-            log.warning("MuJoCo (convex hulls) sees %s touching in the initial pose; their "
-                        "contacts are ignored", ", ".join(f"{a}/{b}" for a, b in touching))
+            log.info("MuJoCo (convex hulls) sees %s touching in the initial pose; their "
+                     "contacts are ignored", ", ".join(f"{a}/{b}" for a, b in touching))
             self.hull_excluded += tuple(touching)
             excluded = [*excluded, *touching]
         m = self.model

@@ -1,0 +1,336 @@
+"""`arduinobot execute`: run a trajectory on the real arm (serial), the MuJoCo twin, or
+the service's robot (--remote), streaming it at the controller rate."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import queue
+import signal
+import sys
+import threading
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, model_options
+
+EXIT_CANCELLED = 130
+log = logging.getLogger(__name__)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "execute", help="run a trajectory on the arm (serial), its MuJoCo twin, or the "
+        "service's robot",
+        description="Stream a trajectory to a robot at the controller rate (100 Hz by "
+        "default), publishing <prefix>/joint_states while it moves. TRAJ.json is what "
+        "`plan --json` writes; --named/--request plan first (through the service, or "
+        "--local), starting from the robot's current state. The robot must be where the "
+        "trajectory begins (--start-tolerance), or --move-to-start moves it there first "
+        "(jerk-limited, a straight line in joint space, not collision-checked). Ctrl-C "
+        "stops the arm smoothly (jerk-limited, within its limits) and exits 130.",
+        epilog="examples:\n  arduinobot plan --named reach_left --json traj.json\n"
+        "  arduinobot execute traj.json --serial /dev/ttyACM0\n"
+        "  arduinobot execute traj.json --sim --fast --no-publish\n"
+        "  arduinobot execute --named home --sim --local\n"
+        "  arduinobot execute --named reach_left --remote    # on `serve`'s robot",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("trajectory", nargs="?", metavar="TRAJ.json",
+                   help="a plan reply (plan --json) or a {joint_names, points} trajectory")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--named", metavar="NAME", help="plan to a named SRDF state first")
+    src.add_argument("--request", metavar="REQ.json", help="plan this v1 request first "
+                     "(without a start, from the robot's state)")
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--serial", nargs="?", const="", metavar="PORT",
+                       help="the real arm on PORT (default: the URDF's ros2_control "
+                       "<hardware> 'port' param)")
+    where.add_argument("--sim", action="store_true", help="the MuJoCo twin (needs mujoco)")
+    where.add_argument("--remote", action="store_true",
+                       help="the service's robot (<prefix>/execute; `serve --serial` or its "
+                       "twin); a lost client stops the arm")
+    r = p.add_argument_group("robot")
+    r.add_argument("--baud", type=int, default=None, help="serial baud rate (default "
+                   "115200, or the URDF's baud_rate param)")
+    r.add_argument("--rate", type=float, default=100.0, metavar="HZ",
+                   help="control rate (default 100)")
+    r.add_argument("--boot-wait", type=float, default=2.0, metavar="S",
+                   help="seconds to wait after opening the port: an Arduino resets when "
+                   "the port opens (default 2)")
+    pace = r.add_mutually_exclusive_group()
+    pace.add_argument("--realtime", dest="realtime", action="store_true", default=True,
+                      help="pace the twin in real time (default)")
+    pace.add_argument("--fast", dest="realtime", action="store_false",
+                      help="run the twin as fast as it computes (--sim only)")
+    r.add_argument("--start-tolerance", type=float, default=0.01, metavar="RAD",
+                   help="largest allowed distance of each joint from the trajectory's "
+                   "start (default 0.01 rad)")
+    r.add_argument("--move-to-start", action="store_true",
+                   help="move to the trajectory's start first instead of refusing")
+    r.add_argument("--no-publish", action="store_true",
+                   help="do not publish <prefix>/joint_states")
+    r.add_argument("--report", metavar="OUT.json", help="write the execution report")
+    g = p.add_argument_group("service (planning, joint_states, --remote)")
+    g.add_argument("--connect", action="append", metavar="ENDPOINT",
+                   help="the service's (or a router's) zenoh endpoint (default "
+                   "tcp/127.0.0.1:7447)")
+    g.add_argument("--prefix", default="arduinobot", help="the service's key prefix")
+    g.add_argument("--timeout", type=float, default=60.0, metavar="S",
+                   help="seconds to wait for a plan")
+    g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the session")
+    g.add_argument("--local", action="store_true",
+                   help="plan in this process, not through the service")
+    p.add_argument("--description", metavar="PATH", dest="description_path",
+                   help="the robot's URDF/xacro (default: the shipped arduinobot)")
+    add_model_args(p, file_arg=False)
+    p.set_defaults(func=_guarded)
+
+
+def add_serve_args(p: argparse.ArgumentParser) -> None:
+    """``serve``'s robot options: what ``<prefix>/execute`` drives."""
+    g = p.add_argument_group("robot (<prefix>/execute)")
+    w = g.add_mutually_exclusive_group()
+    w.add_argument("--serial", nargs="?", const="", metavar="PORT",
+                   help="drive the real arm on PORT (default: the URDF's ros2_control "
+                   "port); default: the MuJoCo twin, built on first use")
+    w.add_argument("--no-robot", action="store_true", help="serve no <prefix>/execute robot")
+    g.add_argument("--baud", type=int, default=None, help="serial baud rate (default 115200)")
+    g.add_argument("--rate", type=float, default=100.0, metavar="HZ",
+                   help="control rate (default 100)")
+    g.add_argument("--boot-wait", type=float, default=2.0, metavar="S",
+                   help="seconds to wait after opening the port (the Arduino resets)")
+
+
+def robot_spec(ns: argparse.Namespace) -> Any:
+    """The :class:`service.execute.RobotSpec` of ``serve``'s robot options."""
+    from service.execute import RobotSpec
+    if getattr(ns, "no_robot", False):
+        return RobotSpec(kind="none")
+    if getattr(ns, "serial", None) is not None:
+        return RobotSpec(kind="serial", port=ns.serial or None, baud=ns.baud, rate=ns.rate,
+                         boot_wait=ns.boot_wait)
+    return RobotSpec(kind="sim", rate=ns.rate)
+
+
+def _guarded(ns: argparse.Namespace) -> int:
+    from planner.errors import PlanningError
+
+    from .errors import ServiceError, ServiceUnavailable
+    from .robots import RobotError
+    try:
+        return cmd_execute(ns)
+    except ServiceUnavailable as e:
+        print(f"arduinobot: service unavailable ({e.reason}): {e.message}", file=sys.stderr)
+        return 3
+    except (ServiceError, PlanningError, RobotError) as e:
+        print(f"arduinobot: {e.code}: {e.message}", file=sys.stderr)
+        details = {k: v for k, v in e.details.items() if k != "request_id"}
+        if details:
+            print(f"  details: {json.dumps(details, default=str)[:2000]}", file=sys.stderr)
+        return EXIT_FAIL
+
+
+def _endpoints(ns: argparse.Namespace) -> list[str]:
+    return ns.connect or ["tcp/127.0.0.1:7447"]
+
+
+def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
+    if ns.trajectory and (ns.named or ns.request):
+        raise SystemExit("arduinobot: error: give TRAJ.json or --named/--request, not both")
+    if ns.named:
+        return {"goal": {"named": ns.named}}
+    if ns.request:
+        req = json.loads(Path(ns.request).read_text("utf-8"))
+        if not isinstance(req, dict):
+            raise SystemExit(f"arduinobot: error: {ns.request} must hold a JSON object")
+        return req
+    if not ns.trajectory:
+        raise SystemExit("arduinobot: error: give TRAJ.json, --named or --request")
+    return None
+
+
+def cmd_execute(ns: argparse.Namespace) -> int:
+    req = _plan_request(ns)
+    if ns.remote:
+        return _remote(ns, req)
+    from description import load_description
+
+    from .execute import ExecuteOptions, Executor, plan_start
+    from .segments import SampledTrajectory
+    desc = load_description(ns.description_path, **model_options(ns))  # type: ignore[arg-type]
+    obstacles = (req or {}).get("obstacles", [])
+    if ns.sim:
+        from .robots.sim_arduinobot import SimArduinobot
+        robot: Any = SimArduinobot(desc, obstacles=obstacles)
+    else:
+        if not ns.realtime:
+            raise SystemExit("arduinobot: error: --fast is for --sim: hardware runs in "
+                             "real time")
+        from .robots.serial_arduinobot import SerialArduinobot
+        robot = SerialArduinobot.from_description(desc, ns.serial or None, baud=ns.baud,
+                                                  rate=ns.rate, boot_wait=ns.boot_wait)
+    session = None
+    try:
+        if req is not None:
+            if "start" not in req:  # plan from where the robot is
+                req["start"] = plan_start(robot, desc)
+            traj = SampledTrajectory.from_json(_plan(ns, desc, req))
+        else:
+            traj = SampledTrajectory.load(ns.trajectory)
+        publish = None
+        if not ns.no_publish:
+            session, publish = _publisher(ns)
+        cancel = threading.Event()
+        opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
+                              move_to_start=ns.move_to_start, realtime=ns.realtime)
+        ex = Executor.for_description(robot, desc, options=opts, on_tick=publish)
+        ex.check_start(traj)
+        print(f"executing {traj.duration:.3f} s on {'the MuJoCo twin' if ns.sim else robot.port}"
+              f" at {ns.rate:g} Hz (Ctrl-C stops smoothly)", file=sys.stderr)
+        with _sigint_sets(cancel):
+            report = ex.execute(traj, cancel=cancel)
+        summary = report.to_dict()
+        if ns.sim:
+            summary["simulation"] = robot.stats().to_dict()
+        _print_report(summary)
+        if ns.report:
+            Path(ns.report).write_text(json.dumps(summary, indent=1))
+        return EXIT_OK if report.outcome == "completed" else EXIT_CANCELLED
+    finally:
+        robot.close()
+        if session is not None:
+            session.close()
+
+
+def _plan(ns: argparse.Namespace, desc: Any, req: dict[str, Any]) -> dict[str, Any]:
+    if ns.local:
+        from service import wire
+        from service.handlers import Handlers
+        return Handlers(desc).handle("plan", wire.decode("plan", wire.encode(req)))
+    from .client import PlannerClient
+    with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
+                       config_file=ns.config) as c:
+        return c.request("plan", req, timeout=ns.timeout + float(req.get("planning_time", 1)))
+
+
+def _publisher(ns: argparse.Namespace) -> tuple[Any, Any]:
+    """A session and a joint_states publisher, or (None, None) with a warning when no
+    zenoh peer is reachable."""
+    import zenoh
+
+    from service.zconfig import zenoh_config
+
+    from .joint_states import JointStatePublisher
+    try:
+        s = zenoh.open(zenoh_config(mode="client", connect=_endpoints(ns), listen=[],
+                                    config_file=ns.config))
+    except zenoh.ZError as e:
+        log.warning("not publishing %s/joint_states: no zenoh service or router reachable "
+                    "at %s (%s); --no-publish silences this", ns.prefix,
+                    ", ".join(_endpoints(ns)), e)
+        return None, None
+    return s, JointStatePublisher(s, ns.prefix)
+
+
+class _sigint_sets:
+    """While active, Ctrl-C (and SIGTERM) set ``event`` instead of raising."""
+
+    def __init__(self, event: threading.Event) -> None:
+        self.event = event
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> _sigint_sets:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            self._old[sig] = signal.signal(sig, lambda *_: self.event.set())
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, h in self._old.items():
+            signal.signal(sig, h)
+
+
+def _print_report(r: dict[str, Any]) -> None:
+    pk = r["peak_ratio"]
+    lines = [f"{r['outcome']}: {r['duration']:.3f} s, {r['ticks']} ticks ({r['late_ticks']} "
+             f"late, max lateness {1000 * r['max_lateness']:.1f} ms)"]
+    if r.get("cancelled_at") is not None:
+        lines.append(f"cancelled at {r['cancelled_at']:.3f} s of "
+                     f"{r['trajectory_duration']:.3f} s; stopped in {r['stop_time']:.3f} s")
+    lines.append("commanded peaks vs limits: " + ", ".join(
+        f"{k} {100 * v:.0f}%" for k, v in pk.items()))
+    lines.append("tracking error (max per joint): " + ", ".join(
+        f"{n} {1000 * e:.2f} mrad" for n, e in zip(r["joint_names"], r["max_tracking_error"])))
+    sim = r.get("simulation")
+    if sim:
+        lines.append("peak actuator force vs limit: " + ", ".join(
+            f"{n} {f:.2f}/{e:.0f} N m" for n, f, e in zip(r["joint_names"], sim["peak_force"],
+                                                          sim["effort"])))
+        lines.append(f"saturated steps {sim['saturated_steps']}/{sim['steps']}; contacts: "
+                     + (", ".join("/".join(p) for p in sim["contacts"]) or "none"))
+    print("\n".join(lines))
+
+
+def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
+    """Execute on the service's robot: stream its replies; Ctrl-C sends a cancel; our
+    liveliness token tells the service we are still here."""
+    import zenoh
+
+    from .client import PlannerClient
+    from .errors import ServiceUnavailable, error_from_reply
+    body: dict[str, Any] = {"start_tolerance": ns.start_tolerance,
+                            "move_to_start": ns.move_to_start}
+    if req is not None:
+        body["plan"] = req
+    else:
+        body["trajectory"] = json.loads(Path(ns.trajectory).read_text("utf-8"))
+    client_id = uuid.uuid4().hex
+    body["client"] = client_id
+    cancel = threading.Event()
+    with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
+                       config_file=ns.config) as c:
+        s = c.session
+        token = s.liveliness().declare_token(f"{ns.prefix}/execute/client/{client_id}")
+        replies: queue.Queue[Any] = queue.Queue()
+        s.get(f"{ns.prefix}/execute",
+              zenoh.handlers.Callback(replies.put, lambda: replies.put(None)),
+              payload=json.dumps(body), encoding="application/json",
+              consolidation=zenoh.ConsolidationMode.NONE, timeout=ns.timeout + 3600.0)
+        execution = None
+        sent_cancel = False
+        with _sigint_sets(cancel):
+            while True:
+                if cancel.is_set() and execution and not sent_cancel:
+                    print("cancelling: stopping smoothly", file=sys.stderr)
+                    list(s.get(f"{ns.prefix}/execute/cancel",
+                               payload=json.dumps({"execution": execution}), timeout=5.0))
+                    sent_cancel = True
+                try:
+                    rep = replies.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+                if rep is None:
+                    raise ServiceUnavailable("the service ended the execution without a "
+                                             "report", reason="no_route")
+                if rep.ok is None:
+                    text = rep.err.payload.to_bytes().decode("utf-8", "replace")
+                    try:
+                        raise error_from_reply(json.loads(text))
+                    except json.JSONDecodeError:
+                        raise ServiceUnavailable(f"execute: {text}",
+                                                 reason="zenoh_error") from None
+                msg = json.loads(rep.ok.payload.to_bytes())
+                if msg.get("event") == "started":
+                    execution = msg["execution"]
+                    print(f"executing {execution}: {msg['duration']:.3f} s on the service's "
+                          "robot (Ctrl-C stops smoothly)", file=sys.stderr)
+                elif msg.get("event") == "finished":
+                    report = msg["report"]
+                    _print_report(report)
+                    if ns.report:
+                        Path(ns.report).write_text(json.dumps(report, indent=1))
+                    token.undeclare()
+                    return EXIT_OK if report["outcome"] == "completed" else EXIT_CANCELLED
+                time.sleep(0)

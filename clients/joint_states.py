@@ -1,0 +1,40 @@
+"""``<prefix>/joint_states`` over Zenoh: sensor_msgs/JointState-shaped JSON.
+
+Payload: ``{"stamp": s, "name": [...], "position": [rad], "velocity": [rad/s],
+"effort": [N m] | null, "phase": "move_to_start" | "trajectory" | "stop",
+"progress": 0..1}`` — the actuated joints then the mimic joints.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from typing import Any
+
+from .execute import Tick
+
+log = logging.getLogger(__name__)
+
+JSON = "application/json"
+
+
+def joint_states_key(prefix: str) -> str:
+    return f"{prefix}/joint_states"
+
+
+def tick_message(tick: Tick) -> dict[str, Any]:
+    return {**tick.state.to_dict(), "phase": tick.phase, "progress": tick.progress}
+
+
+class JointStatePublisher:
+    """Publishes each tick's state on ``<prefix>/joint_states`` through ``session``."""
+
+    def __init__(self, session: Any, prefix: str) -> None:
+        self.key = joint_states_key(prefix)
+        self._pub = session.declare_publisher(self.key, encoding=JSON)
+
+    def __call__(self, tick: Tick) -> None:
+        self._pub.put(json.dumps(tick_message(tick)).encode())
+
+    def close(self) -> None:
+        self._pub.undeclare()

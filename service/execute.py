@@ -1,0 +1,353 @@
+"""Executing trajectories on the service's robot: ``<prefix>/execute`` and friends.
+
+Keys (``<p>`` the prefix):
+
+- ``<p>/execute``: start an execution. Request ``{"trajectory": <plan reply or
+  {joint_names, points}>}`` or ``{"plan": <plan request v1>}`` (planned by the pool; a
+  request without ``start`` starts from the robot's state), plus optional
+  ``start_tolerance`` [rad] (default 0.01), ``move_to_start`` (bool) and ``client``
+  (an id: while the client holds the liveliness token ``<p>/execute/client/<id>`` the
+  execution runs; when the token goes, the client is lost and the arm stops). Replies,
+  streamed on the one query (get it with consolidation NONE): ``{"event": "started",
+  "execution", "duration"}``, ``{"event": "progress", ...}`` at 10 Hz, then
+  ``{"event": "finished", "execution", "report"}``; errors as everywhere
+  (``{"error": {code, message, details}}``; ``BUSY`` while another execution runs).
+- ``<p>/execute/cancel``: ``{"execution": id}`` (or empty: the running one) stops it
+  smoothly (jerk-limited); replies ``{"cancelled": id or null}``.
+- ``<p>/robot_state``: the robot's joint state now.
+- ``<p>/joint_states``: published at every control tick while the arm moves.
+
+The robot is MuJoCo's twin by default (built on first use, so ``serve`` starts as fast as
+before and needs MuJoCo only when executing), the real arm with ``serve --serial PORT``
+(opened at start, so a missing or busy port fails the start). Nothing here imports
+mujoco or serial at import time.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import orjson
+import zenoh
+
+from planner.errors import InvalidRequest, PlanningError
+
+from . import wire
+
+_log = logging.getLogger(__name__)
+
+JSON = "application/json"
+PROGRESS_EVERY = 10  # ticks between progress replies (10 Hz at 100 Hz)
+_FIELDS = {"trajectory", "plan", "start_tolerance", "move_to_start", "client"}
+
+# submit(plan request dict, respond((ok, body))) -> None: hands a plan job to the pool
+SubmitPlan = Callable[[dict[str, Any], Callable[[tuple[bool, Any]], None]], None]
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot a service drives.
+
+    Attributes:
+        kind: ``sim`` (MuJoCo twin), ``serial`` (the real arm) or ``none``.
+        port, baud: the serial port (None: the URDF's ros2_control ``port``) and baud.
+        rate: control rate [Hz].
+        boot_wait: [s] to wait after opening the port (the Arduino resets).
+        realtime: pace the twin in real time (always for the real arm).
+    """
+
+    kind: Literal["sim", "serial", "none"] = "sim"
+    port: str | None = None
+    baud: int | None = None
+    rate: float = 100.0
+    boot_wait: float = 2.0
+    realtime: bool = True
+
+
+def _err(code: str, message: str, details: Mapping[str, Any] | None = None) -> bytes:
+    return wire.encode({"error": {"code": code, "message": message,
+                                  "details": dict(details or {})}})
+
+
+class ExecuteService:
+    """The execute, cancel and robot_state queryables and the joint_states publisher."""
+
+    def __init__(self, session: zenoh.Session, prefix: str, description: Any,
+                 spec: RobotSpec, *, submit_plan: SubmitPlan | None = None) -> None:
+        self.session, self.prefix, self.description, self.spec = (session, prefix,
+                                                                   description, spec)
+        self.submit_plan = submit_plan
+        self._robot: Any = None
+        self._executor: Any = None
+        self._robot_lock = threading.Lock()
+        self._busy = threading.Lock()
+        self._cancel = threading.Event()
+        self._current: str | None = None
+        self._thread: threading.Thread | None = None
+        self._ids = itertools.count(1)
+        self._entities: list[Any] = []
+        self._publisher: Any = None
+
+    @property
+    def keys(self) -> list[str]:
+        p = self.prefix
+        return [f"{p}/execute", f"{p}/execute/cancel", f"{p}/robot_state",
+                f"{p}/joint_states"]
+
+    def start(self) -> None:
+        if self.spec.kind == "serial":
+            self.robot()  # a missing or busy port fails the start, clearly
+        p = self.prefix
+        s = self.session
+        self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
+        for key, fn in ((f"{p}/execute", self._on_execute),
+                        (f"{p}/execute/cancel", self._on_cancel),
+                        (f"{p}/robot_state", self._on_state)):
+            self._entities.append(s.declare_queryable(key, self._guard(key, fn),
+                                                      complete=True))
+        _log.info("execute: robot %s%s, %g Hz; keys %s", self.spec.kind,
+                  f" on {self.spec.port}" if self.spec.port else "", self.spec.rate,
+                  ", ".join(self.keys))
+
+    def close(self) -> None:
+        """Stop a running execution smoothly, then release the robot."""
+        self._cancel.set()
+        if self._thread is not None:
+            self._thread.join(10.0)
+        for e in reversed(self._entities):
+            try:
+                e.undeclare()
+            except zenoh.ZError:
+                pass
+        self._entities.clear()
+        if self._publisher is not None:
+            try:
+                self._publisher.undeclare()
+            except zenoh.ZError:
+                pass
+        if self._robot is not None:
+            self._robot.close()
+            self._robot = None
+
+    # -- the robot ------------------------------------------------------------------------
+    def robot(self) -> Any:
+        """The driver, built on first use (the twin) or at start (the real arm)."""
+        with self._robot_lock:
+            if self._robot is None:
+                from clients.execute import ExecuteOptions, Executor
+                sp, d = self.spec, self.description
+                if sp.kind == "serial":
+                    from clients.robots.serial_arduinobot import SerialArduinobot
+                    self._robot = SerialArduinobot.from_description(
+                        d, sp.port, baud=sp.baud, rate=sp.rate, boot_wait=sp.boot_wait)
+                elif sp.kind == "sim":
+                    from clients.robots.sim_arduinobot import SimArduinobot
+                    self._robot = SimArduinobot(d)
+                else:
+                    from clients.robots import RobotError
+                    raise RobotError("this service drives no robot (serve --no-robot)")
+                self._executor = Executor.for_description(
+                    self._robot, d, options=ExecuteOptions(
+                        rate=sp.rate, realtime=sp.realtime or sp.kind == "serial"))
+            return self._robot
+
+    # -- queries --------------------------------------------------------------------------
+    def _guard(self, key: str, fn: Callable[[zenoh.Query], None]):
+        def on_query(query: zenoh.Query) -> None:
+            from clients.robots import RobotError
+            try:
+                fn(query)
+            except (PlanningError, RobotError) as e:
+                query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
+            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
+                _log.exception("%s: unexpected failure", key)
+                query.reply_err(_err("INTERNAL", "unexpected failure in the service"),
+                                encoding=JSON)
+        return on_query
+
+    def _on_state(self, query: zenoh.Query) -> None:
+        query.reply(f"{self.prefix}/robot_state", wire.encode(self.robot().state().to_dict()),
+                    encoding=JSON)
+
+    def _on_cancel(self, query: zenoh.Query) -> None:
+        body = _payload(query, required=False)
+        want = body.get("execution") if isinstance(body, dict) else None
+        cur = self._current
+        hit = cur is not None and (want is None or want == cur)
+        if hit:
+            _log.info("execution %s: cancel requested", cur)
+            self._cancel.set()
+        query.reply(f"{self.prefix}/execute/cancel",
+                    wire.encode({"cancelled": cur if hit else None}), encoding=JSON)
+
+    def _on_execute(self, query: zenoh.Query) -> None:
+        body = _payload(query, required=True)
+        if not isinstance(body, dict):
+            raise InvalidRequest("must be a JSON object")
+        unknown = sorted(set(body) - _FIELDS)
+        if unknown:
+            raise InvalidRequest(f"unknown field (allowed: {', '.join(sorted(_FIELDS))})",
+                                 field=unknown[0])
+        if ("trajectory" in body) == ("plan" in body):
+            raise InvalidRequest("give exactly one of trajectory and plan")
+        tol = body.get("start_tolerance", 0.01)
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) \
+                or not (math.isfinite(tol) and 0 < tol <= 1):
+            raise InvalidRequest(f"{tol!r} must be in (0, 1] rad", field="start_tolerance")
+        move = body.get("move_to_start", False)
+        if not isinstance(move, bool):
+            raise InvalidRequest("must be true or false", field="move_to_start")
+        client = body.get("client")
+        if client is not None and (not isinstance(client, str) or not client.isalnum()):
+            raise InvalidRequest("must be an alphanumeric id", field="client")
+        robot = self.robot()
+        if not self._busy.acquire(blocking=False):
+            raise _busy(self._current)
+        try:
+            execution = f"x{next(self._ids)}"
+            self._current = execution
+            self._cancel.clear()
+            run = _Run(self, query, execution, float(tol), move, client)
+            if "trajectory" in body:
+                run.start_with(body["trajectory"])
+                return
+            req = dict(body["plan"]) if isinstance(body["plan"], dict) else body["plan"]
+            if isinstance(req, dict) and "start" not in req:
+                from clients.execute import plan_start
+                req["start"] = plan_start(robot, self.description)
+            data = wire.decode("plan", wire.encode(req))
+            if self.submit_plan is None:
+                raise InvalidRequest("this service cannot plan", field="plan")
+            self.submit_plan(data, run.on_planned)
+        except BaseException:
+            self._finish()
+            raise
+
+    def _finish(self) -> None:
+        self._current = None
+        if self._busy.locked():
+            self._busy.release()
+
+
+def _busy(current: str | None) -> Exception:
+    from clients.execute import ExecutionBusy
+    return ExecutionBusy(f"the robot is executing {current}; cancel it first "
+                         "(<prefix>/execute/cancel)", details={"execution": current})
+
+
+def _payload(query: zenoh.Query, *, required: bool) -> Any:
+    zb = query.payload
+    raw = zb.to_bytes() if zb is not None else b""
+    if not raw:
+        if required:
+            raise InvalidRequest("empty payload: send a JSON object")
+        return {}
+    return wire.parse_json(raw)
+
+
+class _Run:
+    """One execution: its query (replied to until the final report), its thread."""
+
+    def __init__(self, svc: ExecuteService, query: zenoh.Query, execution: str,
+                 tolerance: float, move: bool, client: str | None) -> None:
+        self.svc, self.query, self.execution = svc, query, execution
+        self.tolerance, self.move, self.client = tolerance, move, client
+        self.key = f"{svc.prefix}/execute"
+
+    def on_planned(self, outcome: tuple[bool, Any]) -> None:
+        ok, body = outcome
+        if not ok:
+            self._fail(body["code"], body["message"], body["details"])
+            return
+        try:
+            self.start_with(orjson.loads(body))
+        except Exception as e:  # noqa: BLE001 -- answered, never swallowed silently
+            _log.exception("execution %s: could not start", self.execution)
+            self._fail(getattr(e, "code", "INTERNAL"), str(e), getattr(e, "details", {}))
+
+    def start_with(self, trajectory: Any) -> None:
+        from clients.segments import InvalidTrajectory, SampledTrajectory
+        if not isinstance(trajectory, dict):
+            raise InvalidTrajectory("trajectory must be a JSON object (a plan reply)")
+        traj = SampledTrajectory.from_json(trajectory)
+        t = threading.Thread(target=self._run, args=(traj,), name=f"execute-{self.execution}",
+                             daemon=True)
+        self.svc._thread = t
+        t.start()
+
+    def _fail(self, code: str, message: str, details: Mapping[str, Any]) -> None:
+        self.query.reply_err(_err(code, message, details), encoding=JSON)
+        self.query.drop()
+        self.svc._finish()
+
+    def _reply(self, body: Mapping[str, Any]) -> None:
+        self.query.reply(self.key, json.dumps(body).encode(), encoding=JSON)
+
+    def _run(self, traj: Any) -> None:
+        from dataclasses import replace
+
+        from clients.execute import Executor
+        from clients.joint_states import tick_message
+        from clients.robots import RobotError
+        svc = self.svc
+        watch = None
+        try:
+            if self.client is not None:
+                watch = self._watch_client()
+            base = svc._executor
+            pub = svc._publisher
+
+            def on_tick(tick: Any) -> None:
+                msg = tick_message(tick)
+                pub.put(json.dumps(msg).encode())
+                if tick.index % PROGRESS_EVERY == 0:
+                    self._reply({"event": "progress", "execution": self.execution,
+                                 "time": tick.time, **msg})
+            ex = Executor(base.robot, base.limits, torques=base.torques, on_tick=on_tick,
+                          options=replace(base.options, start_tolerance=self.tolerance,
+                                          move_to_start=self.move))
+            ex.check_start(traj)  # refuse before telling the client it started
+            self._reply({"event": "started", "execution": self.execution,
+                         "duration": traj.duration, "joint_names": list(traj.joint_names)})
+            t0 = time.monotonic()
+            report = ex.execute(traj, cancel=svc._cancel)
+            _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
+                      time.monotonic() - t0)
+            self._reply({"event": "finished", "execution": self.execution,
+                         "report": report.to_dict()})
+            self.query.drop()
+        except (RobotError, PlanningError) as e:
+            self.query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
+            self.query.drop()
+        except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
+            _log.exception("execution %s failed", self.execution)
+            self.query.reply_err(_err("INTERNAL", "the execution failed"), encoding=JSON)
+            self.query.drop()
+        finally:
+            if watch is not None:
+                watch.undeclare()
+            svc._finish()
+
+    def _watch_client(self) -> Any:
+        """Cancel when the client's liveliness token goes (the client died or lost the
+        network); refuse if it is not there to begin with."""
+        key = f"{self.svc.prefix}/execute/client/{self.client}"
+        if not any(r.ok is not None for r in self.svc.session.liveliness().get(key,
+                                                                               timeout=2.0)):
+            raise InvalidRequest(f"no liveliness token {key}: declare it before executing",
+                                 field="client")
+        cancel, execution = self.svc._cancel, self.execution
+
+        def on_change(sample: zenoh.Sample) -> None:
+            if sample.kind == zenoh.SampleKind.DELETE:
+                _log.warning("execution %s: client %s lost, stopping", execution, key)
+                cancel.set()
+        return self.svc.session.liveliness().declare_subscriber(key, on_change)

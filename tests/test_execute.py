@@ -1,0 +1,243 @@
+"""Executing trajectories: the executor on the MuJoCo twin, and end to end through a real
+`arduinobot serve` and `arduinobot execute` processes (cancel and a lost client)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from clients.execute import ExecuteOptions, Executor, NotAtStart
+from clients.robots.sim_arduinobot import SimArduinobot
+from clients.segments import SampledTrajectory
+from description import load_description
+
+from .conftest import REPO, start_server
+
+
+@pytest.fixture(scope="module")
+def desc():
+    return load_description()
+
+
+@pytest.fixture(scope="module")
+def planned(desc):
+    from planner.goals import NamedGoal
+    from planner.pipeline import MotionPlanner, MotionRequest
+    mp = MotionPlanner(desc)
+    return {name: mp.solve(MotionRequest(goal=NamedGoal(name), seed=11)).trajectory
+            for name in ("reach_left", "reach_forward")}
+
+
+def _body(traj):
+    return {"trajectory": traj.to_dict()}
+
+
+def check_within_limits(report, lim, tol=1e-9):
+    """Commanded velocity, acceleration and (finite-difference) jerk within the limits."""
+    assert report.peak_ratio["velocity"] <= 1 + tol
+    assert report.peak_ratio["acceleration"] <= 1 + tol
+    assert report.peak_ratio["jerk"] <= 1 + 1e-6
+    assert np.all(report.q >= lim.lower - 1e-9) and np.all(report.q <= lim.upper + 1e-9)
+
+
+@pytest.mark.parametrize("at", [0.2, 0.5, 0.8])
+def test_cancel_stops_at_rest_within_a_second_and_the_limits(desc, planned, at):
+    traj = planned["reach_left"]
+    cancel = threading.Event()
+    sim = SimArduinobot(desc)
+
+    def on_tick(tick):
+        if tick.phase == "trajectory" and tick.trajectory_time >= traj.duration * at:
+            cancel.set()
+    ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False),
+                                  on_tick=on_tick)
+    rep = ex.execute(SampledTrajectory.from_json(_body(traj)), cancel=cancel)
+    assert rep.outcome == "cancelled"
+    assert rep.cancelled_at == pytest.approx(traj.duration * at, abs=0.011)
+    stop = np.array(rep.phases) == "stop"
+    i0 = int(np.argmax(stop))
+    assert np.abs(rep.qd[i0 - 1]).max() > 0.5  # it was moving fast when cancelled
+    # braking stays on the planned (collision-checked) path: every stop position is one
+    dense = traj.evaluate(np.linspace(0, traj.duration, 20001))[0]
+    gap = max(np.min(np.abs(dense - q).max(axis=1)) for q in rep.q[stop])
+    assert gap < 1e-3
+    assert ex.last_stop in ("path", "finish")  # no need to leave the path here
+    if at < 0.5:  # early on, braking on the path stops well short of the goal
+        assert ex.last_stop == "path"
+        assert np.abs(rep.q[-1] - traj.positions[-1]).max() > 0.05
+    assert rep.stop_time < 1.0
+    t_rest = rep.times[-1] - rep.times[i0 - 1]
+    assert t_rest < 1.0
+    assert np.abs(rep.qd[-1]).max() < 1e-9 and np.abs(rep.qdd[-1]).max() < 1e-9
+    assert np.abs(rep.measured_velocity[-1]).max() < 0.01  # the twin is at rest too
+    check_within_limits(rep, ex.limits)
+    st = sim.stats()
+    assert max(f / e for f, e in zip(st.peak_force, st.effort)) < 1.0
+    assert st.saturated_steps == 0
+    # the switch is smooth: the velocity changes by no more than one tick's acceleration
+    dv = np.abs(rep.qd[i0] - rep.qd[i0 - 1])
+    assert np.all(dv <= ex.limits.acceleration * 0.01 + 1e-9)
+    print(f"\ncancel at {rep.cancelled_at:.3f} s (|v| up to {np.abs(rep.qd[i0 - 1]).max():.2f} "
+          f"rad/s): {ex.last_stop} stop, commanded at rest after {rep.stop_time:.3f} s; "
+          f"peaks {rep.peak_ratio}; peak force {np.round(st.peak_force, 2)}")
+
+
+def test_refuses_a_start_elsewhere_and_moves_there_on_request(desc, planned):
+    traj = SampledTrajectory.from_json(_body(planned["reach_forward"]))
+    sim = SimArduinobot(desc, initial=[0.5, 0.2, -0.3, 0.0])
+    ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False))
+    with pytest.raises(NotAtStart, match="move-to-start") as e:
+        ex.execute(traj)
+    assert e.value.details["joint"] == "joint_1"
+    assert sim.stats().steps == 0  # nothing moved
+    ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False,
+                                                                     move_to_start=True))
+    rep = ex.execute(traj)
+    assert rep.outcome == "completed"
+    assert "move_to_start" in rep.phases
+    check_within_limits(rep, ex.limits)
+    assert np.abs(rep.measured[-1] - planned["reach_forward"].positions[-1]).max() < 1e-3
+
+
+def test_replay_at_another_rate_follows_the_exact_trajectory(planned):
+    exact = planned["reach_left"]
+    traj = SampledTrajectory.from_json(_body(exact))
+    for t in np.linspace(0, exact.duration, 97):
+        q, qd, qdd = traj.evaluate(float(t))
+        p = exact.at(float(t))
+        assert q == pytest.approx(p.positions, abs=1e-6)
+        assert qd == pytest.approx(p.velocities, abs=1e-4)
+        assert qdd == pytest.approx(p.accelerations, abs=0.05)
+
+
+# -- end to end: serve + execute processes ---------------------------------------------
+@pytest.fixture(scope="module")
+def served():
+    srv = start_server(["--workers", "1"])
+    yield srv
+    srv.stop()
+
+
+class StateListener:
+    """Every <prefix>/joint_states message with its arrival time."""
+
+    def __init__(self, endpoint: str) -> None:
+        import zenoh
+
+        from service.zconfig import zenoh_config
+        self.session = zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[]))
+        self.msgs: list[tuple[float, dict]] = []
+        self.sub = self.session.declare_subscriber(
+            "arduinobot/joint_states",
+            lambda s: self.msgs.append((time.monotonic(), json.loads(s.payload.to_bytes()))))
+
+    def wait(self, pred, timeout: float = 30.0) -> float:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            for t, m in list(self.msgs):
+                if pred(m):
+                    return t
+            time.sleep(0.005)
+        raise AssertionError("condition never met on joint_states")
+
+    def close(self) -> None:
+        self.sub.undeclare()
+        self.session.close()
+
+
+def _execute(endpoint: str, *args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "clients.cli", "execute", "--remote",
+                             "--connect", endpoint, *args], cwd=REPO,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _at_rest(msgs, after: float) -> float | None:
+    """Arrival time of the first message after ``after`` from which every later one has
+    all |velocity| < 0.01 rad/s (None if it never comes to rest)."""
+    later = [(t, m) for t, m in msgs if t >= after]
+    rest = None
+    for t, m in later:
+        if max(abs(v) for v in m["velocity"]) < 0.01:
+            rest = rest if rest is not None else t
+        else:
+            rest = None
+    return rest
+
+
+def test_cancel_through_serve_and_execute(served, tmp_path):
+    lis = StateListener(served.endpoint)
+    try:
+        out = tmp_path / "report.json"
+        proc = _execute(served.endpoint, "--named", "reach_left", "--report", str(out))
+        lis.wait(lambda m: m["phase"] == "trajectory" and m["progress"] >= 0.5)
+        t_cancel = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=30)
+        assert proc.returncode == 130, stderr
+        rep = json.loads(out.read_text())
+        assert rep["outcome"] == "cancelled"
+        assert rep["stop_time"] < 1.0
+        assert all(v <= 1 + 1e-6 for v in rep["peak_ratio"].values()), rep["peak_ratio"]
+        time.sleep(0.3)
+        rest = _at_rest(lis.msgs, t_cancel)
+        assert rest is not None and rest - t_cancel < 1.0, (rest, t_cancel)
+        assert lis.msgs[-1][1]["phase"] in ("stop", "settle")
+        print(f"\nserve+execute: SIGINT at 50%, joint_states at rest "
+              f"{rest - t_cancel:.3f} s later; stop {rep['stop_time']:.3f} s; "
+              f"peaks {rep['peak_ratio']}")
+    finally:
+        lis.close()
+
+
+def test_a_lost_client_stops_the_arm(served):
+    lis = StateListener(served.endpoint)
+    try:
+        proc = _execute(served.endpoint, "--named", "reach_right")
+        try:
+            lis.wait(lambda m: m["phase"] == "trajectory" and m["progress"] >= 0.4)
+        except AssertionError:
+            proc.kill()
+            raise AssertionError(proc.communicate()) from None
+        t_kill = time.monotonic()
+        proc.kill()  # no cancel sent: only its liveliness token disappears
+        proc.wait(10)
+        lis.wait(lambda m: m["phase"] == "stop", timeout=5)
+        time.sleep(1.5)
+        rest = _at_rest(lis.msgs, t_kill)
+        assert rest is not None and rest - t_kill < 1.5, (
+            rest, t_kill, [(round(t - t_kill, 3), m["phase"], m["velocity"])
+                           for t, m in lis.msgs[-5:]])
+        assert lis.msgs[-1][1]["phase"] in ("stop", "settle")
+        # the robot is free again: the next execution runs to the end
+        proc = _execute(served.endpoint, "--named", "home")
+        stdout, stderr = proc.communicate(timeout=60)
+        assert proc.returncode == 0, stderr
+        assert stdout.startswith("completed")
+        print(f"\nlost client: killed at 40%, at rest {rest - t_kill:.3f} s later")
+    finally:
+        lis.close()
+
+
+def test_execute_cli_on_the_local_twin(planned, tmp_path):
+    f = tmp_path / "traj.json"
+    f.write_text(json.dumps({"trajectory": planned["reach_forward"].to_dict()}))
+    run = [sys.executable, "-m", "clients.cli", "execute", str(f), "--sim", "--fast",
+           "--no-publish"]
+    r = subprocess.run(run, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "completed" in r.stdout and "peak actuator force" in r.stdout
+    moved = dict(planned["reach_forward"].to_dict())
+    moved["points"] = [{**p, "positions": [0.3, *p["positions"][1:]]} for p in moved["points"]]
+    f.write_text(json.dumps(moved))
+    r = subprocess.run(run, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1
+    assert "NOT_AT_START" in r.stderr and "--move-to-start" in r.stderr
