@@ -196,7 +196,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                      "('-' for stdout)")
     out.add_argument("--csv", metavar="OUT", help="write the samples as CSV")
     out.add_argument("--plot", metavar="OUT.png", help="plot positions, velocities, "
-                     "accelerations and efforts with their limits (needs matplotlib)")
+                     "accelerations and efforts with their limits (needs matplotlib); "
+                     "with --simulate, commanded vs simulated positions")
+    out.add_argument("--simulate", action="store_true", help="replay the trajectory on "
+                     "the MuJoCo twin (needs mujoco): tracking error, peak actuator force "
+                     "vs the effort limit, contacts")
     add_service_args(p)
     p.set_defaults(func=guarded(cmd_plan))
 
@@ -241,10 +245,13 @@ def cmd_plan(ns: argparse.Namespace) -> int:
         sys.stdout.write(text + "\n") if ns.json == "-" else Path(ns.json).write_text(text)
     if ns.csv:
         Path(ns.csv).write_text(res.to_csv())
-    if ns.plot:
+    if ns.plot and not ns.simulate:
         plot_trajectory(res, limits, ns.plot)
     if ns.json != "-":
         print(summary(res, limits))
+    if ns.simulate:
+        from .simulate import simulate_command
+        return simulate_command(ns, body, req)
     return EXIT_OK
 
 

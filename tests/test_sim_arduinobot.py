@@ -47,8 +47,13 @@ def test_the_model_is_the_description(desc):
         assert m.body_mass[bid] == pytest.approx(link.inertial.mass)
         assert sorted(m.body_inertia[bid]) == pytest.approx(
             sorted(np.linalg.eigvalsh(link.inertial.tensor())))
-    assert m.ngeom == sum(len(lk.collisions) for lk in robot.links.values())
+    # every collision mesh, as convex pieces on its own link
     assert int(np.sum(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)) == m.ngeom
+    for name, link in robot.links.items():
+        if link.collisions:
+            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+            assert 1 <= int(np.sum(m.geom_bodyid == bid)) <= 16 * len(link.collisions)
+    assert sim.contacts_now() == []  # the closed gripper's pieces do not touch
     for i, name in enumerate(robot.actuated_joints):
         aid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
         eff = robot.joints[name].limit.effort
@@ -93,6 +98,7 @@ def test_a_plan_replays_within_its_limits(desc, planner, goal):
     assert final < 1e-3
     assert max(f / e for f, e in zip(st.peak_force, st.effort)) < 1.0
     assert st.saturated_steps == 0
+    assert max(f / e for f, e in zip(st.peak_feedforward, st.effort)) <= 1 + 1e-3
     assert st.contacts == ()
 
 
@@ -133,3 +139,19 @@ def test_default_servo_bandwidth(desc):
     w = 2 * math.pi * 10.0
     assert sim.gains[0].kp == pytest.approx(full[0, 0] * w * w)
     assert sim.gains[0].kv == pytest.approx(2 * full[0, 0] * w)
+
+
+def test_plan_simulate_reports_and_plots(tmp_path):
+    import subprocess
+    import sys
+
+    from .conftest import REPO
+    png = tmp_path / "sim.png"
+    r = subprocess.run([sys.executable, "-m", "clients.cli", "plan", "--named", "reach_right",
+                        "--local", "--simulate", "--plot", str(png), "--obstacle",
+                        "box:table:0.6,1.2,0.05@0,1.0,0.6"], cwd=REPO, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "simulation (MuJoCo twin)" in r.stdout and "contacts: none" in r.stdout
+    assert "of the effort limit" in r.stdout
+    assert png.stat().st_size > 10_000

@@ -3,8 +3,9 @@
 From :class:`description.Robot`: one body per link (the root welded to the world), its
 inertial as given, one hinge/slide per movable joint with the URDF position limits, a
 mimic joint as an equality constraint on its leader (``q = offset + multiplier *
-q_leader``), collision shapes as contact geoms (meshes as MuJoCo mesh assets with the
-URDF scale; MuJoCo collides their convex hulls), and per actuated joint a position servo
+q_leader``), collision shapes as contact geoms (a mesh as up to 16 convex pieces, since MuJoCo
+collides convex hulls and one hull around a concave part touches what the part does
+not), and per actuated joint a position servo
 with velocity feed-forward (see :func:`servo_ctrl`) whose force is capped at the URDF
 effort. Contacts between a link and its parent, and the SRDF's disabled pairs (what the
 planner trusts never to touch), are excluded; every other pair is live, and so are
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,6 +33,7 @@ import numpy as np
 from description.model import Robot, Shape, rpy_matrix
 
 TIMESTEP = 0.001  # [s]
+COLLISION_PARTS = 16  # convex pieces per collision mesh
 
 
 @dataclass(frozen=True)
@@ -56,18 +59,59 @@ def _esc(name: str) -> str:
     return name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
 
 
-def _geom(shape: Shape, name: str, assets: list[str], *, visual: bool) -> str | None:
+def mesh_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.ndarray]:
+    """A mesh cut into up to ``parts`` pieces for MuJoCo, which collides convex hulls:
+    faces grouped by centroid (a few seeded k-means steps), each piece the vertices of
+    its group's faces [m], shape (k_i, 3). Each hull holds its whole triangles, so
+    the union holds the surface, far tighter than one hull around a concave part."""
+    import trimesh
+    m = trimesh.load(path, force="mesh")
+    v = np.asarray(m.vertices, float) * np.asarray(scale, float)
+    f = np.asarray(m.faces)
+    cen = v[f].mean(axis=1)
+    k = max(1, min(parts, len(f)))
+    rng = np.random.default_rng(0)
+    c = cen[rng.choice(len(cen), size=k, replace=False)]
+    for _ in range(12):
+        lab = np.argmin(((cen[:, None] - c[None]) ** 2).sum(axis=2), axis=1)
+        c = np.array([cen[lab == i].mean(axis=0) if np.any(lab == i) else c[i]
+                      for i in range(k)])
+    lab = np.argmin(((cen[:, None] - c[None]) ** 2).sum(axis=2), axis=1)
+    out = []
+    for i in range(k):
+        idx = np.unique(f[lab == i])
+        if len(idx) < 3:
+            continue
+        p = v[idx]
+        _, sv, vt = np.linalg.svd(p - p.mean(axis=0), full_matrices=False)
+        if len(sv) < 3 or sv[2] <= 1e-9 * max(sv[0], 1e-12):
+            # a flat piece has no hull: give it 10 um of thickness along its normal
+            p = np.vstack([p, p + 1e-5 * vt[-1]])
+        out.append(p)
+    return out
+
+
+def _geom(shape: Shape, name: str, assets: list[str], *, visual: bool,
+          parts: int = 1) -> str | None:
     g = shape.geometry
     pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
     flags = ('contype="0" conaffinity="0" group="1" rgba="0.8 0.5 0.2 1"' if visual
              else 'contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4"')
-    common = f'name="{_esc(name)}" {pose} {flags} mass="0"'
+    common = f'{pose} {flags} mass="0"'
     if g.kind == "mesh":
         if g.path is None:
             return None
-        assets.append(f'<mesh name="{_esc(name)}" file="{_esc(str(g.path))}" '
-                      f'scale="{_f(g.scale)}"/>')
-        return f'<geom type="mesh" mesh="{_esc(name)}" {common}/>'
+        if visual or parts <= 1:
+            assets.append(f'<mesh name="{_esc(name)}" file="{_esc(str(g.path))}" '
+                          f'scale="{_f(g.scale)}"/>')
+            return f'<geom type="mesh" mesh="{_esc(name)}" name="{_esc(name)}" {common}/>'
+        out = []
+        for i, vs in enumerate(mesh_parts(g.path, g.scale, parts)):
+            assets.append(f'<mesh name="{_esc(name)}/{i}" vertex="{_f(vs)}"/>')
+            out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
+                       f'{common}/>')
+        return " ".join(out)
+    common = f'name="{_esc(name)}" {common}'
     if g.kind == "box":
         return f'<geom type="box" size="{_f(0.5 * np.asarray(g.size))}" {common}/>'
     if g.kind == "sphere":
@@ -101,7 +145,7 @@ def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]]) -> list[str]:
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
             obstacles: Sequence[Mapping[str, Any]] = (), visual: bool = False,
-            timestep: float = TIMESTEP) -> str:
+            timestep: float = TIMESTEP, collision_parts: int = COLLISION_PARTS) -> str:
     """The MJCF text of ``robot`` (see the module doc).
 
     Args:
@@ -110,6 +154,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
         obstacles: world obstacles, as in a plan request.
         visual: add the visual shapes too (non-colliding, for a viewer).
         timestep: the physics step [s].
+        collision_parts: convex pieces per collision mesh (:func:`mesh_parts`).
     """
     assets: list[str] = []
 
@@ -124,7 +169,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
                        f'mass="{inertial.mass!r}" fullinertia="'
                        f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
         for i, s in enumerate(lk.collisions):
-            g = _geom(s, f"{link}/collision/{i}", assets, visual=False)
+            g = _geom(s, f"{link}/collision/{i}", assets, visual=False, parts=collision_parts)
             if g:
                 out.append(indent + g)
         if visual:

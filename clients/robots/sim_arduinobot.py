@@ -47,6 +47,9 @@ class SimStats:
 
     Attributes:
         peak_force: per actuated joint, the largest |actuator force| [N m or N].
+        peak_feedforward: the largest |torque| the reference motion itself needs (MuJoCo's
+            inverse dynamics of the setpoints: what the trajectory asks of the motors,
+            before feedback).
         effort: the actuators' force limits (URDF effort), same order.
         saturated_steps: physics steps with some actuator at its force limit.
         contacts: the body pairs (link/link or link/obstacle) that touched.
@@ -55,6 +58,7 @@ class SimStats:
     """
 
     peak_force: tuple[float, ...]
+    peak_feedforward: tuple[float, ...]
     effort: tuple[float, ...]
     saturated_steps: int
     contacts: tuple[tuple[str, str], ...]
@@ -63,7 +67,8 @@ class SimStats:
     time: float
 
     def to_dict(self) -> dict[str, Any]:
-        return {"peak_force": list(self.peak_force), "effort": list(self.effort),
+        return {"peak_force": list(self.peak_force),
+                "peak_feedforward": list(self.peak_feedforward), "effort": list(self.effort),
                 "saturated_steps": self.saturated_steps,
                 "contacts": [list(p) for p in self.contacts],
                 "contact_steps": self.contact_steps, "steps": self.steps, "time": self.time}
@@ -285,7 +290,9 @@ class SimArduinobot(Robot):
                 q = q0 + tau * (qd0 + tau * (0.5 * qdd0 + tau * j / 6))
                 qd = qd0 + tau * (qdd0 + 0.5 * tau * j)
                 qdd = qdd0 + tau * j
-                ctrl = servo_ctrl(q, qd, self.gains) + self._inverse(q, qd, qdd) / kp
+                ff = self._inverse(q, qd, qdd)
+                np.maximum(self._peak_ff, np.abs(ff), out=self._peak_ff)
+                ctrl = servo_ctrl(q, qd, self.gains) + ff / kp
             d.ctrl[self._act] = ctrl
             mj.mj_step(m, d)
             f = np.abs(d.actuator_force[self._act])
@@ -319,9 +326,19 @@ class SimArduinobot(Robot):
                           tuple(map(float, d.qvel[self._dadr])), tuple(map(float, eff)),
                           float(d.time))
 
+    def reset(self, positions: Sequence[float] | np.ndarray) -> None:
+        """Back to rest at ``positions`` [rad] (time 0, setpoint there, figures cleared)."""
+        q = check_setpoint(positions, self.joint_names, "positions")
+        self._mj.mj_resetData(self.model, self.data)
+        self._set_positions(q)
+        self._q_ref, self._qd_ref, self._qdd_ref, self._jerk = q, None, None, None
+        self.data.ctrl[self._act] = servo_ctrl(q, None, self.gains)
+        self.reset_stats()
+
     # -- simulation figures ------------------------------------------------------------
     def reset_stats(self) -> None:
         self._peak = np.zeros(len(self.joint_names))
+        self._peak_ff = np.zeros(len(self.joint_names))
         self._saturated = 0
         self._contacts: set[tuple[str, str]] = set()
         self._contact_steps = 0
@@ -329,7 +346,8 @@ class SimArduinobot(Robot):
         self._t0 = float(self.data.time)
 
     def stats(self) -> SimStats:
-        return SimStats(tuple(map(float, self._peak)), tuple(map(float, self.effort)),
+        return SimStats(tuple(map(float, self._peak)), tuple(map(float, self._peak_ff)),
+                        tuple(map(float, self.effort)),
                         self._saturated, tuple(sorted(self._contacts)), self._contact_steps,
                         self._steps, float(self.data.time) - self._t0)
 

@@ -1,0 +1,181 @@
+"""``arduinobot plan --simulate``: replay a planned trajectory on the MuJoCo twin.
+
+The twin starts at rest at the trajectory's first point, among the request's obstacles,
+follows the trajectory at the controller rate (faster than real time) and settles; the
+report gives the tracking error, the peak actuator force against the effort limit and
+every contact. Needs mujoco (the ``sim`` extra); the plot needs matplotlib.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from description import Description
+
+from .execute import ExecuteOptions, Executor
+from .segments import SampledTrajectory
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationReport:
+    """The twin's replay of one trajectory.
+
+    Attributes:
+        joint_names: column order.
+        duration: [s] of the trajectory.
+        tracking_error: per joint, max |simulated - commanded| [rad] while it plays.
+        final_error: per joint, |simulated - goal| [rad] after settling.
+        peak_force, effort: per joint, max |actuator force| and its limit [N m].
+        peak_need: per joint, max |torque| the trajectory itself needs (MuJoCo's inverse
+            dynamics of the commanded motion, before feedback) [N m].
+        saturated_steps, steps: physics steps with an actuator at its limit, and all.
+        contacts: body pairs (links, ``obstacle:<id>``) that touched; contact_steps.
+        times (m,) [s], commanded and simulated positions (m, dof) [rad].
+    """
+
+    joint_names: tuple[str, ...]
+    duration: float
+    tracking_error: tuple[float, ...]
+    final_error: tuple[float, ...]
+    peak_force: tuple[float, ...]
+    peak_need: tuple[float, ...]
+    effort: tuple[float, ...]
+    saturated_steps: int
+    steps: int
+    contacts: tuple[tuple[str, str], ...]
+    contact_steps: int
+    times: np.ndarray = field(repr=False)
+    commanded: np.ndarray = field(repr=False)
+    simulated: np.ndarray = field(repr=False)
+
+    @property
+    def force_ratio(self) -> float:
+        """The largest peak actuator force over its limit."""
+        return max(f / e for f, e in zip(self.peak_force, self.effort))
+
+    @property
+    def need_ratio(self) -> float:
+        """The largest torque the trajectory needs over its limit (> 1: more than the
+        motors can give)."""
+        return max(f / e for f, e in zip(self.peak_need, self.effort))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"joint_names": list(self.joint_names), "duration": self.duration,
+                "tracking_error": list(self.tracking_error),
+                "final_error": list(self.final_error), "peak_force": list(self.peak_force),
+                "peak_need": list(self.peak_need), "effort": list(self.effort),
+                "force_ratio": self.force_ratio, "need_ratio": self.need_ratio,
+                "saturated_steps": self.saturated_steps, "steps": self.steps,
+                "contacts": [list(p) for p in self.contacts],
+                "contact_steps": self.contact_steps}
+
+
+def simulate(description: Description, trajectory: SampledTrajectory, *,
+             obstacles: Sequence[Mapping[str, Any]] = (), rate: float = 100.0,
+             settle: float = 0.5, twin: Any = None) -> SimulationReport:
+    """Replay ``trajectory`` on a fresh twin (or ``twin``, a :class:`SimArduinobot` to
+    reuse: it is reset to the trajectory's start) and measure it."""
+    from .robots.sim_arduinobot import SimArduinobot
+    if twin is None:
+        names = description.robot.actuated_joints
+        start = trajectory.for_joints(names, np.zeros(len(names))).positions[0]
+        twin = SimArduinobot(description, obstacles=obstacles, initial=start)
+    else:
+        names = twin.joint_names
+        twin.reset(trajectory.for_joints(names, np.zeros(len(names))).positions[0])
+    ex = Executor.for_description(twin, description, options=ExecuteOptions(
+        rate=rate, realtime=False, settle=settle, settle_velocity=1e-3))
+    rep = ex.execute(trajectory)
+    st = twin.stats()
+    playing = np.array([p == "trajectory" for p in rep.phases])
+    target = np.vstack([rep.q[1:], rep.q[-1:]])  # the state after tick k vs tick k+1's
+    err = np.max(np.abs(rep.measured - target)[playing], axis=0)
+    goal = trajectory.for_joints(names, np.zeros(len(names))).positions[-1]
+    return SimulationReport(
+        tuple(names), trajectory.duration, tuple(map(float, err)),
+        tuple(map(float, np.abs(rep.measured[-1] - goal))), st.peak_force,
+        st.peak_feedforward, st.effort,
+        st.saturated_steps, st.steps, st.contacts, st.contact_steps, rep.times, rep.q,
+        rep.measured)
+
+
+def summary(r: SimulationReport) -> str:
+    lines = [f"simulation (MuJoCo twin): {r.duration:.3f} s, {r.steps} physics steps; "
+             f"contacts: " + (", ".join("/".join(p) for p in r.contacts) or "none"),
+             f"{'joint':<10}{'track err':>12}{'final err':>12}{'needs':>12}"
+             f"{'|force| peak':>14}{'limit':>8}"]
+    for i, n in enumerate(r.joint_names):
+        lines.append(f"{n:<10}{1000 * r.tracking_error[i]:>7.3f} mrad"
+                     f"{1000 * r.final_error[i]:>7.3f} mrad{r.peak_need[i]:>8.2f} N m"
+                     f"{r.peak_force[i]:>10.2f} N m{r.effort[i]:>8.1f}")
+    lines.append(f"the trajectory needs {100 * r.need_ratio:.1f}% of the effort limit; the "
+                 f"servos (feedback on top) peak at {100 * r.force_ratio:.1f}%, at the limit "
+                 f"in {r.saturated_steps} of {r.steps} steps")
+    return "\n".join(lines)
+
+
+def plot(r: SimulationReport, out: str) -> None:
+    """Commanded vs simulated positions, and the tracking error, saved to ``out``."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise SystemExit("arduinobot: error: --plot needs matplotlib "
+                         "(pip install matplotlib)") from None
+    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(9, 7))
+    target = np.vstack([r.commanded[1:], r.commanded[-1:]])
+    t_meas = r.times + (r.times[1] - r.times[0] if len(r.times) > 1 else 0.0)
+    for i, n in enumerate(r.joint_names):
+        line, = a1.plot(r.times, r.commanded[:, i], lw=1.5, label=f"{n} commanded")
+        a1.plot(t_meas, r.simulated[:, i], ls="--", color=line.get_color(), lw=1,
+                label=f"{n} simulated")
+        a2.plot(t_meas, 1000 * (r.simulated[:, i] - target[:, i]), color=line.get_color(),
+                label=n)
+    a1.set_ylabel("position [rad]")
+    a1.legend(fontsize="x-small", ncol=2)
+    a2.set_ylabel("simulated - commanded [mrad]")
+    a2.set_xlabel("time [s]")
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+    fig.suptitle(f"MuJoCo twin: peak force {100 * r.force_ratio:.0f}% of the effort limit, "
+                 f"contacts: {len(r.contacts)}")
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+
+
+def simulate_command(ns: Any, body: Mapping[str, Any], req: Mapping[str, Any]) -> int:
+    """``plan --simulate``: the twin of the model (--local: the model options; through the
+    service: the shipped arduinobot, which must be the robot the service planned for)."""
+    import sys
+
+    from .robots.base import RobotError
+    desc = _model(ns)
+    traj = SampledTrajectory.from_json(body)
+    missing = [n for n in traj.joint_names if n not in desc.robot.actuated_joints]
+    if missing:
+        raise SystemExit(f"arduinobot: error: --simulate: the service's robot moves "
+                         f"{', '.join(missing)}, which the local model lacks; plan with "
+                         "--local and the model options")
+    try:
+        r = simulate(desc, traj, obstacles=req.get("obstacles", ()))
+    except RobotError as e:
+        print(f"arduinobot: {e.code}: {e.message}", file=sys.stderr)
+        return 1
+    print(summary(r))
+    if ns.plot:
+        plot(r, ns.plot)
+    return 0
+
+
+def _model(ns: Any) -> Description:
+    if getattr(ns, "local", False):
+        from .cmd_plan import _local_description
+        return _local_description(ns)
+    from description import load_description
+    return load_description()
