@@ -68,6 +68,9 @@ class MotionRequest:
     profile: Profile = "jerk_limited"
     sample_rate: float = 100.0          # [Hz], [1, 1000]
     seed: int | None = None
+    # a moving start [rad/s], [rad/s^2] by joint: see planner.moving_start
+    start_velocity: Mapping[str, float] | None = None
+    start_acceleration: Mapping[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -248,6 +251,9 @@ class MotionPlanner:
             GoalOutOfReach, NoPathFound: from validation and path planning.
             TrajectoryError: no timing passed verification (details hold the report).
         """
+        if request.start_velocity is not None or request.start_acceleration is not None:
+            from .moving_start import solve_moving  # a moving start: blend into it
+            return solve_moving(self, request)
         t0 = time.perf_counter()
         start = self.validate(request)
         world, paths = self._entry(request.obstacles)

@@ -34,7 +34,8 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
     """A validated v1 plan request (see ``service/schema/plan_request.json``) as a
     :class:`planner.pipeline.MotionRequest`. A missing start is all actuated joints at 0."""
     opts = {k: data[k] for k in ("group", "planner", "planning_time", "velocity_scaling",
-                                 "acceleration_scaling", "profile", "sample_rate", "seed")
+                                 "acceleration_scaling", "profile", "sample_rate", "seed",
+                                 "start_velocity", "start_acceleration")
             if k in data}
     for k in ("planning_time", "velocity_scaling", "acceleration_scaling", "sample_rate"):
         if k in opts:

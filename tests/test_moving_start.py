@@ -1,0 +1,89 @@
+"""Planning from a moving state (planner/moving_start.py), in-process and on the wire."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from description import load_description
+from planner.errors import InvalidRequest
+from planner.goals import NamedGoal
+from planner.moving_start import BlendTiming
+from planner.pipeline import MotionPlanner, MotionRequest
+
+
+@pytest.fixture(scope="module")
+def mp():
+    return MotionPlanner(load_description())
+
+
+@pytest.fixture(scope="module")
+def moving(mp):
+    """A state halfway through a motion to reach_left: fast, accelerating or braking."""
+    tr = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=1)).trajectory
+    return tr.joint_names, tr.at(0.3 * tr.duration)
+
+
+@pytest.mark.parametrize("goal", ["reach_forward", "reach_right", "home"])
+def test_the_new_trajectory_starts_in_the_moving_state(mp, moving, goal):
+    names, p = moving
+    assert np.abs(p.velocities).max() > 1.0
+    res = mp.solve(MotionRequest(goal=NamedGoal(goal), start=dict(zip(names, p.positions)),
+                                 start_velocity=dict(zip(names, p.velocities)),
+                                 start_acceleration=dict(zip(names, p.accelerations)),
+                                 seed=2))
+    tr = res.trajectory
+    assert isinstance(tr.timing, BlendTiming)
+    assert tr.positions[0] == pytest.approx(p.positions, abs=1e-12)
+    assert tr.velocities[0] == pytest.approx(p.velocities, abs=1e-12)
+    assert tr.accelerations[0] == pytest.approx(p.accelerations, abs=1e-9)
+    assert np.abs(tr.velocities[-1]).max() == 0.0
+    goal_q = mp.description.srdf.named_state(goal).values
+    assert tr.positions[-1][:3] == pytest.approx([goal_q[n] for n in names[:3]], abs=1e-9)
+    assert res.verification.ok  # every limit, and collisions on dense states
+    assert res.verification.enforced == ("position", "velocity", "acceleration", "jerk",
+                                         "effort")
+    assert 0.0 <= tr.timing.shift <= tr.timing.brake_duration
+    assert "blend" in res.timing
+
+
+def test_zero_rates_are_the_ordinary_plan(mp):
+    a = mp.solve(MotionRequest(goal=NamedGoal("home"), start={"joint_1": 0.4}, seed=3))
+    b = mp.solve(MotionRequest(goal=NamedGoal("home"), start={"joint_1": 0.4}, seed=3,
+                               start_velocity={"joint_1": 0.0}))
+    assert not isinstance(b.trajectory.timing, BlendTiming)
+    assert b.trajectory.duration == pytest.approx(a.trajectory.duration)
+
+
+@pytest.mark.parametrize("field,value,match", [
+    ("start_velocity", {"joint_9": 1.0}, "not an actuated joint"),
+    ("start_velocity", {"joint_1": 50.0}, "exceeds the velocity limit"),
+    ("start_acceleration", {"joint_2": -500.0}, "exceeds the acceleration limit"),
+    ("start_velocity", {"joint_1": float("nan")}, "not a finite number"),
+])
+def test_bad_rates_are_refused_naming_the_field(mp, field, value, match):
+    with pytest.raises(InvalidRequest, match=match) as e:
+        mp.solve(MotionRequest(goal=NamedGoal("home"), **{field: value}))
+    assert e.value.field.startswith(field + ".")
+
+
+def test_a_brake_past_the_position_limit_is_refused(mp):
+    with pytest.raises(InvalidRequest, match="cannot stop within") as e:
+        mp.solve(MotionRequest(goal=NamedGoal("home"), start={"joint_1": 1.5},
+                               start_velocity={"joint_1": 9.0}))
+    assert e.value.field == "start_velocity.joint_1"
+
+
+def test_on_the_wire():
+    from service import wire
+    from service.plan_io import plan_request
+    d = load_description()
+    req = plan_request(d, wire.decode("plan", wire.encode(
+        {"goal": {"named": "home"}, "start_velocity": {"joint_1": 0.5},
+         "start_acceleration": {"joint_2": -1.0}})))
+    assert req.start_velocity == {"joint_1": 0.5}
+    assert req.start_acceleration == {"joint_2": -1.0}
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", wire.encode({"goal": {"named": "home"},
+                                         "start_velocity": {"joint_1": "fast"}}))
+    assert e.value.field == "start_velocity.joint_1"
