@@ -70,6 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "start (default 0.01 rad)")
     r.add_argument("--move-to-start", action="store_true",
                    help="move to the trajectory's start first instead of refusing")
+    r.add_argument("--blend", action="store_true",
+                   help="with --remote and a goal: blend into the motion in progress "
+                   "(planned from its state 0.8 s ahead) instead of waiting for it")
     r.add_argument("--no-publish", action="store_true",
                    help="do not publish <prefix>/joint_states")
     r.add_argument("--report", metavar="OUT.json", help="write the execution report")
@@ -286,9 +289,18 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
         body["plan"] = req
     else:
         body["trajectory"] = json.loads(Path(ns.trajectory).read_text("utf-8"))
+    cancel = threading.Event()
+    if ns.blend:
+        if req is None:
+            raise SystemExit("arduinobot: error: --blend needs a goal (--named/--request)")
+        with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
+                           config_file=ns.config) as c:
+            msg = c.request("execute", {"plan": req, "blend": True}, timeout=ns.timeout)
+        print(f"blended into {msg['execution']} at tick {msg['tick']}: the new motion takes "
+              f"{msg['duration']:.3f} s")
+        return EXIT_OK
     client_id = uuid.uuid4().hex
     body["client"] = client_id
-    cancel = threading.Event()
     with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
                        config_file=ns.config) as c:
         s = c.session

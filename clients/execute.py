@@ -16,6 +16,11 @@ only) no wall clock paces the ticks.
   path), else ruckig's per-joint stop from the commanded state when it stays within the
   position limits, else the rest of the motion (which ends at rest).
 - Every tick goes to ``on_tick`` (e.g. the ``<prefix>/joint_states`` publisher).
+- A new goal while moving: :meth:`Executor.lookahead` gives a tick a little ahead and
+  the setpoint then; a plan from that moving state (``start_velocity`` and
+  ``start_acceleration``, see :mod:`planner.moving_start`) handed to
+  :meth:`Executor.switch` takes over at that tick, without a jump in position,
+  velocity or acceleration.
 """
 
 from __future__ import annotations
@@ -58,6 +63,12 @@ class NotAtStart(RobotError):
     """The robot is farther than the tolerance from the trajectory's start."""
 
     code = "NOT_AT_START"
+
+
+class TooLate(RobotError):
+    """A blend that cannot happen: the moment it was planned for has passed."""
+
+    code = "TOO_LATE"
 
 
 class ExecutionBusy(RobotError):
@@ -213,6 +224,11 @@ class Executor:
         self.robot, self.limits, self.options, self.on_tick = robot, limits, options, on_tick
         self.torques = torques
         self.last_stop: StopKind | None = None
+        self.blends = 0
+        self._switch_lock = threading.Lock()
+        self._switch: tuple[int, SampledTrajectory] | None = None
+        self._playing: tuple[Phase, Segment, int, int] | None = None
+        self._tick_index = 0
         self._lock = threading.Lock()
 
     @classmethod
@@ -224,6 +240,46 @@ class Executor:
         lim = JointLimits.from_description(description, joint_names=robot.joint_names)
         dyn = InverseDynamics(description.robot, robot.joint_names)
         return cls(robot, lim, torques=dyn.torques_batch, options=options, on_tick=on_tick)
+
+    # -- blending into a new trajectory while moving ----------------------------------------
+    def lookahead(self, lead: float) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+        """The tick ``lead`` [s] from now and the setpoint (q [rad], qd [rad/s], qdd
+        [rad/s^2]) the running trajectory will command then: plan from it (a moving
+        start) and hand the result to :meth:`switch` for that tick.
+
+        Raises:
+            TooLate: no trajectory is playing, or it ends before then.
+        """
+        dt = 1.0 / self.options.rate
+        with self._switch_lock:
+            playing, now = self._playing, self._tick_index
+        if playing is None or playing[0] != "trajectory":
+            raise TooLate("no trajectory is playing to blend from")
+        _, seg, k0, _ = playing
+        k = now + max(1, int(math.ceil(lead * self.options.rate)))
+        t = (k - k0) * dt
+        if t >= seg.duration:
+            raise TooLate(f"the motion ends in {seg.duration - (now - k0) * dt:.3f} s, "
+                          f"before a blend {lead:g} s ahead: send the goal once it stops")
+        q, qd, qdd = seg.evaluate(t)
+        return k, q, qd, qdd
+
+    def switch(self, trajectory: SampledTrajectory, at_tick: int) -> None:
+        """Play ``trajectory`` from tick ``at_tick`` on (it must start in the state
+        :meth:`lookahead` gave for that tick).
+
+        Raises:
+            TooLate: that tick has passed, or the motion it blends from has ended.
+        """
+        names = self.robot.joint_names
+        with self._switch_lock:
+            if self._playing is None or self._playing[0] != "trajectory":
+                raise TooLate("the motion to blend from has ended")
+            if at_tick <= self._tick_index:
+                raise TooLate(f"tick {at_tick} has passed (now {self._tick_index}): plan "
+                              "with a longer lead")
+            hold = self._playing[1].evaluate(0.0)[0]
+            self._switch = (at_tick, trajectory.for_joints(names, hold))
 
     def choose_stop(self, seg: Segment, s: float,
                     cur: tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -364,9 +420,22 @@ class Executor:
             for phase, seg in plan:
                 n = int(math.ceil(seg.duration * o.rate - 1e-9))
                 first = 0 if k == 0 else 1  # a junction is one tick, not two
-                for i in range(first, n + 1):
+                i = first
+                self._playing = (phase, seg, k - i, k)
+                while i <= n:
                     if cancel.is_set():
                         break
+                    with self._switch_lock:
+                        sw, self._tick_index = self._switch, k
+                        if sw is not None and sw[0] == k:
+                            # blend: the new trajectory starts in this tick's state
+                            self._switch = None
+                            seg = traj = sw[1]
+                            n, i = int(math.ceil(seg.duration * o.rate - 1e-9)), 0
+                            self._playing = (phase, seg, k, k)
+                            self.blends += 1
+                            log.info("tick %d: blended into a new %.3f s trajectory", k,
+                                     seg.duration)
                     t = min(i * dt, seg.duration)
                     cur = seg.evaluate(t)
                     jerk = (seg.evaluate(t + dt)[2] - cur[2]) / dt
@@ -374,9 +443,12 @@ class Executor:
                     self._tick(k, clock, dt, phase, prog_t, traj.duration, cur, jerk, rec)
                     last = (seg, t)
                     k += 1
+                    i += 1
                 if cancel.is_set():
                     cancelled_at = rec.traj_time
                     break
+            with self._switch_lock:
+                self._playing, self._switch = None, None
             if cancelled_at is not None:
                 how, stop = self.choose_stop(*last, cur)
                 stop_time = stop.duration

@@ -12,6 +12,10 @@ Keys (``<p>`` the prefix):
   "execution", "duration"}``, ``{"event": "progress", ...}`` at 10 Hz, then
   ``{"event": "finished", "execution", "report"}``; errors as everywhere
   (``{"error": {code, message, details}}``; ``BUSY`` while another execution runs).
+  With ``"blend": true`` and a ``plan`` while the arm moves, the new goal is planned
+  from the setpoint 0.8 s ahead (a moving start) and takes over there without a jump;
+  one reply ``{"event": "blended", "execution", "tick", "duration"}`` (or ``TOO_LATE``),
+  the running execution's stream goes on to its final report.
 - ``<p>/execute/cancel``: ``{"execution": id}`` (or empty: the running one) stops it
   smoothly (jerk-limited); replies ``{"cancelled": id or null}``.
 - ``<p>/robot_state``: the robot's joint state now.
@@ -46,7 +50,8 @@ _log = logging.getLogger(__name__)
 
 JSON = "application/json"
 PROGRESS_EVERY = 10  # ticks between progress replies (10 Hz at 100 Hz)
-_FIELDS = {"trajectory", "plan", "start_tolerance", "move_to_start", "client"}
+_FIELDS = {"trajectory", "plan", "start_tolerance", "move_to_start", "client", "blend"}
+BLEND_LEAD = 0.8  # [s] ahead of the arm a blend is planned for (planning must finish)
 
 # submit(plan request dict, respond((ok, body))) -> None: hands a plan job to the pool
 SubmitPlan = Callable[[dict[str, Any], Callable[[tuple[bool, Any]], None]], None]
@@ -92,6 +97,7 @@ class ExecuteService:
         self._cancel = threading.Event()
         self._current: str | None = None
         self._thread: threading.Thread | None = None
+        self._running: Any = None  # the Executor playing now
         self._ids = itertools.count(1)
         self._entities: list[Any] = []
         self._publisher: Any = None
@@ -208,7 +214,13 @@ class ExecuteService:
         client = body.get("client")
         if client is not None and (not isinstance(client, str) or not client.isalnum()):
             raise InvalidRequest("must be an alphanumeric id", field="client")
+        blend = body.get("blend", False)
+        if not isinstance(blend, bool):
+            raise InvalidRequest("must be true or false", field="blend")
         robot = self.robot()
+        if blend:
+            self._blend(query, body)
+            return
         if not self._busy.acquire(blocking=False):
             raise _busy(self._current)
         try:
@@ -230,6 +242,46 @@ class ExecuteService:
         except BaseException:
             self._finish()
             raise
+
+    def _blend(self, query: zenoh.Query, body: Mapping[str, Any]) -> None:
+        """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
+        (a moving start) and switch to it at that tick; one reply, ``blended`` or an
+        error (``TOO_LATE`` when the arm stops first or planning took too long)."""
+        from clients.execute import TooLate
+        from clients.segments import SampledTrajectory
+        if not isinstance(body.get("plan"), dict):
+            raise InvalidRequest("a blend needs a plan request (the new goal)", field="plan")
+        ex, execution = self._running, self._current
+        if ex is None:
+            raise TooLate("nothing is moving: send the goal without blend")
+        k, q, qd, qdd = ex.lookahead(BLEND_LEAD)
+        names = ex.robot.joint_names
+        req = {**body["plan"], "start": dict(zip(names, q.tolist())),
+               "start_velocity": dict(zip(names, qd.tolist())),
+               "start_acceleration": dict(zip(names, qdd.tolist()))}
+        data = wire.decode("plan", wire.encode(req))
+        key = f"{self.prefix}/execute"
+
+        def on_planned(outcome: tuple[bool, Any]) -> None:
+            from clients.robots import RobotError
+            ok, b = outcome
+            try:
+                if not ok:
+                    query.reply_err(_err(b["code"], b["message"], b["details"]),
+                                    encoding=JSON)
+                    return
+                traj = SampledTrajectory.from_json(orjson.loads(b))
+                ex.switch(traj, k)
+                query.reply(key, wire.encode({"event": "blended", "execution": execution,
+                                              "tick": k, "duration": traj.duration}),
+                            encoding=JSON)
+            except RobotError as e:
+                query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
+            finally:
+                query.drop()
+        if self.submit_plan is None:
+            raise InvalidRequest("this service cannot plan", field="plan")
+        self.submit_plan(data, on_planned)
 
     def _finish(self) -> None:
         self._current = None
@@ -315,10 +367,14 @@ class _Run:
                           options=replace(base.options, start_tolerance=self.tolerance,
                                           move_to_start=self.move))
             ex.check_start(traj)  # refuse before telling the client it started
+            svc._running = ex
             self._reply({"event": "started", "execution": self.execution,
                          "duration": traj.duration, "joint_names": list(traj.joint_names)})
             t0 = time.monotonic()
             report = ex.execute(traj, cancel=svc._cancel)
+            if watch is not None:  # done: the client may leave now
+                watch.undeclare()
+                watch = None
             _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
                       time.monotonic() - t0)
             self._reply({"event": "finished", "execution": self.execution,
@@ -332,6 +388,7 @@ class _Run:
             self.query.reply_err(_err("INTERNAL", "the execution failed"), encoding=JSON)
             self.query.drop()
         finally:
+            svc._running = None
             if watch is not None:
                 watch.undeclare()
             svc._finish()

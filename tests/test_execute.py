@@ -227,6 +227,34 @@ def test_a_lost_client_stops_the_arm(served):
         lis.close()
 
 
+def test_a_new_goal_blends_in_through_serve(served, tmp_path):
+    lis = StateListener(served.endpoint)
+    try:
+        slow = tmp_path / "slow.json"  # a long motion to blend out of
+        slow.write_text(json.dumps({"goal": {"joints": {"joint_1": -1.0, "joint_2": 0.3,
+                                                        "joint_3": 0.5}},
+                                    "velocity_scaling": 0.03,
+                                    "acceleration_scaling": 0.03}))
+        out = tmp_path / "report.json"
+        first = _execute(served.endpoint, "--request", str(slow), "--report", str(out))
+        lis.wait(lambda m: m["phase"] == "trajectory" and 0.1 <= m["progress"] < 0.5)
+        second = _execute(served.endpoint, "--named", "home", "--blend")
+        stdout2, stderr2 = second.communicate(timeout=60)
+        assert second.returncode == 0, stderr2
+        assert stdout2.startswith("blended into x")
+        stdout, stderr = first.communicate(timeout=60)
+        assert first.returncode == 0, stderr
+        rep = json.loads(out.read_text())
+        assert rep["outcome"] == "completed"
+        assert rep["final_positions"][:3] == pytest.approx([0, 0, 0], abs=2e-3)  # home
+        assert all(v <= 1 + 1e-6 for v in rep["peak_ratio"].values()), rep["peak_ratio"]
+        # the published motion never jumps: consecutive ticks within a tick's motion
+        qs = np.array([m["position"][:4] for _, m in lis.msgs])
+        assert np.abs(np.diff(qs, axis=0)).max() <= 10.0 * 0.01 + 1e-6
+    finally:
+        lis.close()
+
+
 def test_execute_cli_on_the_local_twin(planned, tmp_path):
     f = tmp_path / "traj.json"
     f.write_text(json.dumps({"trajectory": planned["reach_forward"].to_dict()}))
@@ -241,3 +269,45 @@ def test_execute_cli_on_the_local_twin(planned, tmp_path):
     r = subprocess.run(run, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 1
     assert "NOT_AT_START" in r.stderr and "--move-to-start" in r.stderr
+
+
+def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
+    from planner.goals import NamedGoal
+    from planner.pipeline import MotionPlanner, MotionRequest
+    mp = MotionPlanner(desc)
+    first = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=11)).trajectory
+    sim = SimArduinobot(desc)
+    done = []
+
+    def on_tick(tick):
+        if done or tick.phase != "trajectory" or tick.progress < 0.3:
+            return
+        k, q, qd, qdd = ex.lookahead(0.2)
+        names = ex.robot.joint_names
+        new = mp.solve(MotionRequest(goal=NamedGoal("reach_right"), seed=12,
+                                     start=dict(zip(names, q.tolist())),
+                                     start_velocity=dict(zip(names, qd.tolist())),
+                                     start_acceleration=dict(zip(names, qdd.tolist()))))
+        ex.switch(SampledTrajectory.from_json({"trajectory": new.trajectory.to_dict()}), k)
+        done.append((k, new.trajectory))
+        with pytest.raises(Exception, match="has passed"):
+            ex.switch(SampledTrajectory.from_json({"trajectory": new.trajectory.to_dict()}),
+                      tick.index)
+    ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False),
+                                  on_tick=on_tick)
+    rep = ex.execute(SampledTrajectory.from_json(_body(first)))
+    assert rep.outcome == "completed" and ex.blends == 1
+    k, new = done[0]
+    # the switch tick commands the new trajectory's first state, the one before the old's
+    assert rep.q[k] == pytest.approx(new.positions[0], abs=1e-12)
+    dv = np.abs(np.diff(rep.qd, axis=0)).max(axis=0)
+    assert np.all(dv <= ex.limits.acceleration * 0.01 * (1 + 1e-6))  # no velocity jump
+    check_within_limits(rep, ex.limits)
+    right = desc.srdf.named_state("reach_right").values
+    assert rep.measured[-1][:3] == pytest.approx([right[n] for n in rep.joint_names[:3]],
+                                                 abs=2e-3)
+    st = sim.stats()
+    # what the blended motion asks of the motors is within their effort; the servos'
+    # feedback on top of a plan at ~99% effort touches the limit for a few ms at most
+    assert max(f / e for f, e in zip(st.peak_feedforward, st.effort)) <= 1 + 1e-3
+    assert st.saturated_steps <= 0.02 * st.steps
