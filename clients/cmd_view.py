@@ -57,6 +57,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                      "(e.g. tcp/127.0.0.1:7447)")
     src.add_argument("--local", action="store_true",
                      help="plan in this process (the default without --connect)")
+    p.add_argument("--follow", action="store_true",
+                   help="show the live <prefix>/joint_states of a running 'arduinobot "
+                   "execute' (sim or real arm), through --connect (default "
+                   "tcp/127.0.0.1:7447)")
+    p.add_argument("--prefix", default="arduinobot", help="the service's key prefix "
+                   "(for --follow)")
     p.set_defaults(func=cmd_view)
 
 
@@ -135,12 +141,19 @@ def _serve(ns: argparse.Namespace, d: object, obstacles: tuple[Obstacle, ...],
     PlanningPanel(viewer, playback, backend)
     if traj is not None:
         playback.load(traj, source=Path(ns.trajectory).name)  # type: ignore[arg-type]
+    follower = None
+    if ns.follow:
+        from .viewer.follow import JointStateFollower
+        follower = JointStateFollower(viewer, ns.connect or "tcp/127.0.0.1:7447",
+                                      prefix=ns.prefix)
     print(f"arduinobot view: {d.robot.name} at {viewer.url} (Ctrl-C stops)",  # type: ignore[attr-defined]
           flush=True)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     stop.wait()
+    if follower is not None:
+        follower.close()
     playback.close()
     viewer.close()
     return EXIT_OK

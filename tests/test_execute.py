@@ -311,3 +311,27 @@ def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
     # feedback on top of a plan at ~99% effort touches the limit for a few ms at most
     assert max(f / e for f, e in zip(st.peak_feedforward, st.effort)) <= 1 + 1e-3
     assert st.saturated_steps <= 0.02 * st.steps
+
+
+def test_the_viewer_follows_a_running_execute(served, desc):
+    pytest.importorskip("viser")  # the `view` extra
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.follow import JointStateFollower
+
+    from .conftest import free_port
+    viewer = RobotViewer(desc, port=free_port())
+    follower = JointStateFollower(viewer, served.endpoint)
+    try:
+        t0 = time.monotonic()
+        proc = _execute(served.endpoint, "--named", "reach_forward")
+        stdout, stderr = proc.communicate(timeout=60)
+        assert proc.returncode == 0, stderr
+        time.sleep(0.3)
+        elapsed = time.monotonic() - t0
+        goal = desc.srdf.named_state("reach_forward").values
+        assert viewer.q[:3] == pytest.approx([goal[n] for n in viewer.joint_names[:3]],
+                                             abs=2e-3)
+        assert 5 <= follower.shown <= 30 * elapsed + 1  # throttled to 30 Hz
+    finally:
+        follower.close()
+        viewer.close()
