@@ -212,3 +212,26 @@ def test_a_robot_without_four_joints_is_refused(desc):
     with pytest.raises(UnsupportedRobot, match="4 joints"):
         SerialArduinobot("/dev/null", joint_names=["a", "b"], velocity=[1, 1], lower=[0, 0],
                          upper=[1, 1])
+
+
+def test_execute_cli_streams_to_the_port(planned, tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    from .conftest import REPO
+    f = tmp_path / "traj.json"
+    f.write_text(json.dumps({"trajectory": planned.to_dict()}))
+    pty = PtyReader()
+    r = subprocess.run([sys.executable, "-m", "clients.cli", "execute", str(f), "--serial",
+                        pty.path, "--boot-wait", "0", "--no-publish"], cwd=REPO,
+                       capture_output=True, text=True, timeout=120)
+    msgs = messages(pty.close())
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("completed")
+    assert msgs[-1][1] == angles(planned.positions[-1])
+    assert len(msgs) > 50
+    r = subprocess.run([sys.executable, "-m", "clients.cli", "execute", str(f), "--serial",
+                        "/dev/ttyACM_nothing_here", "--no-publish"], cwd=REPO,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and "PORT_NOT_FOUND" in r.stderr and "does not exist" in r.stderr
