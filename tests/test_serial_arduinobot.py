@@ -235,3 +235,33 @@ def test_execute_cli_streams_to_the_port(planned, tmp_path):
                         "/dev/ttyACM_nothing_here", "--no-publish"], cwd=REPO,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and "PORT_NOT_FOUND" in r.stderr and "does not exist" in r.stderr
+
+
+def test_serve_drives_the_real_arm_on_its_port(tmp_path):
+    import subprocess
+    import sys
+
+    from clients.client import PlannerClient
+
+    from .conftest import REPO, start_server
+    r = subprocess.run([sys.executable, "-m", "clients.cli", "serve", "--listen",
+                        "tcp/127.0.0.1:0", "--workers", "1", "--serial",
+                        "/dev/ttyACM_nothing_here"], cwd=REPO, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 1 and "PortNotFound" in r.stderr and "does not exist" in r.stderr
+    pty = PtyReader()
+    srv = start_server(["--workers", "1", "--serial", pty.path, "--boot-wait", "0"])
+    try:
+        with PlannerClient(srv.endpoint, timeout=30) as c:
+            st = c.request("robot_state")
+            assert st["name"][:4] == ["joint_1", "joint_2", "joint_3", "joint_4"]
+            assert st["position"] == [0.0] * 5 and st["effort"] is None
+        run = subprocess.run([sys.executable, "-m", "clients.cli", "execute", "--remote",
+                              "--connect", srv.endpoint, "--named", "reach_forward"],
+                             cwd=REPO, capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0, run.stderr
+    finally:
+        srv.stop()
+    msgs = messages(pty.close())
+    assert msgs[0][1] == angles([0, 0, 0, 0])
+    assert msgs[-1][1] == angles([0.0, 0.8, 0.6, 0.0])  # reach_forward
