@@ -98,7 +98,7 @@ def add_serve_args(p: argparse.ArgumentParser) -> None:
     w = g.add_mutually_exclusive_group()
     w.add_argument("--serial", nargs="?", const="", metavar="PORT",
                    help="drive the real arm on PORT (default: the URDF's ros2_control "
-                   "port); default: the MuJoCo twin, built on first use")
+                   "port); default: the MuJoCo twin")
     w.add_argument("--no-robot", action="store_true", help="serve no <prefix>/execute robot")
     g.add_argument("--baud", type=int, default=None, help="serial baud rate (default 115200)")
     g.add_argument("--rate", type=float, default=100.0, metavar="HZ",

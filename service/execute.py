@@ -21,8 +21,8 @@ Keys (``<p>`` the prefix):
 - ``<p>/robot_state``: the robot's joint state now.
 - ``<p>/joint_states``: published at every control tick while the arm moves.
 
-The robot is MuJoCo's twin by default (built on first use, so ``serve`` starts as fast as
-before and needs MuJoCo only when executing), the real arm with ``serve --serial PORT``
+The robot is MuJoCo's twin by default (built in the background once serving, so the
+start is not slowed and a missing MuJoCo fails only execute requests), the real arm with ``serve --serial PORT``
 (opened at start, so a missing or busy port fails the start). Nothing here imports
 mujoco or serial at import time.
 """
@@ -111,6 +111,10 @@ class ExecuteService:
     def start(self) -> None:
         if self.spec.kind == "serial":
             self.robot()  # a missing or busy port fails the start, clearly
+        elif self.spec.kind == "sim":
+            # build the twin in the background: the first execute must not hold Zenoh's
+            # callback thread for the ~1.5 s a MuJoCo model takes
+            threading.Thread(target=self._prebuild, name="twin-build", daemon=True).start()
         p = self.prefix
         s = self.session
         self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
@@ -144,6 +148,13 @@ class ExecuteService:
             self._robot = None
 
     # -- the robot ------------------------------------------------------------------------
+    def _prebuild(self) -> None:
+        try:
+            self.robot()
+        except Exception as e:  # noqa: BLE001 -- logged; the first execute re-raises it
+            _log.warning("execute: the MuJoCo twin could not be built (%s: %s); execute "
+                         "requests will fail until it can", type(e).__name__, e)
+
     def robot(self) -> Any:
         """The driver, built on first use (the twin) or at start (the real arm)."""
         with self._robot_lock:
