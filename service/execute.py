@@ -21,8 +21,8 @@ Keys (``<p>`` the prefix):
 - ``<p>/robot_state``: the robot's joint state now.
 - ``<p>/joint_states``: published at every control tick while the arm moves.
 
-The robot is MuJoCo's twin by default (built in the background once serving, so the
-start is not slowed and a missing MuJoCo fails only execute requests), the real arm with ``serve --serial PORT``
+The robot is MuJoCo's twin by default (built on first use, off Zenoh's callback thread,
+so ``serve`` starts as before and needs MuJoCo only when executing), the real arm with ``serve --serial PORT``
 (opened at start, so a missing or busy port fails the start). Nothing here imports
 mujoco or serial at import time.
 """
@@ -111,18 +111,17 @@ class ExecuteService:
     def start(self) -> None:
         if self.spec.kind == "serial":
             self.robot()  # a missing or busy port fails the start, clearly
-        elif self.spec.kind == "sim":
-            # build the twin in the background: the first execute must not hold Zenoh's
-            # callback thread for the ~1.5 s a MuJoCo model takes
-            threading.Thread(target=self._prebuild, name="twin-build", daemon=True).start()
+
         p = self.prefix
         s = self.session
         self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
-        for key, fn in ((f"{p}/execute", self._on_execute),
-                        (f"{p}/execute/cancel", self._on_cancel),
-                        (f"{p}/robot_state", self._on_state)):
-            self._entities.append(s.declare_queryable(key, self._guard(key, fn),
-                                                      complete=True))
+        # execute and robot_state may build the twin (~1.5 s) or wait for the pool: they
+        # run on their own threads, never on Zenoh's callback thread
+        for key, fn, threaded in ((f"{p}/execute", self._on_execute, True),
+                                  (f"{p}/execute/cancel", self._on_cancel, False),
+                                  (f"{p}/robot_state", self._on_state, True)):
+            self._entities.append(s.declare_queryable(
+                key, self._guard(key, fn, threaded=threaded), complete=True))
         _log.info("execute: robot %s%s, %g Hz; keys %s", self.spec.kind,
                   f" on {self.spec.port}" if self.spec.port else "", self.spec.rate,
                   ", ".join(self.keys))
@@ -148,12 +147,6 @@ class ExecuteService:
             self._robot = None
 
     # -- the robot ------------------------------------------------------------------------
-    def _prebuild(self) -> None:
-        try:
-            self.robot()
-        except Exception as e:  # noqa: BLE001 -- logged; the first execute re-raises it
-            _log.warning("execute: the MuJoCo twin could not be built (%s: %s); execute "
-                         "requests will fail until it can", type(e).__name__, e)
 
     def robot(self) -> Any:
         """The driver, built on first use (the twin) or at start (the real arm)."""
@@ -177,8 +170,8 @@ class ExecuteService:
             return self._robot
 
     # -- queries --------------------------------------------------------------------------
-    def _guard(self, key: str, fn: Callable[[zenoh.Query], None]):
-        def on_query(query: zenoh.Query) -> None:
+    def _guard(self, key: str, fn: Callable[[zenoh.Query], None], *, threaded: bool):
+        def handle(query: zenoh.Query) -> None:
             from clients.robots import RobotError
             try:
                 fn(query)
@@ -188,6 +181,13 @@ class ExecuteService:
                 _log.exception("%s: unexpected failure", key)
                 query.reply_err(_err("INTERNAL", "unexpected failure in the service"),
                                 encoding=JSON)
+
+        def on_query(query: zenoh.Query) -> None:
+            if threaded:
+                threading.Thread(target=handle, args=(query,), daemon=True,
+                                 name=key.rsplit("/", 1)[-1]).start()
+            else:
+                handle(query)
         return on_query
 
     def _on_state(self, query: zenoh.Query) -> None:
