@@ -121,12 +121,17 @@ def test_contacts_with_an_obstacle_are_reported(desc, planner):
 def test_gains_come_from_the_controllers_yaml(desc, tmp_path):
     y = tmp_path / "arduinobot_controllers.yaml"
     y.write_text("arm_controller:\n  ros__parameters:\n    joints: [joint_1, joint_2]\n"
+                 "    command_interfaces: [effort]\n"
                  "    gains:\n      joint_1: {p: 800.0, d: 12.5, i: 0.0}\n"
-                 "      joint_2: {p: 900.0}\n")
+                 "      joint_2: {p: 900.0}\n"
+                 "gripper_controller:\n  ros__parameters:\n    joints: [joint_4]\n"
+                 "    command_interfaces: [position]\n"
+                 "    gains:\n      joint_4: {p: 1.0, d: 0.1}\n")
     sim = SimArduinobot(desc, controllers=y)
     assert sim.gains[0] == Gains(800.0, 12.5)
     assert sim.gains[1] == Gains(900.0, 0.0)
     assert "default" in sim.gain_source["joint_3"]
+    assert "default" in sim.gain_source["joint_4"]  # position-commanded: gains unused
     aid = mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_ACTUATOR, "joint_1")
     assert sim.model.actuator_gainprm[aid, 0] == 800.0
     assert tuple(sim.model.actuator_biasprm[aid, :3]) == (0.0, -800.0, -12.5)
@@ -155,3 +160,28 @@ def test_plan_simulate_reports_and_plots(tmp_path):
     assert "simulation (MuJoCo twin)" in r.stdout and "contacts: none" in r.stdout
     assert "of the effort limit" in r.stdout
     assert png.stat().st_size > 10_000
+
+
+def test_the_course_workspace_twin_and_port(course_ws):
+    """The course's own packages: its controllers yaml (position-commanded, so its PID
+    gains do not apply) is found, the twin holds the arm, and the serial port comes from
+    the real-robot ros2_control block."""
+    from clients.robots import PortNotFound
+    from clients.robots.serial_arduinobot import SerialArduinobot
+    from clients.robots.sim_arduinobot import find_controllers_yaml
+    d = load_description(course_ws.xacro, package_dirs=[course_ws.src])
+    assert find_controllers_yaml(d).name == "arduinobot_controllers.yaml"
+    sim = SimArduinobot(d)
+    assert all("default" in sim.gain_source[n] for n in sim.joint_names)
+    for _ in range(100):
+        sim.command([0.0] * len(sim.joint_names))
+        sim.advance(0.01)
+    # held against gravity by the 10 Hz servos (the yaml's p = 1 N m/rad would let it fall)
+    assert np.abs(sim.state().actuated(sim.joint_names)).max() < 5e-3
+    with pytest.raises(PortNotFound, match="is_sim=false"):
+        SerialArduinobot.from_description(d)  # is_sim defaults to true: Gazebo's block
+    real = load_description(course_ws.xacro, package_dirs=[course_ws.src],
+                            args={"is_sim": "false"})
+    with pytest.raises(PortNotFound, match="/dev/ttyACM0") as e:
+        SerialArduinobot.from_description(real)
+    assert e.value.details["port"] == "/dev/ttyACM0"

@@ -67,14 +67,13 @@ def encode(angles: Sequence[int]) -> bytes:
 
 
 def hardware_params(urdf: str) -> dict[str, str]:
-    """The ``<param>`` values of the first ``<ros2_control><hardware>`` block of an
-    expanded URDF (``port``, ...), empty if it has none."""
+    """The ``<param>`` values of the ``<ros2_control><hardware>`` block of an expanded URDF
+    that names a ``port`` (else of the first block; empty without one)."""
     root = etree.fromstring(urdf.encode("utf-8"))
-    for hw in root.iter("hardware"):
-        if hw.getparent() is not None and hw.getparent().tag == "ros2_control":
-            return {p.get("name"): (p.text or "").strip() for p in hw.iter("param")
-                    if p.get("name")}
-    return {}
+    blocks = [{p.get("name"): (p.text or "").strip() for p in hw.iter("param") if p.get("name")}
+              for hw in root.iter("hardware")
+              if hw.getparent() is not None and hw.getparent().tag == "ros2_control"]
+    return next((b for b in blocks if b.get("port")), blocks[0] if blocks else {})
 
 
 def open_port(port: str, baud: int) -> object:
@@ -178,8 +177,11 @@ class SerialArduinobot(Robot):
         params = hardware_params(description.robot.urdf)
         port = port or params.get("port")
         if not port:
-            raise PortNotFound("no serial port: give --serial PORT (the URDF has no "
-                               "ros2_control <hardware> block with a 'port' param)")
+            why = ("its ros2_control <hardware> has no 'port' param (the simulation's? "
+                   "try --arg is_sim=false)" if params or "<hardware" in description.robot.urdf
+                   else "it has no ros2_control <hardware> block with a 'port' param")
+            raise PortNotFound(f"no serial port: give --serial PORT, or load a URDF that "
+                               f"names one ({why})")
         if baud is None:
             raw = params.get("baud_rate") or params.get("baudrate") or params.get("baud")
             baud = int(raw) if raw and raw.isdigit() else DEFAULT_BAUD

@@ -4,8 +4,8 @@ Position servos (force capped at the URDF effort) follow the setpoints, with vel
 and, when the setpoint carries an acceleration, computed-torque feed-forward (MuJoCo's
 inverse dynamics of the reference motion), so feedback only corrects; the physics
 steps at :data:`~clients.robots.mjcf.TIMESTEP` with contacts on. Servo gains come from a
-ros2_control controllers yaml (``gains: {joint: {p, d}}`` of a joint_trajectory_controller)
-when the packages have one, else each joint is a critically damped servo of
+ros2_control controllers yaml (``gains: {joint: {p, d}}`` of an effort-commanding
+joint_trajectory_controller) when the packages have one, else each joint is a critically damped servo of
 ``bandwidth`` Hz at its inertia in the initial pose: ``kp = M_ii w^2``, ``kv = 2 M_ii w``.
 
 :meth:`SimArduinobot.advance` steps the physics as fast as it can; the executor's clock
@@ -75,7 +75,8 @@ class SimStats:
 
 
 def find_controllers_yaml(description: Description) -> Path | None:
-    """A ros2_control controllers yaml next to the robot's config: ``config/*controllers*.yaml``
+    """A ros2_control controllers yaml next to the robot's config: a
+    ``config/*controllers*.yaml`` with ``ros__parameters`` (not MoveIt's controller list)
     of the MoveIt package, the description package, or a ``<robot>_controller`` package."""
     dirs: list[Path] = []
     cfg = description.config
@@ -89,22 +90,33 @@ def find_controllers_yaml(description: Description) -> Path | None:
         if name in pkgs:
             dirs.append(Path(pkgs[name]) / "config")
     for d in dict.fromkeys(dirs):
-        found = sorted(d.glob("*controllers*.yaml")) if d.is_dir() else []
-        if found:
-            return found[0]
+        for f in sorted(d.glob("*controllers*.yaml")) if d.is_dir() else []:
+            try:
+                data = yaml.safe_load(f.read_text("utf-8"))
+            except yaml.YAMLError:
+                log.warning("%s is not valid YAML; ignored", f)
+                continue
+            # a ros2_control file, not MoveIt's moveit_controllers.yaml
+            if isinstance(data, dict) and ("controller_manager" in data or any(
+                    isinstance(v, dict) and "ros__parameters" in v for v in data.values())):
+                return f
     return None
 
 
 def controller_gains(path: Path, joints: Sequence[str]) -> dict[str, Gains]:
-    """``gains: {joint: {p: .., d: ..}}`` of any controller in a ros2_control yaml, for
-    ``joints`` that have a positive ``p`` (``d`` defaults to 0)."""
+    """``gains: {joint: {p: .., d: ..}}`` of the controllers in a ros2_control yaml that
+    command ``effort`` (their PID output is a torque, so ``p`` [N m/rad] and ``d``
+    [N m s/rad] are a servo's stiffness and damping), for ``joints`` with a positive
+    ``p``. A position-commanded joint_trajectory_controller ignores its gains (the
+    hardware holds the position), and so does the twin: such joints keep the defaults."""
     data = yaml.safe_load(path.read_text("utf-8"))
     out: dict[str, Gains] = {}
 
     def walk(node: Any) -> None:
         if isinstance(node, dict):
             g = node.get("gains")
-            if isinstance(g, dict):
+            cmd = node.get("command_interfaces") or []
+            if isinstance(g, dict) and isinstance(cmd, list) and "effort" in cmd:
                 for j, v in g.items():
                     if j in joints and isinstance(v, dict):
                         p, d = float(v.get("p", 0.0) or 0.0), float(v.get("d", 0.0) or 0.0)
