@@ -144,7 +144,7 @@ def test_bytes_on_the_tty_follow_the_plan_tick_by_tick(desc, planned):
     assert abs(report.duration - planned.duration) <= 0.01 + 1e-9
     assert report.outcome == "completed"
     print(f"\n{len(msgs)} messages over {span:.3f} s (due {due_span:.3f} s), trajectory "
-          f"{planned.duration:.3f} s; worst tick error {worst / DEG:.3f} deg; late ticks "
+          f"{planned.duration:.3f} s; worst tick error {worst / DEG:.4f} deg; late ticks "
           f"{report.late_ticks}, max lateness {1000 * report.max_lateness:.1f} ms")
 
 
