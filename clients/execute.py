@@ -30,33 +30,22 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any, Literal
+from dataclasses import dataclass
 
 import numpy as np
 
 from description import Description
 from planner.limits import JointLimits
 
-from .robots.base import JointState, Robot, RobotError
-from .segments import (
-    PathStop,
-    RestOf,
-    RuckigSegment,
-    SampledTrajectory,
-    Segment,
-    move_segment,
-    stop_segment,
-)
-
-# Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
-TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+from .execution_report import ExecutionReport, Phase, Recorder, Tick
+from .robots.base import Robot, RobotError
+from .segments import RuckigSegment, SampledTrajectory, Segment, move_segment
+from .stops import StopKind, TorqueFn, choose_stop, effort_safe
 
 log = logging.getLogger(__name__)
 
-Phase = Literal["move_to_start", "trajectory", "stop", "settle"]
-Outcome = Literal["completed", "cancelled"]
-StopKind = Literal["path", "joint", "finish"]
+__all__ = ["ExecuteOptions", "ExecutionBusy", "ExecutionReport", "Executor", "NotAtStart",
+           "Tick", "TooLate", "plan_start"]
 
 
 class NotAtStart(RobotError):
@@ -99,73 +88,6 @@ class ExecuteOptions:
     realtime: bool = True
     settle: float = 0.5
     settle_velocity: float = 0.01
-
-
-@dataclass(frozen=True)
-class Tick:
-    """One control tick: its index, time [s] since the execution began, the phase, the
-    trajectory time [s] and progress (0..1), the setpoint (q [rad], qd [rad/s], qdd
-    [rad/s^2]) and the robot's state after the tick."""
-
-    index: int
-    time: float
-    phase: Phase
-    trajectory_time: float
-    progress: float
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-    state: JointState
-
-
-@dataclass(frozen=True, eq=False)
-class ExecutionReport:
-    """What an execution did.
-
-    Attributes:
-        outcome: completed, or cancelled (then stopped at rest).
-        joint_names: the commanded joints (column order of the arrays).
-        trajectory_duration: [s] of the trajectory asked for.
-        duration: [s] from the first tick to the last.
-        ticks: ticks played; late_ticks: how many started over half a period late;
-            max_lateness [s].
-        cancelled_at: trajectory time [s] of the cancel; stop_time [s] the stop took.
-        times (m,) [s]; phases (m,); commanded q/qd/qdd (m, dof); measured positions and
-            velocities (m, dof) of the commanded joints.
-        peak_ratio: per quantity (velocity, acceleration, jerk), the largest commanded
-            value over its limit (from the setpoints' finite differences for jerk).
-        max_tracking_error: per joint, max |measured - commanded| [rad], the state read
-            at the end of a tick against the setpoint for that moment (the next tick's).
-    """
-
-    outcome: Outcome
-    joint_names: tuple[str, ...]
-    trajectory_duration: float
-    duration: float
-    ticks: int
-    late_ticks: int
-    max_lateness: float
-    cancelled_at: float | None
-    stop_time: float | None
-    times: np.ndarray = field(repr=False)
-    phases: tuple[Phase, ...] = field(repr=False)
-    q: np.ndarray = field(repr=False)
-    qd: np.ndarray = field(repr=False)
-    qdd: np.ndarray = field(repr=False)
-    measured: np.ndarray = field(repr=False)
-    measured_velocity: np.ndarray = field(repr=False)
-    peak_ratio: dict[str, float] = field(default_factory=dict)
-    max_tracking_error: tuple[float, ...] = ()
-
-    def to_dict(self) -> dict[str, Any]:
-        """The summary, JSON-ready (no per-tick arrays)."""
-        return {"outcome": self.outcome, "joint_names": list(self.joint_names),
-                "trajectory_duration": self.trajectory_duration, "duration": self.duration,
-                "ticks": self.ticks, "late_ticks": self.late_ticks,
-                "max_lateness": self.max_lateness, "cancelled_at": self.cancelled_at,
-                "stop_time": self.stop_time, "peak_ratio": dict(self.peak_ratio),
-                "max_tracking_error": list(self.max_tracking_error),
-                "final_positions": [float(v) for v in self.measured[-1]]}
 
 
 def plan_start(robot: Robot, description: Description) -> dict[str, float]:
@@ -284,75 +206,12 @@ class Executor:
     def choose_stop(self, seg: Segment, s: float,
                     cur: tuple[np.ndarray, np.ndarray, np.ndarray]
                     ) -> tuple[StopKind, Segment]:
-        """How to stop ``seg`` played up to its time ``s`` [s], at commanded ``cur``.
-
-        1. ``path``: brake along the segment's own path (it stays on the collision-checked
-           path), the hardest braking tried (path-time deceleration 8, 5.6, 3.9, ...
-           [1/s^2]) whose motion keeps every velocity, acceleration, jerk and effort limit
-           (checked on 1 ms samples).
-        2. ``finish``: when braking on the path needs more path than is left, the rest of
-           the segment is the stop (it ends at rest, within every limit).
-        3. ``joint``: ruckig's per-joint time-optimal stop (effort-safe), if it stays within
-           the position limits.
-        4. ``finish`` otherwise.
-        """
-        lim = self.limits
-        dec = 8.0
-        for _ in range(10):
-            ps = PathStop(seg, s, dec, dec / 0.05)
-            if ps.passes_end:
-                return "finish", RestOf(seg, s)
-            if self.within_limits(ps):
-                return "path", ps
-            dec *= 0.7
-        q, qd, qdd = cur
-        js = self.effort_safe(lambda f: stop_segment(
-            self.robot.joint_names, q, qd, qdd, velocity=lim.velocity,
-            acceleration=np.maximum(f * lim.acceleration, np.abs(qdd)), jerk=f * lim.jerk))
-        lo, hi = js.position_extrema()
-        if np.all(lo >= lim.lower - 1e-9) and np.all(hi <= lim.upper + 1e-9):
-            return "joint", js
-        log.warning("no stop within the limits leaves the path early: finishing the motion")
-        return "finish", RestOf(seg, s)
-
-    def within_limits(self, seg: Segment, *, step: float = 1e-3) -> bool:
-        """Whether ``seg`` keeps positions, velocities, accelerations, jerks (finite
-        differences) and, given the inverse dynamics, efforts within the limits on
-        ``step`` [s] samples."""
-        lim = self.limits
-        ts = np.linspace(0.0, seg.duration, max(3, int(math.ceil(seg.duration / step)) + 1))
-        q, qd, qdd = (np.array(x) for x in zip(*(seg.evaluate(t) for t in ts)))
-        h = ts[1] - ts[0]
-        tol = 1 + 1e-6
-        ok = bool(np.all(q >= lim.lower - 1e-9) and np.all(q <= lim.upper + 1e-9)
-                  and np.all(np.abs(qd) <= lim.velocity * tol)
-                  and np.all(np.abs(qdd) <= lim.acceleration * tol)
-                  and np.all(np.abs(np.diff(qdd, axis=0)) <= lim.jerk * h * tol))
-        if ok and self.torques is not None:
-            ok = bool(np.all(np.abs(np.asarray(self.torques(q, qd, qdd)))
-                             <= lim.effort * tol))
-        return ok
+        """How to stop (:func:`clients.stops.choose_stop`)."""
+        return choose_stop(seg, s, cur, limits=self.limits, torques=self.torques)
 
     def effort_safe(self, make: Callable[[float], RuckigSegment]) -> RuckigSegment:
-        """``make(scale)`` with the largest scale in (0, 1] (tried as 1, 0.8, 0.64, ...)
-        whose motion keeps every joint's torque within 95% of its effort limit (inverse
-        dynamics on 1 ms samples). ``scale`` multiplies acceleration and jerk."""
-        seg = make(1.0)
-        if self.torques is None:
-            return seg
-        scale = 1.0
-        for _ in range(25):
-            ts = np.linspace(0.0, seg.duration, max(2, int(seg.duration * 1000) + 1))
-            q, qd, qdd = (np.array(x) for x in zip(*(seg.evaluate(t) for t in ts)))
-            tau = np.abs(np.asarray(self.torques(q, qd, qdd)))
-            ratio = float(np.max(tau / self.limits.effort))
-            if ratio <= 0.95:
-                return seg
-            scale *= 0.8
-            seg = make(scale)
-        log.warning("no ruckig motion within the effort limits (%.0f%% at scale %.3g)",
-                    100 * ratio, scale)
-        return seg
+        """:func:`clients.stops.effort_safe` with this robot's limits and dynamics."""
+        return effort_safe(make, self.limits, self.torques)
 
     # -- checks -------------------------------------------------------------------------
     def check_start(self, trajectory: SampledTrajectory) -> SampledTrajectory:
@@ -408,7 +267,7 @@ class Executor:
                 acceleration=f * s * lim.acceleration, jerk=f * s * lim.jerk))))
             log.info("moving to the start first (%.3f s)", plan[0][1].duration)
         plan.append(("trajectory", traj))
-        rec = _Recorder(len(names))
+        rec = Recorder()
         clock = _Clock(o.realtime)
         dt = 1.0 / o.rate
         k = 0
@@ -480,7 +339,7 @@ class Executor:
 
     def _tick(self, k: int, clock: _Clock, dt: float, phase: Phase, traj_t: float,
               traj_duration: float, cur: tuple[np.ndarray, np.ndarray, np.ndarray],
-              jerk: np.ndarray, rec: _Recorder) -> None:
+              jerk: np.ndarray, rec: Recorder) -> None:
         clock.wait_until(k * dt)
         late = clock.now() - k * dt
         q, qd, qdd = cur
@@ -491,41 +350,3 @@ class Executor:
         if self.on_tick is not None:
             prog = traj_t / traj_duration if traj_duration > 0 else 1.0
             self.on_tick(Tick(k, k * dt, phase, traj_t, min(1.0, prog), q, qd, qdd, st))
-
-
-class _Recorder:
-    def __init__(self, dof: int) -> None:
-        self.rows: list[tuple] = []
-        self.late = 0
-        self.max_late = 0.0
-        self.traj_time = 0.0
-
-    def add(self, t: float, phase: Phase, traj_t: float, q: np.ndarray, qd: np.ndarray,
-            qdd: np.ndarray, st: JointState, names: tuple[str, ...], late: float,
-            dt: float) -> None:
-        idx = {n: i for i, n in enumerate(st.names)}
-        meas = np.array([st.positions[idx[n]] for n in names])
-        vel = np.array([st.velocities[idx[n]] for n in names])
-        self.rows.append((t, phase, q.copy(), qd.copy(), qdd.copy(), meas, vel))
-        self.traj_time = traj_t
-        if late > 0.5 * dt:
-            self.late += 1
-        self.max_late = max(self.max_late, late)
-
-    def report(self, outcome: Outcome, names: tuple[str, ...], traj_duration: float,
-               cancelled_at: float | None, stop_time: float | None, lim: JointLimits,
-               dt: float) -> ExecutionReport:
-        times = np.array([r[0] for r in self.rows])
-        q, qd, qdd, meas, vel = (np.array([r[i] for r in self.rows]) for i in range(2, 7))
-        jerk = np.diff(qdd, axis=0) / dt if len(qdd) > 1 else np.zeros((1, len(names)))
-        peak = {"velocity": float(np.max(np.abs(qd) / lim.velocity)),
-                "acceleration": float(np.max(np.abs(qdd) / lim.acceleration)),
-                "jerk": float(np.max(np.abs(jerk) / lim.jerk))}
-        # the state is read at the end of tick k, when the setpoint is tick k+1's
-        target = np.vstack([q[1:], q[-1:]])
-        err = tuple(float(v) for v in np.max(np.abs(meas - target), axis=0))
-        return ExecutionReport(outcome, names, traj_duration,
-                               float(times[-1] - times[0]) if len(times) else 0.0,
-                               len(times), self.late, self.max_late, cancelled_at, stop_time,
-                               times, tuple(r[1] for r in self.rows), q, qd, qdd, meas, vel,
-                               peak, err)
