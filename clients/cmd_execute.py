@@ -268,9 +268,9 @@ def _print_report(r: dict[str, Any]) -> None:
         f"{n} {1000 * e:.2f} mrad" for n, e in zip(r["joint_names"], r["max_tracking_error"])))
     sim = r.get("simulation")
     if sim:
-        lines.append("peak actuator force vs limit: " + ", ".join(
-            f"{n} {f:.2f}/{e:.0f} N m" for n, f, e in zip(r["joint_names"], sim["peak_force"],
-                                                          sim["effort"])))
+        lines.append("torque needed / servo peak / limit: " + ", ".join(
+            f"{n} {ff:.2f}/{f:.2f}/{e:.0f} N m" for n, ff, f, e in zip(
+                r["joint_names"], sim["peak_feedforward"], sim["peak_force"], sim["effort"])))
         lines.append(f"saturated steps {sim['saturated_steps']}/{sim['steps']}; contacts: "
                      + (", ".join("/".join(p) for p in sim["contacts"]) or "none"))
     print("\n".join(lines))

@@ -262,7 +262,7 @@ def test_execute_cli_on_the_local_twin(planned, tmp_path):
            "--no-publish"]
     r = subprocess.run(run, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
-    assert "completed" in r.stdout and "peak actuator force" in r.stdout
+    assert "completed" in r.stdout and "torque needed / servo peak / limit" in r.stdout
     moved = dict(planned["reach_forward"].to_dict())
     moved["points"] = [{**p, "positions": [0.3, *p["positions"][1:]]} for p in moved["points"]]
     f.write_text(json.dumps(moved))
