@@ -140,7 +140,7 @@ def test_bytes_on_the_tty_follow_the_plan_tick_by_tick(desc, planned):
     # the stream lasts the trajectory: arrivals 10 ms apart per tick, +- scheduling
     span = msgs[-1][0] - msgs[0][0]
     due_span = (sent_at[-1] - sent_at[0]) / 100
-    assert abs(span - due_span) < 0.04, (span, due_span)
+    assert abs(span - due_span) < 0.06, (span, due_span)  # paced: unpaced would be ~0
     assert abs(report.duration - planned.duration) <= 0.01 + 1e-9
     assert report.outcome == "completed"
     print(f"\n{len(msgs)} messages over {span:.3f} s (due {due_span:.3f} s), trajectory "
