@@ -22,7 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+# the repository first: bench/service.py must not shadow the service package
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.append(str(Path(__file__).resolve().parent))
 
 from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
 

@@ -3,9 +3,9 @@
 From :class:`description.Robot`: one body per link (the root welded to the world), its
 inertial as given, one hinge/slide per movable joint with the URDF position limits, a
 mimic joint as an equality constraint on its leader (``q = offset + multiplier *
-q_leader``), collision shapes as contact geoms (a mesh as up to 16 convex pieces, since MuJoCo
-collides convex hulls and one hull around a concave part touches what the part does
-not), and per actuated joint a position servo
+q_leader``), collision shapes as contact geoms (a mesh as up to 32 convex pieces, see
+:func:`mesh_parts`: MuJoCo collides convex hulls, and one hull around a concave part
+touches what the part does not), and per actuated joint a position servo
 with velocity feed-forward (see :func:`servo_ctrl`) whose force is capped at the URDF
 effort. Contacts between a link and its parent, and the SRDF's disabled pairs (what the
 planner trusts never to touch), are excluded; every other pair is live, and so are
@@ -31,9 +31,10 @@ from typing import Any
 import numpy as np
 
 from description.model import Robot, Shape, rpy_matrix
+from planner.cache import ArtifactCache, content_key
 
 TIMESTEP = 0.001  # [s]
-COLLISION_PARTS = 16  # convex pieces per collision mesh
+COLLISION_PARTS = 32  # convex pieces per collision mesh (at most)
 
 
 @dataclass(frozen=True)
@@ -59,11 +60,54 @@ def _esc(name: str) -> str:
     return name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
 
 
-def mesh_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.ndarray]:
-    """A mesh cut into up to ``parts`` pieces for MuJoCo, which collides convex hulls:
-    faces grouped by centroid (a few seeded k-means steps), each piece the vertices of
-    its group's faces [m], shape (k_i, 3). Each hull holds its whole triangles, so
-    the union holds the surface, far tighter than one hull around a concave part."""
+def mesh_parts(path: Path, scale: Sequence[float], parts: int, *,
+               cache: ArtifactCache | None = None) -> list[np.ndarray]:
+    """A mesh as up to ``parts`` convex pieces for MuJoCo, which collides convex hulls:
+    each piece's vertices [m], shape (k_i, 3).
+
+    V-HACD's approximate convex decomposition (``vhacdx``, trimesh's backend) when it is
+    installed: its hulls follow the surface within its tolerance. It takes seconds per
+    mesh, so the pieces are kept in ``cache`` (default: the service's disk cache) keyed
+    by the mesh's bytes and scale. Without it, :func:`cluster_parts`."""
+    import trimesh
+    try:
+        import vhacdx  # noqa: F401 -- trimesh's decomposition backend
+    except ImportError:
+        return cluster_parts(path, scale, parts)
+    if cache is None:
+        from service.disk_cache import DiskCache
+        cache = DiskCache()
+    key = content_key([Path(path).read_bytes(), np.asarray(scale, float),
+                       f"vhacd:{parts}:v1"])
+    hit = cache.load("mujoco_hulls", key)
+    if hit is not None:
+        return np.split(hit["vertices"], np.cumsum(hit["counts"])[:-1])
+    m = trimesh.load(path, force="mesh")
+    m.apply_scale(np.asarray(scale, float))
+    pieces = m.convex_decomposition(maxConvexHulls=parts)
+    pieces = pieces if isinstance(pieces, list) else [pieces]
+    out = [_thick(np.asarray(p.vertices if hasattr(p, "vertices") else p["vertices"], float))
+           for p in pieces]
+    out = [p for p in out if len(p) >= 3]
+    cache.store("mujoco_hulls", key, {"vertices": np.vstack(out),
+                                      "counts": np.array([len(p) for p in out])})
+    return out
+
+
+def _thick(p: np.ndarray) -> np.ndarray:
+    """A flat piece has no hull: give it 10 um of thickness along its normal."""
+    if len(p) < 3:
+        return p
+    _, sv, vt = np.linalg.svd(p - p.mean(axis=0), full_matrices=False)
+    if len(sv) < 3 or sv[2] <= 1e-9 * max(sv[0], 1e-12):
+        return np.vstack([p, p + 1e-5 * vt[-1]])
+    return p
+
+
+def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.ndarray]:
+    """Faces grouped by centroid (a few seeded k-means steps), each piece the vertices of
+    its group's faces [m]: each hull holds its whole triangles, so the union holds the
+    surface; looser than V-HACD where a group spans a concavity."""
     import trimesh
     m = trimesh.load(path, force="mesh")
     v = np.asarray(m.vertices, float) * np.asarray(scale, float)
@@ -80,14 +124,8 @@ def mesh_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.ndarra
     out = []
     for i in range(k):
         idx = np.unique(f[lab == i])
-        if len(idx) < 3:
-            continue
-        p = v[idx]
-        _, sv, vt = np.linalg.svd(p - p.mean(axis=0), full_matrices=False)
-        if len(sv) < 3 or sv[2] <= 1e-9 * max(sv[0], 1e-12):
-            # a flat piece has no hull: give it 10 um of thickness along its normal
-            p = np.vstack([p, p + 1e-5 * vt[-1]])
-        out.append(p)
+        if len(idx) >= 3:
+            out.append(_thick(v[idx]))
     return out
 
 
