@@ -281,6 +281,16 @@ class CollisionWorld:
             return True
         return not self._state_hits(poses, self._cand, first=True)
 
+    def pair_distance(self, q: ArrayLike, pair: int) -> float:
+        """FCL's exact distance [m] between the bodies of checked pair ``pair`` (an index
+        into :attr:`pair_names`) at state ``q``; 0 when they touch."""
+        poses = self._poses_of(q)
+        self._stamp += 1
+        a, b = self._pairs[pair]
+        self._place(poses, a)
+        self._place(poses, b)
+        return self._distance(a, b)
+
     def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
         """Every colliding pair at ``q``, and the minimum clearance if asked."""
         self.checks += 1

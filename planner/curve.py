@@ -10,7 +10,7 @@ the waypoint and ends on the outgoing edge ``r`` after it::
 Its tangent turns from ``u1`` to ``u2`` by a smoothstep, so the curve is C2 (curvature is
 zero where a blend meets an edge) and every blend point lies in the triangle
 (edge point, waypoint, edge point) -- close to the checked corridor but not inside it, so
-each blend is re-checked densely (``first_invalid`` at a max joint step of ``step`` rad);
+each blend is certified free over its whole length (:mod:`planner.certify`);
 a colliding blend is shrunk, and after ``max_shrinks`` halvings the corner becomes a hard
 stop: the curve is split there and the motion comes to rest at the waypoint (each edge is
 a straight line, so that is exact).
@@ -25,7 +25,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 import toppra
@@ -37,6 +37,11 @@ log = logging.getLogger(__name__)
 
 class _Checker(Protocol):
     def first_invalid(self, qs: np.ndarray) -> int: ...
+
+
+class _Certifier(Protocol):
+    def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+               lengths: np.ndarray) -> Any: ...
 
 
 @dataclass(frozen=True)
@@ -152,15 +157,23 @@ def _dedupe(waypoints: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     return waypoints[keep]
 
 
-def build_curve(waypoints: np.ndarray, checker: _Checker | None, *,
+def _blend_free(checker: _Checker | _Certifier, blend: PathCurve, step: float) -> bool:
+    if hasattr(checker, "pieces"):
+        return bool(checker.pieces(blend.starts, blend.u1, blend.u2, blend.lengths).free)
+    return checker.first_invalid(blend.dense(step)) < 0  # type: ignore[union-attr]
+
+
+def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
                 max_radius: float = 0.25, edge_fraction: float = 0.45,
                 step: float = 0.002, max_shrinks: int = 4) -> Curve:
     """Blend the corners of a collision-checked polyline, re-checking each blend.
 
     Args:
         waypoints: the checked path, shape (k, dof), k >= 2.
-        checker: anything with ``first_invalid(qs) -> int`` (a CollisionWorld); None skips
-            the blend checks (only for paths known to lie in free space, e.g. tests).
+        checker: a :class:`planner.certify.Certifier` (each blend is certified free over
+            its whole length), or anything with ``first_invalid(qs) -> int`` (a
+            CollisionWorld: blends sampled at ``step``); None skips the blend checks (only
+            for paths known to lie in free space, e.g. tests).
         max_radius: the largest blend radius [rad] (distance from the waypoint along each edge).
         edge_fraction: a blend uses at most this fraction of each adjacent edge's length.
         step: max joint step [rad] between re-checked blend states.
@@ -195,7 +208,7 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | None, *,
         while True:
             blend = PathCurve((wp[i] - r * u[i - 1])[None], u[i - 1][None], u[i][None],
                               np.array([2 * r]), ["blend"])
-            if checker is None or checker.first_invalid(blend.dense(step)) < 0:
+            if checker is None or _blend_free(checker, blend, step):
                 break
             shrinks += 1
             if shrinks > max_shrinks:

@@ -1,9 +1,9 @@
-"""Checking straight joint-space motions densely, and OMPL's checkers built on it.
+"""Checking straight joint-space motions, and OMPL's checkers built on it.
 
-An edge is sampled at a fixed maximum joint step [rad] (not OMPL's fraction of the
-space's extent) and checked in one call: conservative advancement in numba proves most
-pairs apart over long stretches of samples (:mod:`planner.advance`), FCL decides only
-where leaf boxes touch, and the walk stops at the first colliding sample.
+An edge is valid only when :class:`planner.certify.Certifier` proves it free over its
+whole length, not at samples: its states a fixed joint step [rad] apart (not OMPL's
+fraction of the space's extent) are checked first, in one call, so a colliding edge is
+refused fast; then conservative advancement covers every point between them.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from functools import lru_cache
 import numpy as np
 import ompl.base as ob
 
+from .certify import Certifier
 from .collision import CollisionWorld
 
 
@@ -51,14 +52,10 @@ def bisection_order(n: int) -> np.ndarray:
     return order
 
 
-def motion_valid(world: CollisionWorld, a: np.ndarray, b: np.ndarray, step: float) -> bool:
-    """True if every sample of the straight motion a -> b (ends excluded) is free."""
-    n = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
-    if n <= 1:
-        return world.is_valid(b)
-    t = np.arange(1, n + 1)[:, None] / n
-    qs = a + t * (b - a)
-    return world.first_invalid(qs) < 0
+def motion_valid(certifier: Certifier, a: np.ndarray, b: np.ndarray, step: float) -> bool:
+    """True if the straight motion a -> b is certified free over its whole length
+    (its states ``step`` [rad] apart are checked first)."""
+    return certifier.path(np.array([a, b]), sample_step=step).free
 
 
 class StateCodec:
@@ -92,13 +89,13 @@ class ValidityChecker(ob.StateValidityChecker):
 
 
 class MotionChecker(ob.MotionValidator):
-    """OMPL motion validation: the whole edge in one batched call, at ``step`` [rad]."""
+    """OMPL motion validation: the whole edge certified (sampled at ``step`` [rad] first)."""
 
-    def __init__(self, si: ob.SpaceInformation, world: CollisionWorld, codec: StateCodec,
+    def __init__(self, si: ob.SpaceInformation, certifier: Certifier, codec: StateCodec,
                  step: float):
         super().__init__(si)
-        self.world, self.codec, self.step = world, codec, step
+        self.certifier, self.codec, self.step = certifier, codec, step
 
     def checkMotion(self, s1: ob.State, s2: ob.State, *rest: object) -> bool:  # noqa: N802
-        return bool(motion_valid(self.world, self.codec.full(s1), self.codec.full(s2),
+        return bool(motion_valid(self.certifier, self.codec.full(s1), self.codec.full(s2),
                                  self.step))

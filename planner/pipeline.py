@@ -27,6 +27,7 @@ from description import Description
 
 from .acm_proof import proven_never_pairs
 from .cache import ArtifactCache
+from .certify import Certificate, Certifier
 from .collision import CollisionWorld
 from .curve import Curve, build_curve
 from .dynamics import InverseDynamics
@@ -262,7 +263,7 @@ class MotionPlanner:
                                       planner=request.planner,
                                       planning_time=request.planning_time, seed=request.seed))
         t2 = time.perf_counter()
-        curve = build_curve(res.path, world)
+        curve = build_curve(res.path, paths.certifier)  # blends certified as they are made
         t3 = time.perf_counter()
         lim = self.limits(*self.scaling(request))
         traj, report, t_param, t_verify = self.time_path(curve, res.path, world, lim,
@@ -291,6 +292,19 @@ class MotionPlanner:
         """
         verifier = Verifier(limits, self.dynamics, world,
                             clearance_states=self.clearance_states)
+        # The trajectory's positions are its curve's points whatever the timing, so the
+        # curve's certificate decides collisions: proven once per curve, reused across
+        # derated timings (fraction 0.5 also certifies a clearance worth reporting).
+        certifier = Certifier(world, fraction=0.5)
+        certificates: dict[tuple[int, ...], tuple[Certificate, tuple]] = {}
+
+        def certificate(timing: CurveTiming) -> Certificate:
+            curves = tuple(c for c, _ in timing.sections)
+            key = tuple(map(id, curves))
+            if key not in certificates:
+                certificates[key] = (certifier.curve(curves), curves)
+            return certificates[key][0]
+
         derating = Derating()
         t_param = t_verify = 0.0
         report: VerificationReport | None = None
@@ -314,7 +328,8 @@ class MotionPlanner:
                                           sample_rate=sample_rate, profile=profile)
             b = time.perf_counter()
             report = verifier.verify(traj, enforce_jerk=profile == "jerk_limited",
-                                     derating=derating, attempts=attempt)
+                                     derating=derating, attempts=attempt,
+                                     certificate=certificate(timing))
             c = time.perf_counter()
             t_param += b - a
             t_verify += c - b
@@ -324,8 +339,8 @@ class MotionPlanner:
                      "collision")
             if not report.collision_free or "position" in report.violations:
                 if any(c.kind == "blend" for c in curve.corners):
-                    # stop at every waypoint: the straight edges were re-checked densely
-                    curve = build_curve(path, world, max_radius=0.0)
+                    # stop at every waypoint: the straight edges were certified
+                    curve = build_curve(path, None, max_radius=0.0)
                     continue
                 break
             derating = derate(report, derating)

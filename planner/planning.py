@@ -21,6 +21,7 @@ import ompl.util as ou
 
 from description import Description
 
+from .certify import Certifier
 from .collision import CollisionWorld
 from .errors import InvalidRequest, NoPathFound, StartInCollision
 from .goals import (
@@ -32,16 +33,15 @@ from .goals import (
     resolve_goal,
     resolve_group,
 )
-from .motion_check import MotionChecker, StateCodec, ValidityChecker, interpolate, motion_valid
+from .motion_check import MotionChecker, StateCodec, ValidityChecker, motion_valid
 
 _log = logging.getLogger(__name__)
 
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
             "LBKPIECE1", "BKPIECE1", "EST", "FMT", "BFMT", "InformedRRTstar", "SORRTstar",
             "AORRTC")
-RECHECK_STEP = 0.002  # [rad] the largest joint step between re-checked samples
-# [rad] edge-check step while planning; a path failing the dense re-check is re-planned
-# at RECHECK_STEP, so a coarse step costs correctness nothing
+# [rad] states this far apart are checked before an edge is certified (a colliding edge
+# is refused fast); certification then covers every point between them
 PLAN_STEP = 0.01
 
 
@@ -98,7 +98,7 @@ class PathResult:
     Attributes:
         joint_names: the order of the joint vectors.
         path: waypoints, shape (k, dof), k >= 2, first = start; every straight segment
-            was re-checked at ``RECHECK_STEP``.
+            is certified free over its whole length (:mod:`planner.certify`).
         planner: the planner that produced it ("straight line" if none was needed).
         timings: seconds per stage: validate, straight_line, plan, simplify, recheck.
         checks: state validity checks made (narrow or broad phase).
@@ -133,6 +133,7 @@ class PathPlanner:
         self.world = world
         self.description = description
         self.step = step
+        self.certifier = Certifier(world)
         names = world.kin.joint_names
         srdf = description.srdf
         self._groups: dict[str, tuple[str, ...]] = {
@@ -197,7 +198,7 @@ class PathPlanner:
         order = np.argsort(np.linalg.norm(goals - start, axis=1))
         path = None
         for k in order:
-            if motion_valid(self.world, start, goals[k], self.step):
+            if motion_valid(self.certifier, start, goals[k], self.step):
                 path = np.array([start, goals[k]])
                 break
         t2 = time.perf_counter()
@@ -213,26 +214,14 @@ class PathPlanner:
             path = self._shortcut(path, seed=request.seed)
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
-        dense = interpolate(path, RECHECK_STEP)
-        bad = self.world.first_invalid(dense)
+        # every edge was certified when accepted; prove the path once more as a whole
+        cert = self.certifier.path(path)
         t5 = time.perf_counter()
         timings["recheck"] = t5 - t4
-        if bad >= 0 and self.step > RECHECK_STEP:
-            # a coarse edge check missed a graze: plan again checking edges densely
-            _log.info("dense re-check failed at sample %d; re-planning at %g rad", bad,
-                      RECHECK_STEP)
-            fine = PathPlanner(self.world, self.description, step=RECHECK_STEP)
-            result = fine.solve(request)
-            return PathResult(joint_names=result.joint_names, path=result.path,
-                              planner=result.planner,
-                              timings={k: timings.get(k, 0.0) + v
-                                       for k, v in result.timings.items()},
-                              checks=self.world.checks - checks0,
-                              straight_line=result.straight_line, length=result.length)
-        if bad >= 0:
-            # cannot happen when edges were checked at <= RECHECK_STEP; never return it
-            raise NoPathFound("the path failed its dense re-check",
-                              details={"q": dense[bad].tolist(), "planner": planner_name})
+        if not cert.free:
+            # cannot happen when every edge was certified; never return it
+            raise NoPathFound("the path failed its certified re-check",
+                              details={"failure": str(cert.failure), "planner": planner_name})
         return PathResult(joint_names=self.world.kin.joint_names, path=path,
                           planner=planner_name, timings=timings,
                           checks=self.world.checks - checks0, straight_line=straight,
@@ -254,7 +243,7 @@ class PathPlanner:
         si = ss.getSpaceInformation()
         codec = StateCodec(gidx, start)
         svc = ValidityChecker(si, self.world, codec)
-        mv = MotionChecker(si, self.world, codec, self.step)
+        mv = MotionChecker(si, self.certifier, codec, self.step)
         ss.setStateValidityChecker(svc)
         si.setMotionValidator(mv)
         s = si.allocState()
@@ -288,7 +277,7 @@ class PathPlanner:
         i = 0
         while i < len(path) - 2:  # greedy vertex reduction from the start
             j = len(path) - 1
-            while j > i + 1 and not motion_valid(self.world, path[i], path[j], self.step):
+            while j > i + 1 and not motion_valid(self.certifier, path[i], path[j], self.step):
                 j -= 1
             del path[i + 1:j]
             i += 1
@@ -312,7 +301,7 @@ class PathPlanner:
                    + np.linalg.norm(qb - pts[ib]))
             if np.linalg.norm(qb - qa) >= old - 1e-9:
                 continue
-            if motion_valid(self.world, qa, qb, self.step):
+            if motion_valid(self.certifier, qa, qb, self.step):
                 pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
                 idle = 0
         return pts

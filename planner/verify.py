@@ -32,6 +32,7 @@ from typing import Protocol
 
 import numpy as np
 
+from .certify import Certificate
 from .path_limits import BatchDynamics, Derating
 from .trajectory import JointTrajectory
 
@@ -68,10 +69,16 @@ class VerificationReport:
         enforced: quantities that must pass (jerk is not enforced for time-optimal profiles:
             toppra cannot limit it; its ratio is still reported).
         violations: the enforced quantities over 1 + tolerance.
-        collision_free: no dense state collides.
+        collision_free: certified free over the whole continuous motion (``certified``),
+            or, for a trajectory given without a certificate, no dense state collides.
         colliding_time: time [s] of the first colliding state, if any; ``colliding_pairs`` its pairs.
-        checked_states: dense states collision-checked; ``max_step`` the largest joint step [rad].
-        min_clearance: [m] over ``clearance_states`` states, and ``closest_pair``.
+        checked_states: dense states collision-checked (0 when certified); ``max_step`` the
+            largest joint step [rad] between them.
+        min_clearance: [m] when certified, a lower bound on the distance over the whole
+            motion (every checked pair, every point between samples); else measured on
+            ``clearance_states`` states. ``closest_pair`` is its pair.
+        certified: collisions were decided by the curve's certificate
+            (:mod:`planner.certify`), not by sampling.
         derating: factors applied to the limits to get here; ``attempts`` timings tried.
         tolerance: relative tolerance on the ratios.
     """
@@ -93,6 +100,7 @@ class VerificationReport:
     derating: Derating = field(default_factory=Derating)
     attempts: int = 1
     tolerance: float = TOLERANCE
+    certified: bool = False
 
     @property
     def worst_overall(self) -> tuple[str, float]:
@@ -114,7 +122,7 @@ class VerificationReport:
                 "closest_pair": list(self.closest_pair),
                 "clearance_states": self.clearance_states,
                 "derating": self.derating.to_dict(), "attempts": self.attempts,
-                "tolerance": self.tolerance}
+                "tolerance": self.tolerance, "certified": self.certified}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict())
@@ -193,7 +201,14 @@ class Verifier:
         return t[keep], q[keep], qd[keep], qdd[keep]
 
     def verify(self, traj: JointTrajectory, *, enforce_jerk: bool = True,
-               derating: Derating | None = None, attempts: int = 1) -> VerificationReport:
+               derating: Derating | None = None, attempts: int = 1,
+               certificate: Certificate | None = None) -> VerificationReport:
+        """Check ``traj`` against every limit on a fine grid, and for collisions.
+
+        ``certificate``: the certificate of the curve ``traj`` follows (its positions are
+        that curve's points, whatever the timing): collisions are then its verdict and
+        its certified clearance, proven between samples; without one, dense states are
+        sampled (e.g. a trajectory that leaves the curve)."""
         derating = Derating() if derating is None else derating
         lim = self.limits
         lo, hi = np.asarray(lim.lower, float), np.asarray(lim.upper, float)
@@ -219,9 +234,22 @@ class Verifier:
         enforced = QUANTITIES if enforce_jerk else tuple(k for k in QUANTITIES if k != "jerk")
         worst = {k: float(np.max(v)) for k, v in ratios.items()}
         violations = tuple(k for k in enforced if worst[k] > 1.0 + TOLERANCE)
-        bad = self.world.first_invalid(qx)
         pairs: tuple[tuple[str, str], ...] = ()
         when = None
+        if certificate is not None:
+            free = certificate.free
+            if not free and certificate.failure is not None:
+                pairs = (certificate.failure[2],)
+            return VerificationReport(
+                ok=not violations and free, joint_names=tuple(traj.joint_names),
+                ratios={k: tuple(float(x) for x in v) for k, v in ratios.items()},
+                worst=worst, enforced=tuple(enforced), violations=violations,
+                collision_free=free, colliding_time=None, colliding_pairs=pairs,
+                checked_states=0, max_step=max_step,
+                min_clearance=float(certificate.certified_clearance),
+                closest_pair=tuple(certificate.closest or ("", "")), clearance_states=0,
+                derating=derating, attempts=attempts, certified=True)
+        bad = self.world.first_invalid(qx)
         if bad >= 0:
             when = float(td[bad])
             pairs = tuple(self.world.check(qx[bad]).pairs)

@@ -1,0 +1,106 @@
+"""Certified collision checking between samples (planner.certify), against FCL."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from description import load_description
+from planner.certify import Certifier
+from planner.collision import CollisionWorld
+from planner.curve import build_curve
+from planner.motion_check import interpolate
+from planner.scene import Obstacle
+
+NEEDLE = """<robot name="needle">
+  <link name="base"/>
+  <link name="needle">
+    <collision><origin xyz="0.5 0 0"/><geometry><box size="1.0 0.0002 0.0002"/></geometry></collision>
+  </link>
+  <joint name="yaw" type="revolute"><parent link="base"/><child link="needle"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>"""
+
+
+@pytest.fixture(scope="module")
+def needle(tmp_path_factory):
+    f = tmp_path_factory.mktemp("needle") / "needle.urdf"
+    f.write_text(NEEDLE)
+    d = load_description(f, env={})
+    # a plate 0.2 mm thin across the needle's sweep, exactly between two samples that
+    # are 0.002 rad apart: at the samples the needle is >= 0.6 mm from it
+    mid = 0.101
+    plate = Obstacle("plate", "box", size=(0.2, 0.0002, 0.05),
+                     xyz=(0.7 * np.cos(mid), 0.7 * np.sin(mid), 0.0), rpy=(0.0, 0.0, mid))
+    return CollisionWorld(d, obstacles=(plate,))
+
+
+def test_a_graze_between_samples_is_refused(needle):
+    path = np.array([[0.0], [0.2]])
+    dense = interpolate(path, 0.002)
+    assert needle.first_invalid(dense) == -1  # sampling at 0.002 rad misses the plate
+    assert not needle.check(np.array([0.101])).valid  # ... which the needle crosses
+    cert = Certifier(needle).path(path)
+    assert not cert.free
+    piece, sigma, pair, distance = cert.failure
+    assert pair == ("needle", "plate") and distance <= 1e-5
+    assert sigma == pytest.approx(0.101, abs=2e-3)
+
+
+def test_a_motion_short_of_the_plate_is_certified_with_its_clearance(needle):
+    cert = Certifier(needle, fraction=0.5).path(np.array([[0.0], [0.09]]))
+    assert cert.free and cert.closest == ("needle", "plate")
+    # the true gap at the end: the needle at 0.09 rad vs the plate at 0.101 rad, at the
+    # plate's inner end (r = 0.6 m) it is about 0.6 * 0.011 - 0.0002 m
+    true_gap = needle.check(np.array([0.09]), clearance=True).clearance
+    assert 0 < cert.certified_clearance <= true_gap
+
+
+@pytest.mark.parametrize("scene", ["self", "table"])
+def test_certified_motions_are_free_at_every_fine_sample(scene):
+    d = load_description()
+    obs = () if scene == "self" else (Obstacle("table", "box", size=(0.6, 1.2, 0.05),
+                                               xyz=(0, 1.0, 0.6)),)
+    world = CollisionWorld(d, obstacles=obs)
+    cert = Certifier(world, fraction=0.5)
+    lim = d.robot.position_limits(world.kin.joint_names)
+    rng = np.random.default_rng(5)
+    free = refused = 0
+    for _ in range(40):
+        a = rng.uniform(lim[:, 0], lim[:, 1])
+        b = np.clip(a + rng.normal(0, 0.3, 4), lim[:, 0], lim[:, 1])
+        c = cert.path(np.array([a, b]))
+        dense = interpolate(np.array([a, b]), 0.0005)
+        if c.free:
+            free += 1
+            assert world.first_invalid(dense) == -1
+            # the certified clearance is a lower bound on FCL's distance at any state
+            idx = np.linspace(0, len(dense) - 1, 5).astype(int)
+            assert c.certified_clearance <= world.min_clearance(dense[idx])[0] + 1e-9
+        else:
+            refused += 1
+            k, sigma, pair, dist = c.failure
+            q = a + (b - a) * sigma / np.linalg.norm(b - a)
+            assert not world.check(q).valid or dist <= 1e-5
+    assert free and refused  # both outcomes exercised
+
+
+def test_blends_are_certified():
+    d = load_description()
+    world = CollisionWorld(d)
+    wp = np.array([[0.0, 0.0, 0.0, 0.0], [0.6, 0.3, 0.2, 0.0], [1.0, -0.2, 0.5, 0.0]])
+    curve = build_curve(wp, Certifier(world))
+    assert any(c.kind == "blend" for c in curve.corners)
+    assert Certifier(world).curve(curve.sections).free
+
+
+def test_a_blend_whose_bulge_crosses_an_obstacle_is_refused(needle):
+    # a reversing blend from 0.05 rad: q(sigma) peaks at 0.1125 rad (sigma = L / 2) and
+    # ends back at 0.05, so its ends are far from the plate at 0.101 rad, its bulge is not
+    c = Certifier(needle)
+    start, up, down, length = np.array([[0.05]]), np.array([[1.0]]), np.array([[-1.0]]), 0.2
+    assert needle.check(np.array([0.05])).valid
+    cert = c.pieces(start, up, down, np.array([length]), sample_step=0.05)
+    assert not cert.free and cert.failure[2] == ("needle", "plate")
+    # the same blend from further back stays short of the plate
+    assert c.pieces(np.array([0.0]), up, down, np.array([0.15])).free
