@@ -36,7 +36,9 @@ def main(argv: list[str] | None = None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
-    if ns.command in _PLANNING_COMMANDS:
+    # only where OMPL runs in this process: a remote plan must not import it (~1 s)
+    if ns.command in _PLANNING_COMMANDS and (ns.command in ("serve", "srdf", "view")
+                                             or getattr(ns, "local", False)):
         from planner.planning import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     return run_guarded(ns.func, ns)

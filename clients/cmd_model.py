@@ -6,9 +6,7 @@ import argparse
 import json
 import sys
 
-from description import read_model_text
-from description.checks import check_model
-from description.packages import build_package_index
+from description import build_package_index, read_model_text
 
 from .common import (
     EXIT_FAIL,
@@ -52,6 +50,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_check(ns: argparse.Namespace) -> int:
+    from description.checks import check_model  # trimesh: only for this command
+
     report = check_model(ns.file, **model_options(ns))  # type: ignore[arg-type]
     if ns.json:
         print(json.dumps(report.to_json(), indent=2))

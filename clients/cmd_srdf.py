@@ -6,9 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from description.srdf import replace_disabled_collisions
-from planner.acm_gen import compute_acm
-
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args
 
 
@@ -38,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_srdf(ns: argparse.Namespace) -> int:
+    from description.srdf import replace_disabled_collisions
+    from planner.acm_gen import compute_acm  # FCL, numba: only for this command
+
     d = load_from_args(ns)
     src = d.srdf.source if d.srdf is not None else None
     if src is None and ns.write:

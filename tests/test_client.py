@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -13,6 +15,7 @@ from clients.cli import main
 from clients.client import PlannerClient, PlanResult
 from service.zconfig import zenoh_config
 
+from .conftest import REPO as ROOT
 from .conftest import free_port
 
 
@@ -138,3 +141,16 @@ def test_obstacle_and_joint_options_parse():
     assert joint_map("joint_3=-0.4", names, "--goal") == {"joint_3": -0.4}
     with pytest.raises(SystemExit):
         joint_map("1,2,3,4", names, "--goal")
+
+
+def test_the_plan_command_imports_no_planner_machinery(server):
+    # the client path of `arduinobot plan` talks to the service: it must not pay for
+    # (or need) the planner's libraries
+    code = ("import sys\nfrom clients.cli import main\n"
+            f"rc = main(['plan', '--named', 'reach_left', '--connect', {server.endpoint!r}])\n"
+            "heavy = sorted(m for m in ('trimesh', 'numba', 'ompl', 'fcl', 'toppra', "
+            "'mujoco', 'scipy', 'matplotlib') if m in sys.modules)\n"
+            "print('HEAVY', heavy, rc)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, cwd=ROOT)
+    assert "HEAVY [] 0" in out.stdout, out.stdout[-2000:] + out.stderr[-2000:]
