@@ -15,7 +15,7 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, model_options
+from .common import EXIT_FAIL, EXIT_OK, add_connection_args, add_model_args, model_options
 
 EXIT_CANCELLED = 130
 log = logging.getLogger(__name__)
@@ -77,15 +77,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not publish <prefix>/joint_states")
     r.add_argument("--report", metavar="OUT.json", help="write the execution report")
     g = p.add_argument_group("service (planning, joint_states, --remote)")
-    g.add_argument("--connect", action="append", metavar="ENDPOINT",
-                   help="the service's (or a router's) zenoh endpoint (default "
-                   "tcp/127.0.0.1:7447)")
-    g.add_argument("--prefix", default="arduinobot", help="the service's key prefix")
-    g.add_argument("--timeout", type=float, default=60.0, metavar="S",
-                   help="seconds to wait for a plan")
-    g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the session")
-    g.add_argument("--local", action="store_true",
-                   help="plan in this process, not through the service")
+    add_connection_args(g, timeout_help="seconds to wait for a plan (default 60)",
+                        local_help="plan in this process, not through the service")
     p.add_argument("--description", metavar="PATH", dest="description_path",
                    help="the robot's URDF/xacro (default: the shipped arduinobot)")
     add_model_args(p, file_arg=False)

@@ -9,7 +9,14 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_chosen
+from .common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    add_connection_args,
+    add_model_args,
+    load_from_args,
+    model_chosen,
+)
 
 EXIT_UNAVAILABLE = 3
 
@@ -18,16 +25,9 @@ EXIT_UNAVAILABLE = 3
 def add_service_args(p: argparse.ArgumentParser) -> None:
     """--connect/--prefix/--timeout for the service, --local and the model for in-process."""
     g = p.add_argument_group("service (default) or in-process (--local)")
-    g.add_argument("--connect", action="append", metavar="ENDPOINT",
-                   help="the service's (or a router's) zenoh endpoint, repeatable "
-                   "(default tcp/127.0.0.1:7447)")
-    g.add_argument("--prefix", default="arduinobot", help="the service's key prefix")
-    g.add_argument("--timeout", type=float, default=60.0, metavar="S",
-                   help="seconds to wait for the reply (default 60)")
-    g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the client "
-                   "session (TLS, credentials)")
-    g.add_argument("--local", action="store_true",
-                   help="run in this process, no service (the model: FILE/--package-dir)")
+    add_connection_args(g, timeout_help="seconds to wait for the reply (default 60)",
+                        local_help="run in this process, no service (the model: "
+                        "FILE/--package-dir)")
     add_model_args(p)
 
 

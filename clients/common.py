@@ -32,6 +32,20 @@ def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None
                    help="a MoveIt joint_limits.yaml, overriding the config's")
 
 
+def add_connection_args(g: argparse._ArgumentGroup, *, timeout_help: str,
+                        local_help: str) -> None:
+    """--connect, --prefix, --timeout, --config and --local: how a command reaches the
+    service (or plans in this process instead)."""
+    g.add_argument("--connect", action="append", metavar="ENDPOINT",
+                   help="the service's (or a router's) zenoh endpoint, repeatable "
+                   "(default tcp/127.0.0.1:7447)")
+    g.add_argument("--prefix", default="arduinobot", help="the service's key prefix")
+    g.add_argument("--timeout", type=float, default=60.0, metavar="S", help=timeout_help)
+    g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the client "
+                   "session (TLS, credentials)")
+    g.add_argument("--local", action="store_true", help=local_help)
+
+
 def parse_xacro_args(items: list[str]) -> dict[str, str]:
     out = {}
     for item in items:
