@@ -101,8 +101,8 @@ def add_serve_args(p: argparse.ArgumentParser) -> None:
 
 
 def robot_spec(ns: argparse.Namespace) -> Any:
-    """The :class:`service.execute.RobotSpec` of ``serve``'s robot options."""
-    from service.execute import RobotSpec
+    """The :class:`clients.execute_service.RobotSpec` of ``serve``'s robot options."""
+    from .execute_service import RobotSpec
     if getattr(ns, "no_robot", False):
         return RobotSpec(kind="none")
     if getattr(ns, "serial", None) is not None:

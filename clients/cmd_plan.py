@@ -14,7 +14,7 @@ from .common import (
     EXIT_OK,
     add_connection_args,
     add_model_args,
-    load_from_args,
+    local_description,
     model_chosen,
 )
 
@@ -85,18 +85,11 @@ def robot_joints(ns: argparse.Namespace) -> Mapping[str, Any]:
     the service's ``<prefix>/description``. Only asked for when positional joint values
     need the joints' order."""
     if ns.local:
-        return _local_description(ns).summary()
+        return local_description(ns).summary()
     from .client import PlannerClient
     with PlannerClient(ns.connect or ("tcp/127.0.0.1:7447",), prefix=ns.prefix,
                        timeout=ns.timeout, config_file=ns.config) as c:
         return c.description()
-
-
-def _local_description(ns: argparse.Namespace) -> Any:
-    # one load per command, shared by the joint order and the request
-    if getattr(ns, "_description", None) is None:
-        ns._description = load_from_args(ns)
-    return ns._description
 
 
 def joint_order(ns: argparse.Namespace, group: str | None) -> tuple[str, ...]:
@@ -119,7 +112,7 @@ def run_request(ns: argparse.Namespace, kind: str, req: Mapping[str, Any]
         from service import wire
         from service.handlers import Handlers
         from service.server import limits_body
-        desc = _local_description(ns)
+        desc = local_description(ns)
         data = wire.decode(kind, wire.encode(req))  # type: ignore[arg-type]
         return {**Handlers(desc).handle(kind, data), "request_id": "local"}, \
             limits_body(desc)

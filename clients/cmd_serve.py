@@ -72,6 +72,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     from service.zconfig import DEFAULT_ENDPOINT
 
     from .cmd_execute import robot_spec
+    from .execute_service import execute_extension
 
     if ns.file and ns.description_path:
         print("arduinobot: error: give the model as FILE or --description, not both",
@@ -91,7 +92,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         listen=listen, connect=ns.connect, config_file=ns.config,
                         multicast_scouting=ns.multicast_scouting, description=spec,
                         workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout,
-                        robot=robot_spec(ns))
+                        extensions=(execute_extension(robot_spec(ns)),))
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

@@ -74,6 +74,14 @@ def load_from_args(ns: argparse.Namespace) -> Description:
     return load_description(getattr(ns, "file", None), **model_options(ns))  # type: ignore[arg-type]
 
 
+def local_description(ns: argparse.Namespace) -> Description:
+    """:func:`load_from_args`, once per command: the joint order, the request and a
+    simulation of one command share the loaded model."""
+    if getattr(ns, "_description", None) is None:
+        ns._description = load_from_args(ns)
+    return ns._description
+
+
 def run_guarded(fn: Callable[[argparse.Namespace], int], ns: argparse.Namespace) -> int:
     """Run a command; a model error becomes one clear line on stderr and exit 1."""
     try:

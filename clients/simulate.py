@@ -175,7 +175,7 @@ def simulate_command(ns: Any, body: Mapping[str, Any], req: Mapping[str, Any]) -
 
 def _model(ns: Any) -> Description:
     if getattr(ns, "local", False):
-        from .cmd_plan import _local_description
-        return _local_description(ns)
+        from .common import local_description
+        return local_description(ns)
     from description import load_description
     return load_description()

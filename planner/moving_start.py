@@ -29,18 +29,31 @@ import math
 import time
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
 
 from .errors import InvalidRequest, TrajectoryError
 from .limits import JointLimits
+from .motion import MotionRequest, MotionResult
 from .trajectory import CurveTiming, JointTrajectory
 from .verify import Verifier
 
-if TYPE_CHECKING:
-    from .pipeline import MotionPlanner, MotionRequest, MotionResult
+
+class MotionPlanner(Protocol):
+    """What a moving start needs of :class:`planner.pipeline.MotionPlanner` (named by
+    its interface so this module, above the pipeline, does not import it)."""
+
+    joint_names: tuple[str, ...]
+    dynamics: Any
+    clearance_states: int
+
+    def world(self, obstacles: tuple[Any, ...]) -> Any: ...
+    def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits: ...
+    def scaling(self, request: MotionRequest) -> tuple[float, float]: ...
+    def validate(self, req: MotionRequest) -> np.ndarray: ...
+    def solve(self, request: MotionRequest) -> MotionResult: ...
 
 log = logging.getLogger(__name__)
 
@@ -154,7 +167,6 @@ def solve_moving(planner: MotionPlanner, request: MotionRequest) -> MotionResult
         TrajectoryError: no shift passed verification (not even stop-and-go: the brake
             itself collides or breaks a limit).
     """
-    from .pipeline import MotionResult
     t0 = time.perf_counter()
     q0 = planner.validate(request)
     full = planner.limits(1.0, 1.0)

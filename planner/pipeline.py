@@ -18,8 +18,6 @@ import logging
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
@@ -34,6 +32,7 @@ from .dynamics import InverseDynamics
 from .errors import InvalidRequest, JointLimitViolation, TrajectoryError
 from .goals import JointGoal, NamedGoal, PositionGoal, resolve_group
 from .limits import JointLimits
+from .motion import MotionRequest, MotionResult, Profile
 from .path_limits import ActiveLimits, Derating
 from .planning import PathPlanner, PathRequest
 from .ruckig_timing import JerkLimitedTiming
@@ -45,50 +44,6 @@ from .verify import VerificationReport, Verifier, derate
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 8
-Profile = Literal["jerk_limited", "time_optimal"]
-
-
-@dataclass(frozen=True)
-class MotionRequest:
-    """A motion to plan. Joint values [rad]; ``start`` missing = every actuated joint at 0.
-
-    ``group``: any SRDF group or ``all``; None plans for a named goal's own group, else
-    the description's default group. ``velocity_scaling``/``acceleration_scaling`` in
-    (0, 1] multiply the full limits (MoveIt's semantics); None takes the MoveIt config's
-    ``default_*_scaling_factor`` (1 without one).
-    """
-
-    goal: JointGoal | NamedGoal | PositionGoal
-    start: Mapping[str, float] | None = None
-    group: str | None = None
-    obstacles: tuple[Obstacle, ...] = ()
-    planner: str = "RRTConnect"
-    planning_time: float = 1.0          # [s], (0, 60]
-    velocity_scaling: float | None = None       # (0, 1]
-    acceleration_scaling: float | None = None   # (0, 1]
-    profile: Profile = "jerk_limited"
-    sample_rate: float = 100.0          # [Hz], [1, 1000]
-    seed: int | None = None
-    # a moving start [rad/s], [rad/s^2] by joint: see planner.moving_start
-    start_velocity: Mapping[str, float] | None = None
-    start_acceleration: Mapping[str, float] | None = None
-
-
-@dataclass(frozen=True)
-class MotionResult:
-    """A verified trajectory, the checked path it follows and how long each stage took.
-
-    ``timing``: seconds per stage (validate, plan, simplify, recheck, parameterise,
-    verify, total); ``path`` shape (k, dof) in ``trajectory.joint_names`` order.
-    """
-
-    trajectory: JointTrajectory
-    path: np.ndarray
-    timing: Mapping[str, float]
-    verification: VerificationReport
-    planner: str
-
-
 def _number(value: object, field: str, lo: float, hi: float, *, open_lo: bool) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not math.isfinite(float(value)):

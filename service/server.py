@@ -17,7 +17,7 @@ import itertools
 import logging
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,12 +28,14 @@ import zenoh
 from planner.errors import PlanningError
 
 from . import wire
-from .execute import ExecuteService, RobotSpec
 from .pool import Job, Outcome, WorkerPool
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
 
 _log = logging.getLogger(__name__)
+
+#: builds an extension's queryables on the open session (see ServeOptions.extensions)
+Extension = Callable[..., Any]
 
 VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
@@ -62,7 +64,10 @@ class ServeOptions:
     queue_size: int | None = None
     timeout: float = 30.0
     start_method: str = "forkserver"
-    robot: RobotSpec = field(default_factory=RobotSpec)  # what <prefix>/execute drives
+    #: more queryables on the service's session, each built once it is open:
+    #: ``make(session, prefix, description, submit_plan) -> object with close()``
+    #: (``arduinobot serve`` adds ``<prefix>/execute``); closed first on shutdown
+    extensions: Sequence[Extension] = ()
 
 
 def _package_version() -> str:
@@ -133,7 +138,7 @@ class PlannerService:
         self._started = time.monotonic()
         self._static: dict[str, bytes] = {}
         self._config: dict[str, str | None] = {}
-        self._execute: ExecuteService | None = None
+        self._extensions: list[Any] = []
 
     @property
     def keys(self) -> list[str]:
@@ -165,9 +170,8 @@ class PlannerService:
                         key, self._callback(kind, key), complete=True))
             self._entities.append(
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
-            self._execute = ExecuteService(self.session, p, desc, o.robot,
-                                           submit_plan=self._submit_plan)
-            self._execute.start()
+            for make in o.extensions:
+                self._extensions.append(make(self.session, p, desc, self._submit_plan))
         except Exception:
             self.close()
             raise
@@ -180,9 +184,8 @@ class PlannerService:
     def close(self) -> None:
         """Stop taking queries, answer those in flight (INTERNAL past a short grace), then
         close the session."""
-        if self._execute is not None:  # stops a moving arm smoothly first
-            self._execute.close()
-            self._execute = None
+        while self._extensions:  # e.g. stops a moving arm smoothly, first
+            self._extensions.pop().close()
         for e in reversed(self._entities):
             try:
                 e.undeclare()
@@ -252,7 +255,7 @@ class PlannerService:
         self.pool.submit(Job(kind, data, request_id, time.monotonic() + budget, respond))
 
     def _submit_plan(self, data: dict[str, Any], respond: Any) -> None:
-        """A plan job for ``<prefix>/execute``'s own planning, through the same pool."""
+        """A plan job for an extension's own planning, through the same pool."""
         budget = self.options.timeout + float(data.get("planning_time", 1.0))
         self.pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
                              time.monotonic() + budget, respond))

@@ -1,5 +1,9 @@
 """Executing trajectories on the service's robot: ``<prefix>/execute`` and friends.
 
+``arduinobot serve`` plugs this into the service (:class:`service.server.ServeOptions`
+``extensions``): the service plans, this drives the robot, so the service itself never
+imports the drivers.
+
 Keys (``<p>`` the prefix):
 
 - ``<p>/execute``: start an execution. Request ``{"trajectory": <plan reply or
@@ -43,8 +47,7 @@ import orjson
 import zenoh
 
 from planner.errors import InvalidRequest, PlanningError
-
-from . import wire
+from service import wire
 
 _log = logging.getLogger(__name__)
 
@@ -152,17 +155,17 @@ class ExecuteService:
         """The driver, built on first use (the twin) or at start (the real arm)."""
         with self._robot_lock:
             if self._robot is None:
-                from clients.execute import ExecuteOptions, Executor
+                from .execute import ExecuteOptions, Executor
                 sp, d = self.spec, self.description
                 if sp.kind == "serial":
-                    from clients.robots.serial_arduinobot import SerialArduinobot
+                    from .robots.serial_arduinobot import SerialArduinobot
                     self._robot = SerialArduinobot.from_description(
                         d, sp.port, baud=sp.baud, rate=sp.rate, boot_wait=sp.boot_wait)
                 elif sp.kind == "sim":
-                    from clients.robots.sim_arduinobot import SimArduinobot
+                    from .robots.sim_arduinobot import SimArduinobot
                     self._robot = SimArduinobot(d)
                 else:
-                    from clients.robots import RobotError
+                    from .robots import RobotError
                     raise RobotError("this service drives no robot (serve --no-robot)")
                 self._executor = Executor.for_description(
                     self._robot, d, options=ExecuteOptions(
@@ -172,7 +175,7 @@ class ExecuteService:
     # -- queries --------------------------------------------------------------------------
     def _guard(self, key: str, fn: Callable[[zenoh.Query], None], *, threaded: bool):
         def handle(query: zenoh.Query) -> None:
-            from clients.robots import RobotError
+            from .robots import RobotError
             try:
                 fn(query)
             except (PlanningError, RobotError) as e:
@@ -244,7 +247,7 @@ class ExecuteService:
                 return
             req = dict(body["plan"]) if isinstance(body["plan"], dict) else body["plan"]
             if isinstance(req, dict) and "start" not in req:
-                from clients.execute import plan_start
+                from .execute import plan_start
                 req["start"] = plan_start(robot, self.description)
             data = wire.decode("plan", wire.encode(req))
             if self.submit_plan is None:
@@ -258,8 +261,8 @@ class ExecuteService:
         """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
         (a moving start) and switch to it at that tick; one reply, ``blended`` or an
         error (``TOO_LATE`` when the arm stops first or planning took too long)."""
-        from clients.execute import TooLate
-        from clients.segments import SampledTrajectory
+        from .execute import TooLate
+        from .segments import SampledTrajectory
         if not isinstance(body.get("plan"), dict):
             raise InvalidRequest("a blend needs a plan request (the new goal)", field="plan")
         ex, execution = self._running, self._current
@@ -274,7 +277,7 @@ class ExecuteService:
         key = f"{self.prefix}/execute"
 
         def on_planned(outcome: tuple[bool, Any]) -> None:
-            from clients.robots import RobotError
+            from .robots import RobotError
             ok, b = outcome
             try:
                 if not ok:
@@ -301,7 +304,7 @@ class ExecuteService:
 
 
 def _busy(current: str | None) -> Exception:
-    from clients.execute import ExecutionBusy
+    from .execute import ExecutionBusy
     return ExecutionBusy(f"the robot is executing {current}; cancel it first "
                          "(<prefix>/execute/cancel)", details={"execution": current})
 
@@ -337,7 +340,7 @@ class _Run:
             self._fail(getattr(e, "code", "INTERNAL"), str(e), getattr(e, "details", {}))
 
     def start_with(self, trajectory: Any) -> None:
-        from clients.segments import InvalidTrajectory, SampledTrajectory
+        from .segments import InvalidTrajectory, SampledTrajectory
         if not isinstance(trajectory, dict):
             raise InvalidTrajectory("trajectory must be a JSON object (a plan reply)")
         traj = SampledTrajectory.from_json(trajectory)
@@ -357,9 +360,9 @@ class _Run:
     def _run(self, traj: Any) -> None:
         from dataclasses import replace
 
-        from clients.execute import Executor
-        from clients.joint_states import tick_message
-        from clients.robots import RobotError
+        from .execute import Executor
+        from .joint_states import tick_message
+        from .robots import RobotError
         svc = self.svc
         watch = None
         try:
@@ -419,3 +422,14 @@ class _Run:
                 _log.warning("execution %s: client %s lost, stopping", execution, key)
                 cancel.set()
         return self.svc.session.liveliness().declare_subscriber(key, on_change)
+
+
+def execute_extension(spec: RobotSpec) -> Callable[..., ExecuteService]:
+    """A :class:`service.server.ServeOptions` extension serving ``<prefix>/execute`` on
+    the robot ``spec`` describes (started once the service's session is open)."""
+    def make(session: zenoh.Session, prefix: str, description: Any,
+             submit_plan: SubmitPlan) -> ExecuteService:
+        svc = ExecuteService(session, prefix, description, spec, submit_plan=submit_plan)
+        svc.start()
+        return svc
+    return make
