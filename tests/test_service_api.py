@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import threading
 
 import numpy as np
 import pytest
@@ -189,3 +190,33 @@ def test_wrong_prefix_is_no_route(server):
             pytest.raises(errors.ServiceUnavailable) as e:
         c.health()
     assert e.value.reason == "no_route" and "arduinobot serve" in e.value.message
+
+
+PILLARS = [{"id": "p1", "shape": "box", "size": [0.12, 0.12, 2.0], "xyz": [0.5, 0.8, 1.0]},
+           {"id": "p2", "shape": "box", "size": [0.12, 0.12, 2.0], "xyz": [-0.5, 0.8, 1.0]},
+           {"id": "beam", "shape": "box", "size": [1.2, 0.12, 0.12], "xyz": [0, 0.8, 2.0]}]
+
+
+def test_same_request_and_seed_give_the_same_trajectory_in_any_worker_and_order(client):
+    detour = {"start": {"joint_1": 0.137, "joint_2": 1.367, "joint_3": 0.992},
+              "goal": {"joints": {"joint_1": 1.123, "joint_2": -1.465, "joint_3": 0.721}},
+              "obstacles": PILLARS}
+    other = {"start": {"joint_1": -0.4}, "goal": {"named": "reach_left"}, "obstacles": PILLARS}
+    first = client.plan(detour, seed=3)
+    assert first.planner == "RRTConnect"  # OMPL's random search, not the straight line
+    # the same request again, after other seeds, and concurrently on both workers
+    client.plan(other, seed=8)
+    client.plan(detour, seed=4)
+    results: list = [None] * 4
+
+    def run(i: int) -> None:
+        results[i] = client.plan(detour, seed=3)
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120)
+    for r in [client.plan(detour, seed=3), *results]:
+        assert r is not None
+        assert np.array_equal(r.path, first.path)
+        assert np.array_equal(r.positions, first.positions)
