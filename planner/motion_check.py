@@ -1,14 +1,16 @@
 """Checking straight joint-space motions, and OMPL's checkers built on it.
 
-An edge is valid only when :class:`planner.certify.Certifier` proves it free over its
-whole length, not at samples: its states a fixed joint step [rad] apart (not OMPL's
-fraction of the space's extent) are checked first, in one call, so a colliding edge is
-refused fast; then conservative advancement covers every point between them.
+Two checks of an edge a -> b, both at a fixed joint step [rad] (not OMPL's fraction of
+the space's extent): :func:`sampled_motion_valid` checks its states that far apart in one
+batched call (fast: what search and shortcutting try thousands of times), and
+:func:`motion_valid` proves it free over its whole length with
+:class:`planner.certify.Certifier` (what a returned path must pass).
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from functools import lru_cache
 
 import numpy as np
@@ -52,6 +54,17 @@ def bisection_order(n: int) -> np.ndarray:
     return order
 
 
+def sampled_motion_valid(world: CollisionWorld, a: np.ndarray, b: np.ndarray,
+                         step: float) -> bool:
+    """True if every state of the straight motion a -> b, ``step`` [rad] apart (ends
+    excluded but b), is free. Between states nothing is proven."""
+    n = max(1, int(np.ceil(np.max(np.abs(b - a)) / step)))
+    if n <= 1:
+        return world.is_valid(b)
+    t = np.arange(1, n + 1)[:, None] / n
+    return world.first_invalid(a + t * (b - a)) < 0
+
+
 def motion_valid(certifier: Certifier, a: np.ndarray, b: np.ndarray, step: float) -> bool:
     """True if the straight motion a -> b is certified free over its whole length
     (its states ``step`` [rad] apart are checked first)."""
@@ -89,13 +102,13 @@ class ValidityChecker(ob.StateValidityChecker):
 
 
 class MotionChecker(ob.MotionValidator):
-    """OMPL motion validation: the whole edge certified (sampled at ``step`` [rad] first)."""
+    """OMPL motion validation through ``edge_free(a, b) -> bool`` on full joint vectors
+    (:func:`sampled_motion_valid` or :func:`motion_valid`)."""
 
-    def __init__(self, si: ob.SpaceInformation, certifier: Certifier, codec: StateCodec,
-                 step: float):
+    def __init__(self, si: ob.SpaceInformation, edge_free: Callable[[np.ndarray, np.ndarray],
+                 bool], codec: StateCodec):
         super().__init__(si)
-        self.certifier, self.codec, self.step = certifier, codec, step
+        self.edge_free, self.codec = edge_free, codec
 
     def checkMotion(self, s1: ob.State, s2: ob.State, *rest: object) -> bool:  # noqa: N802
-        return bool(motion_valid(self.certifier, self.codec.full(s1), self.codec.full(s2),
-                                 self.step))
+        return bool(self.edge_free(self.codec.full(s1), self.codec.full(s2)))

@@ -33,15 +33,22 @@ from .goals import (
     resolve_goal,
     resolve_group,
 )
-from .motion_check import MotionChecker, StateCodec, ValidityChecker, motion_valid
+from .motion_check import (
+    MotionChecker,
+    StateCodec,
+    ValidityChecker,
+    motion_valid,
+    sampled_motion_valid,
+)
 
 _log = logging.getLogger(__name__)
 
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
             "LBKPIECE1", "BKPIECE1", "EST", "FMT", "BFMT", "InformedRRTstar", "SORRTstar",
             "AORRTC")
-# [rad] states this far apart are checked before an edge is certified (a colliding edge
-# is refused fast); certification then covers every point between them
+# [rad] edges are checked at states this far apart while searching and shortcutting; the
+# path found is then certified over its whole length (and re-planned with certified
+# edges in the rare case it grazes between samples)
 PLAN_STEP = 0.01
 
 
@@ -126,13 +133,16 @@ class PathPlanner:
         world: the collision world (robot, scene, padding) to plan in.
         description: the robot (groups and named states from its SRDF).
         step: the largest joint step [rad] when checking an edge while planning.
+        certify_edges: accept only edges certified free over their whole length (else
+            edges are sampled at ``step`` and the found path is certified afterwards).
     """
 
     def __init__(self, world: CollisionWorld, description: Description, *,
-                 step: float = PLAN_STEP) -> None:
+                 step: float = PLAN_STEP, certify_edges: bool = False) -> None:
         self.world = world
         self.description = description
         self.step = step
+        self.certify_edges = certify_edges
         self.certifier = Certifier(world)
         names = world.kin.joint_names
         srdf = description.srdf
@@ -148,6 +158,11 @@ class PathPlanner:
         except KeyError:
             raise InvalidRequest(f"'{group}' is not a group ({', '.join(self._groups)})",
                                  field="group") from None
+
+    def _edge_free(self, a: np.ndarray, b: np.ndarray) -> bool:
+        if self.certify_edges:
+            return motion_valid(self.certifier, a, b, self.step)
+        return sampled_motion_valid(self.world, a, b, self.step)
 
     # -- validate ---------------------------------------------------------------------
     def _validate(self, req: PathRequest) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
@@ -198,7 +213,7 @@ class PathPlanner:
         order = np.argsort(np.linalg.norm(goals - start, axis=1))
         path = None
         for k in order:
-            if motion_valid(self.certifier, start, goals[k], self.step):
+            if self._edge_free(start, goals[k]):
                 path = np.array([start, goals[k]])
                 break
         t2 = time.perf_counter()
@@ -214,11 +229,27 @@ class PathPlanner:
             path = self._shortcut(path, seed=request.seed)
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
-        # No re-check here: every edge was certified when accepted (straight line, OMPL's
-        # motion validator, shortcuts), and the pipeline certifies the timed curve, line
-        # pieces and blends, before anything is returned.
+        cert = self.certifier.path(path)
         t5 = time.perf_counter()
         timings["recheck"] = t5 - t4
+        if not cert.free and not self.certify_edges:
+            # an edge accepted on its samples grazes between them: plan again, accepting
+            # only certified edges (slower, rare)
+            _log.info("path not certified (%s); re-planning with certified edges",
+                      cert.failure)
+            strict = PathPlanner(self.world, self.description, step=self.step,
+                                 certify_edges=True)
+            result = strict.solve(request)
+            return PathResult(joint_names=result.joint_names, path=result.path,
+                              planner=result.planner,
+                              timings={k: timings.get(k, 0.0) + v
+                                       for k, v in result.timings.items()},
+                              checks=self.world.checks - checks0,
+                              straight_line=result.straight_line, length=result.length)
+        if not cert.free:
+            # cannot happen when every edge was certified; never return it
+            raise NoPathFound("the path failed its certified re-check",
+                              details={"failure": str(cert.failure), "planner": planner_name})
         return PathResult(joint_names=self.world.kin.joint_names, path=path,
                           planner=planner_name, timings=timings,
                           checks=self.world.checks - checks0, straight_line=straight,
@@ -240,7 +271,7 @@ class PathPlanner:
         si = ss.getSpaceInformation()
         codec = StateCodec(gidx, start)
         svc = ValidityChecker(si, self.world, codec)
-        mv = MotionChecker(si, self.certifier, codec, self.step)
+        mv = MotionChecker(si, self._edge_free, codec)
         ss.setStateValidityChecker(svc)
         si.setMotionValidator(mv)
         s = si.allocState()
@@ -274,7 +305,7 @@ class PathPlanner:
         i = 0
         while i < len(path) - 2:  # greedy vertex reduction from the start
             j = len(path) - 1
-            while j > i + 1 and not motion_valid(self.certifier, path[i], path[j], self.step):
+            while j > i + 1 and not self._edge_free(path[i], path[j]):
                 j -= 1
             del path[i + 1:j]
             i += 1
@@ -298,7 +329,7 @@ class PathPlanner:
                    + np.linalg.norm(qb - pts[ib]))
             if np.linalg.norm(qb - qa) >= old - 1e-9:
                 continue
-            if motion_valid(self.certifier, qa, qb, self.step):
+            if self._edge_free(qa, qb):
                 pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
                 idle = 0
         return pts

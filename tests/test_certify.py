@@ -104,3 +104,17 @@ def test_a_blend_whose_bulge_crosses_an_obstacle_is_refused(needle):
     assert not cert.free and cert.failure[2] == ("needle", "plate")
     # the same blend from further back stays short of the plate
     assert c.pieces(np.array([0.0]), up, down, np.array([0.15])).free
+
+
+def test_the_planner_never_returns_a_path_that_grazes_between_samples(needle):
+    from planner.errors import NoPathFound
+    from planner.goals import JointGoal
+    from planner.planning import PathPlanner, PathRequest
+    pp = PathPlanner(needle, needle.description)
+    # the straight line's samples are free, so the sampled search accepts it; its
+    # certification fails, and a certified re-plan finds no way around in one joint
+    with pytest.raises(NoPathFound):
+        pp.solve(PathRequest(start=np.array([0.0]), goal=JointGoal({"yaw": 0.2}),
+                             planning_time=0.2, seed=1))
+    ok = pp.solve(PathRequest(start=np.array([0.0]), goal=JointGoal({"yaw": 0.09}), seed=1))
+    assert Certifier(needle).path(ok.path).free
