@@ -174,6 +174,10 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
         box_in_frame(rel_r, rel_t, center[nb], axes[nb], rb, cb)
         g = _box_gap(axes[na], center[na], half[na], rb, cb, half[nb], best, scratch[3],
                      scratch[4], scratch[1, 2])
+        # OBB children are not nested in their parent's box, but their triangles are a
+        # subset of the parent's: the ancestors' gap still bounds them
+        if gaps[top] > g:
+            g = gaps[top]
         if g >= best:
             continue
         la, lb = left[na], left[nb]
