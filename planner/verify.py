@@ -73,7 +73,7 @@ class VerificationReport:
             or, for a trajectory given without a certificate, no dense state collides.
         colliding_time: time [s] of the first colliding state, if any; ``colliding_pairs`` its pairs.
         checked_states: dense states collision-checked (0 when certified); ``max_step`` the
-            largest joint step [rad] between them.
+            largest joint step [rad] between them (0 when certified).
         min_clearance: [m] when certified, a lower bound on the distance over the whole
             motion (every checked pair, every point between samples); else measured on
             ``clearance_states`` states. ``closest_pair`` is its pair.
@@ -217,8 +217,6 @@ class Verifier:
         # fine states: every limit between samples; thinned dense states: collisions
         fine = self.fine_states(traj)
         _, qf, qdf, qddf = fine
-        td, qx, qdx, qddx = self._thin(*fine)
-        max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
         tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
         tau_dense = np.asarray(self.dynamics.torques_batch(qf, qdf, qddf), float)
         jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
@@ -245,10 +243,13 @@ class Verifier:
                 ratios={k: tuple(float(x) for x in v) for k, v in ratios.items()},
                 worst=worst, enforced=tuple(enforced), violations=violations,
                 collision_free=free, colliding_time=None, colliding_pairs=pairs,
-                checked_states=0, max_step=max_step,
+                checked_states=0, max_step=0.0,
                 min_clearance=float(certificate.certified_clearance),
                 closest_pair=tuple(certificate.closest or ("", "")), clearance_states=0,
                 derating=derating, attempts=attempts, certified=True)
+        # no certificate: thin the fine states to collision-check them
+        td, qx, qdx, qddx = self._thin(*fine)
+        max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
         bad = self.world.first_invalid(qx)
         if bad >= 0:
             when = float(td[bad])
