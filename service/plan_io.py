@@ -12,10 +12,11 @@ from typing import Any
 import numpy as np
 
 from description import Description
-from planner.errors import PlanningError
+from planner.errors import InvalidRequest, PlanningError
 from planner.goals import JointGoal, NamedGoal, PositionGoal
 from planner.pipeline import MotionRequest
 
+from .caps import MAX_SAMPLES
 from .requests import joint_values, obstacles
 from .wire import check_finite
 
@@ -40,6 +41,8 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
     for k in ("planning_time", "velocity_scaling", "acceleration_scaling", "sample_rate"):
         if k in opts:
             opts[k] = float(opts[k])
+    if "seed" in opts:  # JSON Schema counts 7.0 as an integer; the planner wants an int
+        opts["seed"] = int(opts["seed"])
     return MotionRequest(
         goal=goal(description, data["goal"]),
         start=joint_values(description, data.get("start"), field="start"),
@@ -50,8 +53,15 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
 def plan_response(result: Any) -> dict[str, Any]:
     """A :class:`planner.pipeline.MotionResult` as the v1 response (without request_id):
     trajectory (actuated joints), duration [s], path (waypoints in joint_names order),
-    timing (seconds per stage), verification, planner."""
+    timing (seconds per stage), verification, planner.
+
+    Raises:
+        InvalidRequest: more than :data:`service.caps.MAX_SAMPLES` samples (field
+            ``sample_rate``), before any of the reply is built.
+    """
     traj = result.trajectory
+    check_samples(len(traj.times), duration=float(traj.duration),
+                  sample_rate=float(traj.sample_rate))
     arrays = {"positions": traj.positions, "velocities": traj.velocities,
               "accelerations": traj.accelerations, "effort": traj.efforts,
               "time_from_start": traj.times, "path": result.path}
@@ -73,3 +83,31 @@ def plan_response(result: Any) -> dict[str, Any]:
     }
     check_finite({k: body[k] for k in ("duration", "timing", "verification")})
     return body  # every number finite: wire.encode(..., finite=True) may take it
+
+
+def check_samples(samples: int, *, duration: float, sample_rate: float) -> None:
+    """Refuse a trajectory of more than :data:`service.caps.MAX_SAMPLES` samples.
+
+    Args:
+        samples: the trajectory's sample count (duration x sample_rate + 1, about).
+        duration: its duration [s].
+        sample_rate: the request's sample rate [Hz].
+
+    Raises:
+        InvalidRequest: naming ``sample_rate``, the cap (``details.limit``) and the
+            largest rate that fits this motion (``details.max_sample_rate`` [Hz], 0 if none
+            of at least 1 Hz does).
+    """
+    if samples <= MAX_SAMPLES:
+        return
+    fits = (MAX_SAMPLES - 2) / duration if duration > 0 else float(MAX_SAMPLES)
+    fits = float(int(fits)) if fits >= 1.0 else 0.0
+    hint = (f"ask for at most {fits:g} Hz" if fits >= 1.0 else
+            "no sample rate of at least 1 Hz fits: raise the scalings")
+    raise InvalidRequest(
+        f"{sample_rate:g} Hz over this {duration:.4g} s motion gives {samples} samples, more "
+        f"than the {MAX_SAMPLES} a reply may hold (MAX_SAMPLES): {hint}",
+        field="sample_rate",
+        details={"limit": MAX_SAMPLES, "cap": "MAX_SAMPLES", "samples": samples,
+                 "duration": duration, "sample_rate": sample_rate,
+                 "max_sample_rate": fits})

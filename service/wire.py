@@ -1,7 +1,12 @@
-"""Strict JSON in and out: size cap, no NaN/Infinity, JSON Schema validation.
+"""Strict JSON in and out: size and structure caps, no NaN/Infinity, JSON Schema validation.
 
 Every refusal is a :class:`planner.errors.InvalidRequest` naming the field path
 (``obstacles[0].size[1]``), so the service and ``arduinobot plan --local`` refuse alike.
+Decoding is bounded before any per-element work: the payload's size
+(:data:`service.caps.MAX_PAYLOAD`), then orjson (C, no Python recursion, nesting over
+1024 refused), then :func:`service.caps.check_structure` (depth, element count, string
+length), and only then the schema. Whatever bytes arrive, :func:`decode` returns a dict
+or raises :class:`~planner.errors.InvalidRequest`; nothing else.
 """
 
 from __future__ import annotations
@@ -14,16 +19,25 @@ from importlib import resources
 from typing import Any, Literal
 
 import jsonschema
+import jsonschema_rs
 import orjson
 
 from planner.errors import InvalidRequest
 
-#: Largest request payload accepted [bytes].
-MAX_PAYLOAD = 256 * 1024
+from .caps import MAX_DEPTH, MAX_PAYLOAD, check_structure, field_path
+
+__all__ = ["MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite", "check_size",
+           "decode", "encode", "field_path", "parse_json", "schema", "validate"]
 
 Kind = Literal["plan", "fk", "ik", "check"]
 SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_response",
                 "ik_request", "ik_response", "check_request", "check_response")
+#: Schema keywords whose figure is a cap or a bound: their refusals carry it as
+#: ``details.limit``.
+_LIMIT_KEYWORDS = ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum", "maxItems",
+                   "minItems", "maxLength", "minLength", "maxProperties", "minProperties")
+#: Unknown field names echoed in a refusal, at most.
+_ECHO = 8
 
 
 @cache
@@ -41,22 +55,12 @@ def all_schemas() -> dict[str, dict[str, Any]]:
 
 
 @cache
-def _validator(name: str) -> jsonschema.Draft202012Validator:
+def _validator(name: str) -> jsonschema_rs.Draft202012Validator:
     s = schema(name)
-    jsonschema.Draft202012Validator.check_schema(s)
-    return jsonschema.Draft202012Validator(s)
-
-
-def _refuse_constant(token: str) -> float:
-    raise ValueError(f"{token} is not allowed (numbers must be finite)")
-
-
-def field_path(parts: Any) -> str:
-    """``['obstacles', 0, 'size', 1]`` -> ``'obstacles[0].size[1]'``."""
-    out = ""
-    for p in parts:
-        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
-    return out
+    jsonschema.Draft202012Validator.check_schema(s)  # the reference implementation's check
+    # jsonschema-rs: ~300x faster than jsonschema (a valid request of 256 obstacles in
+    # ~0.15 ms instead of ~45 ms), and it stops at the first violation
+    return jsonschema_rs.Draft202012Validator(s)
 
 
 def check_size(size: int) -> None:
@@ -67,32 +71,82 @@ def check_size(size: int) -> None:
 
 
 def parse_json(payload: bytes | str) -> Any:
-    """Decode a payload: at most :data:`MAX_PAYLOAD` bytes, UTF-8, strict JSON.
+    """Decode a payload: at most :data:`MAX_PAYLOAD` bytes, UTF-8, strict JSON, within
+    the structure caps of :func:`service.caps.check_structure`.
 
     Raises:
         InvalidRequest: over the size cap (``details.limit``), not UTF-8, malformed JSON
-            (``details.line``/``column``), or a NaN/Infinity token or an overflowing number.
+            (``details.line``/``column``), a NaN/Infinity token or a number that
+            overflows a double, nested too deep, too many values or too long a string.
     """
-    size = len(payload.encode("utf-8") if isinstance(payload, str) else payload)
+    if isinstance(payload, str):
+        try:
+            payload = payload.encode("utf-8")
+        except UnicodeEncodeError as e:  # a str holding lone surrogates
+            raise InvalidRequest(f"payload is not UTF-8: {e.reason}") from None
+    size = len(payload)
     check_size(size)
     if size == 0:
         raise InvalidRequest("empty payload: send a JSON object")
     try:
-        text = payload.decode("utf-8") if isinstance(payload, bytes) else payload
-        value = json.loads(text, parse_constant=_refuse_constant)
-    except UnicodeDecodeError as e:
-        raise InvalidRequest(f"payload is not UTF-8: {e}") from None
-    except json.JSONDecodeError as e:
-        raise InvalidRequest(f"malformed JSON: {e.msg} at line {e.lineno} column {e.colno}",
-                             details={"line": e.lineno, "column": e.colno}) from None
-    except ValueError as e:  # parse_constant, or a number too long to convert
-        raise InvalidRequest(f"malformed JSON: {e}") from None
-    check_finite(value)
+        # orjson: strict (no NaN/Infinity, no lone surrogates), iterative, ~10x json
+        value = orjson.loads(payload)
+    except orjson.JSONDecodeError as e:
+        raise _malformed(e) from None
+    check_structure(value)
     return value
 
 
+#: Stands in for a number too large for a double while :func:`_overflow_field` finds it.
+_OVERFLOW = "\u0000overflow"
+_NUMBER_CHARS = frozenset("+-0123456789.eE")
+
+
+def _overflow_field(doc: str, pos: int) -> str | None:
+    """The field path of the number at character ``pos`` of ``doc`` (one orjson refused
+    as too large for a double), or None if it cannot be told."""
+    end = pos
+    while end < len(doc) and doc[end] in _NUMBER_CHARS:
+        end += 1
+    try:
+        value = orjson.loads(doc[:pos] + orjson.dumps(_OVERFLOW).decode() + doc[end:])
+        check_structure(value)
+    except (orjson.JSONDecodeError, InvalidRequest):
+        return None  # a later fault (or cap): the line and column still say where
+    stack: list[tuple[Any, tuple[Any, ...]]] = [(value, ())]
+    while stack:  # bounded: check_structure passed
+        node, path = stack.pop()
+        if node == _OVERFLOW:
+            return field_path(path) or "(root)"
+        if isinstance(node, dict):
+            stack.extend((v, (*path, k)) for k, v in node.items())
+        elif isinstance(node, list):
+            stack.extend((v, (*path, i)) for i, v in enumerate(node))
+    return None
+
+
+def _malformed(e: orjson.JSONDecodeError) -> InvalidRequest:
+    """A decode error as the refusal a user can act on (line and column included)."""
+    where = {"line": e.lineno, "column": e.colno}
+    at = f"line {e.lineno} column {e.colno}"
+    doc = e.doc if isinstance(e.doc, str) else ""  # orjson's pos counts characters of it
+    token = next((t for t in ("NaN", "Infinity") if doc.startswith(t, e.pos)), None)
+    if token is not None:
+        return InvalidRequest(f"{token} is not allowed: numbers must be finite ({at})",
+                              details=where)
+    if "infinity" in e.msg:
+        return InvalidRequest(f"a number too large for a double: numbers must be finite "
+                              f"({at})", field=_overflow_field(doc, e.pos), details=where)
+    if "depth limit" in e.msg:
+        return InvalidRequest(f"nested deeper than the decoder allows ({at})", details=where)
+    if "UTF-8" in e.msg or "surrogate" in e.msg:
+        return InvalidRequest(f"payload is not UTF-8: {e.msg} ({at})", details=where)
+    return InvalidRequest(f"malformed JSON: {e.msg} at {at}", details=where)
+
+
 def check_finite(value: Any, path: tuple[Any, ...] = ()) -> None:
-    """Refuse non-finite floats anywhere (``1e999`` parses to inf), naming the field."""
+    """Refuse non-finite floats anywhere, naming the field (a reply's numbers: decoded
+    requests cannot hold one, :func:`parse_json` refuses them)."""
     if isinstance(value, float):
         if not math.isfinite(value):
             raise InvalidRequest(f"{value!r} is not a finite number", field=field_path(path)
@@ -109,26 +163,87 @@ def validate(kind: Kind, value: Any) -> dict[str, Any]:
     """Validate a decoded request against ``<kind>_request.json``; returns it.
 
     Raises:
-        InvalidRequest: the most relevant schema violation, with its field path, the
-            failing keyword and (for unknown fields) the field's name.
+        InvalidRequest: the first schema violation (inside a ``oneOf``, the deepest
+            violation of the alternative that matched furthest), with its field path,
+            the failing keyword, the bound it broke (``details.limit``) and, for
+            unknown fields, their names.
     """
-    v = _validator(f"{kind}_request")
-    err = jsonschema.exceptions.best_match(v.iter_errors(value))
-    if err is None:
-        return value
-    path = list(err.absolute_path)
-    details: dict[str, object] = {"keyword": err.validator}
-    if err.validator == "additionalProperties" and isinstance(err.instance, Mapping):
-        allowed = set(err.schema.get("properties", {}))
-        extra = sorted(k for k in err.instance if k not in allowed)
-        if extra:
-            path.append(extra[0])
-            details["unknown"] = extra
-            details["allowed"] = sorted(allowed)
-            raise InvalidRequest(f"unknown field (allowed: {', '.join(sorted(allowed))})",
-                                 field=field_path(path), details=details)
-    raise InvalidRequest(_short(err.message), field=field_path(path) or "(root)",
-                         details=details)
+    try:
+        _validator(f"{kind}_request").validate(value)
+    except jsonschema_rs.ValidationError as e:
+        raise _refusal(_deepest(e), f"{kind}_request") from None
+    return value
+
+
+def _deepest(err: jsonschema_rs.ValidationError) -> jsonschema_rs.ValidationError:
+    """Inside ``oneOf``/``anyOf``, the violation the user most likely meant, recursively:
+    from the alternative that got furthest into the request (``goal.joints.joint_1``
+    rather than ``goal``), else the one alternative with the fewest violations; the
+    summary when alternatives tie."""
+    for _ in range(MAX_DEPTH * 4):  # schemas nest a few levels; bounded all the same
+        branches = [b for b in (getattr(err.kind, "context", None) or ()) if b]
+        if not branches:
+            return err
+
+        def rank(branch: list[Any]) -> tuple[int, int]:
+            return max(len(x.instance_path) for x in branch), -len(branch)
+        ranks = sorted((rank(b) for b in branches), reverse=True)
+        if len(ranks) > 1 and ranks[0] == ranks[1]:
+            return err  # as close to one alternative as to another: the summary says it
+        best = max(branches, key=rank)
+        err = max(best, key=lambda x: len(x.instance_path))
+    return err
+
+
+def _refusal(err: jsonschema_rs.ValidationError, name: str) -> InvalidRequest:
+    path = list(err.instance_path)
+    keyword = err.schema_path[-1] if err.schema_path else "type"
+    details: dict[str, object] = {"keyword": keyword}
+    limit = getattr(err.kind, "limit", None)
+    if keyword in _LIMIT_KEYWORDS and limit is not None:
+        details["limit"] = limit
+    unexpected = getattr(err.kind, "unexpected", None)
+    if keyword == "additionalProperties" and unexpected:
+        extra = sorted(str(k) for k in unexpected)
+        allowed = sorted(_allowed(name, list(err.schema_path)))
+        # a few names, cut short: a refusal must not echo a request's worth of keys
+        details["unknown"] = [field_path([k]) for k in extra[:_ECHO]]
+        details["allowed"] = allowed
+        return InvalidRequest(f"unknown field (allowed: {', '.join(allowed)})",
+                              field=field_path([*path, extra[0]]), details=details)
+    message = err.message
+    if keyword in ("oneOf", "anyOf"):
+        forms = _forms(name, list(err.schema_path))
+        if forms:
+            message = f"must be exactly one of: {', '.join(forms)}"
+    return InvalidRequest(_short(message), field=field_path(path) or "(root)",
+                          details=details)
+
+
+def _forms(name: str, schema_path: list[Any]) -> list[str]:
+    """``oneOf`` alternatives that are objects, as ``{joints}``, ``{named}``, ..."""
+    node: Any = schema(name)
+    for part in schema_path:
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            return []
+    if not isinstance(node, list):
+        return []
+    return ["{" + ", ".join(alt["required"]) + "}" for alt in node
+            if isinstance(alt, Mapping) and alt.get("required")]
+
+
+def _allowed(name: str, schema_path: list[Any]) -> list[str]:
+    """The property names schema ``name`` allows where ``additionalProperties`` failed
+    (``schema_path``, with references resolved, ends with that keyword)."""
+    node: Any = schema(name)
+    for part in schema_path[:-1]:
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            return []
+    return list(node.get("properties", {})) if isinstance(node, Mapping) else []
 
 
 def _short(msg: str, limit: int = 300) -> str:

@@ -8,7 +8,7 @@ import jsonschema
 import pytest
 
 from planner.errors import InvalidRequest, JointLimitViolation
-from service import wire
+from service import caps, wire
 from service.requests import joint_values
 
 
@@ -48,7 +48,7 @@ def test_minimal_and_full_plan_requests_pass():
      "obstacles[0].size[2]"),
     (('{"goal": {"named": "home"}, "obstacles": [{"id": "t", "shape": "mesh", '
       '"mesh_path": "/etc/passwd"}]}'),
-     "obstacles[0].mesh_path"),
+     "obstacles[0].shape"),
     ('{"goal": {"named": "home"}, "group": ""}', "group"),
     ('{"start": {"joint_1": 0}}', "(root)"),
 ])
@@ -112,3 +112,127 @@ def test_joint_values_check_names_mimics_and_limits(description):
 def description():
     from description import load_description
     return load_description()
+
+
+# -- caps: every array, object and string of a request is bounded, and the schema's
+# figures are the ones in service/caps.py --------------------------------------------
+
+REQUEST_SCHEMAS = ("plan_request", "fk_request", "ik_request", "check_request")
+
+
+def _nodes(node, path=()):
+    """Every subschema with its path (the schemas are small and shallow)."""
+    if isinstance(node, dict):
+        yield path, node
+        for k, v in node.items():
+            yield from _nodes(v, (*path, k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _nodes(v, (*path, i))
+
+
+@pytest.mark.parametrize("name", REQUEST_SCHEMAS)
+def test_every_array_object_and_string_of_a_request_is_capped(name):
+    checked = 0
+    for path, node in _nodes(wire.schema(name)):
+        kind = node.get("type")
+        if kind == "array":
+            assert node.get("maxItems", caps.MAX_ITEMS + 1) <= caps.MAX_ITEMS, path
+        elif kind == "object":
+            assert node.get("maxProperties", caps.MAX_ITEMS + 1) <= caps.MAX_ITEMS, path
+        elif kind == "string":
+            assert node.get("maxLength", caps.MAX_STRING + 1) <= caps.MAX_NAME, path
+        else:
+            continue
+        checked += 1
+    assert checked >= 2  # ik: the root and position
+
+
+def test_schema_caps_are_the_constants():
+    plan = wire.schema("plan_request")
+    p = plan["properties"]
+    assert p["obstacles"]["maxItems"] == caps.MAX_OBSTACLES
+    assert plan["$defs"]["joints"]["maxProperties"] == caps.MAX_JOINTS
+    assert plan["$defs"]["rates"]["maxProperties"] == caps.MAX_JOINTS
+    assert p["velocity_scaling"]["minimum"] == caps.MIN_SCALING
+    assert p["acceleration_scaling"]["minimum"] == caps.MIN_SCALING
+    assert wire.schema("check_request")["properties"]["obstacles"]["maxItems"] == \
+        caps.MAX_OBSTACLES
+    assert wire.schema("fk_request")["properties"]["links"]["maxItems"] == caps.MAX_LINKS
+    points = wire.schema("plan_response")["properties"]["trajectory"]["properties"]["points"]
+    assert points["maxItems"] == caps.MAX_SAMPLES
+    for figure in (caps.MAX_DEPTH, caps.MAX_ITEMS, caps.MAX_ELEMENTS, caps.MAX_STRING):
+        assert str(figure) in plan["description"]
+    assert str(caps.MAX_SAMPLES) in p["sample_rate"]["description"]
+
+
+@pytest.mark.parametrize("field", ["velocity_scaling", "acceleration_scaling"])
+@pytest.mark.parametrize("value", [1e-300, 5e-324, 0.0099])
+def test_scalings_below_the_floor_are_refused_naming_the_field(field, value):
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", json.dumps({"goal": {"named": "home"}, field: value}))
+    assert e.value.details["field"] == field
+    assert e.value.details["limit"] == caps.MIN_SCALING
+    assert "0.01" in e.value.message
+    assert wire.decode("plan", json.dumps({"goal": {"named": "home"}, field: 0.01}))
+
+
+@pytest.mark.parametrize("payload", [b"[" * 100_000, b"[" * 1023 + b"]" * 1023,
+                                     b'{"goal":' * 20_000 + b"1" + b"}" * 20_000,
+                                     b'{"a":' * 9 + b"1" + b"}" * 9])
+def test_deep_nesting_is_a_coded_refusal(payload):
+    with pytest.raises(InvalidRequest, match="deeper"):
+        wire.decode("plan", payload)
+
+
+def test_a_request_as_deep_as_the_cap_is_refused_only_by_the_schema():
+    nested = b'{"goal": {"named": "home"}, "obstacles": ' + b"[" * (caps.MAX_DEPTH - 1) + \
+        b"]" * (caps.MAX_DEPTH - 1) + b"}"
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", nested)
+    assert e.value.details["keyword"] == "type"
+
+
+@pytest.mark.parametrize("body, field, cap", [
+    ({"goal": {"named": "home"}, "obstacles": [1] * 60_000}, "obstacles", "MAX_ITEMS"),
+    ({"goal": {"named": "home"}, "start": {f"j{i}": 0 for i in range(300)}}, "start",
+     "MAX_ITEMS"),
+    ({"goal": {"named": "home"}, "obstacles": [[1] * 200] * 200}, "obstacles[", "MAX_ELEMENTS"),
+    ({"goal": {"named": "x" * 2000}}, "goal.named", "MAX_STRING"),
+    ({"goal": {"named": "home"}, "k" * 2000: 1}, "(root)", "MAX_STRING"),
+])
+def test_structure_caps_name_the_field_and_the_cap(body, field, cap):
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", json.dumps(body))
+    assert e.value.details["field"].startswith(field)
+    assert e.value.details["cap"] == cap
+    assert e.value.details["limit"] == getattr(caps, cap)
+    assert str(getattr(caps, cap)) in e.value.message
+
+
+def test_unknown_fields_are_echoed_a_few_and_cut_short():
+    body = {"goal": {"named": "home"}, **{"z" * 200 + str(i): 1 for i in range(10)}}
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", json.dumps(body))
+    d = e.value.details
+    assert d["keyword"] == "additionalProperties"
+    assert len(d["unknown"]) <= 8 and all(len(k) <= caps.MAX_NAME + 3 for k in d["unknown"])
+    assert len(d["field"]) <= caps.MAX_NAME + 3
+    assert "goal" in d["allowed"]
+
+
+@pytest.mark.parametrize("payload, field", [
+    ('{"goal": {"joints": {"joint_1": 0.1}, "named": "home"}}', "goal"),  # two forms
+    ('{"goal": {}}', "goal"),
+    ('{"goal": {"position": [0, 1, "x"]}}', "goal.position[2]"),
+    ('{"goal": {"named": "home"}, "start": {"joint_1": 1e400}}', "start.joint_1"),
+])
+def test_refusals_inside_one_of_name_the_deepest_field(payload, field):
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", payload)
+    assert e.value.details["field"] == field
+
+
+def test_a_goal_of_no_known_form_lists_the_forms():
+    with pytest.raises(InvalidRequest, match=r"\{joints\}, \{named\}, \{position\}"):
+        wire.decode("plan", b'{"goal": {"pose": [1, 2, 3]}}')

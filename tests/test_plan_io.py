@@ -1,0 +1,62 @@
+"""Plan requests and replies on the wire (service/plan_io.py): the sample cap."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from planner.errors import InvalidRequest
+from service import caps, wire
+from service.plan_io import check_samples, plan_request, plan_response
+
+
+def test_check_samples_names_the_field_the_cap_and_a_rate_that_fits():
+    check_samples(caps.MAX_SAMPLES, duration=20.0, sample_rate=1000.0)
+    with pytest.raises(InvalidRequest) as e:
+        check_samples(caps.MAX_SAMPLES + 1, duration=20.0, sample_rate=1000.0)
+    d = e.value.details
+    assert d["field"] == "sample_rate" and d["limit"] == caps.MAX_SAMPLES
+    assert str(caps.MAX_SAMPLES) in e.value.message
+    assert 1.0 <= d["max_sample_rate"] and 20.0 * d["max_sample_rate"] + 2 <= caps.MAX_SAMPLES
+
+
+def test_no_rate_fits_a_motion_longer_than_the_cap_in_seconds():
+    with pytest.raises(InvalidRequest) as e:
+        check_samples(caps.MAX_SAMPLES * 2, duration=caps.MAX_SAMPLES * 2.0, sample_rate=1.0)
+    assert e.value.details["max_sample_rate"] == 0.0 and "scalings" in e.value.message
+
+
+@pytest.fixture(scope="module")
+def planner():
+    from description import load_description
+    from planner.pipeline import MotionPlanner
+    d = load_description()
+    return d, MotionPlanner(d)
+
+
+def _sweep(rate: float) -> dict:
+    # joint_1 across its whole range at the slowest scaling: ~32 s
+    return {"start": {"joint_1": -1.55}, "goal": {"joints": {"joint_1": 1.55}}, "seed": 1,
+            "velocity_scaling": caps.MIN_SCALING, "acceleration_scaling": caps.MIN_SCALING,
+            "sample_rate": rate}
+
+
+def test_a_reply_over_the_sample_cap_is_refused_and_the_rate_it_names_fits(planner):
+    d, mp = planner
+    result = mp.solve(plan_request(d, wire.decode("plan", json.dumps(_sweep(1000)))))
+    assert len(result.trajectory.times) > caps.MAX_SAMPLES  # else this test proves nothing
+    with pytest.raises(InvalidRequest) as e:
+        plan_response(result)
+    fits = e.value.details["max_sample_rate"]
+    assert e.value.details["field"] == "sample_rate" and 1 <= fits < 1000
+    body = plan_response(mp.solve(plan_request(d, wire.decode("plan",
+                                                              json.dumps(_sweep(fits))))))
+    assert caps.MAX_SAMPLES // 2 < len(body["trajectory"]["points"]) <= caps.MAX_SAMPLES
+    assert len(wire.encode(body, finite=True)) < 10_000_000
+
+
+def test_an_integral_float_seed_is_an_int(planner):
+    d, _ = planner
+    req = plan_request(d, wire.decode("plan", b'{"goal": {"named": "home"}, "seed": 7.0}'))
+    assert req.seed == 7 and isinstance(req.seed, int)
