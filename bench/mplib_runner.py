@@ -15,8 +15,11 @@ verifiers; MPlib's own samples are returned too, to confirm the rebuild matches.
 Input: {"urdf", "srdf", "move_group", "velocity": [..], "acceleration": [..],
 "time_step", "warmup": bool, "scenes": {name: {"obstacles": [{"id", "shape": "box",
 "size", "xyz", "rpy"}], "problems": [{"start": {joint: rad}, "goal": {joint: rad},
-"planning_time"}]}}, "output": path}. Output, written to ``output`` (MPlib's C++ code
-prints to stdout): {"joint_names", "move_group_joints", "scenes": {name: [result, ...]}}.
+"planning_time"}]}}, "output": path}, optionally "state_checks": [{"joints": {joint:
+rad}}] (MPlib's own collision check of single states, no obstacles). Output, written to
+``output`` (MPlib's C++ code prints to stdout): {"joint_names", "move_group_joints",
+"scenes": {name: [result, ...]}}, and with state_checks "state_checks": [[[link, link],
+...] per state] (the colliding link pairs MPlib reports).
 """
 
 from __future__ import annotations
@@ -99,6 +102,20 @@ def solve(planner: mplib.Planner, names: list[str], prob: dict, step: float) -> 
     return res
 
 
+def state_checks(spec: dict) -> list[list[list[str]]]:
+    """MPlib's colliding link pairs at each of ``spec["state_checks"]`` (robot only)."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        planner = mplib.Planner(spec["urdf"], spec["move_group"], srdf=spec["srdf"])
+    names = list(planner.user_joint_names)
+    out = []
+    for check in spec["state_checks"]:
+        planner.robot.set_qpos(np.array([check["joints"].get(n, 0.0) for n in names]), True)
+        with contextlib.redirect_stdout(io.StringIO()):
+            found = planner.planning_world.check_collision()
+        out.append([[c.link_name1, c.link_name2] for c in found])
+    return out
+
+
 def main() -> None:
     spec = json.load(sys.stdin)
     out: dict = {"scenes": {}}
@@ -115,6 +132,8 @@ def main() -> None:
         if spec.get("warmup") and probs:
             solve(planner, names, probs[0], spec["time_step"])  # not reported
         out["scenes"][scene] = [solve(planner, names, p, spec["time_step"]) for p in probs]
+    if spec.get("state_checks"):
+        out["state_checks"] = state_checks(spec)
     with open(spec["output"], "w") as f:
         json.dump(out, f)
 

@@ -1,0 +1,345 @@
+"""The peer benchmark: ours through the real service against MPlib 0.2.1, same problems.
+
+Two robots (bench/peer_models.py): the course workspace (millimetre CAD meshes of 2k-54k
+triangles, a camera on a fixed joint, a separate MoveIt package) and the shipped
+arduinobot. Three scenes each (bench/scenes.py: self, table, pillars) with seeded
+problems (at least half needing a detour). Per robot:
+
+- ours: a real ``arduinobot serve`` (2 workers, 127.0.0.1 on a free port, multicast
+  scouting off); each problem is a plan request with the scene's obstacles sent over
+  Zenoh by the Python client, with its own seed; wall clock at the client. Per scene two
+  concurrent warm-up requests (one per worker, each builds its scene world) not counted.
+- MPlib 0.2.1 (OMPL RRTConnect, FCL, TOPP-RA) in its own venv through
+  bench/mplib_runner.py, on the same problems with the same planning budget and the
+  velocity/acceleration limits the service reports at ``/description`` times the
+  scaling both sides use (``--scaling``, default 1.0, sent explicitly in every request:
+  the course's joint_limits.yaml would default to 0.1); one warm-up per scene.
+  MPlib gets the model's SRDF plus the joint-connected pairs (the service's matrix).
+  Before planning, MPlib and our checker judge the same random states (half colliding by
+  ours): agreement shows MPlib reads the mesh ``scale`` (a millimetre mesh read
+  unscaled would be 1000 times too big and collide everywhere).
+- figures: success; wall median/p95 ms; ours/MPlib median; our stage split (the reply's
+  ``timing``) and verification's share; the certified minimum clearance (the reply's
+  ``verification.min_clearance``); trajectory durations: ours (jerk-limited, returned),
+  toppra's time-optimal on the same reply path (in-process, ``MotionPlanner.time_path``
+  on the reply's waypoints), their ratio (issue target <= 1.2), MPlib's;
+- every returned trajectory, ours and MPlib's, re-checked independently
+  (bench/recheck.py) at 0.002 rad: ours from the reply's samples (bench/sampled.py),
+  MPlib's from its toppra data; the count with any collision (target 0).
+
+Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0]
+       ./dev bench peer --n 10     (a quick look)
+Prints a block per robot and scene, then one JSON line of all figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp_
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+# the project's packages first: bench/service.py would shadow the service package
+sys.path.insert(0, str(REPO))
+
+from clients import errors  # noqa: E402, I001
+from clients.client import PlannerClient, PlanResult  # noqa: E402
+from planner.certify import Certifier  # noqa: E402
+from planner.curve import build_curve  # noqa: E402
+from planner.errors import PlanningError  # noqa: E402
+from planner.pipeline import MotionPlanner  # noqa: E402
+from service.disk_cache import DiskCache  # noqa: E402
+from tests.conftest import start_server  # noqa: E402
+
+sys.path.insert(1, str(Path(__file__).resolve().parent))
+from peer_models import PeerModel, make_model  # noqa: E402
+from peer_mplib import mplib_rows, scale_check  # noqa: E402
+from recheck import IndependentModel, Limits, recheck  # noqa: E402
+from sampled import SampledPositions  # noqa: E402
+from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
+
+ARM = ("joint_1", "joint_2", "joint_3")
+STAGES = ("validate", "plan", "simplify", "recheck", "parameterise", "verify", "total")
+
+
+def ms(xs: list[float]) -> dict[str, float | None]:
+    """Median and p95 of seconds, in ms."""
+    if not xs:
+        return {"median_ms": None, "p95_ms": None}
+    return {"median_ms": 1e3 * statistics.median(xs), "p95_ms": 1e3 * float(np.percentile(xs, 95))}
+
+
+def median(xs: list[float]) -> float | None:
+    return statistics.median(xs) if xs else None
+
+
+def plan_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: list[dict],
+              seed: int, args: argparse.Namespace) -> dict[str, Any]:
+    return {"start": dict(zip(names, map(float, a))),
+            "goal": {"joints": dict(zip(ARM, map(float, b[:3])))},
+            "obstacles": obstacles, "planning_time": args.planning_time,
+            "velocity_scaling": args.scaling, "acceleration_scaling": args.scaling,
+            "seed": seed}
+
+
+def run_service(model: PeerModel, probs_of: dict[str, list], names: tuple[str, ...],
+                cache: Path, args: argparse.Namespace
+                ) -> tuple[dict[str, list], dict[str, Any]]:
+    """Every problem through a real ``arduinobot serve``: per scene [(wall s, PlanResult
+    or the error's class name)], and the service's ``/description``."""
+    t0 = time.perf_counter()
+    srv = start_server(["--workers", "2", *model.serve_args, "--cache-dir", str(cache)],
+                       timeout=600)
+    print(f"  serve ready in {time.perf_counter() - t0:.1f} s on {srv.endpoint}", flush=True)
+    out: dict[str, list] = {}
+    try:
+        with PlannerClient(srv.endpoint, timeout=120) as c:
+            desc = c.description()
+            for scene, probs in probs_of.items():
+                obs = obstacle_dicts(list(SCENES[scene]))
+                warm = [plan_body(names, a, b, obs, 10_000 + k, args)
+                        for k, (a, b, _) in enumerate(probs[:2])]
+                with ThreadPoolExecutor(2) as ex:  # one per worker: both build the world
+                    for f in [ex.submit(c.plan, w) for w in warm]:
+                        try:
+                            f.result()
+                        except errors.ServiceError as e:
+                            print(f"  warm-up {scene}: {type(e).__name__}: {e}")
+                rows = []
+                for i, (a, b, _) in enumerate(probs):
+                    body = plan_body(names, a, b, obs, i, args)
+                    t = time.perf_counter()
+                    try:
+                        res: PlanResult | str = c.plan(body)
+                    except errors.ServiceError as e:
+                        res = type(e).__name__
+                    rows.append((time.perf_counter() - t, res))
+                out[scene] = rows
+                print(f"  ours {scene}: {sum(not isinstance(r, str) for _, r in rows)}"
+                      f"/{len(rows)} planned", flush=True)
+    finally:
+        srv.stop()
+    return out, desc
+
+
+def toppra_durations(mp: MotionPlanner, replies: dict[str, list], scaling: float
+                     ) -> dict[str, list[float | None]]:
+    """Toppra's time-optimal duration [s] on each reply's path (None: no timing passed)."""
+    lim = mp.limits(scaling, scaling)
+    out: dict[str, list[float | None]] = {}
+    for scene, rows in replies.items():
+        world = mp.world(tuple(SCENES[scene]))
+        durs: list[float | None] = []
+        for _, res in rows:
+            if isinstance(res, str):
+                continue
+            curve = build_curve(res.path, Certifier(world))  # as the pipeline blends it
+            try:
+                traj, _, _, _ = mp.time_path(curve, res.path, world, lim,
+                                             profile="time_optimal")
+                durs.append(traj.duration)
+            except PlanningError as e:
+                print(f"  toppra on a reply path of {scene}: {type(e).__name__}: {e}")
+                durs.append(None)
+        out[scene] = durs
+    return out
+
+
+# re-check tasks, read by forked workers (no pickling of trajectories)
+TASKS: list[tuple] = []
+MODEL_FILES: tuple = ()
+
+
+def _recheck_task(i: int) -> Any:
+    global _MODEL
+    if "_MODEL" not in globals():
+        _MODEL = IndependentModel(*MODEL_FILES)
+    positions, duration, limits, obstacles, step = TASKS[i]
+    return recheck(_MODEL, positions, duration, limits, obstacles=obstacles,
+                   enforce_jerk=False, step=step)
+
+
+def recheck_all(model: PeerModel, names: tuple[str, ...], tasks: list[tuple]) -> list[Any]:
+    """Re-check ``tasks`` in two forked processes, each loading the model once."""
+    global MODEL_FILES
+    TASKS[:] = tasks
+    MODEL_FILES = (model.urdf, model.srdf, names)
+    if not tasks:
+        return []
+    with mp_.get_context("fork").Pool(2) as pool:
+        return pool.map(_recheck_task, range(len(tasks)))
+
+
+def summarise(reports: list[Any]) -> dict[str, Any]:
+    """Collisions, other findings and the worst ratio to each limit over ``reports``."""
+    kinds: dict[str, int] = {}
+    for r in reports:
+        for k in r.violations:
+            kinds[k] = kinds.get(k, 0) + 1
+    worst = {k: max(r.worst[k] for r in reports) for k in reports[0].worst} if reports else {}
+    return {"checked": len(reports),
+            "with_collision": sum("collision" in r.violations for r in reports),
+            "kinds": kinds, "worst_ratio": worst,
+            "first_collisions": [r.first_collision for r in reports if r.first_collision][:3]}
+
+
+def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[str, Any]:
+    d = model.description
+    cache = folder / "cache"
+    mp = MotionPlanner(d, cache=DiskCache(cache))
+    names = mp.joint_names
+    probs_of = {s: problems(mp.world(tuple(obs)), args.n, np.random.default_rng(args.seed))
+                for s, obs in SCENES.items()}
+    replies, desc = run_service(model, probs_of, names, cache, args)
+    lim = mp.limits(args.scaling, args.scaling)
+    for k in ("velocity", "acceleration"):  # the service's figures are the in-process ones
+        served = np.array([desc["limits"][n][k] for n in names], float) * args.scaling
+        if not np.allclose(served, getattr(lim, k), rtol=1e-12):
+            raise RuntimeError(f"{k} limits: service {served} vs in-process {getattr(lim, k)}")
+    rl = Limits(*(np.asarray(getattr(lim, k), float) for k in
+                  ("lower", "upper", "velocity", "acceleration", "jerk", "effort")))
+    toppra = toppra_durations(mp, replies, args.scaling)
+    scale = scale_check(model, mp, names, folder, args.state_checks)
+    mplib, mplib_tasks = mplib_rows(model, names, probs_of, lim, folder, args, rl)
+    rows: dict[str, Any] = {}
+    ours_tasks: dict[str, list[tuple]] = {}
+    for scene, rows_ in replies.items():
+        ok = [r for _, r in rows_ if not isinstance(r, str)]
+        fails: dict[str, int] = {}
+        for _, r in rows_:
+            if isinstance(r, str):
+                fails[r] = fails.get(r, 0) + 1
+        walls = [w for w, _ in rows_]
+        stage = {k: 1e3 * statistics.median(r.timing[k] for r in ok) if ok else None
+                 for k in STAGES}
+        share = median([r.timing["verify"] / r.timing["total"] for r in ok])
+        overhead = median([w - r.timing["total"] for w, r in rows_ if not isinstance(r, str)])
+        clear = [r.verification["min_clearance"] for r in ok
+                 if r.verification.get("min_clearance") is not None]
+        durs = [r.duration for r in ok]
+        ratios = [r.duration / t for r, t in zip(ok, toppra[scene]) if t]
+        obs = obstacle_dicts(list(SCENES[scene]))
+        ours_tasks[scene] = [(SampledPositions(r.times, r.positions, r.velocities,
+                                               r.accelerations), r.duration, rl, obs,
+                              args.recheck_step) for r in ok]
+        m = mplib[scene]
+        rows[scene] = {
+            "problems": len(rows_),
+            "ours": {"success": len(ok) / len(rows_), "failures": fails, **ms(walls),
+                     "stage_median_ms": stage, "verify_share_median": share,
+                     "wire_overhead_ms_median": None if overhead is None else 1e3 * overhead,
+                     "certified_all": all(r.verification.get("certified") for r in ok),
+                     "min_clearance_m": {"min": min(clear) if clear else None,
+                                         "median": median(clear)},
+                     "duration_s_median": median(durs),
+                     "toppra_duration_s_median": median([t for t in toppra[scene] if t]),
+                     "jerk_limited_over_toppra_median": median(ratios),
+                     "jerk_limited_over_toppra_max": max(ratios) if ratios else None},
+            "mplib": m,
+            "ours_over_mplib_median": ms(walls)["median_ms"] / m["median_ms"]
+            if m["median_ms"] else None,
+        }
+    flat = [t for s in SCENES for t in ours_tasks[s]] + [t for s in SCENES for t in mplib_tasks[s]]
+    t0 = time.perf_counter()
+    reports = recheck_all(model, names, flat)
+    print(f"  re-checked {len(flat)} trajectories in {time.perf_counter() - t0:.0f} s",
+          flush=True)
+    at = 0
+    for scene in SCENES:
+        k = len(ours_tasks[scene])
+        rows[scene]["ours"]["recheck"] = summarise(reports[at:at + k])
+        at += k
+    for scene in SCENES:
+        k = len(mplib_tasks[scene])
+        rows[scene]["mplib"]["recheck"] = summarise(reports[at:at + k])
+        at += k
+    return {"source": model.source, "scaling": args.scaling, "recheck_step": args.recheck_step,
+            "default_scaling": desc.get("default_scaling"),
+            "limits_velocity": [float(v) for v in lim.velocity],
+            "limits_acceleration": [float(v) for v in lim.acceleration],
+            "scale_check": scale, "scenes": rows}
+
+
+def fmt(x: float | None, spec: str = ".1f") -> str:
+    return "-" if x is None else format(x, spec)
+
+
+def report(name: str, res: dict[str, Any]) -> None:
+    sc = res["scale_check"]
+    print(f"\n== {name}: {res['source']}; scaling {res['scaling']} on both sides (model "
+          f"default {res['default_scaling']}); MPlib vs our checker on {sc['states']} states: "
+          f"{sc['agree']} agree ({sc['ours_colliding']} colliding by ours, "
+          f"{sc['mplib_colliding']} by MPlib)")
+    for scene, r in res["scenes"].items():
+        o, m = r["ours"], r["mplib"]
+        st = o["stage_median_ms"]
+        print(f"  {scene:8s} n={r['problems']}  success ours {o['success']:.2f} "
+              f"{o['failures'] or ''} mplib {m['success']:.2f}")
+        print(f"    wall ms median/p95: ours {fmt(o['median_ms'])}/{fmt(o['p95_ms'])}  "
+              f"mplib (plan+TOPP) {fmt(m['median_ms'])}/{fmt(m['p95_ms'])}  ours/mplib "
+              f"{fmt(r['ours_over_mplib_median'], '.2f')}x  (ours over the wire: "
+              f"{fmt(o['wire_overhead_ms_median'])} ms beyond the reply's total)")
+        print("    ours stages median ms: " + " ".join(f"{k} {fmt(st[k])}" for k in STAGES)
+              + f"; verify share {fmt(o['verify_share_median'], '.0%')}")
+        c = o["min_clearance_m"]
+        print(f"    certified min clearance m: min {fmt(c['min'], '.4f')} median "
+              f"{fmt(c['median'], '.4f')} (all certified: {o['certified_all']})")
+        print(f"    duration s median: ours {fmt(o['duration_s_median'], '.3f')} toppra same "
+              f"path {fmt(o['toppra_duration_s_median'], '.3f')} -> ratio median "
+              f"{fmt(o['jerk_limited_over_toppra_median'], '.3f')} max "
+              f"{fmt(o['jerk_limited_over_toppra_max'], '.3f')} (target <= 1.2); mplib "
+              f"{fmt(m['duration_s_median'], '.3f')}")
+        ro, rm = o["recheck"], m["recheck"]
+        print(f"    re-check at {res['recheck_step']} rad, trajectories with a collision: ours "
+              f"{ro['with_collision']}/{ro['checked']}  mplib {rm['with_collision']}/"
+              f"{rm['checked']}")
+
+        def worst(rc: dict[str, Any]) -> str:
+            return " ".join(f"{k} {v:.3f}" for k, v in rc["worst_ratio"].items())
+        print(f"      other findings (limits by finite differences; ours on the interpolated "
+              f"samples, indicative): ours {ro['kinds']} worst/limit {worst(ro)}; mplib "
+              f"{rm['kinds']} worst/limit {worst(rm)}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=40, help="problems per scene (default 40)")
+    ap.add_argument("--models", default="course,shipped", help="course,shipped")
+    ap.add_argument("--scaling", type=float, default=1.0,
+                    help="velocity and acceleration scaling, both sides (default 1.0)")
+    ap.add_argument("--planning-time", type=float, default=1.0, help="budget [s], both sides")
+    ap.add_argument("--seed", type=int, default=7, help="problem draws (7: bench/trajectory's)")
+    ap.add_argument("--recheck-step", type=float, default=0.002, help="[rad]")
+    ap.add_argument("--state-checks", type=int, default=40,
+                    help="random states MPlib and our checker both judge (per model)")
+    args = ap.parse_args(argv)
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("none")
+    tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
+    out: dict[str, Any] = {"n": args.n, "planning_time": args.planning_time}
+    try:
+        for name in args.models.split(","):
+            t0 = time.perf_counter()
+            print(f"{name}:", flush=True)
+            model = make_model(name, tmp / name)  # type: ignore[arg-type]
+            out[name] = run_model(model, tmp / name, args)
+            print(f"  done in {time.perf_counter() - t0:.0f} s", flush=True)
+        for name in args.models.split(","):
+            report(name, out[name])
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    print(json.dumps(out, default=float))
+
+
+if __name__ == "__main__":
+    main()

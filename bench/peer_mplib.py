@@ -1,0 +1,119 @@
+"""MPlib's side of the peer benchmark (bench/peer.py): its plans and a check of its model.
+
+MPlib 0.2.1 runs in its own venv (numpy 1.x) through bench/mplib_runner.py, created on
+demand by bench/trajectory.py's ``mplib_python``; its trajectories are rebuilt from its
+toppra data by bench/trajectory.py's ``MplibTiming`` for the re-check.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from peer_models import PeerModel
+from recheck import Limits
+from scenes import SCENES, obstacle_dicts
+from trajectory import MplibTiming, mplib_python
+
+from planner.limits import JointLimits
+from planner.pipeline import MotionPlanner
+
+ARM = ("joint_1", "joint_2", "joint_3")
+RUNNER = Path(__file__).with_name("mplib_runner.py")
+
+
+def run_mplib(spec: dict[str, Any]) -> dict[str, Any]:
+    """Run bench/mplib_runner.py on ``spec``; its output."""
+    py = mplib_python()
+    done = subprocess.run([str(py), str(RUNNER)], input=json.dumps(spec), text=True,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    if done.returncode:
+        raise RuntimeError(f"mplib_runner failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return json.loads(Path(spec["output"]).read_text())
+
+
+def base_spec(model: PeerModel, output: Path) -> dict[str, Any]:
+    return {"urdf": str(model.urdf), "srdf": str(model.srdf), "move_group": "claw_support",
+            "output": str(output), "scenes": {}}
+
+
+def scale_check(model: PeerModel, mp: MotionPlanner, names: tuple[str, ...], folder: Path,
+                n: int) -> dict[str, Any]:
+    """``n`` random states (half colliding by our checker, gripper closed) judged by MPlib
+    too: agreement shows MPlib reads the meshes at the size we do (their ``scale``)."""
+    world = mp.world(())
+    lim = model.description.robot.position_limits(names)
+    rng = np.random.default_rng(3)
+    hit, free = [], []
+    for _ in range(100 * n):
+        if len(hit) >= n // 2 and len(free) >= n - n // 2:
+            break
+        q = rng.uniform(lim[:, 0], lim[:, 1])
+        q[3] = 0.0
+        bucket = free if world.is_valid(q) else hit
+        if len(bucket) < (n // 2 if bucket is hit else n - n // 2):
+            bucket.append(q)
+    states = hit + free
+    spec = {**base_spec(model, folder / "mplib-states.json"),
+            "state_checks": [{"joints": dict(zip(names, map(float, q)))} for q in states]}
+    found = run_mplib(spec)["state_checks"]
+    ours = [True] * len(hit) + [False] * len(free)
+    agree = sum(o == bool(f) for o, f in zip(ours, found))
+    return {"states": len(states), "agree": agree, "ours_colliding": len(hit),
+            "mplib_colliding": sum(bool(f) for f in found),
+            "disagreeing": [{"q": [float(v) for v in q], "ours_colliding": o, "mplib": f}
+                            for q, o, f in zip(states, ours, found) if o != bool(f)][:3]}
+
+
+def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, list],
+               lim: JointLimits, folder: Path, args: argparse.Namespace, rl: Limits
+               ) -> tuple[dict[str, dict[str, Any]], dict[str, list[tuple]]]:
+    """MPlib on every problem: figures per scene, and re-check tasks per scene
+    (positions(ts), duration [s], limits, obstacles, step [rad])."""
+    spec = {**base_spec(model, folder / "mplib.json"),
+            "velocity": [float(lim.velocity[names.index(j)]) for j in ARM],
+            "acceleration": [float(lim.acceleration[names.index(j)]) for j in ARM],
+            "time_step": 0.01, "warmup": True}
+    for scene, probs in probs_of.items():
+        spec["scenes"][scene] = {
+            "obstacles": obstacle_dicts(list(SCENES[scene])),
+            "problems": [{"start": dict(zip(names, map(float, a))),
+                          "goal": dict(zip(ARM, map(float, b[:3]))),
+                          "planning_time": args.planning_time} for a, b, _ in probs]}
+    out = run_mplib(spec)
+    if tuple(out["move_group_joints"]) != ARM or tuple(out["joint_names"][:3]) != ARM:
+        raise RuntimeError(f"MPlib plans for {out['move_group_joints']}, not {ARM}")
+    rows, tasks = {}, {}
+    for scene, results in out["scenes"].items():
+        obs = obstacle_dicts(list(SCENES[scene]))
+        ok = [(a, r) for (a, _, _), r in zip(probs_of[scene], results) if r["success"]]
+        status: dict[str, int] = {}
+        for r in results:
+            if not r["success"]:
+                status[r["status"]] = status.get(r["status"], 0) + 1
+        rebuild, scene_tasks = 0.0, []
+        for a, r in ok:
+            timing = MplibTiming(r, len(names), np.asarray(a, float))
+            rebuild = max(rebuild, float(np.max(np.abs(
+                timing.evaluate(np.array(r["sample_times"]))[0][:, :3]
+                - np.array(r["sample_positions"])))))
+            scene_tasks.append((lambda ts, tm=timing: tm.evaluate(ts)[0], timing.duration,
+                                rl, obs, args.recheck_step))
+        tasks[scene] = scene_tasks
+        totals = [r["total_s"] for r in results]
+        rows[scene] = {
+            "success": len(ok) / len(results), "failures": status,
+            "start_valid": sum(r["start_valid"] for r in results),
+            "median_ms": 1e3 * statistics.median(totals),
+            "p95_ms": 1e3 * float(np.percentile(totals, 95)),
+            "plan_ms_median": 1e3 * statistics.median(r["plan_s"] for r in results),
+            "topp_ms_median": 1e3 * statistics.median([r["param_s"] for _, r in ok] or [0.0]),
+            "duration_s_median": statistics.median([r["duration"] for _, r in ok])
+            if ok else None,
+            "rebuild_max_diff_rad": rebuild}
+    return rows, tasks
