@@ -48,6 +48,7 @@ import zenoh
 
 from planner.errors import InvalidRequest, PlanningError
 from service import wire
+from service.keyguard import addressed_exactly
 
 _log = logging.getLogger(__name__)
 
@@ -186,6 +187,8 @@ class ExecuteService:
                                 encoding=JSON)
 
         def on_query(query: zenoh.Query) -> None:
+            if not addressed_exactly(key, query):
+                return  # a wildcard must not move the arm (see service.keyguard)
             if threaded:
                 threading.Thread(target=handle, args=(query,), daemon=True,
                                  name=key.rsplit("/", 1)[-1]).start()

@@ -28,6 +28,7 @@ import zenoh
 from planner.errors import PlanningError
 
 from . import wire
+from .keyguard import addressed_exactly
 from .pool import Job, Outcome, WorkerPool
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
@@ -210,12 +211,15 @@ class PlannerService:
         st = self.pool.status() if self.pool is not None else {}
         return {"version": _package_version(), "api": VERSION, "instance": self.instance,
                 "prefix": self.options.prefix, "uptime": time.monotonic() - self._started,
-                "workers": self.options.workers, "config": self._config, **st}
+                "workers": self.options.workers, "config": self._config, **st,
+                "load": pool_load(st, self.options.workers)}
 
     # -- queries -----------------------------------------------------------------------
     def _callback(self, kind: str, key: str):
         def on_query(query: zenoh.Query) -> None:
             # Runs on Zenoh's thread: only cheap checks here, planning goes to the pool.
+            if kind in WORK_KINDS and not addressed_exactly(key, query):
+                return  # a wildcard: no reply from a work key (see service.keyguard)
             try:
                 self._on_query(kind, key, query)
             except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
@@ -264,6 +268,13 @@ class PlannerService:
         if self.pool is not None:
             self.pool.count("received")
             self.pool.count(code)
+
+
+def pool_load(status: Mapping[str, Any], workers: int) -> float:
+    """Jobs per worker: busy workers plus queued requests, over the workers (0 idle, 1
+    every worker busy, above 1 a queue). Clients pick the least loaded instance by it."""
+    busy = sum(1 for w in status.get("workers", ()) if w.get("busy") is not None)
+    return (busy + int(status.get("queue_depth", 0))) / max(1, workers)
 
 
 def _reply_error(query: zenoh.Query, code: str, message: str,
