@@ -44,13 +44,19 @@ MIN_SCALING = 0.01
 MAX_SAMPLES = 20_000
 
 
-def check_structure(value: Any) -> None:
+def check_structure(value: Any, *, max_items: int | None = MAX_ITEMS,
+                    max_elements: int | None = MAX_ELEMENTS) -> None:
     """Refuse a decoded payload nested deeper than :data:`MAX_DEPTH`, an array or object
-    of more than :data:`MAX_ITEMS`, more than :data:`MAX_ELEMENTS` values in all, or a
-    string longer than :data:`MAX_STRING`.
+    of more than ``max_items``, more than ``max_elements`` values in all, or a string
+    longer than :data:`MAX_STRING`.
 
     Iterative (no recursion), and it stops at the first excess, so it visits at most
-    :data:`MAX_ELEMENTS` values.
+    ``max_elements`` values.
+
+    Args:
+        max_items, max_elements: None for no count cap (a payload that is no
+            plan/fk/ik/check request, such as a trajectory to execute, which only
+            :data:`MAX_PAYLOAD` bounds).
 
     Raises:
         InvalidRequest: naming the field where the cap was passed and ``details.limit``.
@@ -71,13 +77,13 @@ def check_structure(value: Any) -> None:
             raise InvalidRequest(f"nested deeper than {MAX_DEPTH} levels of arrays and "
                                  "objects", field=_path(path),
                                  details={"limit": MAX_DEPTH, "cap": "MAX_DEPTH"})
-        if len(node) > MAX_ITEMS:
+        if max_items is not None and len(node) > max_items:
             raise InvalidRequest(f"{len(node)} {'members' if isinstance(node, dict) else 'elements'}"
                                  f", more than the {MAX_ITEMS} any array or object may hold",
                                  field=_path(path),
                                  details={"limit": MAX_ITEMS, "cap": "MAX_ITEMS"})
         total += len(node)
-        if total > MAX_ELEMENTS:
+        if max_elements is not None and total > max_elements:
             raise InvalidRequest(f"more than {MAX_ELEMENTS} values in the request",
                                  field=_path(path),
                                  details={"limit": MAX_ELEMENTS, "cap": "MAX_ELEMENTS"})

@@ -70,9 +70,15 @@ def check_size(size: int) -> None:
                              details={"size": size, "limit": MAX_PAYLOAD})
 
 
-def parse_json(payload: bytes | str) -> Any:
-    """Decode a payload: at most :data:`MAX_PAYLOAD` bytes, UTF-8, strict JSON, within
-    the structure caps of :func:`service.caps.check_structure`.
+def parse_json(payload: bytes | str, *, counts: bool = False) -> Any:
+    """Decode a payload: at most :data:`MAX_PAYLOAD` bytes, UTF-8, strict JSON, nested
+    at most :data:`service.caps.MAX_DEPTH` deep, no string over
+    :data:`service.caps.MAX_STRING`.
+
+    Args:
+        counts: also cap element counts (:data:`service.caps.MAX_ITEMS` per array or
+            object, :data:`service.caps.MAX_ELEMENTS` in all), as for plan/fk/ik/check
+            requests; off for payloads such as a trajectory to execute.
 
     Raises:
         InvalidRequest: over the size cap (``details.limit``), not UTF-8, malformed JSON
@@ -93,7 +99,10 @@ def parse_json(payload: bytes | str) -> Any:
         value = orjson.loads(payload)
     except orjson.JSONDecodeError as e:
         raise _malformed(e) from None
-    check_structure(value)
+    if counts:
+        check_structure(value)
+    else:
+        check_structure(value, max_items=None, max_elements=None)
     return value
 
 
@@ -110,9 +119,9 @@ def _overflow_field(doc: str, pos: int) -> str | None:
         end += 1
     try:
         value = orjson.loads(doc[:pos] + orjson.dumps(_OVERFLOW).decode() + doc[end:])
-        check_structure(value)
+        check_structure(value)  # the count caps too: the search below stays short
     except (orjson.JSONDecodeError, InvalidRequest):
-        return None  # a later fault (or cap): the line and column still say where
+        return None  # a later fault or a cap: the line and column still say where
     stack: list[tuple[Any, tuple[Any, ...]]] = [(value, ())]
     while stack:  # bounded: check_structure passed
         node, path = stack.pop()
@@ -137,8 +146,10 @@ def _malformed(e: orjson.JSONDecodeError) -> InvalidRequest:
     if "infinity" in e.msg:
         return InvalidRequest(f"a number too large for a double: numbers must be finite "
                               f"({at})", field=_overflow_field(doc, e.pos), details=where)
-    if "depth limit" in e.msg:
-        return InvalidRequest(f"nested deeper than the decoder allows ({at})", details=where)
+    if "depth limit" in e.msg:  # over 1024 levels: orjson stops before check_structure
+        return InvalidRequest(f"nested deeper than {MAX_DEPTH} levels of arrays and objects "
+                              f"({at})", details={**where, "limit": MAX_DEPTH,
+                                                  "cap": "MAX_DEPTH"})
     if "UTF-8" in e.msg or "surrogate" in e.msg:
         return InvalidRequest(f"payload is not UTF-8: {e.msg} ({at})", details=where)
     return InvalidRequest(f"malformed JSON: {e.msg} at {at}", details=where)
@@ -251,8 +262,9 @@ def _short(msg: str, limit: int = 300) -> str:
 
 
 def decode(kind: Kind, payload: bytes | str) -> dict[str, Any]:
-    """:func:`parse_json` then :func:`validate`: the whole cheap, description-free check."""
-    return validate(kind, parse_json(payload))
+    """:func:`parse_json` (with the count caps) then :func:`validate`: the whole cheap,
+    description-free check, bounded to a few milliseconds whatever the payload."""
+    return validate(kind, parse_json(payload, counts=True))
 
 
 def encode(value: Any, *, finite: bool = False) -> bytes:

@@ -236,3 +236,19 @@ def test_refusals_inside_one_of_name_the_deepest_field(payload, field):
 def test_a_goal_of_no_known_form_lists_the_forms():
     with pytest.raises(InvalidRequest, match=r"\{joints\}, \{named\}, \{position\}"):
         wire.decode("plan", b'{"goal": {"pose": [1, 2, 3]}}')
+
+
+def test_parse_json_caps_counts_only_when_asked():
+    # a trajectory to execute (up to MAX_PAYLOAD) holds more values than any request
+    point = {"positions": [0.1] * 4, "velocities": [0.0] * 4, "accelerations": [0.0] * 4,
+             "effort": [0.0] * 4, "time_from_start": 0.0}
+    body = {"trajectory": {"trajectory": {"joint_names": ["a", "b", "c", "d"],
+                                          "points": [point] * 700}}}
+    raw = json.dumps(body)
+    assert len(raw) < wire.MAX_PAYLOAD
+    assert wire.parse_json(raw) == body
+    with pytest.raises(InvalidRequest) as e:
+        wire.parse_json(raw, counts=True)
+    assert e.value.details["cap"] == "MAX_ITEMS"
+    with pytest.raises(InvalidRequest, match="deeper"):
+        wire.parse_json("[" * (caps.MAX_DEPTH + 1) + "]" * (caps.MAX_DEPTH + 1))
