@@ -6,17 +6,17 @@
         print(res.duration, res.positions.shape)
 
 Every service error raises its own class (:mod:`clients.errors`); no reply at all raises
-:class:`~clients.errors.ServiceUnavailable` with a hint. With ``spread=True`` requests go
-round-robin to the live instances (found by a liveliness query on ``<prefix>/alive/*``).
+:class:`~clients.errors.ServiceUnavailable` with a hint (and says when the connection
+itself is down, e.g. a router restarting). With ``spread=True`` each request goes to the
+least loaded live instance (:mod:`clients.balance`: liveliness on ``<prefix>/alive/*``,
+load on ``/health``), by its own key, and on to another one if that instance has gone or
+is BUSY.
 """
 
 from __future__ import annotations
 
-import itertools
 import json
 import logging
-import threading
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,14 +28,13 @@ import zenoh
 
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
 
-from .errors import ServiceUnavailable, error_from_reply
+from .balance import LoadBalancer
+from .errors import ServiceBusy, ServiceUnavailable, error_from_reply
 
 _log = logging.getLogger(__name__)
 
 _HINT = ("start one with `arduinobot serve` (or `./dev arduinobot serve`), or check the "
          "endpoint (--connect) and the prefix")
-# How long a discovered instance list is trusted before a new liveliness query [s].
-_INSTANCES_TTL = 2.0
 
 
 @dataclass(frozen=True)
@@ -159,7 +158,8 @@ class PlannerClient:
         timeout: seconds to wait for a reply (plans add their planning_time).
         mode: the client's Zenoh mode (``client`` needs a reachable endpoint).
         config_file: a zenoh JSON5 config (TLS, credentials); options here override it.
-        spread: round-robin requests over the live instances.
+        spread: send each request to the least loaded live instance, and to another
+            one if it has gone or is BUSY (see :mod:`clients.balance`).
 
     Raises:
         ServiceUnavailable: ``reason="connect_failed"`` if no session could be opened.
@@ -179,10 +179,7 @@ class PlannerClient:
             raise ServiceUnavailable(
                 f"cannot reach {', '.join(self.endpoints)}: {e}; {_HINT}",
                 reason="connect_failed", details={"endpoints": self.endpoints}) from None
-        self._rr = itertools.count()
-        self._lock = threading.Lock()
-        self._instances: tuple[str, ...] = ()
-        self._instances_at = -1e9
+        self.balancer = LoadBalancer(self.session, prefix)
 
     # -- lifecycle ---------------------------------------------------------------------
     def close(self) -> None:
@@ -198,25 +195,12 @@ class PlannerClient:
     # -- discovery ---------------------------------------------------------------------
     def instances(self, *, refresh: bool = False) -> tuple[str, ...]:
         """The ids of the live instances (liveliness tokens ``<prefix>/alive/<id>``)."""
-        with self._lock:
-            if not refresh and time.monotonic() - self._instances_at < _INSTANCES_TTL:
-                return self._instances
-        base = f"{self.prefix}/alive/"
-        found = sorted({str(r.ok.key_expr)[len(base):]
-                        for r in self.session.liveliness().get(f"{base}*", timeout=2.0)
-                        if r.ok is not None})
-        with self._lock:
-            self._instances, self._instances_at = tuple(found), time.monotonic()
-        return tuple(found)
+        return self.balancer.live(refresh=refresh)
 
-    def _key(self, kind: str, instance: str | None) -> str:
-        if instance is None and self.spread:
-            live = self.instances()
-            if live:
-                instance = live[next(self._rr) % len(live)]
-        if instance is None:
-            return f"{self.prefix}/{kind}"
-        return f"{self.prefix}/instance/{instance}/{kind}"
+    def connected(self) -> bool:
+        """Whether the session has a link to a router or a peer right now."""
+        info = self.session.info
+        return bool(list(info.routers_zid()) or list(info.peers_zid()))
 
     # -- requests ----------------------------------------------------------------------
     def request(self, kind: str, body: Mapping[str, Any] | bytes | str | None = None, *,
@@ -226,7 +210,8 @@ class PlannerClient:
         Args:
             kind: ``plan``, ``fk``, ``ik``, ``check``, ``health``, ``description``, ``schema``.
             body: the request (a mapping is JSON-encoded; bytes/str go as they are).
-            instance: address one instance (default: shared key, or round-robin if spread).
+            instance: address one instance (default: the shared key, or with ``spread``
+                the least loaded live instance).
 
         Raises:
             ServiceError subclasses for error replies; ServiceUnavailable for none.
@@ -237,21 +222,54 @@ class PlannerClient:
             payload = body.encode()
         else:
             payload = body
-        key = self._key(kind, instance)
         wait = self.timeout if timeout is None else float(timeout)
+        if instance is not None:
+            key = f"{self.prefix}/instance/{instance}/{kind}"
+        else:
+            key = f"{self.prefix}/{kind}"
+            if self.spread:
+                answer = self._spread(kind, payload, wait)
+                if answer is not None:
+                    return answer
+                # every instance we knew has gone: the shared key reaches any other
         replies = self._get(key, payload, wait)
-        shared = f"{self.prefix}/{kind}"
-        if not replies and instance is None and key != shared:
-            # the instance we picked has just gone: forget the list, ask any instance
-            with self._lock:
-                self._instances_at = -1e9
-            key = shared
-            replies = self._get(key, payload, wait)
         if not replies:
-            raise ServiceUnavailable(f"no service answered on '{key}' via "
-                                     f"{', '.join(self.endpoints)}: {_HINT}",
-                                     reason="no_route", details={"key": key})
+            raise self._no_reply(key)
         return _decode(replies[0], key, wait)
+
+    def _spread(self, kind: str, payload: bytes | None, wait: float) -> dict[str, Any] | None:
+        """The reply of the least loaded instance that answers and is not BUSY, trying
+        each live instance at most once; None if none answered at all."""
+        tried: list[str] = []
+        busy: ServiceBusy | None = None
+        while (inst := self.balancer.pick(exclude=tried)) is not None:
+            tried.append(inst)
+            key = f"{self.prefix}/instance/{inst}/{kind}"
+            with self.balancer.sending(inst):
+                replies = self._get(key, payload, wait)
+            if not replies:  # it has just gone (or is going): the next one
+                _log.info("instance %s did not answer on %s; trying another", inst, key)
+                self.balancer.forget(inst)
+                continue
+            try:
+                return _decode(replies[0], key, wait)
+            except ServiceBusy as e:  # its queue is full: another may have room
+                busy = e
+        if busy is not None:
+            raise busy  # every instance was busy: the service's own retry hint
+        return None
+
+    def _no_reply(self, key: str) -> ServiceUnavailable:
+        if self.connected():
+            return ServiceUnavailable(f"no service answered on '{key}' via "
+                                      f"{', '.join(self.endpoints)}: {_HINT}",
+                                      reason="no_route", details={"key": key,
+                                                                  "connected": True})
+        return ServiceUnavailable(
+            f"no reply on '{key}': the link to {', '.join(self.endpoints)} is down (a router "
+            "restarting, or the network); the request went unanswered: retry once it is "
+            "back (the session reconnects by itself)", reason="no_route",
+            details={"key": key, "connected": False})
 
     def _get(self, key: str, payload: bytes | None, wait: float) -> list[zenoh.Reply]:
         return list(self.session.get(key, payload=payload, timeout=wait,

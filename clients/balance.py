@@ -1,0 +1,120 @@
+"""Which live instance a spreading client sends its next request to.
+
+Instances are found by liveliness (``<prefix>/alive/<id>``) and report their load on
+``<prefix>/instance/<id>/health`` (``load``: busy workers plus queued requests, per
+worker). Both are asked at most every ``ttl`` seconds, in one query each; between asks
+the client adds what it has itself in flight to each instance, so a burst from one
+client spreads at once instead of piling onto the instance that was idle at the last
+ask. Equal scores take turns.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+import threading
+import time
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import orjson
+import zenoh
+
+_log = logging.getLogger(__name__)
+
+#: how long a health reply may take before its instance counts as unknown load [s]
+HEALTH_WAIT = 0.5
+
+
+@dataclass(frozen=True)
+class InstanceLoad:
+    """What an instance last reported: ``load`` in jobs per worker (0 idle, 1 all busy,
+    above 1 a queue; ``inf`` if it did not answer its health key in time)."""
+
+    instance: str
+    load: float
+    workers: int
+
+
+class LoadBalancer:
+    """Live instances of one prefix on one session, and the least loaded of them."""
+
+    def __init__(self, session: zenoh.Session, prefix: str, *, ttl: float = 2.0) -> None:
+        self.session, self.prefix, self.ttl = session, prefix, float(ttl)
+        self._lock = threading.Lock()
+        self._live: tuple[str, ...] = ()
+        self._loads: dict[str, InstanceLoad] = {}
+        self._inflight: dict[str, int] = {}
+        self._asked_at = -math.inf
+        self._turn = itertools.count()
+
+    def live(self, *, refresh: bool = False) -> tuple[str, ...]:
+        """The ids of the live instances, asked again if older than ``ttl`` [s]."""
+        with self._lock:
+            fresh = time.monotonic() - self._asked_at < self.ttl
+        if refresh or not fresh:
+            self._ask()
+        with self._lock:
+            return self._live
+
+    def loads(self) -> dict[str, InstanceLoad]:
+        """Each live instance's last reported load."""
+        with self._lock:
+            return {i: self._loads.get(i, InstanceLoad(i, math.inf, 1)) for i in self._live}
+
+    def pick(self, exclude: Collection[str] = ()) -> str | None:
+        """The least loaded live instance not in ``exclude`` (None if there is none)."""
+        live = self.live()
+        with self._lock:
+            candidates = [i for i in live if i not in exclude]
+            if not candidates:
+                return None
+            start = next(self._turn) % len(candidates)
+            turn = candidates[start:] + candidates[:start]  # ties take turns
+            return min(turn, key=self._score)
+
+    def _score(self, instance: str) -> float:
+        rep = self._loads.get(instance, InstanceLoad(instance, math.inf, 1))
+        return rep.load + self._inflight.get(instance, 0) / max(1, rep.workers)
+
+    @contextmanager
+    def sending(self, instance: str) -> Iterator[None]:
+        """Count a request to ``instance`` as in flight while the block runs."""
+        with self._lock:
+            self._inflight[instance] = self._inflight.get(instance, 0) + 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._inflight[instance] -= 1
+
+    def forget(self, instance: str) -> None:
+        """``instance`` did not answer: leave it out until the next ask finds it."""
+        with self._lock:
+            self._live = tuple(i for i in self._live if i != instance)
+            self._asked_at = -math.inf  # and ask again next time
+
+    def _ask(self) -> None:
+        base = f"{self.prefix}/alive/"
+        live = sorted({str(r.ok.key_expr)[len(base):]
+                       for r in self.session.liveliness().get(f"{base}*", timeout=2.0)
+                       if r.ok is not None})
+        loads: dict[str, InstanceLoad] = {}
+        if live:
+            for r in self.session.get(f"{self.prefix}/instance/*/health",
+                                      timeout=HEALTH_WAIT):
+                if r.ok is None:
+                    continue
+                try:
+                    h = orjson.loads(r.ok.payload.to_bytes())
+                    rep = InstanceLoad(str(h["instance"]), float(h.get("load", 0.0)),
+                                       int(h.get("workers", 1)))
+                except (orjson.JSONDecodeError, KeyError, TypeError, ValueError) as e:
+                    _log.warning("%s: an unreadable health reply (%s); its load is unknown",
+                                 r.ok.key_expr, e)
+                    continue
+                loads[rep.instance] = rep
+        with self._lock:
+            self._live, self._loads, self._asked_at = tuple(live), loads, time.monotonic()
