@@ -71,9 +71,10 @@ class LoadBalancer:
             candidates = [i for i in live if i not in exclude]
             if not candidates:
                 return None
-            start = next(self._turn) % len(candidates)
-            turn = candidates[start:] + candidates[:start]  # ties take turns
-            return min(turn, key=self._score)
+            scores = {i: self._score(i) for i in candidates}
+            low = min(scores.values())
+            best = [i for i in candidates if scores[i] == low]
+            return best[next(self._turn) % len(best)]  # ties take turns
 
     def _score(self, instance: str) -> float:
         rep = self._loads.get(instance, InstanceLoad(instance, math.inf, 1))
@@ -109,8 +110,9 @@ class LoadBalancer:
                     continue
                 try:
                     h = orjson.loads(r.ok.payload.to_bytes())
+                    w = h.get("workers", 1)  # the pool's list of workers, or a count
                     rep = InstanceLoad(str(h["instance"]), float(h.get("load", 0.0)),
-                                       int(h.get("workers", 1)))
+                                       len(w) if isinstance(w, list) else int(w))
                 except (orjson.JSONDecodeError, KeyError, TypeError, ValueError) as e:
                     _log.warning("%s: an unreadable health reply (%s); its load is unknown",
                                  r.ok.key_expr, e)

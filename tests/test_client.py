@@ -154,3 +154,52 @@ def test_the_plan_command_imports_no_planner_machinery(server):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, cwd=ROOT)
     assert "HEAVY [] 0" in out.stdout, out.stdout[-2000:] + out.stderr[-2000:]
+
+
+@pytest.fixture
+def fake_instances():
+    """Three 'instances' on a real zenoh peer: liveliness tokens, health replies with a
+    load each (c never answers health), and fk queryables that say who answered. Loads
+    are set by the test through the returned dict."""
+    port = free_port()
+    s = zenoh.open(zenoh_config(mode="peer", listen=[f"tcp/127.0.0.1:{port}"]))
+    loads = {"a": 0.0, "b": 0.0}
+    ents = []
+    for inst in ("a", "b", "c"):
+        ents.append(s.liveliness().declare_token(f"fake/alive/{inst}"))
+        ents.append(s.declare_queryable(
+            f"fake/instance/{inst}/fk", lambda q, inst=inst: q.reply(
+                str(q.key_expr), json.dumps({"request_id": inst}).encode()), complete=True))
+        if inst != "c":
+            ents.append(s.declare_queryable(
+                f"fake/instance/{inst}/health", lambda q, inst=inst: q.reply(
+                    f"fake/instance/{inst}/health", json.dumps(
+                        {"instance": inst, "load": loads[inst],
+                         "workers": [{"pid": 1, "busy": None}] * 2}).encode()),
+                complete=True))
+    yield f"tcp/127.0.0.1:{port}", loads
+    for e in ents:
+        e.undeclare()
+    s.close()
+
+
+def test_spread_picks_by_reported_load_then_own_in_flight_then_in_turn(fake_instances):
+    endpoint, loads = fake_instances
+    with PlannerClient(endpoint, prefix="fake", spread=True, timeout=5) as c:
+        assert c.instances(refresh=True) == ("a", "b", "c")
+        seen = c.balancer.loads()
+        assert seen["a"].load == 0.0 and seen["a"].workers == 2
+        assert seen["c"].load == float("inf")  # no health reply: the last resort
+        # equal loads take turns; c (unknown load) is never picked while a or b is there
+        assert sorted(c.request("fk", {})["request_id"] for _ in range(4)) == \
+            ["a", "a", "b", "b"]
+        loads["a"] = 1.5
+        c.instances(refresh=True)
+        assert {c.request("fk", {})["request_id"] for _ in range(4)} == {"b"}
+        # what this client has in flight counts: 2 on b (2 workers) weigh 1.0 < 1.5 ...
+        with c.balancer.sending("b"), c.balancer.sending("b"):
+            assert c.balancer.pick() == "b"
+            with c.balancer.sending("b"):  # ... 3 weigh 1.5: a and b tie, they take turns
+                assert {c.balancer.pick() for _ in range(4)} == {"a", "b"}
+        assert c.balancer.pick(exclude=("a", "b")) == "c"
+        assert c.balancer.pick(exclude=("a", "b", "c")) is None

@@ -1,10 +1,13 @@
 """Two instances behind a router (a zenoh session in router mode, in this process):
-clients spread work over both, and a plain get fails over when one is killed."""
+clients spread work over both by load, retry elsewhere when one is BUSY or gone, and a
+plain get fails over when one is killed."""
 
 from __future__ import annotations
 
 import json
+import os
 import signal
+import threading
 import time
 
 import pytest
@@ -54,6 +57,49 @@ def test_spread_requests_reach_both_instances(cluster):
             assert c.health(instance=inst)["counters"]["ok"] >= 4
 
 
+def test_spread_avoids_a_loaded_instance_and_retries_elsewhere_when_busy(cluster):
+    """Instance a's worker is stopped (SIGSTOP) with a's queue full behind it. A client
+    that still believes both idle sends half its requests to a, gets BUSY and retries on
+    b; a client that asks afresh sees a's load and sends everything to b."""
+    endpoint, servers = cluster
+    a, b = servers
+    with PlannerClient(endpoint, spread=True, timeout=30) as stale, \
+            PlannerClient(endpoint, timeout=60) as filler:
+        _wait_instances(stale, 2)
+        stale.balancer.ttl = 3600.0  # keep the loads seen now (both idle) whatever happens
+        assert {r.load for r in stale.balancer.loads().values()} == {0.0}
+        h = stale.health(instance=a.instance)
+        pids = [w["pid"] for w in h["workers"]]
+        busy_before = h["counters"].get("BUSY", 0)
+        held: list[object] = []
+        fill = [threading.Thread(target=lambda i=i: held.append(filler.request(
+            "fk", {"joints": {"joint_1": 0.001 * i}}, instance=a.instance)))
+            for i in range(len(pids) + h["queue_size"])]
+        for pid in pids:
+            os.kill(pid, signal.SIGSTOP)
+        try:
+            for t in fill:
+                t.start()
+            deadline = time.monotonic() + 20
+            while stale.health(instance=a.instance)["queue_depth"] < h["queue_size"]:
+                assert time.monotonic() < deadline, "a's queue did not fill"
+                time.sleep(0.05)
+            ids = [stale.fk({"joint_1": 0.01 * i}).request_id for i in range(6)]
+            assert {rid.split("-")[0] for rid in ids} == {b.instance[:8]}
+            assert stale.health(instance=a.instance)["counters"]["BUSY"] > busy_before
+            with PlannerClient(endpoint, spread=True, timeout=30) as fresh:
+                loads = fresh.balancer.loads() if fresh.instances(refresh=True) else {}
+                assert loads[a.instance].load >= 1.0 > loads[b.instance].load
+                ids = [fresh.fk({"joint_1": 0.02 * i}).request_id for i in range(4)]
+            assert {rid.split("-")[0] for rid in ids} == {b.instance[:8]}
+        finally:
+            for pid in pids:
+                os.kill(pid, signal.SIGCONT)
+        for t in fill:
+            t.join(60)
+        assert len(held) == len(fill)  # a answered every held request once resumed
+
+
 def test_a_plain_get_fails_over_when_an_instance_dies(cluster):
     endpoint, servers = cluster
     session = zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[]))
@@ -64,6 +110,10 @@ def test_a_plain_get_fails_over_when_an_instance_dies(cluster):
                 return None
             return json.loads(replies[0].ok.payload.to_bytes())["request_id"].split("-")[0]
 
+        # a spreading client that knows both instances, before one dies
+        spread = PlannerClient(endpoint, spread=True, timeout=30)
+        _wait_instances(spread, 2)
+        spread.balancer.ttl = 3600.0  # it will not learn of the death by asking
         first = plain_fk()
         assert first is not None
         victim = next(s for s in servers if s.instance.startswith(first))
@@ -75,6 +125,12 @@ def test_a_plain_get_fails_over_when_an_instance_dies(cluster):
             answered = plain_fk()
         assert answered == survivor.instance[:8]
         assert all(plain_fk() == survivor.instance[:8] for _ in range(5))
+        # it still tries the dead one when its turn comes, finds no one, goes elsewhere
+        served = {spread.fk({"joint_1": 0.01 * i}).request_id.split("-")[0]
+                  for i in range(4)}
+        assert served == {survivor.instance[:8]}
+        assert spread.instances() == (survivor.instance,)
+        spread.close()
         with PlannerClient(endpoint, spread=True, timeout=30) as c:
             assert _wait_instances(c, 1) == (survivor.instance,)
             assert c.fk({"joint_1": 0.2}).joints["joint_1"] == pytest.approx(0.2)
