@@ -19,7 +19,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "/ik, /check, /description, /health and /schema (and the same under "
         "<prefix>/instance/<id>/ for one instance), with a liveliness token "
         "<prefix>/alive/<id>. Default: peer mode listening on tcp/127.0.0.1:7447, "
-        "multicast scouting off. Planning runs in a pool of worker processes. Ctrl-C "
+        "multicast scouting off. Behind a router: --mode client --connect ROUTER (no "
+        "listener of its own). Planning runs in a pool of worker processes. Ctrl-C "
         "stops it cleanly.",
         epilog="examples:\n  arduinobot serve\n  arduinobot serve --listen tcp/0.0.0.0:7447 "
         "--workers 4\n  arduinobot serve --mode client --connect tcp/router.lan:7447\n"
@@ -33,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the robot's URDF/xacro (same as FILE)")
     p.add_argument("--listen", action="append", metavar="ENDPOINT",
                    help="an endpoint to listen on, repeatable (default tcp/127.0.0.1:7447; "
-                   "with --config, the file's)")
+                   "with --mode client, none: it is reached through its router; with "
+                   "--config, the file's)")
     p.add_argument("--connect", action="append", metavar="ENDPOINT",
                    help="a router or peer to connect to, repeatable")
     p.add_argument("--mode", choices=("peer", "client", "router"), default=None,
@@ -87,7 +89,10 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                            moveit_config=ns.moveit_config, srdf=ns.srdf,
                            joint_limits=ns.joint_limits,
                            cache_dir="" if ns.no_cache else ns.cache_dir)
-    listen = ns.listen if ns.listen or ns.config else [DEFAULT_ENDPOINT]
+    # a client-mode instance is reached through its router only: a listener of its own
+    # would be a way around the router's TLS, passwords and access control
+    listen = ns.listen if ns.listen or ns.config else \
+        ([] if ns.mode == "client" else [DEFAULT_ENDPOINT])
     opts = ServeOptions(prefix=ns.prefix, mode=ns.mode or ("peer" if not ns.config else None),
                         listen=listen, connect=ns.connect, config_file=ns.config,
                         multicast_scouting=ns.multicast_scouting, description=spec,
