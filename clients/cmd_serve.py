@@ -57,6 +57,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--timeout", type=float, default=30.0, metavar="S",
                    help="a request's deadline [s], plus planning_time for plans; then "
                    "TIMEOUT (default 30)")
+    p.add_argument("--memory-cap", type=float, default=2048, metavar="MIB",
+                   help="a worker's largest resident memory [MiB]; past it the worker is "
+                   "killed and replaced and the request answered RESOURCE_LIMIT (default "
+                   "2048; 0 for no cap)")
     p.add_argument("--cache-dir", metavar="DIR",
                    help="where to keep what is derived from the robot between starts, keyed "
                    "by content (default: $ARDUINOBOT_CACHE, else $XDG_CACHE_HOME/arduinobot, "
@@ -97,6 +101,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         listen=listen, connect=ns.connect, config_file=ns.config,
                         multicast_scouting=ns.multicast_scouting, description=spec,
                         workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout,
+                        memory_cap=int(ns.memory_cap * 2**20) if ns.memory_cap > 0 else None,
                         extensions=(execute_extension(robot_spec(ns)),))
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -70,6 +70,17 @@ class ServiceBusy(ServiceError):
     code = "BUSY"
 
 
+class ResourceLimit(ServiceError):
+    """The request needed more memory than a worker may use (``details.memory_cap``
+    [bytes]); that worker has been replaced. Ask for less (samples, scalings)."""
+    code = "RESOURCE_LIMIT"
+
+
+class ShuttingDown(ServiceError):
+    """The instance is stopping; retry at once (another instance takes the key)."""
+    code = "SHUTTING_DOWN"
+
+
 class InternalError(ServiceError):
     """The service failed (a bug, or a worker crash: that worker has been replaced)."""
     code = "INTERNAL"
@@ -99,7 +110,8 @@ class ServiceUnavailable(ServiceError):
 
 ERRORS: dict[str, type[ServiceError]] = {c.code: c for c in (
     InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
-    TrajectoryFailed, InvalidLimits, RequestTimeout, ServiceBusy, InternalError)}
+    TrajectoryFailed, InvalidLimits, RequestTimeout, ServiceBusy, ResourceLimit,
+    ShuttingDown, InternalError)}
 
 
 def error_from_reply(body: Mapping[str, Any]) -> ServiceError:

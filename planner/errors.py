@@ -95,3 +95,15 @@ class LimitsError(PlanningError):
         self.joint, self.limit = joint, limit
         d = {"joint": joint, "limit": limit, **dict(details or {})}
         super().__init__(f"{joint} {limit}: {message}", details=d)
+
+
+class ResourceLimit(PlanningError):
+    """A request needed more than a service worker may use (its memory cap)."""
+
+    code = "RESOURCE_LIMIT"
+
+
+class ShuttingDown(PlanningError):
+    """The service instance is stopping and did not take (or finish) the request."""
+
+    code = "SHUTTING_DOWN"

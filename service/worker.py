@@ -1,19 +1,30 @@
-"""The worker process: load the description once, then answer jobs over a pipe.
+"""A worker process's job loop: decode, validate and answer jobs sent over a socket.
 
-Started by :class:`service.pool.WorkerPool` with the forkserver (or spawn) start method,
-never by forking a process that holds a Zenoh session.
+Workers are forked, already warm, from :mod:`service.zygote` (which builds the model
+once); :func:`serve_jobs` is what each fork runs. Validation runs here, not on the
+serving process's Zenoh thread, so a request that is slow to validate holds one worker
+until its deadline (then the worker is killed and replaced), never the whole service.
+
+Protocol (``conn`` is a :class:`multiprocessing.connection.Connection`):
+
+- in: ``(job_id, kind, payload, base_deadline)`` where ``payload`` is the raw request
+  bytes (decoded here with :func:`service.wire.decode`) or an already validated dict,
+  and ``base_deadline`` is the arrival time plus the service's timeout, on
+  :func:`time.monotonic` (the same clock in every process); ``None`` to stop;
+- out: ``("deadline", job_id, seconds)`` once the request is valid (plan requests add
+  their ``planning_time``), then ``(job_id, "ok", json_bytes)`` or
+  ``(job_id, "err", code, message, details)``.
 """
 
 from __future__ import annotations
 
 import logging
-import os
-import signal
 import time
 import traceback
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
+from typing import Any
 
 from description import load_description
 from planner.errors import PlanningError
@@ -23,6 +34,9 @@ from .disk_cache import DiskCache
 from .handlers import Handlers
 
 _log = logging.getLogger(__name__)
+
+#: a plan request's planning_time when it gives none [s] (the schema's default)
+DEFAULT_PLANNING_TIME = 1.0
 
 
 @dataclass(frozen=True)
@@ -48,33 +62,28 @@ class DescriptionSpec:
                                 srdf=self.srdf, joint_limits=self.joint_limits)
 
 
-def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:
-    """Serve jobs ``(job_id, kind, data)`` until ``None`` or EOF.
-
-    Sends ``("ready", pid)`` once warmed up (or ``("failed", message)``), then per job
-    ``(job_id, "ok", json_bytes)`` (the reply, request_id included) or
-    ``(job_id, "err", code, message, details)``.
-    """
-    # Ctrl-C reaches the whole process group: the parent shuts workers down itself.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    logging.basicConfig(level=log_level,
-                        format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
-    from planner.planning import set_ompl_log_level
-    set_ompl_log_level("info" if log_level <= logging.INFO else "none")
-    # say what a slow start is doing: CAD meshes make the geometry the long part
-    logging.getLogger("service").setLevel(min(logging.INFO, log_level))
+def build_handlers(spec: DescriptionSpec) -> Handlers:
+    """Load the robot, build the planner and plan one warm-up motion (seconds on CAD
+    meshes: done once per zygote, never per worker)."""
     t0 = time.perf_counter()
-    try:
-        _log.info("loading the robot")
-        description = spec.load()
-        _log.info("building the planner: collision geometry, limits, dynamics")
-        handlers = Handlers(description, cache=spec.cache())
-        handlers.warm_up()
-    except Exception as e:  # noqa: BLE001 -- reported to the parent, which refuses to start
-        conn.send(("failed", f"{type(e).__name__}: {e}"))
-        return
+    _log.info("loading the robot")
+    description = spec.load()
+    _log.info("building the planner: collision geometry, limits, dynamics")
+    handlers = Handlers(description, cache=spec.cache())
+    handlers.warm_up()
     _log.info("ready in %.1f s", time.perf_counter() - t0)
-    conn.send(("ready", os.getpid()))
+    return handlers
+
+
+def job_deadline(kind: str, data: Mapping[str, Any], base_deadline: float) -> float:
+    """When a valid job must be answered [monotonic s]: plans add their planning_time."""
+    if kind != "plan":
+        return base_deadline
+    return base_deadline + float(data.get("planning_time", DEFAULT_PLANNING_TIME))
+
+
+def serve_jobs(conn: Connection, handlers: Handlers) -> None:
+    """Answer jobs until ``None`` or EOF (see the module's protocol)."""
     while True:
         try:
             msg = conn.recv()
@@ -82,11 +91,20 @@ def worker_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
             return
         if msg is None:
             return
-        job_id, kind, data = msg
+        job_id, kind, payload, base_deadline = msg
         try:
+            data = wire.decode(kind, payload) if isinstance(payload, (bytes, str)) \
+                else payload
+            deadline = job_deadline(kind, data, base_deadline)
+            conn.send(("deadline", job_id, deadline))
             body = handlers.handle(kind, data)
         except PlanningError as e:
             conn.send((job_id, "err", e.code, e.message, e.details))
+        except MemoryError:
+            # the heap may be half-built: answer, then leave so a fresh fork takes over
+            conn.send((job_id, "err", "RESOURCE_LIMIT", "the request needed more memory "
+                       "than a worker may use", {"exception": "MemoryError"}))
+            return
         except Exception as e:  # noqa: BLE001 -- a bug: INTERNAL, the worker lives on
             _log.error("job %s (%s) failed:\n%s", job_id, kind, traceback.format_exc())
             conn.send((job_id, "err", "INTERNAL", f"{type(e).__name__}: {e}",

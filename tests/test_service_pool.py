@@ -126,4 +126,4 @@ def test_ctrl_c_answers_the_request_in_flight_and_exits_cleanly(small_server):
         t.join(10)
         assert time.monotonic() - t0 < 10
         err = out.get("error")
-        assert isinstance(err, errors.InternalError) and "shutting down" in err.message, out
+        assert isinstance(err, errors.ShuttingDown) and "shutting down" in err.message, out

@@ -1,0 +1,265 @@
+"""The zygote: one process that builds the model once and forks warm workers on demand.
+
+Building the planner costs seconds (tens on CAD meshes); forking a process that already
+holds it costs milliseconds, and the fork shares its pages copy-on-write. So the pool
+starts one zygote, asks it for a worker per slot, and asks again whenever a worker dies
+or is killed (deadline, memory cap): the next request is served by a warm process at once.
+
+The zygote is started through :mod:`multiprocessing` (forkserver or spawn), never by
+forking a process that holds a Zenoh session; it never plans after its warm-up, and it
+is single-threaded when it forks. Each worker gets its own socket, passed to the pool
+over the zygote's control pipe. The zygote reaps its workers and reports each exit at
+once (``SIGCHLD``), so the pool notices an idle worker's death without sending it a job.
+Workers die with the zygote (``PR_SET_PDEATHSIG``), and the zygote with the pool (EOF on
+its pipe): no orphans, even after a SIGKILL of the server.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import itertools
+import logging
+import os
+import signal
+import socket
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from multiprocessing import reduction
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+from .worker import DescriptionSpec, build_handlers, serve_jobs
+
+_log = logging.getLogger(__name__)
+
+_PR_SET_PDEATHSIG = 1
+
+
+class ZygoteError(RuntimeError):
+    """The zygote could not build the model, or it is gone."""
+
+
+@dataclass(frozen=True)
+class WorkerProcess:
+    """A warm worker forked by the zygote: its pid and the pool's end of its socket."""
+
+    pid: int
+    conn: Connection
+
+
+def describe_status(status: int) -> str:
+    """``waitpid`` status -> ``"signal SIGKILL"`` or ``"exit code 1"``."""
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        try:
+            return f"signal {signal.Signals(sig).name}"
+        except ValueError:
+            return f"signal {sig}"
+    return f"exit code {os.waitstatus_to_exitcode(status)}"
+
+
+# -- the zygote process ---------------------------------------------------------------
+def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:
+    """Build the handlers, say ``("ready", pid)`` (or ``("failed", message)``), then
+    serve ``("fork", token)`` with ``("forked", token, pid)`` plus the socket's fd, and
+    report ``("exit", pid, how)`` for every worker that ends; stop on ``None`` or EOF."""
+    # Ctrl-C reaches the whole process group: the pool shuts everything down itself.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    logging.basicConfig(level=log_level,
+                        format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
+    from planner.planning import set_ompl_log_level
+    set_ompl_log_level("info" if log_level <= logging.INFO else "none")
+    # say what a slow start is doing: CAD meshes make the geometry the long part
+    logging.getLogger("service").setLevel(min(logging.INFO, log_level))
+    _die_with_parent()
+    try:
+        handlers = build_handlers(spec)
+    except Exception as e:  # noqa: BLE001 -- reported to the pool, which refuses to start
+        conn.send(("failed", f"{type(e).__name__}: {e}"))
+        return
+    wake_r, wake_w = os.pipe()
+    os.set_blocking(wake_w, False)
+    signal.signal(signal.SIGCHLD, lambda *_: None)  # the wakeup fd carries it
+    signal.set_wakeup_fd(wake_w)
+    conn.send(("ready", os.getpid()))
+    try:
+        while True:
+            for ready in wait([conn, wake_r]):
+                if ready == wake_r:
+                    os.read(wake_r, 4096)
+                    _report_exits(conn)
+                    continue
+                try:
+                    msg = conn.recv()
+                except EOFError:
+                    return
+                if msg is None:
+                    return
+                _fork(conn, msg[1], handlers, (wake_r, wake_w))
+    finally:
+        # workers still running die with us (PR_SET_PDEATHSIG); the pool has already
+        # asked each to stop after its job
+        signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+
+
+def _fork(conn: Connection, token: int, handlers: Any, wake: tuple[int, int]) -> None:
+    ours, theirs = socket.socketpair()
+    pid = os.fork()
+    if pid == 0:  # the worker: never returns into the zygote's loop
+        code = 0
+        try:
+            signal.set_wakeup_fd(-1)
+            signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+            for fd in wake:
+                os.close(fd)
+            conn.close()
+            ours.close()
+            _die_with_parent()
+            serve_jobs(Connection(theirs.detach()), handlers)
+        except BaseException:  # noqa: BLE001 -- logged; the pool sees the exit code
+            _log.exception("worker %d failed outside a job", os.getpid())
+            code = 1
+        finally:
+            logging.shutdown()
+            os._exit(code)
+    theirs.close()
+    conn.send(("forked", token, pid))
+    reduction.send_handle(conn, ours.fileno(), os.getppid())
+    ours.close()
+
+
+def _report_exits(conn: Connection) -> None:
+    while True:
+        try:
+            pid, status = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
+        conn.send(("exit", pid, describe_status(status)))
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to SIGKILL this process when its parent ends (no orphans)."""
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        _log.warning("PR_SET_PDEATHSIG unavailable: a worker may outlive a killed server")
+        return
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+# -- the pool's handle on it ----------------------------------------------------------
+class Zygote:
+    """Start the zygote, fork workers from it, hear about their exits.
+
+    Args:
+        ctx: a :mod:`multiprocessing` context (forkserver or spawn).
+        spec: how the zygote loads the description.
+        on_exit: called ``(pid, how)`` on the reader thread when a worker ends.
+        on_lost: called on the reader thread if the zygote itself ends.
+    """
+
+    def __init__(self, ctx: Any, spec: DescriptionSpec, *,
+                 on_exit: Callable[[int, str], None], on_lost: Callable[[], None]) -> None:
+        self._ctx, self._spec = ctx, spec
+        self._on_exit, self._on_lost = on_exit, on_lost
+        self._conn: Connection | None = None
+        self._proc: Any = None
+        self._send_lock = threading.Lock()
+        self._tokens = itertools.count(1)
+        self._pending: dict[int, tuple[threading.Event, list[Any]]] = {}
+        self._gone = False
+        self.pid: int | None = None
+
+    def start(self) -> None:
+        """Start it and wait until the model is built.
+
+        Raises:
+            ZygoteError: it could not load the description (the message says why).
+        """
+        parent, child = self._ctx.Pipe(duplex=True)
+        self._proc = self._ctx.Process(target=zygote_main, name="arduinobot-zygote",
+                                       args=(child, self._spec, logging.getLogger().level),
+                                       daemon=True)
+        self._proc.start()
+        child.close()
+        try:
+            msg = parent.recv()
+        except EOFError:
+            self._proc.join(1.0)
+            raise ZygoteError(f"the worker zygote exited while building the model "
+                              f"(exit code {self._proc.exitcode})") from None
+        if msg[0] != "ready":
+            self._proc.join(1.0)
+            raise ZygoteError(f"the worker zygote could not start: {msg[1]}")
+        self._conn, self.pid = parent, msg[1]
+        threading.Thread(target=self._read, name="zygote-reader", daemon=True).start()
+
+    @property
+    def alive(self) -> bool:
+        return self._conn is not None and not self._gone
+
+    def fork(self, *, timeout: float = 10.0) -> WorkerProcess:
+        """A new warm worker (milliseconds).
+
+        Raises:
+            ZygoteError: the zygote is gone or did not answer within ``timeout`` [s].
+        """
+        if not self.alive:
+            raise ZygoteError("the worker zygote is not running")
+        token = next(self._tokens)
+        event, box = threading.Event(), []
+        self._pending[token] = (event, box)
+        try:
+            with self._send_lock:
+                self._conn.send(("fork", token))  # type: ignore[union-attr]
+            if not event.wait(timeout) or not box:
+                raise ZygoteError("the worker zygote did not fork a worker")
+        except OSError as e:
+            raise ZygoteError(f"the worker zygote is gone: {e}") from None
+        finally:
+            self._pending.pop(token, None)
+        return box[0]
+
+    def close(self, *, timeout: float = 2.0) -> None:
+        """Stop it (its remaining workers die with it)."""
+        if self._conn is not None:
+            with contextlib.suppress(OSError), self._send_lock:
+                self._conn.send(None)
+        if self._proc is not None:
+            self._proc.join(timeout)
+            if self._proc.is_alive():
+                self._proc.kill()
+                self._proc.join(1.0)
+        if self._conn is not None:
+            self._conn.close()
+
+    def _read(self) -> None:
+        conn = self._conn
+        try:
+            while True:
+                msg = conn.recv()  # type: ignore[union-attr]
+                if msg[0] == "forked":
+                    fd = reduction.recv_handle(conn)
+                    worker = WorkerProcess(msg[2], Connection(fd))
+                    waiter = self._pending.get(msg[1])
+                    if waiter is None:  # its requester gave up: do not leak it
+                        worker.conn.close()
+                        continue
+                    waiter[1].append(worker)
+                    waiter[0].set()
+                elif msg[0] == "exit":
+                    self._on_exit(msg[1], msg[2])
+        except (EOFError, OSError):
+            pass  # the zygote ended (or we closed it): below
+        self._gone = True
+        for event, _ in list(self._pending.values()):
+            event.set()
+        self._on_lost()
