@@ -41,7 +41,8 @@ from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path lin
 
 KINDS = ("plan", "fk", "ik", "check")
 CODES = {"INVALID_REQUEST", "START_IN_COLLISION", "GOAL_IN_COLLISION", "GOAL_OUT_OF_REACH",
-         "NO_PATH_FOUND", "TRAJECTORY_FAILED", "INVALID_LIMITS", "TIMEOUT", "BUSY"}
+         "NO_PATH_FOUND", "TRAJECTORY_FAILED", "INVALID_LIMITS", "TIMEOUT", "BUSY",
+         "RESOURCE_LIMIT", "SHUTTING_DOWN"}
 
 # Valid requests: the seeds of mutations, and the interleaved requests that must succeed
 # (plans short and seeded, so they succeed every time).
