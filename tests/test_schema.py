@@ -161,8 +161,9 @@ def test_schema_caps_are_the_constants():
     assert wire.schema("fk_request")["properties"]["links"]["maxItems"] == caps.MAX_LINKS
     points = wire.schema("plan_response")["properties"]["trajectory"]["properties"]["points"]
     assert points["maxItems"] == caps.MAX_SAMPLES
-    for figure in (caps.MAX_DEPTH, caps.MAX_ITEMS, caps.MAX_ELEMENTS, caps.MAX_STRING):
-        assert str(figure) in plan["description"]
+    for name in REQUEST_SCHEMAS:
+        for figure in (caps.MAX_DEPTH, caps.MAX_ITEMS, caps.MAX_ELEMENTS, caps.MAX_STRING):
+            assert str(figure) in wire.schema(name)["description"], name
     assert str(caps.MAX_SAMPLES) in p["sample_rate"]["description"]
 
 
