@@ -66,7 +66,8 @@ def test_spread_avoids_a_loaded_instance_and_retries_elsewhere_when_busy(cluster
     with PlannerClient(endpoint, spread=True, timeout=30) as stale, \
             PlannerClient(endpoint, timeout=60) as filler:
         _wait_instances(stale, 2)
-        stale.balancer.ttl = 3600.0  # keep the loads seen now (both idle) whatever happens
+        # keep the instances and loads seen now (both idle), whatever happens next
+        stale.balancer.ttl = stale.balancer.load_ttl = 3600.0
         assert {r.load for r in stale.balancer.loads().values()} == {0.0}
         h = stale.health(instance=a.instance)
         pids = [w["pid"] for w in h["workers"]]
@@ -113,7 +114,8 @@ def test_a_plain_get_fails_over_when_an_instance_dies(cluster):
         # a spreading client that knows both instances, before one dies
         spread = PlannerClient(endpoint, spread=True, timeout=30)
         _wait_instances(spread, 2)
-        spread.balancer.ttl = 3600.0  # it will not learn of the death by asking
+        # it will not learn of the death by asking
+        spread.balancer.ttl = spread.balancer.load_ttl = 3600.0
         first = plain_fk()
         assert first is not None
         victim = next(s for s in servers if s.instance.startswith(first))
