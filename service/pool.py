@@ -378,8 +378,11 @@ class WorkerPool:
                 if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
                     continue
                 msg = w.conn.recv()
+                if msg[0] == "taken":
+                    taken = True
+                    continue
                 if msg[0] == "deadline":
-                    taken, job.deadline = True, msg[2]
+                    job.deadline = msg[2]
                     continue
                 outcome = (True, msg[2]) if msg[1] == "ok" else error(
                     msg[2], msg[3], **{**msg[4], "request_id": job.request_id})
@@ -405,7 +408,7 @@ class WorkerPool:
             return
         self.count("worker_crashes")
         if not taken and not job.retried:
-            # it died before reading this job (killed while idle, the report not yet
+            # it died before receiving this job (killed while idle, the report not yet
             # in): the job is not the cause, so it goes first to the next worker
             _log.error("worker %d died (%s) before taking request %s; re-dispatching it",
                        slot.index, how, job.request_id)

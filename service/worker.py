@@ -11,7 +11,8 @@ Protocol (``conn`` is a :class:`multiprocessing.connection.Connection`):
   bytes (decoded here with :func:`service.wire.decode`) or an already validated dict,
   and ``base_deadline`` is the arrival time plus the service's timeout, on
   :func:`time.monotonic` (the same clock in every process); ``None`` to stop;
-- out: ``("deadline", job_id, seconds)`` once the request is valid (plan requests add
+- out: ``("taken", job_id)`` on receipt (a worker that dies before it did not die of
+  this job), ``("deadline", job_id, seconds)`` once the request is valid (plans add
   their ``planning_time``), then ``(job_id, "ok", json_bytes)`` or
   ``(job_id, "err", code, message, details)``.
 """
@@ -71,6 +72,12 @@ def build_handlers(spec: DescriptionSpec) -> Handlers:
     _log.info("building the planner: collision geometry, limits, dynamics")
     handlers = Handlers(description, cache=spec.cache())
     handlers.warm_up()
+    for kind in ("plan", "fk", "ik", "check"):
+        # builds and caches each request validator now (tens of ms), not in every fork
+        try:
+            wire.validate(kind, {})
+        except PlanningError:
+            pass  # {} is not a valid plan request: only the built validator matters
     _log.info("ready in %.1f s", time.perf_counter() - t0)
     return handlers
 
@@ -92,6 +99,7 @@ def serve_jobs(conn: Connection, handlers: Handlers) -> None:
         if msg is None:
             return
         job_id, kind, payload, base_deadline = msg
+        conn.send(("taken", job_id))
         try:
             data = wire.decode(kind, payload) if isinstance(payload, (bytes, str)) \
                 else payload
