@@ -46,6 +46,9 @@ SAMPLE_STEP = 0.01
 GAP = 1e-5
 # distance bounds one certification may evaluate before it gives up (refuses)
 MAX_BOUNDS = 500_000
+# a bound carried over from the last piece is used while at least this fraction of
+# the last one measured (else a new one is measured: it may be larger)
+CARRY = 0.5
 
 
 @dataclass(frozen=True)
@@ -103,11 +106,14 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     """
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
+    end = np.empty(dof)
     for p in range(p0, pairs.shape[0]):
         k = k0 if p == p0 else 0
         s = s0 if p == p0 else 0.0
         inj = injected if p == p0 else -1.0
         a, b = pairs[p, 0], pairs[p, 1]
+        carry = -1.0  # a bound [m] proven at the start of piece k, if any
+        measured = np.inf  # the last bound measured (trees or FCL)
         while k < npiece:
             length = lengths[k]
             speed = 0.0
@@ -116,11 +122,17 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
             if length <= 0.0 or speed <= 0.0:
                 k += 1  # this piece does not move the pair relative to itself
                 s = 0.0
+                carry = -1.0
                 continue
             _eval_piece(starts[k], u1[k], u2[k], length, s, q)
             if inj >= 0.0:
                 d = inj
                 inj = -1.0
+                measured = d
+            elif s == 0.0 and carry > clear + GAP and carry >= CARRY * measured:
+                # what the last piece left proven holds here: no new bound needed (a
+                # pair the motion hardly moves keeps one bound for the whole motion)
+                d = carry
             else:
                 _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
                 ta = poses[body_frame[a]] if body_frame[a] >= 0 else static_pose[a]
@@ -134,12 +146,20 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 if counts[0] > MAX_BOUNDS:
                     request[0], request[1], request[2] = p, k, s
                     return _BUDGET
+                measured = d
             covered = max(clear + GAP / 2, fraction * d)
             reach = (d - covered) / speed
             left_on_piece = length - s
+            carry = -1.0
             if reach >= left_on_piece:
                 # the rest of the piece is covered with room to spare
                 covered = max(covered, d - speed * left_on_piece)
+                carry = d - speed * left_on_piece
+                if k + 1 < npiece:
+                    # the next piece starts where this one ends, or the gap counts
+                    _eval_piece(starts[k], u1[k], u2[k], length, length, end)
+                    for j in range(dof):
+                        carry -= weight[p, j] * abs(starts[k + 1, j] - end[j])
                 k += 1
                 s = 0.0
             else:
@@ -248,3 +268,17 @@ class Certifier:
                            np.concatenate([c.u1 for c in sections]),
                            np.concatenate([c.u2 for c in sections]),
                            np.concatenate([c.lengths for c in sections]))
+
+
+def combine(certificates: Sequence[Certificate]) -> Certificate:
+    """One certificate for a motion made of the certified ones (the union of their
+    motions): free if all are, the smallest certified clearance, the first failure."""
+    if not certificates:
+        raise ValueError("combine needs at least one certificate")
+    worst = min(certificates, key=lambda c: c.certified_clearance)
+    failed = next((c for c in certificates if not c.free), None)
+    return Certificate(failed is None, certificates[0].clearance,
+                       worst.certified_clearance if failed is None else failed.certified_clearance,
+                       worst.closest if failed is None else failed.closest,
+                       None if failed is None else failed.failure,
+                       sum(c.bounds for c in certificates), sum(c.exact for c in certificates))

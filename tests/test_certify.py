@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.certify import Certifier
+from planner.certify import Certificate, Certifier, combine
 from planner.collision import CollisionWorld
 from planner.curve import build_curve
 from planner.motion_check import interpolate
@@ -118,3 +118,53 @@ def test_the_planner_never_returns_a_path_that_grazes_between_samples(needle):
                              planning_time=0.2, seed=1))
     ok = pp.solve(PathRequest(start=np.array([0.0]), goal=JointGoal({"yaw": 0.09}), seed=1))
     assert Certifier(needle).path(ok.path).free
+
+
+def test_a_bound_carried_to_the_next_piece_pays_for_a_jump(needle):
+    # piece 1 ends at 0.05 rad, far from the plate; piece 2 starts at 0.1 rad and crosses
+    # it between its samples: what piece 1 proved must not carry over the jump
+    starts = np.array([[0.0], [0.1]])
+    u = np.ones((2, 1))
+    lengths = np.array([0.05, 0.002])
+    cert = Certifier(needle).pieces(starts, u, u, lengths)
+    assert not cert.free and cert.failure[0] == 1
+    # the same pieces stopping short of the plate: free, with a clearance no larger
+    # than the true gap at the end of piece 2
+    short = Certifier(needle, fraction=0.5).pieces(starts, u, u, np.array([0.05, 0.0005]))
+    assert short.free
+    true_gap = needle.check(np.array([0.1005]), clearance=True).clearance
+    assert 0 < short.certified_clearance <= true_gap
+
+
+def test_an_edge_split_into_pieces_is_certified_as_soundly_as_whole():
+    d = load_description()
+    world = CollisionWorld(d)
+    cert = Certifier(world, fraction=0.5)
+    lim = d.robot.position_limits(world.kin.joint_names)
+    rng = np.random.default_rng(9)
+    checked = 0
+    for _ in range(30):
+        a = rng.uniform(lim[:, 0], lim[:, 1])
+        b = np.clip(a + rng.normal(0, 0.4, 4), lim[:, 0], lim[:, 1])
+        cuts = np.linspace(0.0, 1.0, 7)
+        path = a + np.outer(cuts, b - a)
+        whole, split = cert.path(np.array([a, b])), cert.path(path)
+        assert whole.free == split.free
+        if split.free:
+            checked += 1
+            dense = interpolate(np.array([a, b]), 0.01)
+            assert split.certified_clearance <= world.min_clearance(dense)[0] + 1e-9
+    assert checked
+
+
+def test_combined_certificates_keep_the_worst_and_the_first_failure():
+    ok1 = Certificate(True, 0.0, 0.02, ("a", "b"), None, 10, 1)
+    ok2 = Certificate(True, 0.0, 0.005, ("c", "d"), None, 5, 0)
+    bad = Certificate(False, 0.0, 0.0, ("e", "f"), (0, 0.1, ("e", "f"), 0.0), 3, 2)
+    both = combine([ok1, ok2])
+    assert both.free and both.certified_clearance == 0.005 and both.closest == ("c", "d")
+    assert (both.bounds, both.exact) == (15, 1)
+    worst = combine([ok1, bad, ok2])
+    assert not worst.free and worst.failure == bad.failure and worst.closest == ("e", "f")
+    with pytest.raises(ValueError):
+        combine([])
