@@ -25,7 +25,7 @@ from description import Description
 
 from .acm_proof import proven_never_pairs
 from .cache import ArtifactCache
-from .certify import Certificate, Certifier
+from .certify import Certificate, Certifier, combine
 from .collision import CollisionWorld
 from .curve import Curve, build_curve
 from .dynamics import InverseDynamics
@@ -59,6 +59,22 @@ def _obstacle_key(obstacles: tuple[Obstacle, ...]) -> tuple:
     # ``where`` only names the field in errors; the geometry is what matters
     return tuple((o.id, o.shape, o.size, o.radius, o.length, o.mesh_path, o.xyz, o.rpy)
                  for o in obstacles)
+
+
+class _BlendProofs:
+    """A certifier for :func:`build_curve` that keeps the certificates of the blends it
+    accepts (build_curve takes the first free blend at each corner)."""
+
+    def __init__(self, certifier: Certifier) -> None:
+        self.certifier = certifier
+        self.free: list[Certificate] = []
+
+    def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+               lengths: np.ndarray) -> Certificate:
+        cert = self.certifier.pieces(starts, u1, u2, lengths)
+        if cert.free:
+            self.free.append(cert)
+        return cert
 
 
 class MotionPlanner:
@@ -218,12 +234,17 @@ class MotionPlanner:
                                       planner=request.planner,
                                       planning_time=request.planning_time, seed=request.seed))
         t2 = time.perf_counter()
-        curve = build_curve(res.path, paths.certifier)  # blends certified as they are made
+        # blends certified as they are made; with the path's proof, that certifies the
+        # whole curve: its straight parts lie on the path's proven segments
+        blends = _BlendProofs(paths.proof)
+        curve = build_curve(res.path, blends)
+        proof = combine([res.certificate, *blends.free]) if res.certificate else None
         t3 = time.perf_counter()
         lim = self.limits(*self.scaling(request))
         traj, report, t_param, t_verify = self.time_path(curve, res.path, world, lim,
                                                          profile=request.profile,
-                                                         sample_rate=request.sample_rate)
+                                                         sample_rate=request.sample_rate,
+                                                         certificate=proof)
         pt = res.timings
         timing = {
             "validate": (t1 - t0) + pt.get("validate", 0.0),
@@ -239,9 +260,13 @@ class MotionPlanner:
 
     def time_path(self, curve: Curve, path: np.ndarray, world: CollisionWorld,
                   limits: JointLimits, *, profile: Profile = "jerk_limited",
-                  sample_rate: float = 100.0
+                  sample_rate: float = 100.0, certificate: Certificate | None = None
                   ) -> tuple[JointTrajectory, VerificationReport, float, float]:
         """Time ``curve`` (blended from ``path``), verify, derate until it passes.
+
+        ``certificate``: a proof that covers ``curve`` and every segment of ``path`` (the
+        fallback stops at the waypoints), e.g. the path's and its blends' combined;
+        without it the curve is certified here.
 
         Returns the trajectory, its report and the seconds spent timing and verifying.
         """
@@ -253,7 +278,11 @@ class MotionPlanner:
         certifier = Certifier(world, fraction=0.5)
         certificates: dict[tuple[int, ...], tuple[Certificate, tuple]] = {}
 
+        given = certificate
+
         def certificate(timing: CurveTiming) -> Certificate:
+            if given is not None:
+                return given
             curves = tuple(c for c, _ in timing.sections)
             key = tuple(map(id, curves))
             if key not in certificates:

@@ -21,7 +21,7 @@ import ompl.util as ou
 
 from description import Description
 
-from .certify import Certifier
+from .certify import Certificate, Certifier
 from .collision import CollisionWorld
 from .errors import InvalidRequest, NoPathFound, StartInCollision
 from .goals import (
@@ -111,6 +111,9 @@ class PathResult:
         checks: state validity checks made (narrow or broad phase).
         straight_line: the straight line to the goal was free.
         length: joint-space path length [rad] (sum of Euclidean segment lengths).
+        certificate: the proof that every segment is free, with its certified clearance
+            (:class:`planner.certify.Certificate`); reused for anything that follows the
+            segments, such as the straight parts of a blended curve.
     """
 
     joint_names: tuple[str, ...]
@@ -120,6 +123,7 @@ class PathResult:
     checks: int = 0
     straight_line: bool = False
     length: float = 0.0
+    certificate: Certificate | None = None
 
 
 def _path_length(path: np.ndarray) -> float:
@@ -144,6 +148,8 @@ class PathPlanner:
         self.step = step
         self.certify_edges = certify_edges
         self.certifier = Certifier(world)
+        # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
+        self.proof = Certifier(world, fraction=0.5)
         names = world.kin.joint_names
         srdf = description.srdf
         self._groups: dict[str, tuple[str, ...]] = {
@@ -229,7 +235,7 @@ class PathPlanner:
             path = self._shortcut(path, seed=request.seed)
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
-        cert = self.certifier.path(path)
+        cert = self.proof.path(path)
         t5 = time.perf_counter()
         timings["recheck"] = t5 - t4
         if not cert.free and not self.certify_edges:
@@ -245,7 +251,8 @@ class PathPlanner:
                               timings={k: timings.get(k, 0.0) + v
                                        for k, v in result.timings.items()},
                               checks=self.world.checks - checks0,
-                              straight_line=result.straight_line, length=result.length)
+                              straight_line=result.straight_line, length=result.length,
+                              certificate=result.certificate)
         if not cert.free:
             # cannot happen when every edge was certified; never return it
             raise NoPathFound("the path failed its certified re-check",
@@ -253,7 +260,7 @@ class PathPlanner:
         return PathResult(joint_names=self.world.kin.joint_names, path=path,
                           planner=planner_name, timings=timings,
                           checks=self.world.checks - checks0, straight_line=straight,
-                          length=_path_length(path))
+                          length=_path_length(path), certificate=cert)
 
     def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
               joints: tuple[str, ...]) -> np.ndarray:

@@ -53,6 +53,11 @@ def test_obstacle_path_goes_around_and_world_is_cached(mp):
     # every returned state is free of the obstacle
     ts = np.linspace(0, r.trajectory.duration, 400)
     assert w.first_invalid(r.trajectory.evaluate(ts)[0]) == -1
+    # the path's proof and its blends' (not a second proof of the timed curve) certify
+    # the motion, and the clearance they report bounds FCL's distance anywhere on it
+    assert r.verification.certified and r.verification.collision_free
+    qs = r.trajectory.evaluate(np.linspace(0, r.trajectory.duration, 25))[0]
+    assert 0 < r.verification.min_clearance <= w.min_clearance(qs)[0] + 1e-9
 
 
 @pytest.mark.parametrize("field,kwargs", [

@@ -95,3 +95,24 @@ def test_effort_peak_between_samples_is_found():
     rep = Verifier(lim, DYN, WORLD, clearance_states=0).verify(traj, enforce_jerk=False)
     assert not rep.ok and rep.violations == ("effort",)
     assert rep.ratios["effort"][j] > 1.0 + TOLERANCE
+
+
+def test_with_a_certificate_limits_are_still_checked_between_samples():
+    # collisions proven elsewhere: the grid for the limits alone still finds the peak
+    from types import SimpleNamespace
+
+    from planner.certify import Certificate
+    traj = _traj(rate=1.0)
+    sampled = np.max(np.abs(traj.efforts), axis=0)
+    ts = np.linspace(0.0, traj.duration, 20001)
+    fine = np.max(np.abs(DYN.torques_batch(*traj.evaluate(ts))), axis=0)
+    j = int(np.argmax(fine / sampled))
+    effort = np.maximum(np.asarray(LIMITS.effort, float), fine * 2)
+    effort[j] = 0.5 * (sampled[j] + fine[j])
+    lim = SimpleNamespace(**{k: getattr(LIMITS, k) for k in
+                             ("lower", "upper", "velocity", "acceleration", "jerk")},
+                          effort=effort)
+    proof = Certificate(True, 0.0, 0.01, ("a", "b"), None, 0, 0)
+    rep = Verifier(lim, DYN, WORLD).verify(traj, enforce_jerk=False, certificate=proof)
+    assert rep.certified and rep.collision_free and rep.min_clearance == 0.01
+    assert not rep.ok and rep.violations == ("effort",)
