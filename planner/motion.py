@@ -41,6 +41,9 @@ class MotionRequest:
     profile: Profile = "jerk_limited"
     sample_rate: float = 100.0          # [Hz], [1, 1000]
     seed: int | None = None
+    # the most samples the trajectory may have (duration x sample_rate + 2), refused
+    # before sampling when it would: what a reply or a robot can take
+    max_samples: int | None = None
     # a moving start [rad/s], [rad/s^2] by joint: see planner.moving_start
     start_velocity: Mapping[str, float] | None = None
     start_acceleration: Mapping[str, float] | None = None

@@ -208,7 +208,8 @@ def solve_moving(planner: MotionPlanner, request: MotionRequest) -> MotionResult
         traj = JointTrajectory.sample(timing, planner.dynamics.torques_batch,
                                       joint_names=planner.joint_names,
                                       sample_rate=request.sample_rate,
-                                      profile=request.profile)
+                                      profile=request.profile,
+                                      max_samples=request.max_samples)
         report = verifier.verify(traj, enforce_jerk=request.profile == "jerk_limited")
         if report.ok:
             timing_s = {**plan.timing, "blend": time.perf_counter() - t1,

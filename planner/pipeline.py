@@ -244,7 +244,8 @@ class MotionPlanner:
         traj, report, t_param, t_verify = self.time_path(curve, res.path, world, lim,
                                                          profile=request.profile,
                                                          sample_rate=request.sample_rate,
-                                                         certificate=proof)
+                                                         certificate=proof,
+                                                         max_samples=request.max_samples)
         pt = res.timings
         timing = {
             "validate": (t1 - t0) + pt.get("validate", 0.0),
@@ -260,7 +261,8 @@ class MotionPlanner:
 
     def time_path(self, curve: Curve, path: np.ndarray, world: CollisionWorld,
                   limits: JointLimits, *, profile: Profile = "jerk_limited",
-                  sample_rate: float = 100.0, certificate: Certificate | None = None
+                  sample_rate: float = 100.0, certificate: Certificate | None = None,
+                  max_samples: int | None = None
                   ) -> tuple[JointTrajectory, VerificationReport, float, float]:
         """Time ``curve`` (blended from ``path``), verify, derate until it passes.
 
@@ -309,7 +311,8 @@ class MotionPlanner:
                         timing = stops
             traj = JointTrajectory.sample(timing, self.dynamics.torques_batch,
                                           joint_names=self.joint_names,
-                                          sample_rate=sample_rate, profile=profile)
+                                          sample_rate=sample_rate, profile=profile,
+                                          max_samples=max_samples)
             b = time.perf_counter()
             report = verifier.verify(traj, enforce_jerk=profile == "jerk_limited",
                                      derating=derating, attempts=attempt,

@@ -108,11 +108,28 @@ class TrajectoryPoint:
                 "time_from_start": self.time_from_start}
 
 
-def sample_times(duration: float, rate: float) -> np.ndarray:
-    """Times [s] at ``rate`` [Hz] from 0, always ending with exactly ``duration``."""
+def sample_times(duration: float, rate: float, *, max_samples: int | None = None
+                 ) -> np.ndarray:
+    """Times [s] at ``rate`` [Hz] from 0, always ending with exactly ``duration``.
+
+    Raises:
+        InvalidRequest: (field ``sample_rate``) a rate outside [1, 1000] Hz, or more than
+            ``max_samples`` samples: decided before any is made, naming the largest rate
+            that fits (``details.max_sample_rate`` [Hz], 0 if none of at least 1 Hz does).
+    """
     if not (math.isfinite(rate) and 1.0 <= rate <= 1000.0):
         raise InvalidRequest(f"{rate!r} must be within [1, 1000] Hz", field="sample_rate")
     n = int(math.floor(duration * rate + 1e-9))
+    if max_samples is not None and n + 2 > max_samples:
+        fits = (max_samples - 2) / duration if duration > 0 else float(max_samples)
+        fits = float(int(fits)) if fits >= 1.0 else 0.0
+        hint = (f"ask for at most {fits:g} Hz" if fits >= 1.0 else
+                "no sample rate of at least 1 Hz fits: raise the scalings")
+        raise InvalidRequest(
+            f"{rate:g} Hz over this {duration:.4g} s motion gives about {n + 2} samples, "
+            f"more than the {max_samples} allowed: {hint}", field="sample_rate",
+            details={"limit": max_samples, "samples": n + 2, "duration": duration,
+                     "sample_rate": rate, "max_sample_rate": fits})
     ts = np.arange(n + 1) / rate
     if duration - ts[-1] > 1e-9:
         ts = np.append(ts, duration)
@@ -149,9 +166,11 @@ class JointTrajectory:
     @classmethod
     def sample(cls, timing: CurveTiming, effort_fn: EffortFn, *,
                joint_names: Sequence[str], sample_rate: float = 100.0,
-               profile: str = "jerk_limited") -> JointTrajectory:
-        """Sample ``timing`` at ``sample_rate`` [Hz] (1..1000) plus its exact final state."""
-        ts = sample_times(timing.duration, sample_rate)
+               profile: str = "jerk_limited", max_samples: int | None = None
+               ) -> JointTrajectory:
+        """Sample ``timing`` at ``sample_rate`` [Hz] (1..1000) plus its exact final state;
+        more than ``max_samples`` samples is refused first (see :func:`sample_times`)."""
+        ts = sample_times(timing.duration, sample_rate, max_samples=max_samples)
         q, qd, qdd = timing.evaluate(ts)
         tau = np.asarray(effort_fn(q, qd, qdd), float)
         for a in (ts, q, qd, qdd, tau):

@@ -47,6 +47,7 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
         goal=goal(description, data["goal"]),
         start=joint_values(description, data.get("start"), field="start"),
         obstacles=obstacles(description, data.get("obstacles")),
+        max_samples=MAX_SAMPLES,  # refused before sampling, not after
         **opts)
 
 

@@ -42,14 +42,16 @@ def _sweep(rate: float) -> dict:
             "sample_rate": rate}
 
 
-def test_a_reply_over_the_sample_cap_is_refused_and_the_rate_it_names_fits(planner):
+def test_a_plan_over_the_sample_cap_is_refused_before_sampling_and_the_rate_it_names_fits(
+        planner):
     d, mp = planner
-    result = mp.solve(plan_request(d, wire.decode("plan", json.dumps(_sweep(1000)))))
-    assert len(result.trajectory.times) > caps.MAX_SAMPLES  # else this test proves nothing
+    req = plan_request(d, wire.decode("plan", json.dumps(_sweep(1000))))
+    assert req.max_samples == caps.MAX_SAMPLES
     with pytest.raises(InvalidRequest) as e:
-        plan_response(result)
+        mp.solve(req)  # refused in the planner, before ~32,000 samples are made
     fits = e.value.details["max_sample_rate"]
     assert e.value.details["field"] == "sample_rate" and 1 <= fits < 1000
+    assert e.value.details["samples"] > caps.MAX_SAMPLES  # else this test proves nothing
     body = plan_response(mp.solve(plan_request(d, wire.decode("plan",
                                                               json.dumps(_sweep(fits))))))
     assert caps.MAX_SAMPLES // 2 < len(body["trajectory"]["points"]) <= caps.MAX_SAMPLES

@@ -112,3 +112,14 @@ def test_json_and_csv_export(traj):
     assert rows[0][0] == "time_from_start" and rows[0][1] == "joint_1.position"
     assert len(rows) == len(traj.times) + 1 and len(rows[1]) == 1 + 4 * 4
     assert float(rows[-1][0]) == traj.duration
+
+
+def test_sample_times_refuses_more_than_max_samples_before_making_them():
+    from planner.errors import InvalidRequest
+    from planner.trajectory import sample_times
+    assert len(sample_times(10.0, 100.0, max_samples=1002)) == 1001
+    with pytest.raises(InvalidRequest) as e:
+        sample_times(10.0, 100.0, max_samples=1000)
+    d = e.value.details
+    assert e.value.field == "sample_rate" and d["limit"] == 1000
+    assert d["max_sample_rate"] == 99.0 and len(sample_times(10.0, 99.0, max_samples=1000)) <= 1000
