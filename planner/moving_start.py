@@ -137,21 +137,28 @@ def _brake(q0: np.ndarray, v0: np.ndarray, a0: np.ndarray, lim: JointLimits) -> 
     return tr
 
 
+# [s] the brake's torques are checked this often, within this fraction of the limits
+BRAKE_STEP = 0.001
+BRAKE_EFFORT_MARGIN = 0.97
+
+
 def _effort_safe_brake(planner: MotionPlanner, q0: np.ndarray, v0: np.ndarray,
                        a0: np.ndarray, lim: JointLimits) -> Trajectory:
     """The brake with the largest acceleration and jerk scale (1, 0.8, 0.64, ...; never
-    below the acceleration the arm already has) whose torques stay within the effort
-    limits on 2 ms samples: a heavy arm brakes by its motors' strength, not by its
+    below the acceleration the arm already has) whose torques stay within 97% of the
+    effort limits on 1 ms samples: a heavy arm brakes by its motors' strength, not by its
     acceleration limit."""
     f = 1.0
     for _ in range(30):
         scaled = replace(lim, acceleration=np.maximum(f * lim.acceleration, np.abs(a0)),
                          jerk=f * lim.jerk)
         tr = _brake(q0, v0, a0, scaled)
-        ts = np.linspace(0.0, tr.duration, max(3, int(tr.duration / 0.002) + 1))
+        ts = np.linspace(0.0, tr.duration, max(3, int(tr.duration / BRAKE_STEP) + 1))
         q, qd, qdd = (np.array(x) for x in zip(*(tr.at_time(float(t)) for t in ts)))
         tau = np.abs(planner.dynamics.torques_batch(q, qd, qdd))
-        if np.all(tau <= lim.effort):
+        # a margin for the peaks between these samples, which the verifier's finer grid
+        # finds (measured: 1.9% over on a 2 ms grid, braking joint_1 from 0.2 rad/s)
+        if np.all(tau <= BRAKE_EFFORT_MARGIN * lim.effort):
             return tr
         f *= 0.8
     raise TrajectoryError("no brake from the moving start within the effort limits",

@@ -87,3 +87,13 @@ def test_on_the_wire():
         wire.decode("plan", wire.encode({"goal": {"named": "home"},
                                          "start_velocity": {"joint_1": "fast"}}))
     assert e.value.field == "start_velocity.joint_1"
+
+
+@pytest.mark.parametrize("v", [0.2, -0.2])
+def test_moving_away_from_the_goal_brakes_within_the_effort_limits(mp, v):
+    # a brake checked on 2 ms samples peaked 1.9% over joint_1's effort between them
+    # (+0.2 rad/s, away from home), so no blend passed the verifier's finer grid
+    r = mp.solve(MotionRequest(goal=NamedGoal("home"), start={"joint_1": 0.3},
+                               start_velocity={"joint_1": v}))
+    assert r.verification.ok and r.verification.worst["effort"] <= 1.0 + 1e-6
+    assert r.trajectory.velocities[0][0] == pytest.approx(v, abs=1e-9)
