@@ -10,11 +10,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Literal
 
+from planner.codes import Code
+
 
 class ServiceError(Exception):
     """Root of every client error. ``details`` is the reply's JSON object."""
 
-    code = "UNKNOWN"
+    code: str = Code.UNKNOWN
 
     def __init__(self, message: str, *, code: str | None = None,
                  details: Mapping[str, Any] | None = None) -> None:
@@ -27,63 +29,63 @@ class ServiceError(Exception):
 
 class InvalidRequest(ServiceError):
     """A field is malformed, unknown, non-finite or out of range (``details.field``)."""
-    code = "INVALID_REQUEST"
+    code: str = Code.INVALID_REQUEST
 
 
 class StartInCollision(ServiceError):
     """The start state collides (``details.pairs``)."""
-    code = "START_IN_COLLISION"
+    code: str = Code.START_IN_COLLISION
 
 
 class GoalInCollision(ServiceError):
     """The goal state collides (``details.pairs``)."""
-    code = "GOAL_IN_COLLISION"
+    code: str = Code.GOAL_IN_COLLISION
 
 
 class GoalOutOfReach(ServiceError):
     """No joint state within limits reaches the goal position."""
-    code = "GOAL_OUT_OF_REACH"
+    code: str = Code.GOAL_OUT_OF_REACH
 
 
 class NoPathFound(ServiceError):
     """No collision-free path within the planning time."""
-    code = "NO_PATH_FOUND"
+    code: str = Code.NO_PATH_FOUND
 
 
 class TrajectoryFailed(ServiceError):
     """No timing of the path passed verification (``details.report``)."""
-    code = "TRAJECTORY_FAILED"
+    code: str = Code.TRAJECTORY_FAILED
 
 
 class InvalidLimits(ServiceError):
     """The robot's joint limits are missing or invalid."""
-    code = "INVALID_LIMITS"
+    code: str = Code.INVALID_LIMITS
 
 
 class RequestTimeout(ServiceError):
     """The service's deadline for the request passed (it answered TIMEOUT)."""
-    code = "TIMEOUT"
+    code: str = Code.TIMEOUT
 
 
 class ServiceBusy(ServiceError):
     """Every worker is busy and the queue is full: retry later or add instances."""
-    code = "BUSY"
+    code: str = Code.BUSY
 
 
 class ResourceLimit(ServiceError):
     """The request needed more memory than a worker may use (``details.memory_cap``
     [bytes]); that worker has been replaced. Ask for less (samples, scalings)."""
-    code = "RESOURCE_LIMIT"
+    code: str = Code.RESOURCE_LIMIT
 
 
 class ShuttingDown(ServiceError):
     """The instance is stopping; retry at once (another instance takes the key)."""
-    code = "SHUTTING_DOWN"
+    code: str = Code.SHUTTING_DOWN
 
 
 class InternalError(ServiceError):
     """The service failed (a bug, or a worker crash: that worker has been replaced)."""
-    code = "INTERNAL"
+    code: str = Code.INTERNAL
 
 
 UnavailableReason = Literal["connect_failed", "no_route", "timeout", "zenoh_error"]
@@ -100,7 +102,7 @@ class ServiceUnavailable(ServiceError):
         ``zenoh_error``: Zenoh itself answered with an error (``details.zenoh``).
     """
 
-    code = "UNAVAILABLE"
+    code: str = Code.UNAVAILABLE
 
     def __init__(self, message: str, *, reason: UnavailableReason,
                  details: Mapping[str, Any] | None = None) -> None:
@@ -118,7 +120,7 @@ def error_from_reply(body: Mapping[str, Any]) -> ServiceError:
     """The exception for an ``{"error": {"code", "message", "details"}}`` reply; an
     unknown code gives a plain :class:`ServiceError` carrying it."""
     err = body.get("error", {}) if isinstance(body, Mapping) else {}
-    code = str(err.get("code", "UNKNOWN"))
+    code = str(err.get("code", Code.UNKNOWN))
     message = str(err.get("message", ""))
     details = err.get("details") if isinstance(err.get("details"), Mapping) else {}
     cls = ERRORS.get(code)

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from description import Description
+from planner.codes import Code
 from planner.limits import JointLimits
 
 from .execution_report import ExecutionReport, Phase, Recorder, Tick
@@ -51,19 +52,19 @@ __all__ = ["ExecuteOptions", "ExecutionBusy", "ExecutionReport", "Executor", "No
 class NotAtStart(RobotError):
     """The robot is farther than the tolerance from the trajectory's start."""
 
-    code = "NOT_AT_START"
+    code: str = Code.NOT_AT_START
 
 
 class TooLate(RobotError):
     """A blend that cannot happen: the moment it was planned for has passed."""
 
-    code = "TOO_LATE"
+    code: str = Code.TOO_LATE
 
 
 class ExecutionBusy(RobotError):
     """The robot is already executing a trajectory."""
 
-    code = "BUSY"
+    code: str = Code.BUSY
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ from typing import Any, Literal
 import orjson
 import zenoh
 
+from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
 from service import wire
 from service.keyguard import addressed_exactly
@@ -183,7 +184,7 @@ class ExecuteService:
                 query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
             except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
                 _log.exception("%s: unexpected failure", key)
-                query.reply_err(_err("INTERNAL", "unexpected failure in the service"),
+                query.reply_err(_err(Code.INTERNAL, "unexpected failure in the service"),
                                 encoding=JSON)
 
         def on_query(query: zenoh.Query) -> None:
@@ -340,7 +341,7 @@ class _Run:
             self.start_with(orjson.loads(body))
         except Exception as e:  # noqa: BLE001 -- answered, never swallowed silently
             _log.exception("execution %s: could not start", self.execution)
-            self._fail(getattr(e, "code", "INTERNAL"), str(e), getattr(e, "details", {}))
+            self._fail(getattr(e, "code", Code.INTERNAL), str(e), getattr(e, "details", {}))
 
     def start_with(self, trajectory: Any) -> None:
         from .segments import InvalidTrajectory, SampledTrajectory
@@ -402,7 +403,7 @@ class _Run:
             self.query.drop()
         except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
             _log.exception("execution %s failed", self.execution)
-            self.query.reply_err(_err("INTERNAL", "the execution failed"), encoding=JSON)
+            self.query.reply_err(_err(Code.INTERNAL, "the execution failed"), encoding=JSON)
             self.query.drop()
         finally:
             svc._running = None

@@ -22,19 +22,21 @@ from typing import Any, Protocol
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
+from planner.codes import Code
+
 from .robots.base import RobotError
 
 
 class InvalidTrajectory(RobotError):
     """A trajectory file or body that cannot be played (shape, order, non-finite)."""
 
-    code = "INVALID_TRAJECTORY"
+    code: str = Code.INVALID_TRAJECTORY
 
 
 class MotionError(RobotError):
     """ruckig could not compute a stop or a move."""
 
-    code = "MOTION_ERROR"
+    code: str = Code.MOTION_ERROR
 
 
 class Segment(Protocol):

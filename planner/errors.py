@@ -8,11 +8,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from .codes import Code
+
 
 class PlanningError(Exception):
     """Root of every planner error. ``details`` is JSON-ready."""
 
-    code = "INTERNAL"
+    code: Code = Code.INTERNAL
 
     def __init__(self, message: str, *, details: Mapping[str, object] | None = None) -> None:
         self.message = message
@@ -23,7 +25,7 @@ class PlanningError(Exception):
 class InvalidRequest(PlanningError):
     """A request field is malformed or out of range."""
 
-    code = "INVALID_REQUEST"
+    code: Code = Code.INVALID_REQUEST
 
     def __init__(self, message: str, *, field: str | None = None,
                  details: Mapping[str, object] | None = None) -> None:
@@ -60,35 +62,35 @@ class StateInCollision(PlanningError):
 
 
 class StartInCollision(StateInCollision):
-    code = "START_IN_COLLISION"
+    code: Code = Code.START_IN_COLLISION
 
 
 class GoalInCollision(StateInCollision):
-    code = "GOAL_IN_COLLISION"
+    code: Code = Code.GOAL_IN_COLLISION
 
 
 class GoalOutOfReach(PlanningError):
     """No joint state within limits puts the tcp at the requested position."""
 
-    code = "GOAL_OUT_OF_REACH"
+    code: Code = Code.GOAL_OUT_OF_REACH
 
 
 class NoPathFound(PlanningError):
     """The planner found no collision-free path within its time budget."""
 
-    code = "NO_PATH_FOUND"
+    code: Code = Code.NO_PATH_FOUND
 
 
 class TrajectoryError(PlanningError):
     """Time parameterisation failed or could not be verified within the limits."""
 
-    code = "TRAJECTORY_FAILED"
+    code: Code = Code.TRAJECTORY_FAILED
 
 
 class LimitsError(PlanningError):
     """A joint's limits are missing or invalid, and no documented rule can derive them."""
 
-    code = "INVALID_LIMITS"
+    code: Code = Code.INVALID_LIMITS
 
     def __init__(self, message: str, *, joint: str, limit: str,
                  details: Mapping[str, object] | None = None) -> None:
@@ -100,10 +102,10 @@ class LimitsError(PlanningError):
 class ResourceLimit(PlanningError):
     """A request needed more than a service worker may use (its memory cap)."""
 
-    code = "RESOURCE_LIMIT"
+    code: Code = Code.RESOURCE_LIMIT
 
 
 class ShuttingDown(PlanningError):
     """The service instance is stopping and did not take (or finish) the request."""
 
-    code = "SHUTTING_DOWN"
+    code: Code = Code.SHUTTING_DOWN

@@ -18,12 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from description import Description
+from planner.codes import Code
 
 
 class RobotError(Exception):
     """Root of every robot driver and execution error. ``details`` is JSON-ready."""
 
-    code = "ROBOT_ERROR"
+    code: str = Code.ROBOT_ERROR
 
     def __init__(self, message: str, *, details: Mapping[str, object] | None = None) -> None:
         self.message = message
@@ -34,31 +35,31 @@ class RobotError(Exception):
 class PortNotFound(RobotError):
     """The serial port does not exist."""
 
-    code = "PORT_NOT_FOUND"
+    code: str = Code.PORT_NOT_FOUND
 
 
 class PortBusy(RobotError):
     """Another process holds the serial port."""
 
-    code = "PORT_BUSY"
+    code: str = Code.PORT_BUSY
 
 
 class PortError(RobotError):
     """The serial port failed to open or to take a write."""
 
-    code = "PORT_ERROR"
+    code: str = Code.PORT_ERROR
 
 
 class UnsupportedRobot(RobotError):
     """The description does not fit the driver (e.g. not four actuated joints)."""
 
-    code = "UNSUPPORTED_ROBOT"
+    code: str = Code.UNSUPPORTED_ROBOT
 
 
 class InvalidSetpoint(RobotError):
     """A setpoint of the wrong length or with a non-finite value."""
 
-    code = "INVALID_SETPOINT"
+    code: str = Code.INVALID_SETPOINT
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from description import Description
+from planner.codes import Code
 
 from .base import JointState, MimicMap, Robot, RobotError, check_setpoint
 from .mjcf import TIMESTEP, Gains, servo_ctrl, to_mjcf
@@ -38,7 +39,7 @@ DEFAULT_BANDWIDTH = 10.0  # [Hz]
 class SimulationError(RobotError):
     """MuJoCo could not build or step the model."""
 
-    code = "SIMULATION_ERROR"
+    code: str = Code.SIMULATION_ERROR
 
 
 @dataclass(frozen=True)

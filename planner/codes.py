@@ -1,0 +1,55 @@
+"""Every error code either service puts on the wire, in one place.
+
+The planner's exceptions (:mod:`planner.errors`), the planning service's replies
+(``service/``), its schema (``service/schema/error.json``), the client's exceptions
+(:mod:`clients.errors`) and the execute service's (``clients/execute*.py``,
+``clients/robots/``) all take their codes from :class:`Code`; ``tests/test_codes.py`` fails
+if any of them uses a code not listed here, or if the schema's enum drifts from
+:data:`PLAN_SERVICE_CODES`. It lives in ``planner/``, the lowest layer, so every layer
+can import it.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class Code(StrEnum):
+    """A wire error code. A ``StrEnum``: it compares equal to, formats and JSON-encodes
+    as its plain string, so replies and client lookups need no conversion."""
+
+    # the planning service's replies (service/schema/error.json)
+    INVALID_REQUEST = "INVALID_REQUEST"
+    START_IN_COLLISION = "START_IN_COLLISION"
+    GOAL_IN_COLLISION = "GOAL_IN_COLLISION"
+    GOAL_OUT_OF_REACH = "GOAL_OUT_OF_REACH"
+    NO_PATH_FOUND = "NO_PATH_FOUND"
+    TRAJECTORY_FAILED = "TRAJECTORY_FAILED"
+    INVALID_LIMITS = "INVALID_LIMITS"
+    TIMEOUT = "TIMEOUT"
+    BUSY = "BUSY"
+    RESOURCE_LIMIT = "RESOURCE_LIMIT"
+    SHUTTING_DOWN = "SHUTTING_DOWN"
+    INTERNAL = "INTERNAL"
+    # the client's own, never sent: no reply at all, or a code it does not know
+    UNAVAILABLE = "UNAVAILABLE"
+    UNKNOWN = "UNKNOWN"
+    # the execute service's (clients/execute_service.py) and the robot drivers'
+    NOT_AT_START = "NOT_AT_START"
+    TOO_LATE = "TOO_LATE"
+    ROBOT_ERROR = "ROBOT_ERROR"
+    PORT_NOT_FOUND = "PORT_NOT_FOUND"
+    PORT_BUSY = "PORT_BUSY"
+    PORT_ERROR = "PORT_ERROR"
+    UNSUPPORTED_ROBOT = "UNSUPPORTED_ROBOT"
+    INVALID_SETPOINT = "INVALID_SETPOINT"
+    SIMULATION_ERROR = "SIMULATION_ERROR"
+    INVALID_TRAJECTORY = "INVALID_TRAJECTORY"
+    MOTION_ERROR = "MOTION_ERROR"
+
+
+#: The codes the planning service answers with, in ``error.json``'s order.
+PLAN_SERVICE_CODES: tuple[Code, ...] = (
+    Code.INVALID_REQUEST, Code.START_IN_COLLISION, Code.GOAL_IN_COLLISION,
+    Code.GOAL_OUT_OF_REACH, Code.NO_PATH_FOUND, Code.TRAJECTORY_FAILED, Code.INVALID_LIMITS,
+    Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL)
