@@ -33,7 +33,6 @@ from .obbtree import (
     build_tree,
     cached_tree,
     pair_candidates,
-    pair_candidates_batch,
 )
 from .scene import Obstacle, validate_obstacles
 
@@ -332,16 +331,6 @@ class CollisionWorld:
                 best, closest = d, (self.body_names[a], self.body_names[b])
         return float(best), closest
 
-    def candidates_batch(self, qs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Link poses (m, n_links, 4, 4) and broad-phase candidate flags (m, n_pairs)."""
-        poses = self.kin.link_poses_batch(qs)
-        out = np.zeros((len(qs), len(self._pairs)), dtype=np.int64)
-        f = self._forest
-        pair_candidates_batch(poses, self._frame, self._static_pose, self._pairs, f.root,
-                              f.center, f.axes, f.half, f.left, f.right, self.padding,
-                              self._stack, out)
-        return poses, out
-
     def _sweep(self, qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray,
                budget: np.ndarray, out: np.ndarray) -> int:
         f = self._forest
@@ -359,14 +348,12 @@ class CollisionWorld:
         self._sweep(qs, 0, False, np.empty_like(qs), np.empty(len(self._pairs)), out)
         return out
 
-    def first_invalid(self, qs: ArrayLike, *, order: np.ndarray | None = None) -> int:
+    def first_invalid(self, qs: ArrayLike) -> int:
         """Index of the first colliding state of ``qs`` (shape (m, dof)), -1 if none.
 
         Every state is decided (nothing between states is implied): pairs that
         conservative advancement (:mod:`planner.advance`) proves apart are skipped, the
-        rest go to the narrow phase. Without ``order`` the walk stops at the first
-        colliding state. ``order`` (a permutation of range(m)) sets the order states are
-        narrow-phased in; the answer is then the first colliding state in that order.
+        rest go to the narrow phase. The walk stops at the first colliding state.
         """
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
         self.checks += len(qs)
@@ -374,19 +361,9 @@ class CollisionWorld:
         if m == 0:
             return -1
         if self._fixed_hits:
-            return 0 if order is None else int(order[0])
+            return 0
         out = np.zeros((m, len(self._pairs)), dtype=np.int8)
         cum, budget = np.empty_like(qs), np.empty(len(self._pairs))
-        if order is not None:
-            self._sweep(qs, 0, False, cum, budget, out)
-            rows = np.flatnonzero(out.any(axis=1))
-            rank = np.empty(len(order), dtype=np.int64)
-            rank[order] = np.arange(len(order))
-            for i in rows[np.argsort(rank[rows])]:
-                poses = self.kin.link_poses(qs[i], out=self._poses)
-                if self._state_hits(poses, out[i], first=True):
-                    return int(i)
-            return -1
         i = self._sweep(qs, 0, True, cum, budget, out)
         while i < m:
             poses = self.kin.link_poses(qs[i], out=self._poses)

@@ -9,9 +9,7 @@ batched call (fast: what search and shortcutting try thousands of times), and
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable
-from functools import lru_cache
 
 import numpy as np
 import ompl.base as ob
@@ -33,25 +31,6 @@ def interpolate(path: np.ndarray, step: float) -> np.ndarray:
         parts.append(a + t * (b - a))
     parts.append(path[-1:])
     return np.concatenate(parts)
-
-
-@lru_cache(maxsize=4096)
-def bisection_order(n: int) -> np.ndarray:
-    """The indices 0..n-1 ordered coarse to fine (midpoints first, breadth first), as
-    OMPL's DiscreteMotionValidator visits them. Cached: edges share few lengths."""
-    out: list[int] = []
-    queue = deque([(0, n - 1)])
-    while queue:
-        lo, hi = queue.popleft()
-        if lo > hi:
-            continue
-        mid = (lo + hi) // 2
-        out.append(mid)
-        queue.append((lo, mid - 1))
-        queue.append((mid + 1, hi))
-    order = np.array(out, dtype=np.int64)
-    order.flags.writeable = False
-    return order
 
 
 def sampled_motion_valid(world: CollisionWorld, a: np.ndarray, b: np.ndarray,

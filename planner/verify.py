@@ -191,16 +191,6 @@ class Verifier:
         t = np.linspace(0.0, traj.duration, n)
         return (t, *traj.evaluate(t))
 
-    def dense_states(self, traj: JointTrajectory
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(times, q, qd, qdd) with no joint moving more than ``step`` between states.
-
-        The fine states (:meth:`fine_states`) are thinned: a state is kept whenever the
-        running sum of per-step max joint motions would pass ``step`` (that sum bounds
-        every joint's motion between kept states).
-        """
-        return self._thin(*self.fine_states(traj))
-
     def _thin(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         n = len(t)
