@@ -176,7 +176,9 @@ class Verifier:
         """(times, q, qd, qdd) on a uniform time grid for the limits alone (collisions
         proven otherwise): a step of 1% of the shortest time any joint needs to change
         its velocity or acceleration by its full limit (``v/a``, ``a/j``), at least
-        0.25 ms and at most the sample interval; at least as fine as every sample."""
+        0.25 ms and at most the sample interval. Between two grid states a velocity or
+        acceleration that keeps the next limit can pass its grid maximum by at most 0.5% of
+        its own limit (half a step at the next limit's rate)."""
         if traj.duration <= 0.0:
             t = np.array([0.0])
             return (t, *traj.evaluate(t))
