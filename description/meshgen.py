@@ -21,7 +21,9 @@ kinematics:
 * the two fingers' jaw pads sit at different heights (right low, left high),
   so the pads may cross at the closed pose without touching.
 
-Run ``python -m description.meshgen`` to rewrite the committed meshes.
+Run ``python -m description.meshgen`` to rewrite the committed meshes. Only this needs
+the mesh-boolean library manifold3d, an optional extra (``pip install -e '.[meshgen]'``):
+nothing at run time imports this module.
 """
 
 from __future__ import annotations
@@ -33,7 +35,12 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
-from manifold3d import CrossSection, Manifold, OpType
+
+try:
+    from manifold3d import CrossSection, Manifold, OpType
+except ImportError as e:  # an optional extra: say which, not just the module's name
+    raise ImportError("description.meshgen needs manifold3d, the 'meshgen' extra: "
+                      "pip install -e '.[meshgen]'") from e
 
 MESH_DIR: Path = Path(__file__).resolve().parent / "arduinobot_description" / "meshes"
 

@@ -11,12 +11,16 @@ can import it.
 
 from __future__ import annotations
 
-from enum import StrEnum
+from enum import Enum
 
 
-class Code(StrEnum):
-    """A wire error code. A ``StrEnum``: it compares equal to, formats and JSON-encodes
-    as its plain string, so replies and client lookups need no conversion."""
+class Code(str, Enum):
+    """A wire error code. A ``str``: it compares equal to, formats, prints and
+    JSON-encodes as its plain string, so replies and client lookups need no conversion.
+    (``enum.StrEnum`` would do the same but needs Python 3.11.)"""
+
+    __str__ = str.__str__
+    __format__ = str.__format__  # type: ignore[assignment]
 
     # the planning service's replies (service/schema/error.json)
     INVALID_REQUEST = "INVALID_REQUEST"

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import inspect
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -112,3 +114,30 @@ def course_ws(tmp_path_factory):
     """A user's colcon workspace as ROS 2 and the MoveIt Setup Assistant leave it."""
     from .helpers.course_workspace import make_course_workspace
     return make_course_workspace(tmp_path_factory.mktemp("course_ws"))
+
+
+# -- the `slow` marker: tests that start `arduinobot serve` (or router) processes or a browser
+# (`./dev test -m "not slow"` is the quick loop; the default run, and CI, run everything)
+_STARTS_PROCESSES = re.compile(
+    r"\b(start_servers?|launch_serves|start_router|Browser|_chromium)\(|\"serve\"")
+_PROCESS_FIXTURES = frozenset({"server", "client"})
+
+
+def _starts_processes(fn: object) -> bool:
+    try:
+        return bool(_STARTS_PROCESSES.search(inspect.getsource(fn)))  # type: ignore[arg-type]
+    except (OSError, TypeError):  # no source (a builtin fixture): it starts nothing of ours
+        return False
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark ``slow`` every test that uses the shared server, or whose own code or any
+    fixture it uses starts a server or the browser."""
+    for item in items:
+        fixturedefs = getattr(item, "_fixtureinfo", None)
+        funcs = [getattr(item, "function", None)]
+        if fixturedefs is not None:
+            funcs += [d.func for defs in fixturedefs.name2fixturedefs.values() for d in defs]
+        if _PROCESS_FIXTURES & set(getattr(item, "fixturenames", ())) or any(
+                _starts_processes(f) for f in funcs if f is not None):
+            item.add_marker(pytest.mark.slow)
