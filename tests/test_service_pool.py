@@ -1,5 +1,7 @@
-"""The worker pool under stress, through a real server: BUSY, TIMEOUT, a worker killed
-mid-request (INTERNAL, then replaced), exactly one reply per request, clean Ctrl-C."""
+"""The worker pool under stress, through a real server: BUSY (with a retry hint), TIMEOUT,
+a worker killed mid-request (that request INTERNAL, no other lost, a warm fork replaces
+it), requests queued behind a dead worker served, an idle worker's death noticed without
+a request, the memory cap (RESOURCE_LIMIT), exactly one reply per request, clean Ctrl-C."""
 
 from __future__ import annotations
 
@@ -65,9 +67,10 @@ def test_busy_timeout_and_a_killed_worker(small_server):
         queued_t, queued_out = _in_thread(lambda: c.fk({"joint_1": 0.1}))
         _wait_for(lambda: c.health()["queue_depth"] == 1)
         t0 = time.monotonic()
-        with pytest.raises(errors.ServiceBusy):
+        with pytest.raises(errors.ServiceBusy) as busy:
             c.fk({"joint_1": 0.2})
         assert time.monotonic() - t0 < 1.0  # refused at once, not after the deadline
+        assert busy.value.details["retry_after"] > 0  # a hint when to try again [s]
         queued_t.join(10)
         assert isinstance(queued_out.get("error"), errors.RequestTimeout), queued_out
         assert long_t.is_alive()  # still planning
@@ -127,3 +130,106 @@ def test_ctrl_c_answers_the_request_in_flight_and_exits_cleanly(small_server):
         assert time.monotonic() - t0 < 10
         err = out.get("error")
         assert isinstance(err, errors.ShuttingDown) and "shutting down" in err.message, out
+
+
+@pytest.fixture(scope="module")
+def two_workers():
+    srv = start_server(["--workers", "2", "--queue", "16"])
+    yield srv
+    assert srv.stop(signal.SIGINT) == 0, "\n".join(srv.stderr_lines[-20:])
+
+
+def _pids(c: PlannerClient) -> list[int | None]:
+    return [w["pid"] for w in c.health()["workers"]]
+
+
+def test_a_worker_killed_mid_request_costs_that_request_only(two_workers):
+    with PlannerClient(two_workers.endpoint, timeout=60) as c:
+        long_t, long_out = _in_thread(lambda: c.plan(LONG_PLAN))
+        busy = _wait_for(lambda: next((w for w in c.health()["workers"] if w["busy"]), None))
+        time.sleep(0.3)  # it has taken the job and is planning (20 s of RRTstar)
+        stop = threading.Event()
+        results: list = []
+
+        def load(i: int) -> None:
+            while not stop.is_set():
+                try:
+                    results.append(c.fk({"joint_1": 0.01 * i}))
+                except errors.ServiceError as e:  # collected: none is allowed
+                    results.append(e)
+        loaders = [threading.Thread(target=load, args=(i,), daemon=True) for i in range(3)]
+        for t in loaders:
+            t.start()
+        os.kill(busy["pid"], signal.SIGKILL)
+        long_t.join(20)
+        # the very next plan succeeds (the replacement is a warm fork)
+        assert c.plan(goal={"named": "reach_left"}, seed=3).positions.shape[0] > 1
+        stop.set()
+        for t in loaders:
+            t.join(20)
+        err = long_out.get("error")
+        assert isinstance(err, errors.InternalError) and "SIGKILL" in err.message, long_out
+        assert err.details["worker_exit"] == "signal SIGKILL"
+        failed = [r for r in results if isinstance(r, Exception)]
+        assert results and not failed, failed[:3]
+        pids = _pids(c)
+        assert busy["pid"] not in pids and None not in pids
+
+
+def test_requests_queued_behind_a_killed_worker_are_served(small_server_big_queue):
+    with PlannerClient(small_server_big_queue.endpoint, timeout=60) as c:
+        long_t, long_out = _in_thread(lambda: c.plan(LONG_PLAN))
+        _wait_for(lambda: c.health()["workers"][0]["busy"])
+        time.sleep(0.3)
+        queued = [_in_thread(lambda i=i: c.fk({"joint_1": 0.1 * i})) for i in range(2)]
+        _wait_for(lambda: c.health()["queue_depth"] == 2)
+        os.kill(c.health()["workers"][0]["pid"], signal.SIGKILL)
+        long_t.join(20)
+        assert isinstance(long_out.get("error"), errors.InternalError), long_out
+        for i, (t, out) in enumerate(queued):
+            t.join(20)
+            assert out["value"].joints["joint_1"] == pytest.approx(0.1 * i), out
+
+
+@pytest.fixture(scope="module")
+def small_server_big_queue():
+    srv = start_server(["--workers", "1", "--queue", "4"])
+    yield srv
+    assert srv.stop(signal.SIGINT) == 0, "\n".join(srv.stderr_lines[-20:])
+
+
+def test_an_idle_workers_death_is_noticed_without_a_request_and_loses_none(two_workers):
+    with PlannerClient(two_workers.endpoint, timeout=60) as c:
+        before = c.health()
+        old = [w["pid"] for w in before["workers"]]
+        for pid in old:
+            os.kill(pid, signal.SIGKILL)
+        # replaced without any request being sent: health shows the live pids only
+        _wait_for(lambda: all(p is not None and p not in old for p in _pids(c)))
+        assert c.health()["counters"].get("received", 0) == \
+            before["counters"].get("received", 0)
+        # both killed again, and requests sent at once: none is lost
+        old = _pids(c)
+        for pid in old:
+            os.kill(pid, signal.SIGKILL)
+        outs = [_in_thread(lambda i=i: c.fk({"joint_2": 0.05 * i})) for i in range(4)]
+        for i, (t, out) in enumerate(outs):
+            t.join(30)
+            assert out["value"].joints["joint_2"] == pytest.approx(0.05 * i), out
+        _wait_for(lambda: all(p is not None and p not in old for p in _pids(c)))
+
+
+def test_a_worker_over_its_memory_cap_is_replaced_and_the_request_told():
+    # a 1 MiB cap: every working worker is over it at the first look
+    srv = start_server(["--workers", "1", "--memory-cap", "1"])
+    try:
+        with PlannerClient(srv.endpoint, timeout=60) as c:
+            pid0 = _pids(c)[0]
+            with pytest.raises(errors.ResourceLimit) as e:
+                c.fk({"joint_1": 0.1})
+            assert e.value.details["memory_cap"] == 2**20
+            _wait_for(lambda: _pids(c)[0] not in (None, pid0))
+            cnt = c.health()["counters"]
+            assert cnt["memory_kills"] == 1 and cnt["RESOURCE_LIMIT"] == 1
+    finally:
+        assert srv.stop(signal.SIGINT) == 0
