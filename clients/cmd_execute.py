@@ -203,9 +203,8 @@ def cmd_execute(ns: argparse.Namespace) -> int:
 
 def _plan(ns: argparse.Namespace, desc: Any, req: dict[str, Any]) -> dict[str, Any]:
     if ns.local:
-        from service import wire
-        from service.handlers import Handlers
-        return Handlers(desc).handle("plan", wire.decode("plan", wire.encode(req)))
+        from service.local import LocalService
+        return LocalService(desc).request("plan", req)
     from .client import PlannerClient
     with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
                        config_file=ns.config) as c:

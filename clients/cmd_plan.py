@@ -109,13 +109,9 @@ def run_request(ns: argparse.Namespace, kind: str, req: Mapping[str, Any]
     """Send ``req`` to the service, or with --local run it as a worker would (same
     parsing, same checks). Returns the reply body and the description's limits."""
     if ns.local:
-        from service import wire
-        from service.handlers import Handlers
-        from service.server import limits_body
-        desc = local_description(ns)
-        data = wire.decode(kind, wire.encode(req))  # type: ignore[arg-type]
-        return {**Handlers(desc).handle(kind, data), "request_id": "local"}, \
-            limits_body(desc)
+        from service.local import LocalService
+        local = LocalService(local_description(ns))
+        return local.request(kind, req), local.limits()  # type: ignore[arg-type]
     if model_chosen(ns):
         raise SystemExit("arduinobot: error: FILE, --package-dir, --arg, --moveit-config, "
                          "--srdf and --joint-limits choose the model for --local; the "

@@ -19,15 +19,14 @@ import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
 import zenoh
 
 from planner.errors import PlanningError
 
 from . import wire
+from .bodies import description_body
 from .keyguard import addressed_exactly
 from .pool import Job, Outcome, WorkerPool
 from .worker import DescriptionSpec
@@ -86,49 +85,6 @@ def _package_version() -> str:
         return version("arduinobot")
     except PackageNotFoundError:
         return "unknown"
-
-
-def limits_body(desc: Any) -> dict[str, dict[str, float | None]]:
-    """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort, as
-    the planner enforces them at full scaling (None for an infinite figure)."""
-    from planner.limits import JointLimits
-    lim = JointLimits.from_description(desc)
-    kinds = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
-
-    def fin(v: float) -> float | None:
-        return float(v) if np.isfinite(v) else None
-    return {n: {k: fin(getattr(lim, k)[i]) for k in kinds}
-            for i, n in enumerate(lim.joint_names)}
-
-
-def description_body(desc: Any) -> dict[str, Any]:
-    """The ``<p>/description`` reply: expanded URDF, SRDF text, limits, joints, tcp."""
-    robot = desc.robot
-    srdf_text = None
-    if desc.srdf is not None and desc.srdf.source is not None:
-        srdf_text = Path(desc.srdf.source).read_text("utf-8")
-    lims = robot.position_limits(robot.actuated_joints)
-    return {
-        "robot": robot.name,
-        "urdf": robot.urdf,
-        "srdf": srdf_text,
-        "mimic_joints": {n: {"leader": robot.joints[n].mimic.joint,
-                             "multiplier": robot.joints[n].mimic.multiplier,
-                             "offset": robot.joints[n].mimic.offset}
-                         for n in robot.mimic_joints},
-        "position_limits": {n: [float(lo), float(hi)]
-                            for n, (lo, hi) in zip(robot.actuated_joints, lims)},
-        "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
-        "limits": limits_body(desc),
-        **desc.summary(),
-        "tcp": None if desc.tcp is None else {"parent_link": desc.tcp.parent_link,
-                                              "xyz": list(desc.tcp.xyz),
-                                              "source": desc.tcp.source},
-        "config": desc.config.to_json(),
-        "default_scaling": {"velocity": desc.default_velocity_scaling,
-                            "acceleration": desc.default_acceleration_scaling},
-        "warnings": list(desc.warnings),
-    }
 
 
 class PlannerService:

@@ -1,0 +1,55 @@
+"""The replies about the served robot itself: its limits and its description.
+
+Answered by the server at once (``<p>/description``) and used by ``--local`` commands
+(:mod:`service.local`); imports neither Zenoh nor the server.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def limits_body(desc: Any) -> dict[str, dict[str, float | None]]:
+    """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort, as
+    the planner enforces them at full scaling (None for an infinite figure)."""
+    from planner.limits import JointLimits
+    lim = JointLimits.from_description(desc)
+    kinds = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
+
+    def fin(v: float) -> float | None:
+        return float(v) if np.isfinite(v) else None
+    return {n: {k: fin(getattr(lim, k)[i]) for k in kinds}
+            for i, n in enumerate(lim.joint_names)}
+
+
+def description_body(desc: Any) -> dict[str, Any]:
+    """The ``<p>/description`` reply: expanded URDF, SRDF text, limits, joints, tcp."""
+    robot = desc.robot
+    srdf_text = None
+    if desc.srdf is not None and desc.srdf.source is not None:
+        srdf_text = Path(desc.srdf.source).read_text("utf-8")
+    lims = robot.position_limits(robot.actuated_joints)
+    return {
+        "robot": robot.name,
+        "urdf": robot.urdf,
+        "srdf": srdf_text,
+        "mimic_joints": {n: {"leader": robot.joints[n].mimic.joint,
+                             "multiplier": robot.joints[n].mimic.multiplier,
+                             "offset": robot.joints[n].mimic.offset}
+                         for n in robot.mimic_joints},
+        "position_limits": {n: [float(lo), float(hi)]
+                            for n, (lo, hi) in zip(robot.actuated_joints, lims)},
+        "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
+        "limits": limits_body(desc),
+        **desc.summary(),
+        "tcp": None if desc.tcp is None else {"parent_link": desc.tcp.parent_link,
+                                              "xyz": list(desc.tcp.xyz),
+                                              "source": desc.tcp.source},
+        "config": desc.config.to_json(),
+        "default_scaling": {"velocity": desc.default_velocity_scaling,
+                            "acceleration": desc.default_acceleration_scaling},
+        "warnings": list(desc.warnings),
+    }

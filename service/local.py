@@ -1,0 +1,47 @@
+"""The service's request -> reply path, run in this process (``arduinobot ... --local``).
+
+A request goes through the same steps as in a worker: encoded and decoded by
+:mod:`service.wire` (schema, caps, finiteness), checked against the robot and answered by
+:class:`service.handlers.Handlers`; the limits come from :mod:`service.bodies`, as in the
+``<p>/description`` reply. Imports neither Zenoh nor the server nor the worker pool.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from description import Description
+
+from . import wire
+from .bodies import description_body, limits_body
+from .handlers import Handlers
+
+#: the ``request_id`` of every local reply (a worker puts its job id there)
+LOCAL_REQUEST_ID = "local"
+
+
+class LocalService:
+    """One robot's request handlers in this process, answering as the service would."""
+
+    def __init__(self, description: Description) -> None:
+        self._description = description
+        self._handlers = Handlers(description)
+
+    def request(self, kind: wire.Kind, req: Mapping[str, Any]) -> dict[str, Any]:
+        """The reply body to ``req`` (a JSON object) of ``kind`` (``plan``, ``fk``, ``ik``,
+        ``check``).
+
+        Raises:
+            planner.errors.PlanningError: the coded error the service would answer with.
+        """
+        data = wire.decode(kind, wire.encode(req))
+        return {**self._handlers.handle(kind, data), "request_id": LOCAL_REQUEST_ID}
+
+    def limits(self) -> dict[str, dict[str, float | None]]:
+        """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort."""
+        return limits_body(self._description)
+
+    def description(self) -> dict[str, Any]:
+        """The ``<p>/description`` reply the service would give."""
+        return description_body(self._description)
