@@ -30,6 +30,7 @@ from typing import Any, Literal, Protocol
 import numpy as np
 import toppra
 
+from .checks import CHECK_STEP
 from .errors import InvalidRequest
 
 log = logging.getLogger(__name__)
@@ -165,7 +166,7 @@ def _blend_free(checker: _Checker | _Certifier, blend: PathCurve, step: float) -
 
 def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
                 max_radius: float = 0.25, edge_fraction: float = 0.45,
-                step: float = 0.002, max_shrinks: int = 4) -> Curve:
+                step: float = CHECK_STEP, max_shrinks: int = 4) -> Curve:
     """Blend the corners of a collision-checked polyline, re-checking each blend.
 
     Args:

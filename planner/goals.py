@@ -15,23 +15,26 @@ import numpy as np
 from description import Description
 from description.errors import SrdfError
 
+from .checks import check_joint_names, check_positions
 from .collision import CollisionWorld
 from .errors import GoalInCollision, GoalOutOfReach, InvalidRequest
 
 
 @dataclass(frozen=True)
 class JointGoal:
-    """Target values [rad] for some or all joints of the group; the rest keep their start."""
+    """Target values [rad] for some or all joints of the group; the rest keep their start.
+    ``where`` names the values in errors (the service's requests: ``goal.joints``)."""
 
     values: Mapping[str, float]
+    where: str = field(default="goal.values", repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.values, Mapping) or not self.values:
-            raise InvalidRequest("needs at least one joint value", field="goal.values")
+            raise InvalidRequest("needs at least one joint value", field=self.where)
         for k, v in self.values.items():
-            if not isinstance(v, (int, float)) or not math.isfinite(v):
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
                 raise InvalidRequest(f"{v!r} is not a finite number [rad]",
-                                     field=f"goal.values.{k}")
+                                     field=f"{self.where}.{k}")
         object.__setattr__(self, "values", dict(self.values))
 
 
@@ -94,15 +97,21 @@ def resolve_group(description: Description, group: str | None, goal: Goal) -> st
     return description.default_group()
 
 
+def check_goal(goal: object) -> None:
+    """The one goal-type check, run when a request is built (:class:`MotionRequest`,
+    :class:`PathRequest`); every layer below trusts it.
+
+    Raises:
+        InvalidRequest: ``goal`` is none of :data:`Goal`'s types.
+    """
+    if not isinstance(goal, (JointGoal, NamedGoal, PositionGoal)):
+        raise InvalidRequest(f"unknown goal type {type(goal).__name__}", field="goal")
+
+
 def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
     """Raise :class:`JointLimitViolation` naming the first joint outside its limits."""
-    from .errors import JointLimitViolation
-
-    lim = world.description.robot.position_limits(world.kin.joint_names)
-    for name, v, (lo, hi) in zip(world.kin.joint_names, q, lim):
-        if not (lo - 1e-9 <= v <= hi + 1e-9):
-            raise JointLimitViolation(name, float(v), float(lo), float(hi),
-                                      field=f"{field}.{name}")
+    names = world.kin.joint_names
+    check_positions(names, q, world.description.robot.position_limits(names), field=field)
 
 
 def tcp_joints(description: Description, group_joints: Sequence[str]) -> tuple[str, ...]:
@@ -162,24 +171,21 @@ def resolve_goal(goal: Goal, *, world: CollisionWorld, description: Description,
         goal = JointGoal(named_values(description, goal.name, group, idx))
     if isinstance(goal, JointGoal):
         q = start.copy()
+        check_joint_names(description, goal.values, field=goal.where)
         for k, v in goal.values.items():
-            if k not in idx:
-                raise InvalidRequest(f"'{k}' is not an actuated joint ({', '.join(names)})",
-                                     field=f"goal.values.{k}")
             if k not in group_joints:
                 raise InvalidRequest(f"'{k}' is not in the planning group "
-                                     f"({', '.join(group_joints)})", field=f"goal.values.{k}")
+                                     f"({', '.join(group_joints)})", field=f"{goal.where}.{k}")
             q[idx[k]] = v
-        check_limits(world, q, field="goal.values")
+        check_limits(world, q, field=goal.where)
         chk = world.check(q)
         if not chk.valid:
             raise GoalInCollision("the goal state collides", pairs=chk.pairs,
                                   q=dict(zip(names, map(float, q))))
         return q[None]
-    if isinstance(goal, PositionGoal):
-        return _position_candidates(goal, world=world, description=description, start=start,
-                                    group_joints=group_joints)
-    raise InvalidRequest(f"unknown goal type {type(goal).__name__}", field="goal")
+    # a PositionGoal: the request checked the goal's type when it was built (check_goal)
+    return _position_candidates(goal, world=world, description=description, start=start,
+                                group_joints=group_joints)
 
 
 def _position_candidates(goal: PositionGoal, *, world: CollisionWorld,

@@ -25,7 +25,8 @@ from numpy.typing import ArrayLike
 
 from description.loader import Tcp
 
-from .errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
+from .checks import check_positions
+from .errors import GoalOutOfReach, InvalidRequest
 from .ik_numeric import Chain, build_chain, dedupe, nearest_distance, solve_dls, wrap_into_limits
 from .kinematics import Kinematics
 
@@ -89,12 +90,9 @@ def position_ik(
     chain = build_chain(kin, tcp, joints)
     lim = kin.robot.position_limits(tuple(chain.joint_names))
     lower, upper = lim[:, 0], lim[:, 1]
-    for i, name in enumerate(kin.joint_names):
-        if name not in chain.joint_names:
-            lo, hi = kin.robot.position_limits((name,))[0]
-            if not lo - 1e-12 <= q_base[i] <= hi + 1e-12:
-                raise JointLimitViolation(name, float(q_base[i]), float(lo), float(hi),
-                                          field="q_fixed")
+    fixed = [i for i, n in enumerate(kin.joint_names) if n not in chain.joint_names]
+    names = tuple(kin.joint_names[i] for i in fixed)
+    check_positions(names, q_base[fixed], kin.robot.position_limits(names), field="q_fixed")
 
     geo = _geometric_model(kin, tcp, chain, q_base)
     if geo is not None:

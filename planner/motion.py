@@ -12,7 +12,7 @@ from typing import Literal
 
 import numpy as np
 
-from .goals import JointGoal, NamedGoal, PositionGoal
+from .goals import JointGoal, NamedGoal, PositionGoal, check_goal
 from .scene import Obstacle
 from .trajectory import JointTrajectory
 from .verify import VerificationReport
@@ -47,6 +47,9 @@ class MotionRequest:
     # a moving start [rad/s], [rad/s^2] by joint: see planner.moving_start
     start_velocity: Mapping[str, float] | None = None
     start_acceleration: Mapping[str, float] | None = None
+
+    def __post_init__(self) -> None:
+        check_goal(self.goal)
 
 
 @dataclass(frozen=True)

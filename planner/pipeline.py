@@ -26,11 +26,12 @@ from description import Description
 from .acm_proof import proven_never_pairs
 from .cache import ArtifactCache
 from .certify import Certificate, Certifier, combine
+from .checks import check_joint_names, check_positions
 from .collision import CollisionWorld
 from .curve import Curve, build_curve
 from .dynamics import InverseDynamics
-from .errors import InvalidRequest, JointLimitViolation, TrajectoryError
-from .goals import JointGoal, NamedGoal, PositionGoal, resolve_group
+from .errors import InvalidRequest, TrajectoryError
+from .goals import resolve_group
 from .limits import JointLimits
 from .motion import MotionRequest, MotionResult, Profile
 from .path_limits import ActiveLimits, Derating
@@ -166,8 +167,6 @@ class MotionPlanner:
     # -- validate ---------------------------------------------------------------------
     def validate(self, req: MotionRequest) -> np.ndarray:
         """Check every field; the start vector [rad], shape (dof,)."""
-        if not isinstance(req.goal, (JointGoal, NamedGoal, PositionGoal)):
-            raise InvalidRequest(f"unknown goal type {type(req.goal).__name__}", field="goal")
         resolve_group(self.description, req.group, req.goal)
         if not isinstance(req.obstacles, tuple) or \
                 not all(isinstance(o, Obstacle) for o in req.obstacles):
@@ -193,25 +192,15 @@ class MotionPlanner:
             return start
         if not isinstance(req.start, Mapping):
             raise InvalidRequest("must map joint names to values [rad]", field="start")
-        robot = self.description.robot
+        check_joint_names(self.description, req.start, field="start")
         for name, value in req.start.items():
-            field = f"start.{name}"
-            if name not in self.joint_names:
-                j = robot.joints.get(name) if isinstance(name, str) else None
-                if j is not None and j.mimic is not None:
-                    raise InvalidRequest(f"'{name}' mimics '{j.mimic.joint}' and cannot be "
-                                         f"commanded; set '{j.mimic.joint}' instead",
-                                         field=field, details={"leader": j.mimic.joint})
-                raise InvalidRequest(f"'{name}' is not an actuated joint "
-                                     f"({', '.join(self.joint_names)})", field=field)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not math.isfinite(float(value)):
-                raise InvalidRequest(f"{value!r} is not a finite number [rad]", field=field)
-            i = self.joint_names.index(name)
-            lo, hi = self._lower[i], self._upper[i]
-            if not (lo - 1e-9 <= float(value) <= hi + 1e-9):
-                raise JointLimitViolation(name, float(value), float(lo), float(hi), field=field)
-            start[i] = float(value)
+                raise InvalidRequest(f"{value!r} is not a finite number [rad]",
+                                     field=f"start.{name}")
+            start[self.joint_names.index(name)] = float(value)
+        check_positions(self.joint_names, start, np.column_stack([self._lower, self._upper]),
+                        field="start")
         return start
 
     # -- solve ------------------------------------------------------------------------

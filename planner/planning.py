@@ -26,9 +26,7 @@ from .collision import CollisionWorld
 from .errors import InvalidRequest, NoPathFound, StartInCollision
 from .goals import (
     Goal,
-    JointGoal,
-    NamedGoal,
-    PositionGoal,
+    check_goal,
     check_limits,
     resolve_goal,
     resolve_group,
@@ -96,6 +94,9 @@ class PathRequest:
     planner: str = "RRTConnect"
     planning_time: float = 1.0
     seed: int | None = None
+
+    def __post_init__(self) -> None:
+        check_goal(self.goal)
 
 
 @dataclass(frozen=True)
@@ -172,8 +173,6 @@ class PathPlanner:
 
     # -- validate ---------------------------------------------------------------------
     def _validate(self, req: PathRequest) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
-        if not isinstance(req.goal, (JointGoal, NamedGoal, PositionGoal)):
-            raise InvalidRequest(f"unknown goal type {type(req.goal).__name__}", field="goal")
         if req.planner not in available_planners():
             raise InvalidRequest(f"unknown planner '{req.planner}' (available: "
                                  f"{', '.join(available_planners())})", field="planner")

@@ -33,6 +33,7 @@ from typing import Protocol
 import numpy as np
 
 from .certify import Certificate
+from .checks import CHECK_STEP
 from .path_limits import BatchDynamics, Derating
 from .trajectory import JointTrajectory
 
@@ -149,7 +150,7 @@ class Verifier:
     """
 
     def __init__(self, limits: _Limits, dynamics: BatchDynamics, world: _World, *,
-                 step: float = 0.002, clearance_states: int = 3) -> None:
+                 step: float = CHECK_STEP, clearance_states: int = 3) -> None:
         self.limits = limits
         self.dynamics = dynamics
         self.world = world

@@ -17,15 +17,15 @@ from planner.goals import JointGoal, NamedGoal, PositionGoal
 from planner.pipeline import MotionRequest
 
 from .caps import MAX_SAMPLES
-from .requests import joint_values, obstacles
+from .requests import obstacles
 from .wire import check_finite
 
 
 def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | NamedGoal | PositionGoal:
     """The goal of a plan request (exactly one of joints, named, position)."""
     if "joints" in data:
-        return JointGoal(joint_values(description, data["joints"], field="goal.joints",
-                                      fill=False))
+        # joint names and limits: checked where every goal is, by the planner
+        return JointGoal(dict(data["joints"]), where="goal.joints")
     if "named" in data:
         return NamedGoal(data["named"])  # looked up in the request's group by the planner
     return PositionGoal(tuple(float(v) for v in data["position"]))  # type: ignore[arg-type]
@@ -45,7 +45,7 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
         opts["seed"] = int(opts["seed"])
     return MotionRequest(
         goal=goal(description, data["goal"]),
-        start=joint_values(description, data.get("start"), field="start"),
+        start=data.get("start"),  # names and limits: checked by the planner, once
         obstacles=obstacles(description, data.get("obstacles")),
         max_samples=MAX_SAMPLES,  # refused before sampling, not after
         **opts)

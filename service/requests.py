@@ -11,11 +11,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from description import Description
-from planner.errors import InvalidRequest, JointLimitViolation
+from planner.checks import check_joint_names, check_positions
 from planner.scene import Obstacle, validate_obstacles
-
-# Slack on position limits for values that went through a float round trip [rad].
-_LIMIT_EPS = 1e-9
 
 
 def joint_values(description: Description, values: Mapping[str, float] | None, *,
@@ -34,33 +31,14 @@ def joint_values(description: Description, values: Mapping[str, float] | None, *
         InvalidRequest: an unknown joint, a fixed joint, or a mimic joint (naming its leader).
         JointLimitViolation: a value outside the joint's position limits.
     """
-    robot = description.robot
-    actuated = robot.actuated_joints
+    actuated = description.robot.actuated_joints
     values = dict(values or {})
-    for name in values:
-        if name in actuated:
-            continue
-        j = robot.joints.get(name)
-        if j is not None and j.mimic is not None:
-            raise InvalidRequest(
-                f"{name} is a mimic joint ({j.mimic.multiplier:g} * {j.mimic.joint} "
-                f"+ {j.mimic.offset:g}): command its leader {j.mimic.joint} instead",
-                field=f"{field}.{name}", details={"joint": name, "leader": j.mimic.joint})
-        what = f"a {j.type} joint" if j is not None else "not a joint of this robot"
-        raise InvalidRequest(f"{name} is {what}; actuated joints: {', '.join(actuated)}",
-                             field=f"{field}.{name}",
-                             details={"joint": name, "actuated": list(actuated)})
-    out: dict[str, float] = {}
-    for name, (lo, hi) in zip(actuated, robot.position_limits(actuated)):
-        if name not in values:
-            if fill:
-                out[name] = 0.0
-            continue
-        v = float(values[name])
-        if not lo - _LIMIT_EPS <= v <= hi + _LIMIT_EPS:
-            raise JointLimitViolation(name, v, float(lo), float(hi), field=f"{field}.{name}")
-        out[name] = v
-    return out
+    check_joint_names(description, values, field=field)
+    names = [n for n in actuated if n in values]
+    check_positions(names, [float(values[n]) for n in names],
+                    description.robot.position_limits(tuple(names)), field=field)
+    return {n: float(values[n]) if n in values else 0.0 for n in actuated
+            if fill or n in values}
 
 
 def obstacles(description: Description, items: Sequence[Mapping[str, Any]] | None
