@@ -81,7 +81,7 @@ class PlanResult:
 
     def to_csv(self) -> str:
         """One row per sample: time_from_start, then position, velocity, acceleration and
-        effort of each joint (``joint_1.position``, ...)."""
+        effort of each joint (``<joint>.position``, ...)."""
         header = ["time_from_start"] + [f"{n}.{kind}" for kind in
                                         ("position", "velocity", "acceleration", "effort")
                                         for n in self.joint_names]

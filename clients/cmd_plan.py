@@ -43,7 +43,7 @@ def floats(text: str, what: str, n: int | None = None) -> list[float]:
 
 
 def joint_map(text: str, names: Sequence[str], what: str) -> dict[str, float]:
-    """``0.5,0.3,-0.4`` (in ``names`` order) or ``joint_1=0.5,joint_3=-0.4``."""
+    """``0.5,0.3,-0.4`` (in ``names`` order) or ``NAME=0.5,OTHER=-0.4``."""
     if "=" in text:
         out = {}
         for item in text.split(","):
@@ -159,14 +159,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", metavar="Q", help="joint goal: values of the group's joints "
-                      "in the model's order (the arduinobot's arm: joint_1,joint_2,joint_3), "
+                      "in the model's order (`arduinobot model` lists them), "
                       "or name=value,...")
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", help="a tcp position [m]")
     goal.add_argument("--request", metavar="REQ.json", help="a whole v1 request from a file "
                       "(options given here override its fields)")
     p.add_argument("--start", metavar="Q", help="start: every actuated joint's value in the "
-                   "model's order (the arduinobot's: joint_1..joint_4) or name=value,...; "
+                   "model's order or name=value,...; "
                    "default all 0")
     p.add_argument("--obstacle", action="append", default=[], metavar="SPEC",
                    help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "

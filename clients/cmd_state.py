@@ -25,8 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        epilog="example:\n  arduinobot fk --joints 0.5,0.3,-0.4 --link "
                        "claw_support", formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--joints", default="", metavar="Q",
-                   help="every actuated joint's value in the model's order (the "
-                   "arduinobot's: joint_1..joint_4), or name=value,... [rad]")
+                   help="every actuated joint's value in the model's order "
+                   "(`arduinobot model` lists them), or name=value,... [rad]")
     p.add_argument("--link", action="append", metavar="LINK", help="a link to report, "
                    "repeatable (default all)")
     p.add_argument("--json", action="store_true", help="print the reply as JSON")
@@ -53,8 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example:\n  arduinobot check-state --joints 0,0.8,0.6 --obstacle "
         "box:table:1,1,0.1@0,1,0.5", formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--joints", default="", metavar="Q",
-                   help="every actuated joint's value in the model's order (the "
-                   "arduinobot's: joint_1..joint_4), or name=value,... [rad]")
+                   help="every actuated joint's value in the model's order "
+                   "(`arduinobot model` lists them), or name=value,... [rad]")
     p.add_argument("--obstacle", action="append", default=[], metavar="SPEC",
                    help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
                    "cylinder:ID:r,l@x,y,z; repeatable")

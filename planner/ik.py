@@ -55,7 +55,7 @@ def position_ik(
     tcp: Tcp,
     position: ArrayLike,
     *,
-    joints: Sequence[str] = ("joint_1", "joint_2", "joint_3"),
+    joints: Sequence[str] | None = None,
     q_fixed: ArrayLike | None = None,
     tolerance: float = 1e-6,
 ) -> tuple[IkSolution, ...]:
@@ -65,7 +65,8 @@ def position_ik(
         kin: the robot's kinematics.
         tcp: the tool centre point (``parent_link`` and ``xyz`` [m] in that link).
         position: the target [m] in the root frame, shape (3,).
-        joints: the joints to solve for; the others keep their ``q_fixed`` value.
+        joints: the joints to solve for (default: every actuated joint that moves the
+            tcp's link); the others keep their ``q_fixed`` value.
         q_fixed: a full joint vector, shape (dof,), giving the joints not solved for
             (default all zero); it also seeds the numeric solver.
         tolerance: the largest accepted tcp position error [m].
@@ -87,6 +88,9 @@ def position_ik(
         raise InvalidRequest(f"must be a positive number of metres, got {tolerance!r}",
                              field="tolerance")
     q_base = _validate_q_fixed(kin, q_fixed)
+    if joints is None:  # the robot's own: no joint names assumed
+        joints = tuple(j.name for j in kin.robot.link_path(tcp.parent_link)
+                       if j.movable and j.name in kin.joint_names)
     chain = build_chain(kin, tcp, joints)
     lim = kin.robot.position_limits(tuple(chain.joint_names))
     lower, upper = lim[:, 0], lim[:, 1]

@@ -118,7 +118,7 @@ class Handlers:
         desc = self.description
         if desc.tcp is None:
             raise InvalidRequest("this description has no tcp (config/tcp.yaml)")
-        # the default group's joints that move the tcp (the arduinobot's arm: joint_1..3)
+        # the default group's joints that move the tcp
         joints = tcp_joints(desc, desc.summary()["groups"][desc.default_group()])
         sols = position_ik(self.kin, desc.tcp, [float(v) for v in data["position"]],
                            joints=joints)
