@@ -108,6 +108,28 @@ class TrajectoryPoint:
                 "time_from_start": self.time_from_start}
 
 
+def check_sample_count(samples: int, *, duration: float, sample_rate: float, limit: int,
+                       cap: str | None = None) -> None:
+    """Refuse ``samples`` (of a ``duration`` [s] motion at ``sample_rate`` [Hz]) above
+    ``limit``: InvalidRequest on ``sample_rate`` naming the limit (``cap``: its name, if
+    it has one) and the largest rate that fits (``details.max_sample_rate`` [Hz], 0 if
+    none of at least 1 Hz does)."""
+    if samples <= limit:
+        return
+    fits = (limit - 2) / duration if duration > 0 else float(limit)
+    fits = float(int(fits)) if fits >= 1.0 else 0.0
+    hint = (f"ask for at most {fits:g} Hz" if fits >= 1.0 else
+            "no sample rate of at least 1 Hz fits: raise the scalings")
+    named = f" ({cap})" if cap else ""
+    details: dict[str, object] = {"limit": limit, "samples": samples, "duration": duration,
+                                  "sample_rate": sample_rate, "max_sample_rate": fits}
+    if cap:
+        details["cap"] = cap
+    raise InvalidRequest(
+        f"{sample_rate:g} Hz over this {duration:.4g} s motion gives {samples} samples, "
+        f"more than the {limit} allowed{named}: {hint}", field="sample_rate", details=details)
+
+
 def sample_times(duration: float, rate: float, *, max_samples: int | None = None
                  ) -> np.ndarray:
     """Times [s] at ``rate`` [Hz] from 0, always ending with exactly ``duration``.
@@ -120,16 +142,8 @@ def sample_times(duration: float, rate: float, *, max_samples: int | None = None
     if not (math.isfinite(rate) and 1.0 <= rate <= 1000.0):
         raise InvalidRequest(f"{rate!r} must be within [1, 1000] Hz", field="sample_rate")
     n = int(math.floor(duration * rate + 1e-9))
-    if max_samples is not None and n + 2 > max_samples:
-        fits = (max_samples - 2) / duration if duration > 0 else float(max_samples)
-        fits = float(int(fits)) if fits >= 1.0 else 0.0
-        hint = (f"ask for at most {fits:g} Hz" if fits >= 1.0 else
-                "no sample rate of at least 1 Hz fits: raise the scalings")
-        raise InvalidRequest(
-            f"{rate:g} Hz over this {duration:.4g} s motion gives about {n + 2} samples, "
-            f"more than the {max_samples} allowed: {hint}", field="sample_rate",
-            details={"limit": max_samples, "samples": n + 2, "duration": duration,
-                     "sample_rate": rate, "max_sample_rate": fits})
+    if max_samples is not None:
+        check_sample_count(n + 2, duration=duration, sample_rate=rate, limit=max_samples)
     ts = np.arange(n + 1) / rate
     if duration - ts[-1] > 1e-9:
         ts = np.append(ts, duration)

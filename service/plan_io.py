@@ -12,9 +12,10 @@ from typing import Any
 import numpy as np
 
 from description import Description
-from planner.errors import InvalidRequest, PlanningError
+from planner.errors import PlanningError
 from planner.goals import JointGoal, NamedGoal, PositionGoal
 from planner.pipeline import MotionRequest
+from planner.trajectory import check_sample_count
 
 from .caps import MAX_SAMPLES
 from .requests import obstacles
@@ -87,28 +88,11 @@ def plan_response(result: Any) -> dict[str, Any]:
 
 
 def check_samples(samples: int, *, duration: float, sample_rate: float) -> None:
-    """Refuse a trajectory of more than :data:`service.caps.MAX_SAMPLES` samples.
-
-    Args:
-        samples: the trajectory's sample count (duration x sample_rate + 1, about).
-        duration: its duration [s].
-        sample_rate: the request's sample rate [Hz].
+    """Refuse a trajectory of more than :data:`service.caps.MAX_SAMPLES` samples (the
+    planner refuses before sampling too: this guards the reply itself).
 
     Raises:
-        InvalidRequest: naming ``sample_rate``, the cap (``details.limit``) and the
-            largest rate that fits this motion (``details.max_sample_rate`` [Hz], 0 if none
-            of at least 1 Hz does).
+        InvalidRequest: see :func:`planner.trajectory.check_sample_count`.
     """
-    if samples <= MAX_SAMPLES:
-        return
-    fits = (MAX_SAMPLES - 2) / duration if duration > 0 else float(MAX_SAMPLES)
-    fits = float(int(fits)) if fits >= 1.0 else 0.0
-    hint = (f"ask for at most {fits:g} Hz" if fits >= 1.0 else
-            "no sample rate of at least 1 Hz fits: raise the scalings")
-    raise InvalidRequest(
-        f"{sample_rate:g} Hz over this {duration:.4g} s motion gives {samples} samples, more "
-        f"than the {MAX_SAMPLES} a reply may hold (MAX_SAMPLES): {hint}",
-        field="sample_rate",
-        details={"limit": MAX_SAMPLES, "cap": "MAX_SAMPLES", "samples": samples,
-                 "duration": duration, "sample_rate": sample_rate,
-                 "max_sample_rate": fits})
+    check_sample_count(samples, duration=duration, sample_rate=sample_rate,
+                       limit=MAX_SAMPLES, cap="MAX_SAMPLES")

@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import signal
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -16,17 +15,7 @@ from clients import errors
 from clients.client import PlannerClient
 
 from .conftest import start_server
-from .test_service_pool import LONG_PLAN
-
-
-def _wait_for(cond, timeout=30.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        v = cond()
-        if v:
-            return v
-        time.sleep(0.05)
-    raise AssertionError("condition not reached")
+from .test_service_pool import LONG_PLAN, _wait_for
 
 
 def _tree(root: int) -> set[int]:
