@@ -22,7 +22,9 @@ from typing import Any, Protocol
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
+from planner.braking import brake_to_rest
 from planner.codes import Code
+from planner.errors import TrajectoryError
 
 from .robots.base import RobotError
 
@@ -207,15 +209,12 @@ def stop_segment(joint_names: Sequence[str], q: np.ndarray, qd: np.ndarray, qdd:
     """The time-optimal jerk-limited stop from (q, qd, qdd) to rest (zero velocity and
     acceleration), every joint within ``velocity`` [rad/s], ``acceleration`` [rad/s^2]
     and ``jerk`` [rad/s^3], all joints reaching rest together."""
-    dof = len(joint_names)
-    inp = _limits_input(dof, velocity, acceleration, jerk)
-    inp.control_interface = ControlInterface.Velocity
-    inp.current_position = [float(v) for v in q]
-    inp.current_velocity = [float(v) for v in qd]
-    inp.current_acceleration = [float(v) for v in qdd]
-    inp.target_velocity = [0.0] * dof
-    inp.target_acceleration = [0.0] * dof
-    return RuckigSegment(joint_names, _calculate(inp, dof, "stop"))
+    try:
+        tr = brake_to_rest(q, qd, qdd, velocity=velocity, acceleration=acceleration,
+                           jerk=jerk)
+    except TrajectoryError as e:
+        raise MotionError(e.message, details=dict(e.details)) from e
+    return RuckigSegment(joint_names, tr)
 
 
 def move_segment(joint_names: Sequence[str], start: np.ndarray, goal: np.ndarray, *,

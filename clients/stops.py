@@ -12,15 +12,16 @@ from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
+from ruckig import Trajectory
 
+from planner import braking
+from planner.braking import TorqueFn
 from planner.limits import JointLimits
 
 from .segments import PathStop, RestOf, RuckigSegment, Segment, stop_segment
 
 log = logging.getLogger(__name__)
 
-# Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
-TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 StopKind = Literal["path", "joint", "finish"]
 
 
@@ -82,21 +83,19 @@ def within_limits(seg: Segment, limits: JointLimits, torques: TorqueFn | None, *
 def effort_safe(make: Callable[[float], RuckigSegment], limits: JointLimits,
                 torques: TorqueFn | None) -> RuckigSegment:
     """``make(scale)`` with the largest scale in (0, 1] (tried as 1, 0.8, 0.64, ...)
-    whose motion keeps every joint's torque within 95% of its effort limit (inverse
-    dynamics on 1 ms samples). ``scale`` multiplies acceleration and jerk."""
-    seg = make(1.0)
+    whose motion keeps every joint's torque within 95% of its effort limit
+    (:func:`planner.braking.effort_safe`). ``scale`` multiplies acceleration and jerk.
+    A robot must stop anyway: if none fits, the last is used, with a warning."""
     if torques is None:
-        return seg
-    scale = 1.0
-    for _ in range(25):
-        ts = np.linspace(0.0, seg.duration, max(2, int(seg.duration * 1000) + 1))
-        q, qd, qdd = (np.array(x) for x in zip(*(seg.evaluate(t) for t in ts)))
-        tau = np.abs(np.asarray(torques(q, qd, qdd)))
-        ratio = float(np.max(tau / limits.effort))
-        if ratio <= 0.95:
-            return seg
-        scale *= 0.8
-        seg = make(scale)
-    log.warning("no ruckig motion within the effort limits (%.0f%% at scale %.3g)",
-                100 * ratio, scale)
-    return seg
+        return make(1.0)
+    made: list[RuckigSegment] = []
+
+    def trajectory(scale: float) -> Trajectory:
+        made.append(make(scale))
+        return made[-1].trajectory
+
+    _, ratio = braking.effort_safe(trajectory, torques, limits.effort)
+    if ratio > braking.EFFORT_MARGIN:
+        log.warning("no ruckig motion within the effort limits (%.0f%% at the gentlest "
+                    "scale tried)", 100 * ratio)
+    return made[-1]

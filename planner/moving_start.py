@@ -32,8 +32,9 @@ from dataclasses import replace
 from typing import Any, Protocol
 
 import numpy as np
-from ruckig import ControlInterface, InputParameter, Result, Ruckig, Trajectory
+from ruckig import Trajectory
 
+from .braking import EFFORT_MARGIN, brake_to_rest, effort_safe
 from .errors import InvalidRequest, TrajectoryError
 from .limits import JointLimits
 from .motion import MotionRequest, MotionResult
@@ -117,52 +118,20 @@ class BlendTiming:
         return q, qd, qdd
 
 
-def _brake(q0: np.ndarray, v0: np.ndarray, a0: np.ndarray, lim: JointLimits) -> Trajectory:
-    dof = len(q0)
-    inp = InputParameter(dof)
-    inp.control_interface = ControlInterface.Velocity
-    inp.current_position = [float(x) for x in q0]
-    inp.current_velocity = [float(x) for x in v0]
-    inp.current_acceleration = [float(x) for x in a0]
-    inp.target_velocity = [0.0] * dof
-    inp.target_acceleration = [0.0] * dof
-    inp.max_velocity = [float(x) for x in lim.velocity]
-    inp.max_acceleration = [float(x) for x in lim.acceleration]
-    inp.max_jerk = [float(x) for x in lim.jerk]
-    tr = Trajectory(dof)
-    res = Ruckig(dof).calculate(inp, tr)
-    if res not in (Result.Working, Result.Finished):
-        raise TrajectoryError(f"ruckig could not brake from the moving start: {res}",
-                              details={"stage": "brake", "result": str(res)})
-    return tr
-
-
-# [s] the brake's torques are checked this often, within this fraction of the limits
-BRAKE_STEP = 0.001
-BRAKE_EFFORT_MARGIN = 0.97
-
-
 def _effort_safe_brake(planner: MotionPlanner, q0: np.ndarray, v0: np.ndarray,
                        a0: np.ndarray, lim: JointLimits) -> Trajectory:
-    """The brake with the largest acceleration and jerk scale (1, 0.8, 0.64, ...; never
-    below the acceleration the arm already has) whose torques stay within 97% of the
-    effort limits on 1 ms samples: a heavy arm brakes by its motors' strength, not by its
-    acceleration limit."""
-    f = 1.0
-    for _ in range(30):
-        scaled = replace(lim, acceleration=np.maximum(f * lim.acceleration, np.abs(a0)),
-                         jerk=f * lim.jerk)
-        tr = _brake(q0, v0, a0, scaled)
-        ts = np.linspace(0.0, tr.duration, max(3, int(tr.duration / BRAKE_STEP) + 1))
-        q, qd, qdd = (np.array(x) for x in zip(*(tr.at_time(float(t)) for t in ts)))
-        tau = np.abs(planner.dynamics.torques_batch(q, qd, qdd))
-        # a margin for the peaks between these samples, which the verifier's finer grid
-        # finds (measured: 1.9% over on a 2 ms grid, braking joint_1 from 0.2 rad/s)
-        if np.all(tau <= BRAKE_EFFORT_MARGIN * lim.effort):
-            return tr
-        f *= 0.8
-    raise TrajectoryError("no brake from the moving start within the effort limits",
-                          details={"stage": "brake"})
+    """The brake with the largest acceleration and jerk scale (never below the
+    acceleration the arm already has) whose torques fit the effort limits
+    (:func:`planner.braking.effort_safe`)."""
+    tr, ratio = effort_safe(
+        lambda f: brake_to_rest(q0, v0, a0, velocity=lim.velocity,
+                                acceleration=np.maximum(f * lim.acceleration, np.abs(a0)),
+                                jerk=f * lim.jerk),
+        planner.dynamics.torques_batch, lim.effort, tries=30)
+    if ratio > EFFORT_MARGIN:
+        raise TrajectoryError("no brake from the moving start within the effort limits",
+                              details={"stage": "brake", "effort_ratio": ratio})
+    return tr
 
 
 def solve_moving(planner: MotionPlanner, request: MotionRequest) -> MotionResult:
