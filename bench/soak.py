@@ -37,6 +37,7 @@ from clients import errors  # noqa: E402 -- after the sys.path line
 from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
 from service.pool import rss_bytes  # noqa: E402 -- after the sys.path line
 from tests.conftest import start_server  # noqa: E402 -- after the sys.path line
+from tests.helpers.procs import process_tree  # noqa: E402 -- after the sys.path line
 
 #: bad inputs and the code each must get
 BAD = [("plan", b"{not json", "INVALID_REQUEST"),
@@ -52,24 +53,6 @@ BAD = [("plan", b"{not json", "INVALID_REQUEST"),
 PLAN_CODES = {"NO_PATH_FOUND", "TRAJECTORY_FAILED", "BUSY", "TIMEOUT"}
 
 
-def tree(root: int) -> list[int]:
-    """``root`` and every descendant process."""
-    kids: dict[int, list[int]] = {}
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                ppid = int(Path(f"/proc/{d}/stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-            kids.setdefault(ppid, []).append(int(d))
-    out, todo = [], [root]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        todo.extend(kids.get(p, []))
-    return out
-
-
 def rss_by_role(server_pid: int, endpoint: str) -> dict[str, tuple[int, int]]:
     """Role -> (processes, resident bytes) over the server's process tree; workers
     replaced during the run are the live ones at the time of the call."""
@@ -77,7 +60,7 @@ def rss_by_role(server_pid: int, endpoint: str) -> dict[str, tuple[int, int]]:
         h = c.health()
     live = {w["pid"] for w in h["workers"]}
     out: dict[str, tuple[int, int]] = {}
-    for p in tree(server_pid):
+    for p in process_tree(server_pid):
         role = ("server" if p == server_pid else "zygote" if p == h.get("zygote")
                 else "workers" if p in live else "forkserver")
         n, b = out.get(role, (0, 0))

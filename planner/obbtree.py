@@ -326,15 +326,3 @@ def pair_candidates(poses: np.ndarray, body_frame: np.ndarray, static_pose: np.n
         out[p] = 1 if hit else 0
         n += 1 if hit else 0
     return n
-
-
-@numba.njit(cache=True, nogil=True)
-def pair_candidates_batch(poses: np.ndarray, body_frame: np.ndarray, static_pose: np.ndarray,
-                          pairs: np.ndarray, root: np.ndarray, center: np.ndarray,
-                          axes: np.ndarray, half: np.ndarray, left: np.ndarray,
-                          right: np.ndarray, pad: float, stack: np.ndarray,
-                          out: np.ndarray) -> None:
-    """:func:`pair_candidates` for many states: poses (m, n_links, 4, 4), out (m, n_pairs)."""
-    for m in range(poses.shape[0]):
-        pair_candidates(poses[m], body_frame, static_pose, pairs, root, center, axes, half,
-                        left, right, pad, stack, out[m])

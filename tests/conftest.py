@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from .helpers.procs import stop_process
+
 REPO = Path(__file__).resolve().parents[1]
 
 
@@ -38,14 +40,7 @@ class Server:
 
     def stop(self, sig: int = signal.SIGINT, timeout: float = 20.0) -> int:
         """Send ``sig`` and wait; returns the exit code."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
-        return self.proc.returncode
+        return stop_process(self.proc, sig, timeout)
 
     @property
     def instance(self) -> str:

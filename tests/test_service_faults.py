@@ -15,25 +15,8 @@ from clients import errors
 from clients.client import PlannerClient
 
 from .conftest import start_server
+from .helpers.procs import process_tree
 from .test_service_pool import LONG_PLAN, _wait_for
-
-
-def _tree(root: int) -> set[int]:
-    """``root`` and its descendants (from /proc)."""
-    kids: dict[int, list[int]] = {}
-    for d in os.listdir("/proc"):
-        if d.isdigit():
-            try:
-                ppid = int(Path(f"/proc/{d}/stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue  # it ended while we looked
-            kids.setdefault(ppid, []).append(int(d))
-    out, todo = set(), [root]
-    while todo:
-        p = todo.pop()
-        out.add(p)
-        todo.extend(kids.get(p, []))
-    return out
 
 
 def _alive(pid: int) -> bool:
@@ -80,7 +63,7 @@ def test_sigterm_answers_every_request_in_flight_exits_0_and_leaves_no_process()
         _wait_for(lambda: all(w["busy"] for w in c.health()["workers"]))
         threads += [_collect(lambda i=i: c.fk({"joint_1": 0.1 * i}), outs) for i in range(3)]
         _wait_for(lambda: c.health()["queue_depth"] == 3)
-        procs = _tree(srv.proc.pid)
+        procs = set(process_tree(srv.proc.pid))
         assert len(procs) >= 4  # server, zygote, two workers (and the forkserver)
         assert srv.stop(signal.SIGTERM) == 0, "\n".join(srv.stderr_lines[-20:])
         for t in threads:

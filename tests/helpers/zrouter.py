@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..conftest import REPO, Server, _pump
+from .procs import stop_process
 
 SECURITY = REPO / "service" / "security"
 
@@ -37,14 +38,7 @@ class Router:
         return line.split("router ", 1)[1].split(" ", 1)[0]
 
     def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-            try:
-                self.proc.wait(timeout)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
-        return self.proc.returncode
+        return stop_process(self.proc, sig, timeout)
 
     def restart(self) -> Router:
         self.stop(signal.SIGKILL)
