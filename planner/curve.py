@@ -50,12 +50,15 @@ class CornerReport:
     """What happened at one interior waypoint: passed straight, blended or stopped at.
 
     ``radius`` [rad] is the blend radius kept (0 unless blended); ``shrinks`` counts halvings.
+    ``certificate``: the kept blend's proof when a certifier checked it
+    (:class:`planner.certify.Certificate`), else None.
     """
 
     index: int
     kind: Literal["straight", "blend", "stop"]
     radius: float
     shrinks: int
+    certificate: Any = None
 
 
 class PathCurve(toppra.interpolator.AbstractGeometricPath):
@@ -158,10 +161,13 @@ def _dedupe(waypoints: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     return waypoints[keep]
 
 
-def _blend_free(checker: _Checker | _Certifier, blend: PathCurve, step: float) -> bool:
+def _blend_free(checker: _Checker | _Certifier, blend: PathCurve, step: float
+                ) -> tuple[bool, Any]:
+    # (free, the certificate when a certifier decided)
     if hasattr(checker, "pieces"):
-        return bool(checker.pieces(blend.starts, blend.u1, blend.u2, blend.lengths).free)
-    return checker.first_invalid(blend.dense(step)) < 0  # type: ignore[union-attr]
+        cert = checker.pieces(blend.starts, blend.u1, blend.u2, blend.lengths)
+        return bool(cert.free), cert
+    return checker.first_invalid(blend.dense(step)) < 0, None  # type: ignore[union-attr]
 
 
 def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
@@ -206,18 +212,21 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
         if r <= 0.0:
             corners.append(CornerReport(i, "stop", 0.0, 0))
             continue
+        cert = None
         while True:
             blend = PathCurve((wp[i] - r * u[i - 1])[None], u[i - 1][None], u[i][None],
                               np.array([2 * r]), ["blend"])
-            if checker is None or _blend_free(checker, blend, step):
+            free, cert = (True, None) if checker is None else _blend_free(checker, blend, step)
+            if free:
                 break
             shrinks += 1
             if shrinks > max_shrinks:
-                r = 0.0
+                r, cert = 0.0, None
                 break
             r *= 0.5
         radii[i] = r
-        corners.append(CornerReport(i, "blend" if r > 0 else "stop", float(r), shrinks))
+        corners.append(CornerReport(i, "blend" if r > 0 else "stop", float(r), shrinks,
+                                    cert))
         if r == 0.0:
             log.info("corner %d: every blend collides, the motion stops there", i)
     sections: list[PathCurve] = []

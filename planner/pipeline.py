@@ -62,22 +62,6 @@ def _obstacle_key(obstacles: tuple[Obstacle, ...]) -> tuple:
                  for o in obstacles)
 
 
-class _BlendProofs:
-    """A certifier for :func:`build_curve` that keeps the certificates of the blends it
-    accepts (build_curve takes the first free blend at each corner)."""
-
-    def __init__(self, certifier: Certifier) -> None:
-        self.certifier = certifier
-        self.free: list[Certificate] = []
-
-    def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-               lengths: np.ndarray) -> Certificate:
-        cert = self.certifier.pieces(starts, u1, u2, lengths)
-        if cert.free:
-            self.free.append(cert)
-        return cert
-
-
 class MotionPlanner:
     """Plans verified trajectories for one robot.
 
@@ -225,9 +209,10 @@ class MotionPlanner:
         t2 = time.perf_counter()
         # blends certified as they are made; with the path's proof, that certifies the
         # whole curve: its straight parts lie on the path's proven segments
-        blends = _BlendProofs(paths.proof)
-        curve = build_curve(res.path, blends)
-        proof = combine([res.certificate, *blends.free]) if res.certificate else None
+        curve = build_curve(res.path, paths.proof)
+        proof = combine([res.certificate, *(c.certificate for c in curve.corners
+                                            if c.certificate is not None)]) \
+            if res.certificate else None
         t3 = time.perf_counter()
         lim = self.limits(*self.scaling(request))
         traj, report, t_param, t_verify = self.time_path(curve, res.path, world, lim,

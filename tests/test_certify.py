@@ -92,6 +92,10 @@ def test_blends_are_certified():
     curve = build_curve(wp, Certifier(world))
     assert any(c.kind == "blend" for c in curve.corners)
     assert Certifier(world).curve(curve.sections).free
+    # each kept blend carries its proof, for the pipeline to reuse
+    assert all(c.certificate is not None and c.certificate.free
+               for c in curve.corners if c.kind == "blend")
+    assert all(c.certificate is None for c in build_curve(wp, world).corners)
 
 
 def test_a_blend_whose_bulge_crosses_an_obstacle_is_refused(needle):
