@@ -25,13 +25,16 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 import toppra
 
 from .checks import CHECK_STEP
 from .errors import InvalidRequest
+
+if TYPE_CHECKING:
+    from .certify import Certificate
 
 log = logging.getLogger(__name__)
 
@@ -42,7 +45,7 @@ class _Checker(Protocol):
 
 class _Certifier(Protocol):
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-               lengths: np.ndarray) -> Any: ...
+               lengths: np.ndarray) -> Certificate: ...
 
 
 @dataclass(frozen=True)
@@ -58,7 +61,7 @@ class CornerReport:
     kind: Literal["straight", "blend", "stop"]
     radius: float
     shrinks: int
-    certificate: Any = None
+    certificate: Certificate | None = None
 
 
 class PathCurve(toppra.interpolator.AbstractGeometricPath):
@@ -162,7 +165,7 @@ def _dedupe(waypoints: np.ndarray, tol: float = 1e-9) -> np.ndarray:
 
 
 def _blend_free(checker: _Checker | _Certifier, blend: PathCurve, step: float
-                ) -> tuple[bool, Any]:
+                ) -> tuple[bool, Certificate | None]:
     # (free, the certificate when a certifier decided)
     if hasattr(checker, "pieces"):
         cert = checker.pieces(blend.starts, blend.u1, blend.u2, blend.lengths)
