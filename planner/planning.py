@@ -48,6 +48,12 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE
 # path found is then certified over its whole length (and re-planned with certified
 # edges in the rare case it grazes between samples)
 PLAN_STEP = 0.01
+# [m] detours are first searched and shortcut with every moving pair kept this much
+# farther apart than the clearance, as far as the OBB trees alone can prove (no FCL):
+# paths that do not hug the robot or the scene are proven with long certification steps
+# instead of thousands of exact distances, and leave the servos room to track. Where no
+# such path exists (ends or passages closer than this), the search runs without it.
+ROOM = 0.002
 
 
 def available_planners() -> tuple[str, ...]:
@@ -127,6 +133,11 @@ class PathResult:
     certificate: Certificate | None = None
 
 
+def _dedupe(path: np.ndarray) -> np.ndarray:
+    keep = np.concatenate([[True], np.abs(np.diff(path, axis=0)).max(axis=1) > 0])
+    return path[keep]
+
+
 def _path_length(path: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
 
@@ -140,14 +151,18 @@ class PathPlanner:
         step: the largest joint step [rad] when checking an edge while planning.
         certify_edges: accept only edges certified free over their whole length (else
             edges are sampled at ``step`` and the found path is certified afterwards).
+        room: detours are searched first with this much room [m] (see ``ROOM``); 0 never.
     """
 
     def __init__(self, world: CollisionWorld, description: Description, *,
-                 step: float = PLAN_STEP, certify_edges: bool = False) -> None:
+                 step: float = PLAN_STEP, certify_edges: bool = False,
+                 room: float = ROOM) -> None:
         self.world = world
         self.description = description
         self.step = step
         self.certify_edges = certify_edges
+        self.room = room
+        self._roomy: dict[tuple[str, ...], CollisionWorld] = {}
         self.certifier = Certifier(world)
         # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
         self.proof = Certifier(world, fraction=0.5)
@@ -166,7 +181,25 @@ class PathPlanner:
             raise InvalidRequest(f"'{group}' is not a group ({', '.join(self._groups)})",
                                  field="group") from None
 
-    def _edge_free(self, a: np.ndarray, b: np.ndarray) -> bool:
+    def roomy(self, joints: tuple[str, ...]) -> CollisionWorld:
+        """The world detours of ``joints`` are first searched in: every pair they move
+        kept ``room`` farther apart, by the trees alone; pairs they do not move are left
+        to the exact world (a gripper's fingers stay as close as they are)."""
+        w = self._roomy.get(joints)
+        if w is None:
+            cols = [self.world.kin.joint_names.index(j) for j in joints]
+            rigid = [self.world.pair_names[p] for p in range(len(self.world.pair_names))
+                     if self.world._weight[p, cols].max() < 1e-9]
+            w = self._roomy[joints] = self.world.with_scene(
+                self.world.obstacles, padding=self.world.padding + self.room,
+                narrow_phase=False,
+                acm=self.world.acm.with_pairs(rigid, reason="Rigid in the group"))
+        return w
+
+    def _edge_free(self, a: np.ndarray, b: np.ndarray, world: CollisionWorld | None = None
+                   ) -> bool:
+        if world is not None:
+            return sampled_motion_valid(world, a, b, self.step)
         if self.certify_edges:
             return motion_valid(self.certifier, a, b, self.step)
         return sampled_motion_valid(self.world, a, b, self.step)
@@ -226,12 +259,12 @@ class PathPlanner:
         straight = path is not None
         planner_name = "straight line"
         if path is None:
-            path = self._plan(request, start, goals, joints)
+            path, room = self._detour(request, start, goals, joints)
             planner_name = request.planner
         t3 = time.perf_counter()
         timings["plan"] = t3 - t2
         if not straight:
-            path = self._shortcut(path, seed=request.seed)
+            path = self._shortcut(path, seed=request.seed, world=room)
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
         cert = self.proof.path(path)
@@ -261,8 +294,58 @@ class PathPlanner:
                           checks=self.world.checks - checks0, straight_line=straight,
                           length=_path_length(path), certificate=cert)
 
+    def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
+                joints: tuple[str, ...]) -> tuple[np.ndarray, CollisionWorld | None]:
+        # With room first (half the budget), then without. An end that lacks the room
+        # (a start a hair from the base) is joined by a short free edge to a nearby state
+        # that has it, so only that edge comes close. Returns the path and the roomy
+        # world it was found in (None: without room).
+        budget = float(req.planning_time)
+        if self.room > 0 and not self.certify_edges:
+            roomy = self.roomy(joints)
+            cols = np.array([self.world.kin.joint_names.index(j) for j in joints])
+            rng = np.random.default_rng(req.seed)
+            head = self._escape(start, goals[0], cols, roomy, rng)
+            tails = [(g, self._escape(g, start, cols, roomy, rng)) for g in goals]
+            tails = [(g, e) for g, e in tails if e is not None]
+            if head is not None and tails:
+                t0 = time.perf_counter()
+                try:
+                    mid = self._plan(req, head, np.array([e for _, e in tails]), joints,
+                                     roomy, budget / 2)
+                except NoPathFound:
+                    budget -= time.perf_counter() - t0
+                    _log.info("no detour with %.1f mm of room; searching without",
+                              1e3 * self.room)
+                else:
+                    goal = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))[0]
+                    path = np.vstack([start, mid, goal])
+                    return _dedupe(path), roomy
+        return self._plan(req, start, goals, joints, None, budget), None
+
+    def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
+                roomy: CollisionWorld, rng: np.random.Generator) -> np.ndarray | None:
+        # ``end`` if it has the room, else the first state with room that a free
+        # straight edge reaches from it: towards ``toward`` first, then seeded random
+        # directions of the group's joints, each at growing distances [rad]
+        if roomy.is_valid(end):
+            return end
+        lim = self._limits[cols]
+        dirs = [toward[cols] - end[cols]] + list(rng.normal(size=(8, len(cols))))
+        for r in (0.05, 0.1, 0.2, 0.4):
+            for d in dirs:
+                n = float(np.linalg.norm(d))
+                if n == 0:
+                    continue
+                e = end.copy()
+                e[cols] = np.clip(end[cols] + r * d / n, lim[:, 0], lim[:, 1])
+                if roomy.is_valid(e) and self._edge_free(end, e):
+                    return e
+        return None
+
     def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
-              joints: tuple[str, ...]) -> np.ndarray:
+              joints: tuple[str, ...], roomy: CollisionWorld | None, budget: float
+              ) -> np.ndarray:
         names = self.world.kin.joint_names
         gidx = np.array([names.index(j) for j in joints], dtype=np.int64)
         if req.seed is not None:
@@ -276,8 +359,8 @@ class PathPlanner:
         ss = og.SimpleSetup(space)
         si = ss.getSpaceInformation()
         codec = StateCodec(gidx, start)
-        svc = ValidityChecker(si, self.world, codec)
-        mv = MotionChecker(si, self._edge_free, codec)
+        svc = ValidityChecker(si, roomy or self.world, codec)
+        mv = MotionChecker(si, lambda a, b: self._edge_free(a, b, roomy), codec)
         ss.setStateValidityChecker(svc)
         si.setMotionValidator(mv)
         s = si.allocState()
@@ -292,7 +375,7 @@ class PathPlanner:
         planner = getattr(og, req.planner)(si)
         ss.setPlanner(planner)
         ss.setup()
-        status = ss.solve(float(req.planning_time))
+        status = ss.solve(budget)
         if not ss.haveExactSolutionPath():
             raise NoPathFound(f"{req.planner} found no path in {req.planning_time:g} s "
                               f"({status})", details={"planner": req.planner,
@@ -304,14 +387,14 @@ class PathPlanner:
         return out
 
     def _shortcut(self, path: np.ndarray, *, seed: int | None, attempts: int = 40,
-                  patience: int = 8) -> np.ndarray:
+                  patience: int = 8, world: CollisionWorld | None = None) -> np.ndarray:
         """Drop waypoints a straight segment can skip, then random shortcuts (seeded),
         stopping after ``attempts`` or ``patience`` attempts in a row that gained nothing."""
         path = [p for p in path]
         i = 0
         while i < len(path) - 2:  # greedy vertex reduction from the start
             j = len(path) - 1
-            while j > i + 1 and not self._edge_free(path[i], path[j]):
+            while j > i + 1 and not self._edge_free(path[i], path[j], world):
                 j -= 1
             del path[i + 1:j]
             i += 1
@@ -335,7 +418,7 @@ class PathPlanner:
                    + np.linalg.norm(qb - pts[ib]))
             if np.linalg.norm(qb - qa) >= old - 1e-9:
                 continue
-            if self._edge_free(qa, qb):
+            if self._edge_free(qa, qb, world):
                 pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
                 idle = 0
         return pts

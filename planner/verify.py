@@ -173,26 +173,40 @@ class Verifier:
         return (t, *traj.evaluate(t))
 
     def limit_states(self, traj: JointTrajectory
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(times, q, qd, qdd) on a uniform time grid for the limits alone (collisions
-        proven otherwise): a step of 1% of the shortest time any joint needs to change
-        its velocity or acceleration by its full limit (``v/a``, ``a/j``), at least
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """(times, q, qd, qdd, stride) on a uniform time grid for the limits alone
+        (collisions proven otherwise): a step of 1% of the shortest time any joint needs to
+        change its velocity or acceleration by its full limit (``v/a``, ``a/j``), at least
         0.25 ms and at most the sample interval. Between two grid states a velocity or
         acceleration that keeps the next limit can pass its grid maximum by at most 0.5% of
-        its own limit (half a step at the next limit's rate)."""
+        its own limit (half a step at the next limit's rate). Joints the trajectory never
+        moves (a closed gripper during an arm motion) have nothing to resolve and do not
+        set the step.
+
+        Effort (``M(q) qdd + c(q, qd) + g(q)``) changes at the rate of acceleration, so
+        every ``stride``-th state (and the last) suffices for it: a step of 1% of the
+        shortest ``a/j``.
+        """
         if traj.duration <= 0.0:
             t = np.array([0.0])
-            return (t, *traj.evaluate(t))
+            return (t, *traj.evaluate(t), 1)
         lim = self.limits
-        rise = np.concatenate([np.asarray(lim.velocity, float) / np.asarray(lim.acceleration, float),
-                               np.asarray(lim.acceleration, float) / np.asarray(lim.jerk, float)])
-        rise = rise[np.isfinite(rise) & (rise > 0)]
+        moving = np.any(np.asarray(traj.velocities) != 0.0, axis=0) | (
+            np.ptp(np.asarray(traj.positions), axis=0) > 0.0)
+        va = (np.asarray(lim.velocity, float) / np.asarray(lim.acceleration, float))[moving]
+        aj = (np.asarray(lim.acceleration, float) / np.asarray(lim.jerk, float))[moving]
         h_samples = float(np.max(np.diff(traj.times))) if len(traj.times) > 1 else traj.duration
-        h = 0.01 * float(rise.min()) if len(rise) else h_samples
-        h = min(max(h, 2.5e-4), h_samples)
+
+        def step(rise: np.ndarray) -> float:
+            rise = rise[np.isfinite(rise) & (rise > 0)]
+            h = 0.01 * float(rise.min()) if len(rise) else h_samples
+            return min(max(h, 2.5e-4), h_samples)
+
+        h = step(np.concatenate([va, aj]))
         n = max(2, int(math.ceil(traj.duration / h)) + 1)
         t = np.linspace(0.0, traj.duration, n)
-        return (t, *traj.evaluate(t))
+        stride = max(1, int(step(aj) / (traj.duration / (n - 1))))
+        return (t, *traj.evaluate(t), stride)
 
     def _thin(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -229,10 +243,15 @@ class Verifier:
         t, q, qd, qdd = traj.times, traj.positions, traj.velocities, traj.accelerations
         # fine states: every limit between samples; thinned dense states: collisions
         # (a certificate proves those: then the grid need only resolve the limits)
-        fine = self.fine_states(traj) if certificate is None else self.limit_states(traj)
+        if certificate is None:
+            fine, stride = self.fine_states(traj), 1
+        else:
+            *fine, stride = self.limit_states(traj)
         _, qf, qdf, qddf = fine
         tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
-        tau_dense = np.asarray(self.dynamics.torques_batch(qf, qdf, qddf), float)
+        pick = np.unique(np.append(np.arange(0, len(qf), stride), len(qf) - 1))
+        tau_dense = np.asarray(self.dynamics.torques_batch(qf[pick], qdf[pick], qddf[pick]),
+                               float)
         jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
             else np.zeros((0, q.shape[1]))
         ratios = {

@@ -85,3 +85,20 @@ def test_link_trees_are_cached_by_content(tmp_path):
     assert sorted((tmp_path / "obb-tree").glob("*.npz")) == files
     q = np.array([0.3, 0.5, -0.2, -0.4])
     assert again.check(q) == first.check(q)
+
+
+def test_without_narrow_phase_a_world_is_conservative(d):
+    # trees alone: never accepts a state the exact world refuses (at its padding), and
+    # refuses some free ones near contact - the price of asking no FCL
+    lim = d.robot.position_limits()
+    qs = np.random.default_rng(5).uniform(lim[:, 0], lim[:, 1], size=(300, 4))
+    for pad in (0.0, 0.002):
+        exact = CollisionWorld(d, padding=pad)
+        trees = exact.with_scene((), narrow_phase=False)
+        assert not trees.narrow_phase and trees.padding == pad
+        verdicts = [(exact.is_valid(q), trees.is_valid(q)) for q in qs]
+        assert not any(t and not e for e, t in verdicts)
+        assert any(e and not t for e, t in verdicts)
+        assert any(t for _, t in verdicts)
+        i = trees.first_invalid(qs)
+        assert i == next(k for k, (_, t) in enumerate(verdicts) if not t)

@@ -80,3 +80,29 @@ def test_no_path_found(env):
     del wall
     with pytest.raises((NoPathFound, StartInCollision)):
         pp.solve(PathRequest(start=START, goal=GOAL, planning_time=0.2, seed=1))
+
+
+def test_detours_keep_room_where_the_ends_allow(env):
+    # the start grazes the pillar (inside the room): a short free edge leaves it, the
+    # rest of the detour keeps the room, and the whole path is certified
+    d, w, pp = env
+    roomy = pp.roomy(("joint_1", "joint_2", "joint_3"))
+    assert roomy.padding == pytest.approx(w.padding + pp.room) and not roomy.narrow_phase
+    # pillar pairs only: the fingers do not move relative to each other in the arm group
+    assert ("gripper_right", "gripper_left") not in roomy.pair_names
+    near = None
+    for a in np.linspace(1.2, 0.0, 600):
+        q = np.array([a, -0.6, -0.6, 0.0])
+        if not w.is_valid(q):
+            break
+        near = q
+    assert near is not None and not roomy.is_valid(near)
+    r = pp.solve(PathRequest(start=near, goal=GOAL, seed=5))
+    assert not r.straight_line and r.certificate.free
+    assert np.array_equal(r.path[0], near) and np.allclose(r.path[-1], GOAL_Q())
+    assert all(roomy.is_valid(q) for q in r.path[1:])
+    assert roomy.first_invalid(interpolate(r.path[1:], 0.01)) == -1
+    strict = PathPlanner(w, d, room=0.0).solve(PathRequest(start=near, goal=GOAL, seed=5))
+    assert strict.certificate.free
+    # the room shows in the proof: a path that keeps it needs fewer exact distances
+    assert r.certificate.exact <= strict.certificate.exact

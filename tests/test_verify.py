@@ -116,3 +116,32 @@ def test_with_a_certificate_limits_are_still_checked_between_samples():
     rep = Verifier(lim, DYN, WORLD).verify(traj, enforce_jerk=False, certificate=proof)
     assert rep.certified and rep.collision_free and rep.min_clearance == 0.01
     assert not rep.ok and rep.violations == ("effort",)
+
+
+def test_limit_grid_ignores_joints_that_do_not_move_and_thins_effort():
+    from types import SimpleNamespace
+    arm_only = WP.copy()
+    arm_only[:, 3] = 0.0  # the gripper stays closed
+    traj = _traj(wp=arm_only)
+    ver = Verifier(LIMITS, DYN, WORLD)
+    t, q, qd, qdd, stride = ver.limit_states(traj)
+    # a gripper with a 100x shorter v/a than the arm's does not shrink the grid ...
+    fast = SimpleNamespace(**{k: np.array(getattr(LIMITS, k), float) for k in
+                              ("lower", "upper", "velocity", "acceleration", "jerk", "effort")})
+    fast.acceleration[3] *= 100.0
+    fast.jerk[3] *= 100.0
+    t2, *_, stride2 = Verifier(fast, DYN, WORLD).limit_states(traj)
+    assert len(t2) == len(t) and stride2 == stride
+    # ... but it does when the gripper moves
+    moving = _traj()
+    assert len(Verifier(fast, DYN, WORLD).limit_states(moving)[0]) > \
+        len(ver.limit_states(moving)[0])
+    # the grid is 1% of the shortest v/a or a/j rise; effort every stride-th state at
+    # 1% of the shortest a/j
+    lim = LIMITS
+    h = np.diff(t).max()
+    rise = min(np.min(np.asarray(lim.velocity) / np.asarray(lim.acceleration)),
+               np.min(np.asarray(lim.acceleration) / np.asarray(lim.jerk)))
+    assert h <= max(0.01 * rise, 2.5e-4) + 1e-12
+    assert stride >= 1 and stride * h <= 0.01 * np.min(
+        np.asarray(lim.acceleration) / np.asarray(lim.jerk)) + 1e-12
