@@ -107,6 +107,11 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
     end = np.empty(dof)
+    # the smallest clearance certified so far, any pair: no step need prove more (the
+    # certified minimum is the same, the steps longer)
+    low = np.inf
+    for i in range(best.shape[0]):
+        low = min(low, best[i])
     for p in range(p0, pairs.shape[0]):
         k = k0 if p == p0 else 0
         s = s0 if p == p0 else 0.0
@@ -147,7 +152,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                     request[0], request[1], request[2] = p, k, s
                     return _BUDGET
                 measured = d
-            covered = max(clear + GAP / 2, fraction * d)
+            covered = max(clear + GAP / 2, min(fraction * d, low))
             reach = (d - covered) / speed
             left_on_piece = length - s
             carry = -1.0
@@ -166,6 +171,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 s += reach
             if covered < best[p]:
                 best[p] = covered
+                low = min(low, covered)
     return _DONE
 
 

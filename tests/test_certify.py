@@ -172,3 +172,18 @@ def test_combined_certificates_keep_the_worst_and_the_first_failure():
     assert not worst.free and worst.failure == bad.failure and worst.closest == ("e", "f")
     with pytest.raises(ValueError):
         combine([])
+
+
+def test_steps_after_the_closest_point_prove_no_more_than_it(needle):
+    # once a clearance is certified, no later step proves more than it: a motion that
+    # starts at its closest point needs fewer bounds than the same motion reversed
+    # (fraction 0.5 would prove half of every bound), and still certifies about half
+    # the true gap
+    c = Certifier(needle, fraction=0.5)
+    away = c.path(np.array([[0.09], [-0.8]]))
+    back = c.path(np.array([[-0.8], [0.09]]))
+    assert away.free and back.free and away.closest == back.closest == ("needle", "plate")
+    true_gap = needle.check(np.array([0.09]), clearance=True).clearance
+    for cert in (away, back):
+        assert 0.45 * true_gap <= cert.certified_clearance <= true_gap
+    assert away.bounds < 0.75 * back.bounds
