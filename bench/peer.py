@@ -53,7 +53,8 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from clients import errors  # noqa: E402, I001
-from clients.client import PlannerClient, PlanResult  # noqa: E402
+from clients.client import PlannerClient  # noqa: E402
+from clients.replies import PlanReply  # noqa: E402
 from planner.certify import Certifier  # noqa: E402
 from planner.curve import build_curve  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
@@ -95,7 +96,7 @@ def plan_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: l
 def run_service(model: PeerModel, probs_of: dict[str, list], names: tuple[str, ...],
                 cache: Path, args: argparse.Namespace
                 ) -> tuple[dict[str, list], dict[str, Any]]:
-    """Every problem through a real ``arduinobot serve``: per scene [(wall s, PlanResult
+    """Every problem through a real ``arduinobot serve``: per scene [(wall s, PlanReply
     or the error's class name)], and the service's ``/description``."""
     t0 = time.perf_counter()
     srv = start_server(["--workers", "2", *model.serve_args, "--cache-dir", str(cache)],
@@ -120,7 +121,7 @@ def run_service(model: PeerModel, probs_of: dict[str, list], names: tuple[str, .
                     body = plan_body(names, a, b, obs, i, args)
                     t = time.perf_counter()
                     try:
-                        res: PlanResult | str = c.plan(body)
+                        res: PlanReply | str = c.plan(body)
                     except errors.ServiceError as e:
                         res = type(e).__name__
                     rows.append((time.perf_counter() - t, res))
@@ -224,8 +225,8 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                  for k in STAGES}
         share = median([r.timing["verify"] / r.timing["total"] for r in ok])
         overhead = median([w - r.timing["total"] for w, r in rows_ if not isinstance(r, str)])
-        clear = [r.verification["min_clearance"] for r in ok
-                 if r.verification.get("min_clearance") is not None]
+        clear = [r.verification.min_clearance for r in ok
+                 if r.verification.min_clearance is not None]
         durs = [r.duration for r in ok]
         ratios = [r.duration / t for r, t in zip(ok, toppra[scene]) if t]
         obs = obstacle_dicts(list(SCENES[scene]))
@@ -238,7 +239,7 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
             "ours": {"success": len(ok) / len(rows_), "failures": fails, **ms(walls),
                      "stage_median_ms": stage, "verify_share_median": share,
                      "wire_overhead_ms_median": None if overhead is None else 1e3 * overhead,
-                     "certified_all": all(r.verification.get("certified") for r in ok),
+                     "certified_all": all(r.verification.certified for r in ok),
                      "min_clearance_m": {"min": min(clear) if clear else None,
                                          "median": median(clear)},
                      "duration_s_median": median(durs),

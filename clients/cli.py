@@ -28,6 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for mod in _COMMANDS:
         mod.register(sub)
+    for sp in sub.choices.values():  # a usage error names its command, as argparse's do
+        sp.set_defaults(command_parser=sp)
     return p
 
 
@@ -41,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
                                              or getattr(ns, "local", False)):
         from planner.planning import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
-    return run_guarded(ns.func, ns)
+    return run_guarded(ns, ns.command_parser)
 
 
 if __name__ == "__main__":

@@ -5,7 +5,8 @@
         res = c.plan({"goal": {"named": "reach_forward"}})
         print(res.duration, res.positions.shape)
 
-Every service error raises its own class (:mod:`clients.errors`); no reply at all raises
+Each reply comes back as its frozen dataclass (:mod:`clients.replies`: PlanReply, FkReply,
+IkReply, CheckReply), checked against its schema. Every service error raises its own class (:mod:`clients.errors`); no reply at all raises
 :class:`~clients.errors.ServiceUnavailable` with a hint (and says when the connection
 itself is down, e.g. a router restarting). With ``spread=True`` each request goes to the
 least loaded live instance (:mod:`clients.balance`: liveliness on ``<prefix>/alive/*``,
@@ -18,11 +19,9 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
 import orjson
 import zenoh
 
@@ -30,123 +29,12 @@ from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
 
 from .balance import LoadBalancer
 from .errors import ServiceBusy, ServiceUnavailable, error_from_reply
+from .replies import CheckReply, FkReply, IkReply, PlanReply
 
 _log = logging.getLogger(__name__)
 
 _HINT = ("start one with `arduinobot serve` (or `./dev arduinobot serve`), or check the "
          "endpoint (--connect) and the prefix")
-
-
-@dataclass(frozen=True)
-class TrajectoryPoint:
-    positions: tuple[float, ...]        # [rad]
-    velocities: tuple[float, ...]       # [rad/s]
-    accelerations: tuple[float, ...]    # [rad/s^2]
-    effort: tuple[float, ...]           # [N m]
-    time_from_start: float              # [s]
-
-
-@dataclass(frozen=True)
-class PlanResult:
-    """A planned trajectory of the actuated joints.
-
-    Attributes:
-        joint_names: column order of every array.
-        points: the samples; ``times``/``positions``/... give them as arrays, shape (m, dof).
-        duration: [s]. path: collision-checked waypoints, shape (k, dof) [rad].
-        timing: seconds per stage. verification: the service's verification report.
-        raw: the reply as received.
-    """
-
-    joint_names: tuple[str, ...]
-    points: tuple[TrajectoryPoint, ...]
-    duration: float
-    path: np.ndarray
-    timing: Mapping[str, float]
-    verification: Mapping[str, Any]
-    planner: str
-    request_id: str
-    raw: Mapping[str, Any]
-
-    @classmethod
-    def from_json(cls, body: Mapping[str, Any]) -> PlanResult:
-        t = body["trajectory"]
-        pts = tuple(TrajectoryPoint(tuple(p["positions"]), tuple(p["velocities"]),
-                                    tuple(p["accelerations"]), tuple(p["effort"]),
-                                    float(p["time_from_start"])) for p in t["points"])
-        return cls(tuple(t["joint_names"]), pts, float(body["duration"]),
-                   np.array(body["path"], float).reshape(-1, len(t["joint_names"])),
-                   dict(body["timing"]), dict(body["verification"]),
-                   str(body.get("planner", "")), str(body.get("request_id", "")), body)
-
-    def to_csv(self) -> str:
-        """One row per sample: time_from_start, then position, velocity, acceleration and
-        effort of each joint (``<joint>.position``, ...)."""
-        header = ["time_from_start"] + [f"{n}.{kind}" for kind in
-                                        ("position", "velocity", "acceleration", "effort")
-                                        for n in self.joint_names]
-        rows = [",".join(header)]
-        for p in self.points:
-            vals = (p.time_from_start, *p.positions, *p.velocities, *p.accelerations,
-                    *p.effort)
-            rows.append(",".join(repr(float(v)) for v in vals))
-        return "\n".join(rows) + "\n"
-
-    def _arr(self, attr: str) -> np.ndarray:
-        return np.array([getattr(p, attr) for p in self.points], float)
-
-    @property
-    def times(self) -> np.ndarray:
-        return np.array([p.time_from_start for p in self.points], float)
-
-    @property
-    def positions(self) -> np.ndarray:
-        return self._arr("positions")
-
-    @property
-    def velocities(self) -> np.ndarray:
-        return self._arr("velocities")
-
-    @property
-    def accelerations(self) -> np.ndarray:
-        return self._arr("accelerations")
-
-    @property
-    def efforts(self) -> np.ndarray:
-        return self._arr("effort")
-
-
-@dataclass(frozen=True)
-class Pose:
-    xyz: tuple[float, float, float]     # [m]
-    rpy: tuple[float, float, float]     # [rad]
-    matrix: np.ndarray                  # shape (4, 4)
-
-
-@dataclass(frozen=True)
-class FkResult:
-    joints: Mapping[str, float]
-    links: Mapping[str, Pose]
-    tcp: tuple[float, float, float] | None
-    request_id: str
-
-
-@dataclass(frozen=True)
-class IkSolution:
-    joints: Mapping[str, float]
-    branch: str
-
-
-@dataclass(frozen=True)
-class StateCheckResult:
-    """``valid`` and every colliding ``pairs``; ``clearance`` [m] to the ``closest`` pair."""
-
-    valid: bool
-    pairs: tuple[tuple[str, str], ...]
-    clearance: float | None
-    closest: tuple[str, str] | None
-    joints: Mapping[str, float]
-    request_id: str
 
 
 class PlannerClient:
@@ -212,6 +100,7 @@ class PlannerClient:
             body: the request (a mapping is JSON-encoded; bytes/str go as they are).
             instance: address one instance (default: the shared key, or with ``spread``
                 the least loaded live instance).
+            timeout: seconds to wait (default: the client's, plus a plan's planning_time).
 
         Raises:
             ServiceError subclasses for error replies; ServiceUnavailable for none.
@@ -222,7 +111,10 @@ class PlannerClient:
             payload = body.encode()
         else:
             payload = body
-        wait = self.timeout if timeout is None else float(timeout)
+        if timeout is not None:
+            wait = float(timeout)
+        else:
+            wait = self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
         if instance is not None:
             key = f"{self.prefix}/instance/{instance}/{kind}"
         else:
@@ -235,7 +127,7 @@ class PlannerClient:
         replies = self._get(key, payload, wait)
         if not replies:
             raise self._no_reply(key)
-        return _decode(replies[0], key, wait)
+        return decode_reply(replies[0], key, wait)
 
     def _spread(self, kind: str, payload: bytes | None, wait: float) -> dict[str, Any] | None:
         """The reply of the least loaded instance that answers and is not BUSY, trying
@@ -252,7 +144,7 @@ class PlannerClient:
                 self.balancer.forget(inst)
                 continue
             try:
-                return _decode(replies[0], key, wait)
+                return decode_reply(replies[0], key, wait)
             except ServiceBusy as e:  # its queue is full: another may have room
                 busy = e
         if busy is not None:
@@ -276,50 +168,41 @@ class PlannerClient:
                                      encoding="application/json" if payload else None))
 
     def plan(self, request: Mapping[str, Any] | None = None, *,
-             instance: str | None = None, **fields: Any) -> PlanResult:
+             instance: str | None = None, **fields: Any) -> PlanReply:
         """Plan: a whole v1 request, or its fields as keywords (``goal={"named": "home"}``).
 
         Raises:
             InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
-            TrajectoryFailed, RequestTimeout, ServiceBusy, InternalError, ServiceUnavailable.
+            TrajectoryFailed, RequestTimeout, ServiceBusy, InternalError, ServiceUnavailable,
+            MalformedReply.
         """
-        req = {**(request or {}), **fields}
-        wait = self.timeout + _planning_time(req)
-        return PlanResult.from_json(self.request("plan", req, instance=instance,
-                                                 timeout=wait))
+        return PlanReply.parse(self.request("plan", {**(request or {}), **fields},
+                                            instance=instance))
 
     def fk(self, joints: Mapping[str, float] | None = None, *,
-           links: Sequence[str] | None = None) -> FkResult:
+           links: Sequence[str] | None = None) -> FkReply:
         """Link poses at ``joints`` [rad] (missing joints are 0)."""
         req: dict[str, Any] = {"joints": dict(joints or {})}
         if links is not None:
             req["links"] = list(links)
-        b = self.request("fk", req)
-        links = {k: Pose(tuple(v["xyz"]), tuple(v["rpy"]), np.array(v["matrix"]))
-                 for k, v in b["links"].items()}
-        return FkResult(b["joints"], links,
-                        None if b.get("tcp") is None else tuple(b["tcp"]), b["request_id"])
+        return FkReply.parse(self.request("fk", req))
 
-    def ik(self, position: Sequence[float]) -> tuple[IkSolution, ...]:
+    def ik(self, position: Sequence[float]) -> IkReply:
         """Every IK branch putting the tcp at ``position`` [m] (GoalOutOfReach if none)."""
-        b = self.request("ik", {"position": [float(v) for v in position]})
-        return tuple(IkSolution(s["joints"], s["branch"]) for s in b["solutions"])
+        return IkReply.parse(self.request("ik", {"position": [float(v) for v in position]}))
 
     def check_state(self, joints: Mapping[str, float] | None = None, *,
                     obstacles: Sequence[Mapping[str, Any]] = (),
-                    padding: float = 0.0) -> StateCheckResult:
+                    padding: float = 0.0) -> CheckReply:
         """Whether a state is collision-free among ``obstacles``, with clearance [m]."""
         req: dict[str, Any] = {"joints": dict(joints or {})}
         if obstacles:
             req["obstacles"] = list(obstacles)
         if padding:
             req["padding"] = padding
-        b = self.request("check", req)
-        return StateCheckResult(bool(b["valid"]), tuple(tuple(p) for p in b["pairs"]),
-                                b.get("clearance"),
-                                None if b.get("closest") is None else tuple(b["closest"]),
-                                b["joints"], b["request_id"])
+        return CheckReply.parse(self.request("check", req))
 
+    # these three have no response schema: their replies come as they are
     def health(self, *, instance: str | None = None) -> dict[str, Any]:
         return self.request("health", instance=instance)
 
@@ -330,12 +213,17 @@ class PlannerClient:
         return self.request("schema")
 
 
-def _planning_time(req: Mapping[str, Any]) -> float:
-    v = req.get("planning_time", 1.0)
+def _planning_time(req: object) -> float:
+    v = req.get("planning_time", 1.0) if isinstance(req, Mapping) else 1.0
     return float(v) if isinstance(v, (int, float)) and 0 < v <= 60 else 1.0
 
 
-def _decode(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
+def decode_reply(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
+    """The JSON object of a reply on ``key`` (that waited ``wait`` seconds).
+
+    Raises:
+        ServiceError: the subclass of an error reply; ServiceUnavailable for Zenoh's own.
+    """
     if reply.ok is not None:
         return orjson.loads(reply.ok.payload.to_bytes())  # strict JSON, ~3x json's speed
     err = reply.err

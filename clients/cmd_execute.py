@@ -15,7 +15,16 @@ import uuid
 from pathlib import Path
 from typing import Any
 
-from .common import EXIT_FAIL, EXIT_OK, add_connection_args, add_model_args, model_options
+from .argtypes import UsageError, json_object
+from .common import (
+    EXIT_OK,
+    add_connection_args,
+    add_model_args,
+    client,
+    connect,
+    endpoints,
+    local_description,
+)
 
 EXIT_CANCELLED = 130
 log = logging.getLogger(__name__)
@@ -42,8 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="a plan reply (plan --json) or a {joint_names, points} trajectory")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--named", metavar="NAME", help="plan to a named SRDF state first")
-    src.add_argument("--request", metavar="REQ.json", help="plan this v1 request first "
-                     "(without a start, from the robot's state)")
+    src.add_argument("--request", metavar="REQ.json", type=json_object,
+                     help="plan this v1 request first (without a start, from the robot's "
+                     "state)")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--serial", nargs="?", const="", metavar="PORT",
                        help="the real arm on PORT (default: the URDF's ros2_control "
@@ -53,13 +63,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="the service's robot (<prefix>/execute; `serve --serial` or its "
                        "twin); a lost client stops the arm")
     r = p.add_argument_group("robot")
-    r.add_argument("--baud", type=int, default=None, help="serial baud rate (default "
-                   "115200, or the URDF's baud_rate param)")
-    r.add_argument("--rate", type=float, default=100.0, metavar="HZ",
-                   help="control rate (default 100)")
-    r.add_argument("--boot-wait", type=float, default=2.0, metavar="S",
-                   help="seconds to wait after opening the port: an Arduino resets when "
-                   "the port opens (default 2)")
+    _add_robot_args(r)
     pace = r.add_mutually_exclusive_group()
     pace.add_argument("--realtime", dest="realtime", action="store_true", default=True,
                       help="pace the twin in real time (default)")
@@ -82,7 +86,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--description", metavar="PATH", dest="description_path",
                    help="the robot's URDF/xacro (default: the shipped arduinobot)")
     add_model_args(p, file_arg=False)
-    p.set_defaults(func=_guarded)
+    p.set_defaults(func=cmd_execute)
 
 
 def add_serve_args(p: argparse.ArgumentParser) -> None:
@@ -93,11 +97,17 @@ def add_serve_args(p: argparse.ArgumentParser) -> None:
                    help="drive the real arm on PORT (default: the URDF's ros2_control "
                    "port); default: the MuJoCo twin")
     w.add_argument("--no-robot", action="store_true", help="serve no <prefix>/execute robot")
-    g.add_argument("--baud", type=int, default=None, help="serial baud rate (default 115200)")
+    _add_robot_args(g)
+
+
+def _add_robot_args(g: argparse._ArgumentGroup) -> None:
+    g.add_argument("--baud", type=int, default=None, help="serial baud rate (default "
+                   "115200, or the URDF's baud_rate param)")
     g.add_argument("--rate", type=float, default=100.0, metavar="HZ",
                    help="control rate (default 100)")
     g.add_argument("--boot-wait", type=float, default=2.0, metavar="S",
-                   help="seconds to wait after opening the port (the Arduino resets)")
+                   help="seconds to wait after opening the port: an Arduino resets when "
+                   "the port opens (default 2)")
 
 
 def robot_spec(ns: argparse.Namespace) -> Any:
@@ -111,60 +121,38 @@ def robot_spec(ns: argparse.Namespace) -> Any:
     return RobotSpec(kind="sim", rate=ns.rate)
 
 
-def _guarded(ns: argparse.Namespace) -> int:
-    from planner.errors import PlanningError
-
-    from .errors import ServiceError, ServiceUnavailable
-    from .robots import RobotError
-    try:
-        return cmd_execute(ns)
-    except ServiceUnavailable as e:
-        print(f"arduinobot: service unavailable ({e.reason}): {e.message}", file=sys.stderr)
-        return 3
-    except (ServiceError, PlanningError, RobotError) as e:
-        print(f"arduinobot: {e.code}: {e.message}", file=sys.stderr)
-        details = {k: v for k, v in e.details.items() if k != "request_id"}
-        if details:
-            print(f"  details: {json.dumps(details, default=str)[:2000]}", file=sys.stderr)
-        return EXIT_FAIL
-
-
-def _endpoints(ns: argparse.Namespace) -> list[str]:
-    return ns.connect or ["tcp/127.0.0.1:7447"]
-
-
 def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
+    """The plan request of --named/--request (None: TRAJ.json is the trajectory).
+
+    Raises:
+        UsageError: flags that do not go together.
+    """
     if ns.trajectory and (ns.named or ns.request):
-        raise SystemExit("arduinobot: error: give TRAJ.json or --named/--request, not both")
+        raise UsageError("give TRAJ.json or --named/--request, not both")
+    if not (ns.trajectory or ns.named or ns.request):
+        raise UsageError("give TRAJ.json, --named or --request")
+    if not ns.realtime and not ns.sim:
+        raise UsageError("--fast is for --sim: hardware runs in real time")
+    if ns.blend and not (ns.remote and (ns.named or ns.request)):
+        raise UsageError("--blend needs --remote and a goal (--named/--request)")
     if ns.named:
         return {"goal": {"named": ns.named}}
-    if ns.request:
-        req = json.loads(Path(ns.request).read_text("utf-8"))
-        if not isinstance(req, dict):
-            raise SystemExit(f"arduinobot: error: {ns.request} must hold a JSON object")
-        return req
-    if not ns.trajectory:
-        raise SystemExit("arduinobot: error: give TRAJ.json, --named or --request")
-    return None
+    return ns.request
 
 
 def cmd_execute(ns: argparse.Namespace) -> int:
     req = _plan_request(ns)
     if ns.remote:
         return _remote(ns, req)
-    from description import load_description
-
     from .execute import ExecuteOptions, Executor, plan_start
+    from .replies import PlanReply
     from .segments import SampledTrajectory
-    desc = load_description(ns.description_path, **model_options(ns))  # type: ignore[arg-type]
+    desc = local_description(ns)
     obstacles = (req or {}).get("obstacles", [])
     if ns.sim:
         from .robots.sim_arduinobot import SimArduinobot
         robot: Any = SimArduinobot(desc, obstacles=obstacles)
     else:
-        if not ns.realtime:
-            raise SystemExit("arduinobot: error: --fast is for --sim: hardware runs in "
-                             "real time")
         from .robots.serial_arduinobot import SerialArduinobot
         robot = SerialArduinobot.from_description(desc, ns.serial or None, baud=ns.baud,
                                                   rate=ns.rate, boot_wait=ns.boot_wait)
@@ -173,7 +161,10 @@ def cmd_execute(ns: argparse.Namespace) -> int:
         if req is not None:
             if "start" not in req:  # plan from where the robot is
                 req["start"] = plan_start(robot, desc)
-            traj = SampledTrajectory.from_json(_plan(ns, desc, req))
+            with connect(ns, model_drives_robot=True) as service:
+                res = PlanReply.parse(service.request("plan", req))
+            traj = SampledTrajectory(res.joint_names, res.times, res.positions,
+                                     res.velocities, res.accelerations)
         else:
             traj = SampledTrajectory.load(ns.trajectory)
         publish = None
@@ -201,16 +192,6 @@ def cmd_execute(ns: argparse.Namespace) -> int:
             session.close()
 
 
-def _plan(ns: argparse.Namespace, desc: Any, req: dict[str, Any]) -> dict[str, Any]:
-    if ns.local:
-        from service.local import LocalService
-        return LocalService(desc).request("plan", req)
-    from .client import PlannerClient
-    with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
-                       config_file=ns.config) as c:
-        return c.request("plan", req, timeout=ns.timeout + float(req.get("planning_time", 1)))
-
-
 def _publisher(ns: argparse.Namespace) -> tuple[Any, Any]:
     """A session and a joint_states publisher, or (None, None) with a warning when no
     zenoh peer is reachable."""
@@ -220,12 +201,12 @@ def _publisher(ns: argparse.Namespace) -> tuple[Any, Any]:
 
     from .joint_states import JointStatePublisher
     try:
-        s = zenoh.open(zenoh_config(mode="client", connect=_endpoints(ns), listen=[],
+        s = zenoh.open(zenoh_config(mode="client", connect=endpoints(ns), listen=[],
                                     config_file=ns.config))
     except zenoh.ZError as e:
         log.warning("not publishing %s/joint_states: no zenoh service or router reachable "
                     "at %s (%s); --no-publish silences this", ns.prefix,
-                    ", ".join(_endpoints(ns)), e)
+                    ", ".join(endpoints(ns)), e)
         return None, None
     return s, JointStatePublisher(s, ns.prefix)
 
@@ -273,32 +254,26 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
     liveliness token tells the service we are still here."""
     import zenoh
 
-    from .client import PlannerClient
-    from .errors import ServiceUnavailable, error_from_reply
-    body: dict[str, Any] = {"start_tolerance": ns.start_tolerance,
-                            "move_to_start": ns.move_to_start}
-    if req is not None:
-        body["plan"] = req
-    else:
-        body["trajectory"] = json.loads(Path(ns.trajectory).read_text("utf-8"))
-    cancel = threading.Event()
+    from .client import decode_reply
+    from .errors import ServiceUnavailable
     if ns.blend:
-        if req is None:
-            raise SystemExit("arduinobot: error: --blend needs a goal (--named/--request)")
-        with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
-                           config_file=ns.config) as c:
+        with client(ns) as c:
             msg = c.request("execute", {"plan": req, "blend": True}, timeout=ns.timeout)
         print(f"blended into {msg['execution']} at tick {msg['tick']}: the new motion takes "
               f"{msg['duration']:.3f} s")
         return EXIT_OK
-    client_id = uuid.uuid4().hex
-    body["client"] = client_id
-    with PlannerClient(_endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
-                       config_file=ns.config) as c:
+    client_id, key, cancel = uuid.uuid4().hex, f"{ns.prefix}/execute", threading.Event()
+    body: dict[str, Any] = {"start_tolerance": ns.start_tolerance,
+                            "move_to_start": ns.move_to_start, "client": client_id}
+    if req is not None:
+        body["plan"] = req
+    else:
+        body["trajectory"] = json.loads(Path(ns.trajectory).read_text("utf-8"))
+    with client(ns) as c:
         s = c.session
-        token = s.liveliness().declare_token(f"{ns.prefix}/execute/client/{client_id}")
+        token = s.liveliness().declare_token(f"{key}/client/{client_id}")
         replies: queue.Queue[Any] = queue.Queue()
-        s.get(f"{ns.prefix}/execute",
+        s.get(key,
               zenoh.handlers.Callback(replies.put, lambda: replies.put(None)),
               payload=json.dumps(body), encoding="application/json",
               consolidation=zenoh.ConsolidationMode.NONE, timeout=ns.timeout + 3600.0)
@@ -308,7 +283,7 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
             while True:
                 if cancel.is_set() and execution and not sent_cancel:
                     print("cancelling: stopping smoothly", file=sys.stderr)
-                    list(s.get(f"{ns.prefix}/execute/cancel",
+                    list(s.get(f"{key}/cancel",
                                payload=json.dumps({"execution": execution}), timeout=5.0))
                     sent_cancel = True
                 try:
@@ -318,14 +293,7 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
                 if rep is None:
                     raise ServiceUnavailable("the service ended the execution without a "
                                              "report", reason="no_route")
-                if rep.ok is None:
-                    text = rep.err.payload.to_bytes().decode("utf-8", "replace")
-                    try:
-                        raise error_from_reply(json.loads(text))
-                    except json.JSONDecodeError:
-                        raise ServiceUnavailable(f"execute: {text}",
-                                                 reason="zenoh_error") from None
-                msg = json.loads(rep.ok.payload.to_bytes())
+                msg = decode_reply(rep, key, ns.timeout)
                 if msg.get("event") == "started":
                     execution = msg["execution"]
                     print(f"executing {execution}: {msg['duration']:.3f} s on the service's "

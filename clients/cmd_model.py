@@ -8,14 +8,7 @@ import sys
 
 from description import build_package_index, read_model_text
 
-from .common import (
-    EXIT_FAIL,
-    EXIT_OK,
-    add_model_args,
-    load_from_args,
-    model_options,
-    parse_xacro_args,
-)
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -65,7 +58,7 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 
 def cmd_urdf(ns: argparse.Namespace) -> int:
-    text, _ = read_model_text(ns.file, args=parse_xacro_args(ns.arg),
+    text, _ = read_model_text(ns.file, args=dict(ns.arg),
                               packages=build_package_index(ns.package_dir))
     sys.stdout.write(text)
     return EXIT_OK

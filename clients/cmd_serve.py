@@ -9,7 +9,8 @@ import signal
 import sys
 import threading
 
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, parse_xacro_args
+from .argtypes import UsageError, positive_int
+from .common import EXIT_FAIL, EXIT_OK, add_model_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -48,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "default, even with --config)")
     p.add_argument("--prefix", default="arduinobot", help="key expression prefix "
                    "(default: arduinobot)")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1, metavar="N",
+    p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, metavar="N",
                    help="planning worker processes (default: the number of cores, "
                    f"{os.cpu_count()})")
     p.add_argument("--queue", type=int, default=None, metavar="N",
@@ -81,15 +82,10 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     from .execute_service import execute_extension
 
     if ns.file and ns.description_path:
-        print("arduinobot: error: give the model as FILE or --description, not both",
-              file=sys.stderr)
-        return EXIT_FAIL
-    if ns.workers < 1:
-        print("arduinobot: error: --workers must be >= 1", file=sys.stderr)
-        return EXIT_FAIL
+        raise UsageError("give the model as FILE or --description, not both")
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
-                           package_dirs=tuple(ns.package_dir), args=parse_xacro_args(ns.arg),
+                           package_dirs=tuple(ns.package_dir), args=dict(ns.arg),
                            moveit_config=ns.moveit_config, srdf=ns.srdf,
                            joint_limits=ns.joint_limits,
                            cache_dir="" if ns.no_cache else ns.cache_dir)

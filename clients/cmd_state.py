@@ -5,17 +5,17 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable, Mapping
+from typing import Any
 
-from .cmd_plan import (
-    add_service_args,
-    floats,
-    guarded,
-    joint_map,
-    joint_order,
-    obstacle,
-    run_request,
-)
-from .common import EXIT_FAIL, EXIT_OK
+from .argtypes import joint_map, joint_values, numbers, obstacle
+from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joint_order
+from .replies import CheckReply, FkReply, IkReply
+
+_JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot model` "
+                "lists them), or name=value,... [rad]")
+_OBSTACLE_HELP = ("box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
+                  "cylinder:ID:r,l@x,y,z; repeatable")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,14 +24,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "the tcp position for a joint state (missing joints are 0).",
                        epilog="example:\n  arduinobot fk --joints 0.5,0.3,-0.4 --link "
                        "claw_support", formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--joints", default="", metavar="Q",
-                   help="every actuated joint's value in the model's order "
-                   "(`arduinobot model` lists them), or name=value,... [rad]")
+    p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
     p.add_argument("--link", action="append", metavar="LINK", help="a link to report, "
                    "repeatable (default all)")
-    p.add_argument("--json", action="store_true", help="print the reply as JSON")
-    add_service_args(p)
-    p.set_defaults(func=guarded(cmd_fk))
+    _add_common(p, cmd_fk)
 
     p = sub.add_parser("ik", help="position inverse kinematics of the tcp",
                        description="Print every joint solution (branch) within the joint "
@@ -39,10 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "GOAL_OUT_OF_REACH when there is none.",
                        epilog="example:\n  arduinobot ik --position 0,1.0,1.2",
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--position", required=True, metavar="X,Y,Z")
-    p.add_argument("--json", action="store_true", help="print the reply as JSON")
-    add_service_args(p)
-    p.set_defaults(func=guarded(cmd_ik))
+    p.add_argument("--position", required=True, metavar="X,Y,Z", type=numbers(3))
+    _add_common(p, cmd_ik)
 
     p = sub.add_parser(
         "check-state", help="is a joint state collision-free? (not the model checker)",
@@ -52,68 +46,79 @@ def register(sub: argparse._SubParsersAction) -> None:
         "errors and simulation readiness.",
         epilog="example:\n  arduinobot check-state --joints 0,0.8,0.6 --obstacle "
         "box:table:1,1,0.1@0,1,0.5", formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--joints", default="", metavar="Q",
-                   help="every actuated joint's value in the model's order "
-                   "(`arduinobot model` lists them), or name=value,... [rad]")
-    p.add_argument("--obstacle", action="append", default=[], metavar="SPEC",
-                   help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
-                   "cylinder:ID:r,l@x,y,z; repeatable")
+    p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
+    p.add_argument("--obstacle", action="append", default=[], metavar="SPEC", type=obstacle,
+                   help=_OBSTACLE_HELP)
     p.add_argument("--padding", type=float, metavar="M", help="safety margin [m]")
+    _add_common(p, cmd_check_state)
+
+
+def _add_common(p: argparse.ArgumentParser, fn: Callable[[argparse.Namespace], int]) -> None:
     p.add_argument("--json", action="store_true", help="print the reply as JSON")
     add_service_args(p)
-    p.set_defaults(func=guarded(cmd_check_state))
+    p.set_defaults(func=fn)
 
 
-def _joints(ns: argparse.Namespace) -> dict[str, float]:
-    text = ns.joints
-    if not text:
+def _ask(ns: argparse.Namespace, kind: str, req: dict[str, Any], *,
+         with_joints: bool = True) -> dict[str, Any]:
+    """The reply to ``req`` (with ``joints`` from --joints: positional values follow every
+    actuated joint's order), printed as JSON with --json."""
+    with connect(ns) as service:
+        if with_joints:
+            req = {"joints": _joints(ns, service), **req}
+        body = service.request(kind, req)
+    if ns.json:
+        print(json.dumps(body, indent=1))
+    return body
+
+
+def _joints(ns: argparse.Namespace, service: Service) -> dict[str, float]:
+    if not ns.joints:
         return {}
-    return joint_map(text, () if "=" in text else joint_order(ns, "all"), "--joints")
+    order = () if isinstance(ns.joints, dict) else joint_order(service.description(), "all")
+    return joint_map(ns.joints, order, "--joints")
+
+
+def _values(joints: Mapping[str, float]) -> str:
+    return ", ".join(f"{k}={v:+.4f}" for k, v in joints.items())
+
+
+def _xyz(v: tuple[float, ...]) -> str:
+    return " ".join(f"{x:+.4f}" for x in v)
 
 
 def cmd_fk(ns: argparse.Namespace) -> int:
-    req: dict = {"joints": _joints(ns)}
-    if ns.link:
-        req["links"] = ns.link
-    body, _ = run_request(ns, "fk", req)
+    res = FkReply.parse(_ask(ns, "fk", {"links": ns.link} if ns.link else {}))
     if ns.json:
-        print(json.dumps(body, indent=1))
         return EXIT_OK
-    print("joints: " + ", ".join(f"{k}={v:+.4f}" for k, v in body["joints"].items()))
-    for link, pose in body["links"].items():
-        xyz = " ".join(f"{v:+.4f}" for v in pose["xyz"])
-        rpy = " ".join(f"{v:+.4f}" for v in pose["rpy"])
-        print(f"{link:<20} xyz ({xyz}) m  rpy ({rpy}) rad")
-    if body.get("tcp") is not None:
-        print(f"{'tcp':<20} xyz ({' '.join(f'{v:+.4f}' for v in body['tcp'])}) m")
+    print(f"joints: {_values(res.joints)}")
+    for link, pose in res.links.items():
+        print(f"{link:<20} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad")
+    if res.tcp is not None:
+        print(f"{'tcp':<20} xyz ({_xyz(res.tcp)}) m")
     return EXIT_OK
 
 
 def cmd_ik(ns: argparse.Namespace) -> int:
-    body, _ = run_request(ns, "ik", {"position": floats(ns.position, "--position", 3)})
-    if ns.json:
-        print(json.dumps(body, indent=1))
-        return EXIT_OK
-    for s in body["solutions"]:
-        print(f"{s['branch']:<20} " + ", ".join(f"{k}={v:+.4f}" for k, v in s["joints"].items()))
+    res = IkReply.parse(_ask(ns, "ik", {"position": ns.position}, with_joints=False))
+    if not ns.json:
+        for s in res.solutions:
+            print(f"{s.branch:<20} {_values(s.joints)}")
     return EXIT_OK
 
 
 def cmd_check_state(ns: argparse.Namespace) -> int:
-    req: dict = {"joints": _joints(ns)}
+    req: dict[str, Any] = {}
     if ns.obstacle:
-        req["obstacles"] = [obstacle(o) for o in ns.obstacle]
+        req["obstacles"] = ns.obstacle
     if ns.padding is not None:
         req["padding"] = ns.padding
-    body, _ = run_request(ns, "check", req)
-    if ns.json:
-        print(json.dumps(body, indent=1))
-    else:
-        state = "VALID (collision-free)" if body["valid"] else "IN COLLISION"
-        print(f"{state}: " + ", ".join(f"{k}={v:+.4f}" for k, v in body["joints"].items()))
-        for a, b in body["pairs"]:
+    res = CheckReply.parse(_ask(ns, "check", req))
+    if not ns.json:
+        print(f"{'VALID (collision-free)' if res.valid else 'IN COLLISION'}: "
+              f"{_values(res.joints)}")
+        for a, b in res.pairs:
             print(f"  colliding: {a} / {b}")
-        if body.get("clearance") is not None and body["valid"]:
-            print(f"  clearance {body['clearance']:.4f} m between "
-                  f"{' / '.join(body['closest'] or ())}")
-    return EXIT_OK if body["valid"] else EXIT_FAIL
+        if res.clearance is not None and res.valid:
+            print(f"  clearance {res.clearance:.4f} m between {' / '.join(res.closest or ())}")
+    return EXIT_OK if res.valid else EXIT_FAIL

@@ -11,9 +11,9 @@ import sys
 import threading
 from pathlib import Path
 
-from planner.errors import PlanningError
 from planner.scene import Obstacle
 
+from .argtypes import UsageError
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args
 
 _log = logging.getLogger(__name__)
@@ -71,25 +71,25 @@ def read_obstacles(items: list[str], scene: str | None) -> tuple[Obstacle, ...]:
 
     Raises:
         planner.errors.InvalidRequest: naming the bad field.
-        SystemExit: a file or string that is not JSON.
+        UsageError: a file or string that is not JSON.
     """
     raw: list[tuple[object, str]] = []
     if scene:
         try:
             data = json.loads(Path(scene).read_text())
         except (OSError, json.JSONDecodeError) as e:
-            raise SystemExit(f"arduinobot: error: --scene {scene}: {e}") from None
+            raise UsageError(f"--scene {scene}: {e}") from None
         if isinstance(data, dict):
             data = data.get("obstacles", [])
         if not isinstance(data, list):
-            raise SystemExit(f"arduinobot: error: --scene {scene}: expected a list of "
-                             "obstacles or {\"obstacles\": [...]}")
+            raise UsageError(f"--scene {scene}: expected a list of obstacles or "
+                             "{\"obstacles\": [...]}")
         raw += [(o, f"scene.obstacles[{i}]") for i, o in enumerate(data)]
     for i, text in enumerate(items):
         try:
             raw.append((json.loads(text), f"--obstacle[{i}]"))
         except json.JSONDecodeError as e:
-            raise SystemExit(f"arduinobot: error: --obstacle '{text}' is not JSON: {e}") from None
+            raise UsageError(f"--obstacle '{text}' is not JSON: {e}") from None
     return tuple(Obstacle.from_mapping(o, where=w) for o, w in raw)  # type: ignore[arg-type]
 
 
@@ -110,17 +110,13 @@ def cmd_view(ns: argparse.Namespace) -> int:
     except TrajectoryFileError as e:
         print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
         return EXIT_FAIL
-    except PlanningError as e:  # its message names the field
-        print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
-        return EXIT_FAIL
 
 
 def _write_png(ns: argparse.Namespace, d: object, traj: object) -> int:
     from .viewer.plots import joint_limits, plot_panels, plot_png
 
     if traj is None:
-        print("arduinobot: error: --plot-png needs --trajectory FILE.json", file=sys.stderr)
-        return EXIT_FAIL
+        raise UsageError("--plot-png needs --trajectory FILE.json")
     panels = plot_panels(traj, joint_limits(d, traj.joint_names))  # type: ignore[arg-type]
     Path(ns.plot_png).write_bytes(plot_png(panels, title=str(ns.trajectory)))
     print(f"wrote {ns.plot_png}")

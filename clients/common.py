@@ -1,14 +1,25 @@
-"""Options every model-reading command shares, and turning errors into exit codes."""
+"""What the commands share: the model and service options, reaching the service (or its
+in-process twin with --local), and turning every error into one message and exit code."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
-from collections.abc import Callable
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any, Protocol
 
 from description import Description, DescriptionError, load_description
 
-EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
+from .argtypes import UsageError, xacro_arg
+
+if TYPE_CHECKING:
+    from .client import PlannerClient
+
+EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_UNAVAILABLE = 0, 1, 2, 3
+#: service.zconfig.DEFAULT_ENDPOINT, not imported: that module imports zenoh (not for --local)
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None:
@@ -21,7 +32,7 @@ def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None
                    "package:// and $(find); repeatable; searched before ROS_PACKAGE_PATH "
                    "and AMENT_PREFIX_PATH")
     p.add_argument("--arg", action="append", default=[], metavar="NAME=VALUE",
-                   help="a xacro argument; repeatable")
+                   type=xacro_arg, help="a xacro argument; repeatable")
     p.add_argument("--moveit-config", metavar="DIR",
                    help="the MoveIt config package (config/<robot>.srdf, joint_limits.yaml); "
                    "default: the model package's config/ if it has an SRDF, else a "
@@ -38,7 +49,7 @@ def add_connection_args(g: argparse._ArgumentGroup, *, timeout_help: str,
     service (or plans in this process instead)."""
     g.add_argument("--connect", action="append", metavar="ENDPOINT",
                    help="the service's (or a router's) zenoh endpoint, repeatable "
-                   "(default tcp/127.0.0.1:7447)")
+                   f"(default {DEFAULT_ENDPOINT})")
     g.add_argument("--prefix", default="arduinobot", help="the service's key prefix")
     g.add_argument("--timeout", type=float, default=60.0, metavar="S", help=timeout_help)
     g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the client "
@@ -46,20 +57,21 @@ def add_connection_args(g: argparse._ArgumentGroup, *, timeout_help: str,
     g.add_argument("--local", action="store_true", help=local_help)
 
 
-def parse_xacro_args(items: list[str]) -> dict[str, str]:
-    out = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise SystemExit(f"arduinobot: error: --arg '{item}' must be NAME=VALUE")
-        out[name] = value
-    return out
+def add_service_args(p: argparse.ArgumentParser) -> None:
+    """--connect/--prefix/--timeout for the service, --local and the model for in-process
+    (plan, fk, ik, check-state)."""
+    g = p.add_argument_group("service (default) or in-process (--local)")
+    add_connection_args(g, timeout_help="seconds to wait for the reply (default 60; a "
+                        "plan adds its planning time)",
+                        local_help="run in this process, no service (the model: "
+                        "FILE/--package-dir)")
+    add_model_args(p)
 
 
 def model_options(ns: argparse.Namespace) -> dict[str, object]:
     """The keyword arguments of :func:`description.load_description` the model options
     in ``ns`` give (everything but the model file)."""
-    return {"package_dirs": list(ns.package_dir), "args": parse_xacro_args(ns.arg),
+    return {"package_dirs": list(ns.package_dir), "args": dict(ns.arg),
             "moveit_config": ns.moveit_config, "srdf": ns.srdf,
             "joint_limits": ns.joint_limits}
 
@@ -71,21 +83,100 @@ def model_chosen(ns: argparse.Namespace) -> bool:
 
 
 def load_from_args(ns: argparse.Namespace) -> Description:
-    return load_description(getattr(ns, "file", None), **model_options(ns))  # type: ignore[arg-type]
+    """The model of FILE (or --description) and the model options."""
+    path = getattr(ns, "file", None) or getattr(ns, "description_path", None)
+    return load_description(path, **model_options(ns))  # type: ignore[arg-type]
 
 
 def local_description(ns: argparse.Namespace) -> Description:
-    """:func:`load_from_args`, once per command: the joint order, the request and a
-    simulation of one command share the loaded model."""
+    """:func:`load_from_args`, once per command: the request, the robot and a simulation
+    of one command share the loaded model."""
     if getattr(ns, "_description", None) is None:
         ns._description = load_from_args(ns)
     return ns._description
 
 
-def run_guarded(fn: Callable[[argparse.Namespace], int], ns: argparse.Namespace) -> int:
-    """Run a command; a model error becomes one clear line on stderr and exit 1."""
+def endpoints(ns: argparse.Namespace) -> list[str]:
+    """The service's endpoints (--connect)."""
+    return ns.connect or [DEFAULT_ENDPOINT]
+
+
+def client(ns: argparse.Namespace) -> PlannerClient:
+    """A client session to the service the connection options name."""
+    from .client import PlannerClient  # zenoh: not for --local
+    return PlannerClient(endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
+                         config_file=ns.config)
+
+
+class Service(Protocol):
+    """What a command asks of the service, or of :class:`service.local.LocalService`."""
+
+    def request(self, kind: str, req: Mapping[str, Any]) -> dict[str, Any]: ...
+
+    def description(self) -> dict[str, Any]: ...
+
+
+@contextmanager
+def connect(ns: argparse.Namespace, *, model_drives_robot: bool = False) -> Iterator[Service]:
+    """The service (or with --local, its request -> reply path in this process, on the
+    model of the model options).
+
+    Args:
+        model_drives_robot: the model options also choose the robot the command drives
+            (``execute``), so they are not --local's alone.
+
+    Raises:
+        UsageError: model options given without --local for a command where they only
+            choose what --local plans for.
+    """
+    if ns.local:
+        from service.local import LocalService
+        yield LocalService(local_description(ns))  # type: ignore[misc]
+        return
+    if model_chosen(ns) and not model_drives_robot:
+        raise UsageError("FILE, --package-dir, --arg, --moveit-config, --srdf and "
+                         "--joint-limits choose the model for --local; the service plans "
+                         "for the model it serves")
+    with client(ns) as c:
+        yield c  # type: ignore[misc]
+
+
+def joint_order(robot: Mapping[str, Any], group: str | None) -> tuple[str, ...]:
+    """The joints positional values follow: ``group``'s (the default group if None), or
+    every actuated joint for ``all``; ``robot`` is the ``<prefix>/description`` reply.
+
+    Raises:
+        UsageError: ``group`` is not one of the robot's.
+    """
+    name = group or robot["default_group"]
+    groups = robot["groups"]
+    if name not in groups:
+        raise UsageError(f"--group '{name}' is not a group of this robot "
+                         f"({', '.join(groups)})")
+    return tuple(groups[name])
+
+
+def run_guarded(ns: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    """Run the command ``ns.func``; what the user can act on becomes one message on stderr
+    and the exit code: a usage error as argparse's (2, through ``parser``), no service (3),
+    a coded error of the service, the planner or a robot (1, with its details), a model
+    that does not load (1)."""
+    from planner.errors import PlanningError
+
+    from .errors import ServiceError, ServiceUnavailable
+    from .robots import RobotError
     try:
-        return fn(ns)
+        return ns.func(ns)
+    except UsageError as e:
+        parser.error(str(e))  # exits 2
+    except ServiceUnavailable as e:
+        print(f"arduinobot: service unavailable ({e.reason}): {e.message}", file=sys.stderr)
+        return EXIT_UNAVAILABLE
+    except (ServiceError, PlanningError, RobotError) as e:
+        print(f"arduinobot: {e.code}: {e.message}", file=sys.stderr)
+        details = {k: v for k, v in e.details.items() if k != "request_id"}
+        if details:
+            print(f"  details: {json.dumps(details, default=str)[:2000]}", file=sys.stderr)
     except DescriptionError as e:
         print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
-        return EXIT_FAIL
+    return EXIT_FAIL

@@ -88,6 +88,18 @@ class InternalError(ServiceError):
     code: str = Code.INTERNAL
 
 
+class MalformedReply(ServiceError):
+    """A reply this client cannot read: a field its schema requires is missing or of the
+    wrong type (``details.field``, ``details.reply``: plan, fk, ik or check). The service
+    and this client do not keep the same contract (a different version?). Its code is
+    ``UNKNOWN``: the service sent none."""
+
+    def __init__(self, reply: str, field: str, problem: str) -> None:
+        self.field = field
+        super().__init__(f"the {reply} reply's {field} {problem}",
+                         details={"field": field, "reply": reply})
+
+
 UnavailableReason = Literal["connect_failed", "no_route", "timeout", "zenoh_error"]
 
 

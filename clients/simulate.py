@@ -10,14 +10,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from description import Description
 
+from .argtypes import UsageError
 from .execute import ExecuteOptions, Executor
 from .segments import SampledTrajectory
+
+if TYPE_CHECKING:
+    from .replies import PlanReply
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,13 +124,9 @@ def summary(r: SimulationReport) -> str:
 
 def plot(r: SimulationReport, out: str) -> None:
     """Commanded vs simulated positions, and the tracking error, saved to ``out``."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise SystemExit("arduinobot: error: --plot needs matplotlib "
-                         "(pip install matplotlib)") from None
+    import matplotlib  # cmd_plan checked that it is there
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
     fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(9, 7))
     target = np.vstack([r.commanded[1:], r.commanded[-1:]])
     t_meas = r.times + (r.times[1] - r.times[0] if len(r.times) > 1 else 0.0)
@@ -149,24 +149,22 @@ def plot(r: SimulationReport, out: str) -> None:
     plt.close(fig)
 
 
-def simulate_command(ns: Any, body: Mapping[str, Any], req: Mapping[str, Any]) -> int:
+def simulate_command(ns: Any, res: PlanReply, req: Mapping[str, Any]) -> int:
     """``plan --simulate``: the twin of the model (--local: the model options; through the
-    service: the shipped arduinobot, which must be the robot the service planned for)."""
-    import sys
+    service: the shipped arduinobot, which must be the robot the service planned for).
 
-    from .robots.base import RobotError
+    Raises:
+        UsageError: the service's robot has joints the local model lacks.
+    """
     desc = _model(ns)
-    traj = SampledTrajectory.from_json(body)
-    missing = [n for n in traj.joint_names if n not in desc.robot.actuated_joints]
+    missing = [n for n in res.joint_names if n not in desc.robot.actuated_joints]
     if missing:
-        raise SystemExit(f"arduinobot: error: --simulate: the service's robot moves "
-                         f"{', '.join(missing)}, which the local model lacks; plan with "
-                         "--local and the model options")
-    try:
-        r = simulate(desc, traj, obstacles=req.get("obstacles", ()))
-    except RobotError as e:
-        print(f"arduinobot: {e.code}: {e.message}", file=sys.stderr)
-        return 1
+        raise UsageError(f"--simulate: the service's robot moves {', '.join(missing)}, "
+                         "which the local model lacks; plan with --local and the model "
+                         "options")
+    r = simulate(desc, SampledTrajectory(res.joint_names, res.times, res.positions,
+                                         res.velocities, res.accelerations),
+                 obstacles=req.get("obstacles", ()))
     print(summary(r))
     if ns.plot:
         plot(r, ns.plot)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -11,8 +12,10 @@ import pytest
 import zenoh
 
 from clients import errors
+from clients.argtypes import UsageError, joint_map, joint_values, obstacle
 from clients.cli import main
-from clients.client import PlannerClient, PlanResult
+from clients.client import PlannerClient
+from clients.replies import PlanReply
 from service.zconfig import zenoh_config
 
 from .conftest import REPO as ROOT
@@ -89,10 +92,11 @@ def test_plan_command_prints_a_summary_and_writes_files(server, tmp_path, capsys
     assert rc == 0
     assert "duration" in out and "joint_3" in out and "timing:" in out
     body = json.loads(json_path.read_text())
-    res = PlanResult.from_json(body)
+    res = PlanReply.parse(body)
     rows = csv_path.read_text().splitlines()
     assert rows[0].startswith("time_from_start,joint_1.position")
-    assert len(rows) == len(res.points) + 1
+    assert len(rows) == len(res.times) + 1
+    assert [float(v) for v in rows[-1].split(",")[:5]] == [res.times[-1], *res.positions[-1]]
     assert res.positions[-1][:3] == pytest.approx([0.5, 0.3, -0.4], abs=1e-6)
     assert res.positions[0][1] == pytest.approx(0.1)
 
@@ -127,20 +131,70 @@ def test_check_state_help_tells_it_apart_from_the_model_checker(capsys):
 
 
 def test_obstacle_and_joint_options_parse():
-    from clients.cmd_plan import joint_map, obstacle
     assert obstacle("box:table:1,1,0.1@0,1,0.5@0,0,0.3") == {
         "id": "table", "shape": "box", "size": [1, 1, 0.1], "xyz": [0, 1, 0.5],
         "rpy": [0, 0, 0.3]}
     assert obstacle("sphere:s:0.2@1,2,3") == {"id": "s", "shape": "sphere", "radius": 0.2,
                                                "xyz": [1, 2, 3]}
     assert obstacle("cylinder:c:0.1,2")["length"] == 2
-    with pytest.raises(SystemExit):
+    with pytest.raises(argparse.ArgumentTypeError, match="box:ID"):
         obstacle("cone:c:1")
+    with pytest.raises(argparse.ArgumentTypeError, match="size '1,1' needs 3 numbers"):
+        obstacle("box:b:1,1")
     names = ("joint_1", "joint_2", "joint_3")
-    assert joint_map("0.5,0.3", names, "--goal") == {"joint_1": 0.5, "joint_2": 0.3}
-    assert joint_map("joint_3=-0.4", names, "--goal") == {"joint_3": -0.4}
-    with pytest.raises(SystemExit):
-        joint_map("1,2,3,4", names, "--goal")
+    assert joint_map(joint_values("0.5,0.3"), names, "--goal") == {"joint_1": 0.5,
+                                                                   "joint_2": 0.3}
+    assert joint_map(joint_values("joint_3=-0.4"), names, "--goal") == {"joint_3": -0.4}
+    with pytest.raises(UsageError, match="--goal: 4 values for 3 joints"):
+        joint_map(joint_values("1,2,3,4"), names, "--goal")
+    with pytest.raises(argparse.ArgumentTypeError, match="joint_1: 'x'"):
+        joint_values("joint_1=x")
+
+
+def _usage_error(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    """Run the CLI expecting argparse's usage error: exit 2, 'arduinobot <cmd>: error:'."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: arduinobot " + argv[0])
+    return err.splitlines()[-1]
+
+
+def test_bad_values_are_usage_errors_naming_the_flag(capsys, tmp_path):
+    assert _usage_error(["plan", "--goal", "0.5,x"], capsys) == \
+        "arduinobot plan: error: argument --goal: '0.5,x' must be comma-separated numbers"
+    assert "argument --position: '0,1' needs 3 numbers" in _usage_error(
+        ["ik", "--position", "0,1", "--local"], capsys)
+    assert "argument --obstacle: 'cone:c:1' must be box:" in _usage_error(
+        ["check-state", "--obstacle", "cone:c:1", "--local"], capsys)
+    assert "argument --arg: 'prefix' must be NAME=VALUE" in _usage_error(
+        ["urdf", "--arg", "prefix"], capsys)
+    req = tmp_path / "req.json"
+    req.write_text("[1, 2]")
+    assert f"argument --request: {req} must hold a JSON object" in _usage_error(
+        ["plan", "--request", str(req)], capsys)
+    assert "argument --workers: must be >= 1, not 0" in _usage_error(
+        ["serve", "--workers", "0"], capsys)
+
+
+def test_flags_that_do_not_go_together_are_usage_errors(capsys, tmp_path):
+    traj = tmp_path / "t.json"
+    traj.write_text("{}")
+    assert _usage_error(["execute", str(traj), "--named", "home", "--sim"], capsys) == \
+        "arduinobot execute: error: give TRAJ.json or --named/--request, not both"
+    assert "--fast is for --sim" in _usage_error(
+        ["execute", str(traj), "--serial", "--fast"], capsys)
+    assert "--blend needs --remote" in _usage_error(
+        ["execute", "--named", "home", "--sim", "--blend"], capsys)
+    assert "give a goal: --goal, --named" in _usage_error(["plan", "--local"], capsys)
+    assert "--package-dir" in _usage_error(["plan", "--named", "home", "--package-dir",
+                                            str(tmp_path)], capsys)
+    # checked against the robot: the local model's joints and groups
+    assert "--goal: 5 values for 3 joints (joint_1, joint_2, joint_3)" in _usage_error(
+        ["plan", "--goal", "1,2,3,4,5", "--group", "arm", "--local"], capsys)
+    assert "--group 'legs' is not a group of this robot (arm, gripper, all)" in _usage_error(
+        ["plan", "--goal", "0.1", "--group", "legs", "--local"], capsys)
 
 
 def test_the_plan_command_imports_no_planner_machinery(server):

@@ -190,7 +190,7 @@ def test_fk_and_ik_use_the_default_tcp(published, local):
     q = {"joint_1": -0.3, "joint_2": 0.5, "joint_3": 0.2}
     tip = kin.link_poses(np.array([q[j] for j in ARM] + [0.0]))[kin.link_index["claw_support"]]
     assert np.allclose(c.fk(q).tcp, tip[:3, 3], atol=1e-9)
-    sols = c.ik(tip[:3, 3].tolist())
+    sols = c.ik(tip[:3, 3].tolist()).solutions
     assert sols
     for s in sols:
         got = c.fk(s.joints).tcp

@@ -73,7 +73,7 @@ def test_plan_with_the_client_gives_typed_results(client):
     res = client.plan(start={"joint_1": 0.2}, goal={"joints": {"joint_1": -0.4, "joint_3": 0.3}},
                       sample_rate=50, seed=1)
     assert res.joint_names == ("joint_1", "joint_2", "joint_3", "joint_4")
-    assert res.positions.shape == (len(res.points), 4)
+    assert res.positions.shape == (len(res.times), 4)
     assert res.positions[0] == pytest.approx([0.2, 0, 0, 0])
     assert res.positions[-1] == pytest.approx([-0.4, 0, 0.3, 0], abs=1e-6)
     assert np.diff(res.times)[:-1] == pytest.approx(1 / 50)  # 50 Hz, exact final sample
@@ -151,7 +151,7 @@ def test_fk_ik_and_check(client):
     assert list(fk.links) == ["base_plate"]
     assert fk.links["base_plate"].rpy[2] == pytest.approx(0.5)
     assert fk.links["base_plate"].matrix.shape == (4, 4)
-    sols = client.ik([0.0, 1.0, 1.2])
+    sols = client.ik([0.0, 1.0, 1.2]).solutions
     assert sols
     for s in sols:
         assert client.fk(s.joints).tcp == pytest.approx([0.0, 1.0, 1.2], abs=1e-5)

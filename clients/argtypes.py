@@ -1,0 +1,122 @@
+"""The command line's values: argparse types, and the usage error for what one flag alone
+cannot tell.
+
+A type raises :class:`argparse.ArgumentTypeError`, so argparse prints the usage and
+``arduinobot <cmd>: error: argument --goal: ...`` and exits 2. A check across flags, or
+against the robot (how many joints a group has), raises :class:`UsageError`, which the
+CLI's entry point (:func:`clients.common.run_guarded`) turns into the same message and
+exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+#: joint values as given: positional (in the model's order) or by name
+JointValues = tuple[float, ...] | dict[str, float]
+
+_OBSTACLE_FORMS = "box:ID:sx,sy,sz@x,y,z, sphere:ID:r@x,y,z or cylinder:ID:r,l@x,y,z"
+
+
+class UsageError(Exception):
+    """A command line that parses but does not make sense (flags that exclude each other,
+    more joint values than joints); the message names the flag."""
+
+
+def _floats(text: str, n: int | None = None, what: str = "") -> list[float]:
+    try:
+        vals = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}'{text}' must be comma-separated "
+                                         "numbers") from None
+    if n is not None and len(vals) != n:
+        raise argparse.ArgumentTypeError(f"{what}'{text}' needs {n} numbers")
+    return vals
+
+
+def numbers(n: int) -> Callable[[str], list[float]]:
+    """The type of a flag taking ``n`` comma-separated numbers (``--position 0,1,1.2``)."""
+    def parse(text: str) -> list[float]:
+        return _floats(text, n)
+    return parse
+
+
+def joint_values(text: str) -> JointValues:
+    """``0.5,0.3,-0.4`` (positional: the joints' order comes later, from the model) or
+    ``NAME=0.5,OTHER=-0.4``."""
+    if "=" not in text:
+        return tuple(_floats(text))
+    out = {}
+    for item in text.split(","):
+        name, _, v = item.partition("=")
+        if not name.strip():
+            raise argparse.ArgumentTypeError(f"'{text}': '{item}' must be NAME=VALUE")
+        out[name.strip()] = _floats(v, 1, f"{name.strip()}: ")[0]
+    return out
+
+
+def joint_map(values: JointValues, names: Sequence[str], flag: str) -> dict[str, float]:
+    """``values`` by joint name; positional ones follow ``names``.
+
+    Raises:
+        UsageError: more positional values than ``names``.
+    """
+    if isinstance(values, dict):
+        return dict(values)
+    if len(values) > len(names):
+        raise UsageError(f"{flag}: {len(values)} values for {len(names)} joints "
+                         f"({', '.join(names)})")
+    return dict(zip(names, values))
+
+
+def obstacle(text: str) -> dict[str, Any]:
+    """``box:ID:sx,sy,sz@x,y,z[@r,p,y]``, ``sphere:ID:r@...``, ``cylinder:ID:r,l@...`` as
+    the service's obstacle object (sizes and positions [m], rpy [rad])."""
+    head, *poses = text.split("@")
+    parts = head.split(":")
+    if len(parts) != 3 or parts[0] not in ("box", "sphere", "cylinder") or len(poses) > 2:
+        raise argparse.ArgumentTypeError(f"'{text}' must be {_OBSTACLE_FORMS}")
+    shape, oid, dims = parts
+    o: dict[str, Any] = {"id": oid, "shape": shape}
+    if shape == "box":
+        o["size"] = _floats(dims, 3, "size ")
+    elif shape == "sphere":
+        o["radius"] = _floats(dims, 1, "radius ")[0]
+    else:
+        o["radius"], o["length"] = _floats(dims, 2, "radius,length ")
+    for key, pose in zip(("xyz", "rpy"), poses):
+        o[key] = _floats(pose, 3, f"{key} ")
+    return o
+
+
+def json_object(path: str) -> dict[str, Any]:
+    """The JSON object in the file ``path`` (a request: ``--request REQ.json``)."""
+    try:
+        data = json.loads(Path(path).read_text("utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        raise argparse.ArgumentTypeError(f"cannot read {path}: {e}") from None
+    if not isinstance(data, dict):
+        raise argparse.ArgumentTypeError(f"{path} must hold a JSON object")
+    return data
+
+
+def xacro_arg(text: str) -> tuple[str, str]:
+    """``NAME=VALUE`` (``--arg``)."""
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"'{text}' must be NAME=VALUE")
+    return name, value
+
+
+def positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, not {n}")
+    return n

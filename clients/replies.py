@@ -1,0 +1,223 @@
+"""The planning service's replies as the client reads them: frozen dataclasses, each parsed
+from its JSON body in one place (``PlanReply.parse(body)``, ``FkReply.parse``, ...).
+
+A body is first checked against the schema the service publishes for it
+(``service/schema/<kind>_response.json``, with jsonschema-rs as the service checks
+requests: ~5 ms for a 20000-point plan), then against what a schema cannot say (each
+sample row holds one value per joint). Anything else is refused with
+:class:`~clients.errors.MalformedReply` naming the field (``trajectory.points[3].effort``):
+a service that breaks the contract fails here, not somewhere downstream. What the schema
+leaves open (the verification's other figures) stays in :attr:`PlanReply.raw`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any, Literal
+
+import jsonschema_rs
+import numpy as np
+
+from service.wire import field_path, schema
+
+from .errors import MalformedReply
+
+Reply = Literal["plan", "fk", "ik", "check"]
+
+
+@cache
+def _validator(reply: Reply) -> jsonschema_rs.Draft202012Validator:
+    return jsonschema_rs.Draft202012Validator(schema(f"{reply}_response"))
+
+
+def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
+    """``body``, if it keeps its schema.
+
+    Raises:
+        MalformedReply: naming the first field that breaks it.
+    """
+    try:
+        _validator(reply).validate(body)
+    except jsonschema_rs.ValidationError as e:
+        path = list(e.instance_path)
+        if isinstance(e.kind, jsonschema_rs.ValidationErrorKind.Required):
+            raise MalformedReply(reply, field_path([*path, e.kind.property]),
+                                 "is missing") from None
+        raise MalformedReply(reply, field_path(path) or "(root)",
+                             f"is invalid ({e.message})") from None
+    return body
+
+
+def _rows(reply: Reply, rows: Sequence[Sequence[float]], width: int, where: str,
+          key: str = "") -> np.ndarray:
+    """``rows`` (each ``row[key]`` if ``key``) as an array (m, width).
+
+    Raises:
+        MalformedReply: a row that does not hold ``width`` values, one per joint.
+    """
+    values = [r[key] for r in rows] if key else rows
+    for i, row in enumerate(values):
+        if len(row) != width:
+            at = f"{where}[{i}]" + (f".{key}" if key else "")
+            raise MalformedReply(reply, at, f"holds {len(row)} values for {width} joints")
+    return np.array(values, float).reshape(len(values), width)
+
+
+def _number(v: float | None) -> float | None:
+    return None if v is None else float(v)
+
+
+@dataclass(frozen=True)
+class Verification:
+    """The service's check of the motion it returns (``verification`` in the reply).
+
+    Attributes:
+        ok: every limit kept and no collision. certified: collision-freedom proven over
+            the continuous motion, not sampled. collision_free: no collision found.
+        min_clearance: [m] the certified lower bound on the clearance; None if not measured.
+        worst_quantity, worst_ratio: the quantity closest to its (scaled) limit, and its
+            peak over that limit.
+    """
+
+    ok: bool
+    certified: bool
+    collision_free: bool
+    min_clearance: float | None
+    worst_quantity: str
+    worst_ratio: float
+
+
+@dataclass(frozen=True, eq=False)
+class PlanReply:
+    """A planned trajectory of the actuated joints (``<prefix>/plan``).
+
+    Attributes:
+        joint_names: the column order of every array.
+        times: (m,) [s] of the samples; positions [rad], velocities [rad/s],
+            accelerations [rad/s²], efforts [N m]: (m, dof) each.
+        duration: [s]. path: the collision-checked waypoints, (k, dof) [rad].
+        timing: seconds per stage. verification: the service's check of the motion.
+        planner, request_id: who planned it, and the request's id.
+        raw: the reply as received.
+    """
+
+    joint_names: tuple[str, ...]
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    efforts: np.ndarray
+    duration: float
+    path: np.ndarray
+    timing: Mapping[str, float]
+    verification: Verification
+    planner: str
+    request_id: str
+    raw: Mapping[str, Any] = field(repr=False)
+
+    @classmethod
+    def parse(cls, body: Any) -> PlanReply:
+        """Raises: MalformedReply naming the first field that breaks the contract."""
+        b = _validated("plan", body)
+        names, points = b["trajectory"]["joint_names"], b["trajectory"]["points"]
+        n, where = len(names), "trajectory.points"
+        v = b["verification"]
+        return cls(tuple(names), np.array([p["time_from_start"] for p in points], float),
+                   *(_rows("plan", points, n, where, k)
+                     for k in ("positions", "velocities", "accelerations", "effort")),
+                   float(b["duration"]), _rows("plan", b["path"], n, "path"),
+                   {k: float(t) for k, t in b["timing"].items()},
+                   Verification(v["ok"], v["certified"], v["collision_free"],
+                                _number(v["min_clearance"]), v["worst_overall"]["quantity"],
+                                float(v["worst_overall"]["ratio"])),
+                   b.get("planner", ""), b["request_id"], b)
+
+    def to_csv(self) -> str:
+        """One row per sample: time_from_start, then each joint's position, velocity,
+        acceleration and effort (``<joint>.position``, ...)."""
+        header = ["time_from_start"] + [f"{n}.{kind}" for kind in
+                                        ("position", "velocity", "acceleration", "effort")
+                                        for n in self.joint_names]
+        table = np.column_stack([self.times, self.positions, self.velocities,
+                                 self.accelerations, self.efforts])
+        return "\n".join([",".join(header), *(",".join(map(repr, row))
+                                              for row in table.tolist())]) + "\n"
+
+
+@dataclass(frozen=True, eq=False)
+class Pose:
+    """A link's pose in the world frame: xyz [m], rpy [rad], the 4x4 matrix."""
+
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    matrix: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class FkReply:
+    """Link poses at ``joints`` [rad] (``<prefix>/fk``); the tcp position [m] if the
+    robot has a tcp."""
+
+    joints: Mapping[str, float]
+    links: Mapping[str, Pose]
+    tcp: tuple[float, float, float] | None
+    request_id: str
+
+    @classmethod
+    def parse(cls, body: Any) -> FkReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("fk", body)
+        tcp = b.get("tcp")
+        return cls(dict(b["joints"]),
+                   {k: Pose(tuple(p["xyz"]), tuple(p["rpy"]), np.array(p["matrix"], float))
+                    for k, p in b["links"].items()},
+                   None if tcp is None else tuple(tcp), b["request_id"])  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class IkSolution:
+    """One IK branch: every actuated joint's value [rad]."""
+
+    joints: Mapping[str, float]
+    branch: str
+
+
+@dataclass(frozen=True)
+class IkReply:
+    """Every IK branch within the joint limits putting the tcp at the asked position
+    (``<prefix>/ik``)."""
+
+    solutions: tuple[IkSolution, ...]
+    request_id: str
+
+    @classmethod
+    def parse(cls, body: Any) -> IkReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("ik", body)
+        return cls(tuple(IkSolution(dict(s["joints"]), s["branch"]) for s in b["solutions"]),
+                   b["request_id"])
+
+
+@dataclass(frozen=True)
+class CheckReply:
+    """One state's check (``<prefix>/check``): ``valid`` and every colliding ``pairs``;
+    ``clearance`` [m] to the ``closest`` pair (None when not computed), at ``joints``."""
+
+    valid: bool
+    pairs: tuple[tuple[str, str], ...]
+    clearance: float | None
+    closest: tuple[str, str] | None
+    joints: Mapping[str, float]
+    request_id: str
+
+    @classmethod
+    def parse(cls, body: Any) -> CheckReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("check", body)
+        closest = b.get("closest")
+        return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),  # type: ignore[misc]
+                   _number(b["clearance"]),
+                   None if closest is None else tuple(closest),  # type: ignore[arg-type]
+                   dict(b["joints"]), b["request_id"])
