@@ -50,6 +50,7 @@ from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
 from service import wire
 from service.keyguard import addressed_exactly
+from service.messages import Failure, Outcome
 
 _log = logging.getLogger(__name__)
 
@@ -58,8 +59,9 @@ PROGRESS_EVERY = 10  # ticks between progress replies (10 Hz at 100 Hz)
 _FIELDS = {"trajectory", "plan", "start_tolerance", "move_to_start", "client", "blend"}
 BLEND_LEAD = 0.8  # [s] ahead of the arm a blend is planned for (planning must finish)
 
-# submit(plan request dict, respond((ok, body))) -> None: hands a plan job to the pool
-SubmitPlan = Callable[[dict[str, Any], Callable[[tuple[bool, Any]], None]], None]
+# submit(plan request dict, respond(Success | Failure)) -> None: hands a plan job to the
+# pool; respond is called once, from a pool thread
+SubmitPlan = Callable[[dict[str, Any], Callable[[Outcome], None]], None]
 
 
 @dataclass(frozen=True)
@@ -280,15 +282,14 @@ class ExecuteService:
         data = wire.decode("plan", wire.encode(req))
         key = f"{self.prefix}/execute"
 
-        def on_planned(outcome: tuple[bool, Any]) -> None:
+        def on_planned(outcome: Outcome) -> None:
             from .robots import RobotError
-            ok, b = outcome
             try:
-                if not ok:
-                    query.reply_err(_err(b["code"], b["message"], b["details"]),
+                if isinstance(outcome, Failure):
+                    query.reply_err(_err(outcome.code, outcome.message, outcome.details),
                                     encoding=JSON)
                     return
-                traj = SampledTrajectory.from_json(orjson.loads(b))
+                traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
                 ex.switch(traj, k)
                 query.reply(key, wire.encode({"event": "blended", "execution": execution,
                                               "tick": k, "duration": traj.duration}),
@@ -332,13 +333,12 @@ class _Run:
         self.tolerance, self.move, self.client = tolerance, move, client
         self.key = f"{svc.prefix}/execute"
 
-    def on_planned(self, outcome: tuple[bool, Any]) -> None:
-        ok, body = outcome
-        if not ok:
-            self._fail(body["code"], body["message"], body["details"])
+    def on_planned(self, outcome: Outcome) -> None:
+        if isinstance(outcome, Failure):
+            self._fail(outcome.code, outcome.message, outcome.details)
             return
         try:
-            self.start_with(orjson.loads(body))
+            self.start_with(orjson.loads(outcome.body))
         except Exception as e:  # noqa: BLE001 -- answered, never swallowed silently
             _log.exception("execution %s: could not start", self.execution)
             self._fail(getattr(e, "code", Code.INTERNAL), str(e), getattr(e, "details", {}))

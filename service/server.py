@@ -14,6 +14,7 @@ instance dies, the others.
 from __future__ import annotations
 
 import itertools
+import json
 import logging
 import os
 import time
@@ -23,12 +24,15 @@ from typing import Any, Literal
 
 import zenoh
 
+from planner.codes import Code
 from planner.errors import PlanningError
 
 from . import wire
 from .bodies import description_body
 from .keyguard import addressed_exactly
-from .pool import Job, Outcome, WorkerPool
+from .memtrace import MemTrace, count_live
+from .messages import Failure, Outcome, Success
+from .pool import Job, WorkerPool
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
 
@@ -73,6 +77,12 @@ class ServeOptions:
     memory_cap: int | None = DEFAULT_MEMORY_CAP
     #: on close, how long requests already in a worker may still take [s]
     grace: float = 2.0
+    #: Zenoh's shared-memory transport with clients on this host. Off: with it (zenoh
+    #: 1.10's default), every client session that sends a message over 3 KB makes a
+    #: 16 MiB pool this process maps and keeps mapped after the client has gone, so the
+    #: resident set grows 16 MiB per client ever connected (bench/soak.py measured it;
+    #: requests are at most 256 KiB, so TCP on loopback costs nothing that matters)
+    shared_memory: bool = False
     #: more queryables on the service's session, each built once it is open:
     #: ``make(session, prefix, description, submit_plan) -> object with close()``
     #: (``arduinobot serve`` adds ``<prefix>/execute``); closed first on shutdown
@@ -107,6 +117,7 @@ class PlannerService:
         self._static: dict[str, bytes] = {}
         self._config: dict[str, str | None] = {}
         self._extensions: list[Any] = []
+        self._memtrace: MemTrace | None = None
 
     @property
     def keys(self) -> list[str]:
@@ -125,10 +136,12 @@ class PlannerService:
                                               "robot": desc.summary()})
         self._config = desc.config.to_json()
         self.pool.start()
+        self._memtrace = MemTrace.from_env(counts=self._held)
         try:
             cfg = zenoh_config(mode=o.mode, listen=o.listen, connect=o.connect,
                                config_file=o.config_file,
                                multicast_scouting=o.multicast_scouting)
+            cfg.insert_json5("transport/shared_memory/enabled", json.dumps(o.shared_memory))
             self.session = zenoh.open(cfg)
             self.instance = str(self.session.zid())
             p = o.prefix
@@ -181,6 +194,9 @@ class PlannerService:
             self.session.close()
             self.session = None
         self._shared.clear()
+        if self._memtrace is not None:
+            self._memtrace.close()
+            self._memtrace = None
 
     def __enter__(self) -> PlannerService:
         self.start()
@@ -206,7 +222,8 @@ class PlannerService:
                 self._on_query(kind, key, query)
             except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
                 _log.exception("%s: unexpected failure handling a query", key)
-                _reply_error(query, "INTERNAL", "unexpected failure in the service", {})
+                _reply_error(query, Failure(Code.INTERNAL,
+                                            "unexpected failure in the service"))
         return on_query
 
     def _on_query(self, kind: str, key: str, query: zenoh.Query) -> None:
@@ -219,10 +236,10 @@ class PlannerService:
         request_id = f"{self.instance[:8]}-{next(self._ids)}"
         pool = self.pool
         if self._draining or pool is None:
-            self._count_refusal("SHUTTING_DOWN")
-            _reply_error(query, "SHUTTING_DOWN", "this instance is shutting down; retry "
-                         "(another instance, if any, takes the request)",
-                         {"request_id": request_id})
+            self._count_refusal(Code.SHUTTING_DOWN)
+            _reply_error(query, Failure(
+                Code.SHUTTING_DOWN, "this instance is shutting down; retry (another "
+                "instance, if any, takes the request)", {"request_id": request_id}))
             return
         try:
             zb = query.payload
@@ -230,7 +247,8 @@ class PlannerService:
                 wire.check_size(len(zb))
         except PlanningError as e:
             self._count_refusal(e.code)
-            _reply_error(query, e.code, e.message, {**e.details, "request_id": request_id})
+            _reply_error(query, Failure(e.code, e.message,
+                                        {**e.details, "request_id": request_id}))
             return
         # Decoding and validation run in a worker (wire.decode there), not on this
         # thread: Zenoh calls every queryable's callback on one thread, so a request
@@ -238,25 +256,30 @@ class PlannerService:
         raw = zb.to_bytes() if zb is not None else b""
 
         def respond(outcome: Outcome, query: zenoh.Query = query) -> None:
-            ok, body = outcome
-            if ok:  # the worker encoded it, request_id included
-                query.reply(key, body, encoding=JSON)
+            if isinstance(outcome, Success):  # the worker encoded it, request_id included
+                query.reply(key, outcome.body, encoding=JSON)
             else:
-                _reply_error(query, body["code"], body["message"], body["details"])
+                _reply_error(query, outcome)
             query.drop()  # the reply is final: let the querier's get finish now
 
         pool.submit(Job(kind, raw, request_id, time.monotonic() + self.options.timeout,
                         respond))
 
-    def _submit_plan(self, data: dict[str, Any], respond: Any) -> None:
+    def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
+                     ) -> None:
         """A plan job for an extension's own planning, through the same pool."""
         self.pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
                              time.monotonic() + self.options.timeout, respond))
 
-    def _count_refusal(self, code: str) -> None:
+    def _count_refusal(self, code: Code) -> None:
         if self.pool is not None:
             self.pool.count("received")
-            self.pool.count(code)
+            self.pool.count(code.value)
+
+    def _held(self) -> dict[str, int]:
+        """Live jobs and what the pool holds (the memory probe's numbers)."""
+        pool = self.pool
+        return {**(pool.held() if pool is not None else {}), **count_live((Job,))}
 
 
 def pool_load(status: Mapping[str, Any], workers: int) -> float:
@@ -266,7 +289,5 @@ def pool_load(status: Mapping[str, Any], workers: int) -> float:
     return (busy + int(status.get("queue_depth", 0))) / max(1, workers)
 
 
-def _reply_error(query: zenoh.Query, code: str, message: str,
-                 details: Mapping[str, Any]) -> None:
-    query.reply_err(wire.encode({"error": {"code": code, "message": message,
-                                           "details": dict(details)}}), encoding=JSON)
+def _reply_error(query: zenoh.Query, failure: Failure) -> None:
+    query.reply_err(wire.encode(failure.to_json()), encoding=JSON)

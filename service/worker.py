@@ -5,16 +5,14 @@ once); :func:`serve_jobs` is what each fork runs. Validation runs here, not on t
 serving process's Zenoh thread, so a request that is slow to validate holds one worker
 until its deadline (then the worker is killed and replaced), never the whole service.
 
-Protocol (``conn`` is a :class:`multiprocessing.connection.Connection`):
-
-- in: ``(job_id, kind, payload, base_deadline)`` where ``payload`` is the raw request
-  bytes (decoded here with :func:`service.wire.decode`) or an already validated dict,
-  and ``base_deadline`` is the arrival time plus the service's timeout, on
-  :func:`time.monotonic` (the same clock in every process); ``None`` to stop;
-- out: ``("taken", job_id)`` on receipt (a worker that dies before it did not die of
-  this job), ``("deadline", job_id, seconds)`` once the request is valid (plans add
-  their ``planning_time``), then ``(job_id, "ok", json_bytes)`` or
-  ``(job_id, "err", code, message, details)``.
+Protocol (``conn`` is a :class:`multiprocessing.connection.Connection`; the messages are
+:mod:`service.messages`): in, a :class:`~service.messages.JobMsg` per job and
+:class:`~service.messages.Stop` to end; out, per job, :class:`~service.messages.Taken` on
+receipt (a worker that dies before it did not die of this job),
+:class:`~service.messages.Deadline` once the request is valid (plans add their
+``planning_time``), then :class:`~service.messages.Done` with a
+:class:`~service.messages.Success` (the reply, encoded here) or a
+:class:`~service.messages.Failure`.
 """
 
 from __future__ import annotations
@@ -28,11 +26,13 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from description import load_description
+from planner.codes import Code
 from planner.errors import PlanningError
 
 from . import wire
 from .disk_cache import DiskCache
 from .handlers import Handlers
+from .messages import Deadline, Done, Failure, JobMsg, Success, Taken, receive
 
 _log = logging.getLogger(__name__)
 
@@ -90,34 +90,35 @@ def job_deadline(kind: str, data: Mapping[str, Any], base_deadline: float) -> fl
 
 
 def serve_jobs(conn: Connection, handlers: Handlers) -> None:
-    """Answer jobs until ``None`` or EOF (see the module's protocol)."""
-    while True:
-        try:
-            msg = conn.recv()
-        except EOFError:
+    """Answer jobs until :class:`~service.messages.Stop` or EOF (see the module)."""
+    while (job := receive(conn)) is not None:
+        if not isinstance(job, JobMsg):
+            raise TypeError(f"a worker takes JobMsg, not {type(job).__name__}")
+        conn.send(Taken(job.job_id))
+        outcome, last = _answer(conn, job, handlers)
+        conn.send(Done(job.job_id, outcome))
+        if last:
             return
-        if msg is None:
-            return
-        job_id, kind, payload, base_deadline = msg
-        conn.send(("taken", job_id))
-        try:
-            data = wire.decode(kind, payload) if isinstance(payload, (bytes, str)) \
-                else payload
-            deadline = job_deadline(kind, data, base_deadline)
-            conn.send(("deadline", job_id, deadline))
-            body = handlers.handle(kind, data)
-        except PlanningError as e:
-            conn.send((job_id, "err", e.code, e.message, e.details))
-        except MemoryError:
-            # the heap may be half-built: answer, then leave so a fresh fork takes over
-            conn.send((job_id, "err", "RESOURCE_LIMIT", "the request needed more memory "
-                       "than a worker may use", {"exception": "MemoryError"}))
-            return
-        except Exception as e:  # noqa: BLE001 -- a bug: INTERNAL, the worker lives on
-            _log.error("job %s (%s) failed:\n%s", job_id, kind, traceback.format_exc())
-            conn.send((job_id, "err", "INTERNAL", f"{type(e).__name__}: {e}",
-                       {"exception": type(e).__name__}))
-        else:
-            # encoded here, in parallel across workers, not in the serving process
-            conn.send((job_id, "ok", wire.encode({**body, "request_id": job_id},
-                                                 finite=kind == "plan")))
+
+
+def _answer(conn: Connection, job: JobMsg, handlers: Handlers) -> tuple[Success | Failure,
+                                                                         bool]:
+    """The job's outcome, and whether this worker must end after sending it."""
+    try:
+        data = wire.decode(job.kind, job.payload) \
+            if isinstance(job.payload, (bytes, str)) else job.payload
+        conn.send(Deadline(job.job_id, job_deadline(job.kind, data, job.base_deadline)))
+        body = handlers.handle(job.kind, data)
+        # encoded here, in parallel across workers, not in the serving process
+        return Success(wire.encode({**body, "request_id": job.job_id},
+                                   finite=job.kind == "plan")), False
+    except PlanningError as e:
+        return Failure(e.code, e.message, e.details), False
+    except MemoryError:
+        # the heap may be half-built: answer, then leave so a fresh fork takes over
+        return Failure(Code.RESOURCE_LIMIT, "the request needed more memory than a worker "
+                       "may use", {"exception": "MemoryError"}), True
+    except Exception as e:  # noqa: BLE001 -- a bug: INTERNAL, the worker lives on
+        _log.error("job %s (%s) failed:\n%s", job.job_id, job.kind, traceback.format_exc())
+        return Failure(Code.INTERNAL, f"{type(e).__name__}: {e}",
+                       {"exception": type(e).__name__}), False

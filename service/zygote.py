@@ -30,6 +30,7 @@ from multiprocessing import reduction
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
+from .messages import Exited, Fork, Forked, Ready, StartFailed, Stop, receive
 from .worker import DescriptionSpec, build_handlers, serve_jobs
 
 _log = logging.getLogger(__name__)
@@ -62,9 +63,11 @@ def describe_status(status: int) -> str:
 
 # -- the zygote process ---------------------------------------------------------------
 def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:
-    """Build the handlers, say ``("ready", pid)`` (or ``("failed", message)``), then
-    serve ``("fork", token)`` with ``("forked", token, pid)`` plus the socket's fd, and
-    report ``("exit", pid, how)`` for every worker that ends; stop on ``None`` or EOF."""
+    """Build the handlers, say :class:`~service.messages.Ready` (or
+    :class:`~service.messages.StartFailed`), then answer each
+    :class:`~service.messages.Fork` with :class:`~service.messages.Forked` plus the
+    socket's fd, and report an :class:`~service.messages.Exited` for every worker that
+    ends; stop on :class:`~service.messages.Stop` or EOF."""
     # Ctrl-C reaches the whole process group: the pool shuts everything down itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -78,13 +81,13 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     try:
         handlers = build_handlers(spec)
     except Exception as e:  # noqa: BLE001 -- reported to the pool, which refuses to start
-        conn.send(("failed", f"{type(e).__name__}: {e}"))
+        conn.send(StartFailed(f"{type(e).__name__}: {e}"))
         return
     wake_r, wake_w = os.pipe()
     os.set_blocking(wake_w, False)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # the wakeup fd carries it
     signal.set_wakeup_fd(wake_w)
-    conn.send(("ready", os.getpid()))
+    conn.send(Ready(os.getpid()))
     try:
         while True:
             for ready in wait([conn, wake_r]):
@@ -92,13 +95,12 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
                     os.read(wake_r, 4096)
                     _report_exits(conn)
                     continue
-                try:
-                    msg = conn.recv()
-                except EOFError:
-                    return
+                msg = receive(conn)
                 if msg is None:
                     return
-                _fork(conn, msg[1], handlers, (wake_r, wake_w))
+                if not isinstance(msg, Fork):
+                    raise TypeError(f"the zygote takes Fork, not {type(msg).__name__}")
+                _fork(conn, msg.token, handlers, (wake_r, wake_w))
     finally:
         # workers still running die with us (PR_SET_PDEATHSIG); the pool has already
         # asked each to stop after its job
@@ -126,7 +128,7 @@ def _fork(conn: Connection, token: int, handlers: Any, wake: tuple[int, int]) ->
             logging.shutdown()
             os._exit(code)
     theirs.close()
-    conn.send(("forked", token, pid))
+    conn.send(Forked(token, pid))
     reduction.send_handle(conn, ours.fileno(), os.getppid())
     ours.close()
 
@@ -139,7 +141,7 @@ def _report_exits(conn: Connection) -> None:
             return
         if pid == 0:
             return
-        conn.send(("exit", pid, describe_status(status)))
+        conn.send(Exited(pid, describe_status(status)))
 
 
 def _die_with_parent() -> None:
@@ -196,10 +198,11 @@ class Zygote:
             self._proc.join(1.0)
             raise ZygoteError(f"the worker zygote exited while building the model "
                               f"(exit code {self._proc.exitcode})") from None
-        if msg[0] != "ready":
+        if not isinstance(msg, Ready):
             self._proc.join(1.0)
-            raise ZygoteError(f"the worker zygote could not start: {msg[1]}")
-        self._conn, self.pid = parent, msg[1]
+            why = msg.message if isinstance(msg, StartFailed) else repr(msg)
+            raise ZygoteError(f"the worker zygote could not start: {why}")
+        self._conn, self.pid = parent, msg.pid
         threading.Thread(target=self._read, name="zygote-reader", daemon=True).start()
 
     @property
@@ -219,7 +222,7 @@ class Zygote:
         self._pending[token] = (event, box)
         try:
             with self._send_lock:
-                self._conn.send(("fork", token))  # type: ignore[union-attr]
+                self._conn.send(Fork(token))  # type: ignore[union-attr]
             if not event.wait(timeout) or not box:
                 raise ZygoteError("the worker zygote did not fork a worker")
         except OSError as e:
@@ -232,7 +235,7 @@ class Zygote:
         """Stop it (its remaining workers die with it)."""
         if self._conn is not None:
             with contextlib.suppress(OSError), self._send_lock:
-                self._conn.send(None)
+                self._conn.send(Stop())
         if self._proc is not None:
             self._proc.join(timeout)
             if self._proc.is_alive():
@@ -244,20 +247,19 @@ class Zygote:
     def _read(self) -> None:
         conn = self._conn
         try:
-            while True:
-                msg = conn.recv()  # type: ignore[union-attr]
-                if msg[0] == "forked":
+            while (msg := receive(conn)) is not None:  # type: ignore[arg-type]
+                if isinstance(msg, Forked):
                     fd = reduction.recv_handle(conn)
-                    worker = WorkerProcess(msg[2], Connection(fd))
-                    waiter = self._pending.get(msg[1])
+                    worker = WorkerProcess(msg.pid, Connection(fd))
+                    waiter = self._pending.get(msg.token)
                     if waiter is None:  # its requester gave up: do not leak it
                         worker.conn.close()
                         continue
                     waiter[1].append(worker)
                     waiter[0].set()
-                elif msg[0] == "exit":
-                    self._on_exit(msg[1], msg[2])
-        except (EOFError, OSError):
+                elif isinstance(msg, Exited):
+                    self._on_exit(msg.pid, msg.how)
+        except OSError:
             pass  # the zygote ended (or we closed it): below
         self._gone = True
         for event, _ in list(self._pending.values()):

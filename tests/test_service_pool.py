@@ -5,10 +5,12 @@ a request, the memory cap (RESOURCE_LIMIT), exactly one reply per request, clean
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import threading
 import time
+import weakref
 
 import pytest
 
@@ -233,3 +235,48 @@ def test_a_worker_over_its_memory_cap_is_replaced_and_the_request_told():
             assert cnt["memory_kills"] == 1 and cnt["RESOURCE_LIMIT"] == 1
     finally:
         assert srv.stop(signal.SIGINT) == 0
+
+
+def test_the_pool_holds_no_reference_to_an_answered_job():
+    # A real pool (zygote, forked workers), no Zenoh: every job answered, served or timed
+    # out while waiting, is freed at once with its payload; none waits in the deadline
+    # heap for its deadline (that held every request's bytes for the service's timeout).
+    from service.job import Job
+    from service.messages import Failure, Success
+    from service.pool import WorkerPool
+    from service.worker import DescriptionSpec
+
+    outcomes: list = []
+    done = threading.Event()
+    n_ok, n_late = 40, 5
+
+    def respond(outcome) -> None:
+        outcomes.append(outcome)
+        if len(outcomes) == n_ok + n_late:
+            done.set()
+
+    with WorkerPool(DescriptionSpec(), workers=1, queue_size=n_ok + n_late) as pool:
+        refs = []
+        for i in range(n_ok):
+            job = Job("fk", b'{"joints": {"joint_1": %.2f}}' % (0.01 * i), f"r{i}",
+                      time.monotonic() + 60.0, respond)
+            refs.append(weakref.ref(job))
+            pool.submit(job)
+        for i in range(n_late):  # already past their deadline: TIMEOUT while waiting
+            job = Job("fk", b'{"joints": {}}', f"late{i}", time.monotonic() - 1.0, respond)
+            refs.append(weakref.ref(job))
+            pool.submit(job)
+        del job
+        assert done.wait(60), f"{len(outcomes)} of {n_ok + n_late} answered"
+        assert sum(isinstance(o, Success) for o in outcomes) == n_ok
+        late = [o for o in outcomes if isinstance(o, Failure)]
+        assert [str(o.code) for o in late] == ["TIMEOUT"] * n_late
+        assert all(o.details["request_id"].startswith("late") for o in late)
+        # (the last reply is sent while its slot still runs: wait for it to return,
+        # well before the jobs' 60 s deadlines)
+        def all_freed() -> bool:
+            gc.collect()
+            return all(r() is None for r in refs)
+        _wait_for(all_freed, timeout=10)
+        held = pool.held()
+        assert held["queued"] == 0 and held["running"] == 0, held

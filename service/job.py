@@ -1,0 +1,84 @@
+"""One request in the worker pool, and the coded failures the pool itself answers with."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from planner.codes import Code
+
+from .messages import Failure, JobMsg, Outcome
+from .worker import DEFAULT_PLANNING_TIME, job_deadline
+
+#: why the pool stopped a worker in the middle of a job
+Stop = Literal["deadline", "memory", "shutdown"]
+
+
+@dataclass(eq=False)
+class Job:
+    """One request in flight. ``respond`` is called exactly once (first outcome wins),
+    then dropped, so whatever it holds (a Zenoh query) is released.
+
+    ``payload`` is the raw request (validated by the worker) or an already valid dict;
+    ``base_deadline`` is arrival + the service's timeout [monotonic s]. ``deadline`` is
+    provisional (plans: + the default planning_time) until the worker has read the
+    request's own planning_time.
+    """
+
+    kind: str
+    payload: bytes | str | Mapping[str, Any]
+    request_id: str
+    base_deadline: float
+    respond: Callable[[Outcome], None] | None
+    deadline: float = field(init=False)
+    waiting: bool = False  # in the queue, counted against queue_size
+    retried: bool = False  # handed back once after a worker died before taking it
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.payload, Mapping):
+            self.deadline = job_deadline(self.kind, self.payload, self.base_deadline)
+        else:
+            self.deadline = self.base_deadline + (
+                DEFAULT_PLANNING_TIME if self.kind == "plan" else 0.0)
+
+    @property
+    def done(self) -> bool:
+        return self.respond is None
+
+    def message(self) -> JobMsg:
+        """What a worker is sent."""
+        return JobMsg(self.request_id, self.kind, self.payload, self.base_deadline)
+
+    def claim(self) -> Callable[[Outcome], None] | None:
+        """Take the right to reply (once): the responder, or None if already taken."""
+        with self._lock:
+            fn, self.respond = self.respond, None
+        return fn
+
+
+def failure(job: Job, code: Code, message: str, **details: Any) -> Failure:
+    """A coded failure for ``job`` (its request_id in the details)."""
+    return Failure(code, message, {**details, "request_id": job.request_id})
+
+
+def timed_out(job: Job, when: str) -> Failure:
+    return failure(job, Code.TIMEOUT, f"the request's deadline passed {when}")
+
+
+def shutting_down(job: Job) -> Failure:
+    return failure(job, Code.SHUTTING_DOWN, "this instance is shutting down; retry "
+                   "(another instance, if any, takes the request)")
+
+
+def stopped(job: Job, stop: Stop, cap: int | None) -> Failure:
+    """The failure of a job whose worker the pool killed (``stop`` says why)."""
+    if stop == "deadline":
+        return timed_out(job, "while a worker was on it (the worker was replaced)")
+    if stop == "memory":
+        return failure(job, Code.RESOURCE_LIMIT, f"the request needed more than the worker "
+                       f"memory cap of {(cap or 0) // 2**20} MiB (the worker was replaced)",
+                       memory_cap=cap)
+    return shutting_down(job)

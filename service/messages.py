@@ -1,0 +1,134 @@
+"""What a job ends with, and what the service's processes say to each other.
+
+A job's :data:`Outcome` is a :class:`Success` (the reply, already encoded by the worker)
+or a :class:`Failure` (a coded error). The messages below cross the pipes and sockets
+between the pool (:mod:`service.pool`, :mod:`service.slot`), the zygote
+(:mod:`service.zygote`) and the workers (:mod:`service.worker`), pickled:
+
+- pool -> worker: :class:`JobMsg`, then :class:`Stop`;
+- worker -> pool: :class:`Taken` on receipt, :class:`Deadline` once the request is valid,
+  then :class:`Done` with the outcome;
+- pool -> zygote: :class:`Fork`, then :class:`Stop`;
+- zygote -> pool: :class:`Ready` (or :class:`StartFailed`) once, then :class:`Forked`
+  (followed by the worker socket's fd) per fork and :class:`Exited` per worker that ends.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from typing import Any
+
+from planner.codes import Code
+
+
+@dataclass(frozen=True)
+class Success:
+    """A job's reply: the JSON body the worker encoded (``request_id`` included)."""
+
+    body: bytes
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A job's coded error, as the wire's ``{"error": {code, message, details}}``."""
+
+    code: Code
+    message: str
+    details: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"error": {"code": self.code, "message": self.message,
+                          "details": dict(self.details)}}
+
+
+#: what a job ends with
+Outcome = Success | Failure
+
+
+@dataclass(frozen=True)
+class Stop:
+    """Finish the current job (if any), then end."""
+
+
+@dataclass(frozen=True)
+class JobMsg:
+    """A job for a worker. ``payload`` is the raw request (decoded and validated by the
+    worker) or an already valid dict; ``base_deadline`` is the arrival time plus the
+    service's timeout [s, :func:`time.monotonic`: the same clock in every process]."""
+
+    job_id: str
+    kind: str
+    payload: bytes | str | Mapping[str, Any]
+    base_deadline: float
+
+
+@dataclass(frozen=True)
+class Taken:
+    """The worker has the job (so a worker that dies before this did not die of it)."""
+
+    job_id: str
+
+
+@dataclass(frozen=True)
+class Deadline:
+    """The request is valid; it must be answered by ``deadline`` [monotonic s]."""
+
+    job_id: str
+    deadline: float
+
+
+@dataclass(frozen=True)
+class Done:
+    """The job's outcome."""
+
+    job_id: str
+    outcome: Outcome
+
+
+@dataclass(frozen=True)
+class Fork:
+    """Fork a warm worker; answer :class:`Forked` with the same ``token``."""
+
+    token: int
+
+
+@dataclass(frozen=True)
+class Ready:
+    """The zygote built the model."""
+
+    pid: int
+
+
+@dataclass(frozen=True)
+class StartFailed:
+    """The zygote could not build the model (``message`` says why)."""
+
+    message: str
+
+
+@dataclass(frozen=True)
+class Forked:
+    """A worker was forked for ``token``; its socket's fd follows on the pipe."""
+
+    token: int
+    pid: int
+
+
+@dataclass(frozen=True)
+class Exited:
+    """A worker ended; ``how`` as ``"signal SIGKILL"`` or ``"exit code 1"``."""
+
+    pid: int
+    how: str
+
+
+def receive(conn: Connection) -> Any | None:
+    """The next message on ``conn``, or None once the other side said :class:`Stop` or
+    closed its end (the one way every loop over a pipe ends)."""
+    try:
+        msg = conn.recv()
+    except EOFError:
+        return None
+    return None if isinstance(msg, Stop) else msg

@@ -1,0 +1,289 @@
+"""The pool's workers: the zygote that forks them, and one slot thread per worker that
+feeds it jobs, watches it (deadline, memory cap, death), kills and replaces it.
+
+:class:`Workers` owns the zygote and knows which forked workers are alive (the zygote
+reports every exit at once, so an idle worker's death is noticed without a job).
+:class:`Slot` runs one worker's loop: take the next job from the pool
+(:class:`JobQueue`), send it, wait for the outcome while polling the worker; on a stop
+(deadline, memory, shutdown) kill it and answer the job, on a death answer INTERNAL, or
+hand the job back once if the worker died before taking it; then fork a replacement.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import threading
+import time
+from typing import Any, Protocol
+
+from planner.codes import Code
+
+from .job import Job, Stop, failure, shutting_down, stopped, timed_out
+from .messages import Deadline, Done, Failure, Outcome, Taken, receive
+from .messages import Stop as StopMsg
+from .worker import DescriptionSpec
+from .zygote import WorkerProcess, Zygote, ZygoteError
+
+_log = logging.getLogger(__name__)
+
+#: how often a busy worker's reply, memory and the shutdown grace are looked at [s]
+_POLL = 0.05
+_PAGE = os.sysconf("SC_PAGE_SIZE")
+
+
+def rss_bytes(pid: int) -> int:
+    """Resident set size of process ``pid`` [bytes] (0 once it is gone)."""
+    try:
+        with open(f"/proc/{pid}/statm", "rb") as f:
+            return int(f.read().split()[1]) * _PAGE
+    except (OSError, IndexError, ValueError):
+        return 0
+
+
+class JobQueue(Protocol):
+    """What a slot needs from the pool (:class:`service.pool.WorkerPool`)."""
+
+    stopping: bool
+    grace_end: float  # when running jobs stop getting time after close [monotonic s]
+    memory_cap: int | None
+
+    def next_job(self, slot: Slot) -> Job | None: ...
+    def finish(self, job: Job, outcome: Outcome) -> None: ...
+    def requeue(self, job: Job) -> None: ...
+    def count(self, key: str) -> None: ...
+    def served(self, seconds: float) -> None: ...
+    def set_busy(self, slot: Slot, job: Job | None) -> None: ...
+
+
+class Workers:
+    """The zygote and the live workers' pids, guarded by the pool's condition.
+
+    Args:
+        ctx: a :mod:`multiprocessing` context for the zygote.
+        spec: how the zygote loads the description.
+        cond: the pool's condition: notified when a worker ends.
+        count: the pool's counters.
+    """
+
+    def __init__(self, ctx: Any, spec: DescriptionSpec, cond: threading.Condition, *,
+                 count: Any) -> None:
+        self._ctx, self._spec, self._cond, self._count = ctx, spec, cond, count
+        self._live: set[int] = set()  # pids of the slots' current workers
+        self._exits: dict[int, str] = {}  # ... that ended: how
+        self._zygote: Zygote | None = None
+        self._zygote_lock = threading.Lock()
+        self.stopping = False
+
+    @property
+    def zygote_pid(self) -> int | None:
+        return None if self._zygote is None else self._zygote.pid
+
+    def start(self) -> None:
+        """Start the zygote (it builds the model).
+
+        Raises:
+            ZygoteError: it could not.
+        """
+        self._zygote = self._new_zygote()
+
+    def close(self) -> None:
+        self.stopping = True
+        if self._zygote is not None:
+            self._zygote.close()
+
+    def live_pid(self, worker: WorkerProcess | None) -> int | None:
+        """``worker``'s pid while it runs, else None (call with the condition held)."""
+        return None if worker is None or worker.pid in self._exits else worker.pid
+
+    def fork(self) -> WorkerProcess:
+        """A new warm worker, registered as live.
+
+        Raises:
+            ZygoteError: the zygote is gone or did not fork.
+        """
+        w = self._zygote.fork()  # type: ignore[union-attr]
+        with self._cond:
+            self._live.add(w.pid)
+        return w
+
+    def fork_until_stopping(self, name: str) -> WorkerProcess | None:
+        """A new warm worker, re-starting the zygote if it is gone; None once stopping."""
+        while not self.stopping:
+            try:
+                w = self.fork()
+                self._count("worker_restarts")
+                return w
+            except ZygoteError as e:
+                _log.warning("%s: %s", name, e)
+            with self._zygote_lock:
+                if self.stopping or (self._zygote is not None and self._zygote.alive):
+                    continue
+                try:
+                    self._zygote.close(timeout=0.5)  # type: ignore[union-attr]
+                    self._zygote = self._new_zygote()
+                    self._count("zygote_restarts")
+                except ZygoteError:
+                    _log.exception("the worker zygote could not be restarted; retrying")
+                    time.sleep(1.0)
+        return None
+
+    def retire(self, w: WorkerProcess, *, kill: bool) -> str | None:
+        """Forget ``w`` (killing it first if asked); how it ended if known."""
+        if kill:
+            try:
+                os.kill(w.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass  # it died on its own meanwhile
+        with self._cond:
+            self._cond.wait_for(lambda: w.pid in self._exits, 0.0 if kill else 1.0)
+            how = self._exits.pop(w.pid, None)
+            self._live.discard(w.pid)
+        w.conn.close()
+        return how
+
+    def _new_zygote(self) -> Zygote:
+        z = Zygote(self._ctx, self._spec, on_exit=self._on_exit, on_lost=self._on_lost)
+        z.start()
+        return z
+
+    def _on_exit(self, pid: int, how: str) -> None:
+        with self._cond:
+            if pid in self._live:
+                self._exits[pid] = how
+                self._cond.notify_all()
+
+    def _on_lost(self) -> None:
+        if not self.stopping:
+            _log.error("the worker zygote ended; starting a new one (the model is built "
+                       "again)")
+
+
+class Slot:
+    """One worker and the thread that feeds and watches it (see the module)."""
+
+    def __init__(self, index: int, workers: Workers, queue: JobQueue) -> None:
+        self.index, self._workers, self._queue = index, workers, queue
+        self.worker: WorkerProcess | None = None
+
+    @property
+    def name(self) -> str:
+        return f"worker {self.index}"
+
+    def live_pid(self) -> int | None:
+        """The pid of this slot's worker while it runs (call with the pool's lock held)."""
+        return self._workers.live_pid(self.worker)
+
+    def run(self) -> None:
+        """The slot's thread: until the pool stops."""
+        q = self._queue
+        while True:
+            if self.worker is not None and self._workers.live_pid(self.worker) is None \
+                    and not q.stopping:
+                how = self._workers.retire(self.worker, kill=False)
+                self.worker = None
+                q.count("worker_crashes")
+                _log.error("idle %s died (%s); replacing it", self.name, how)
+            if self.worker is None:
+                self.worker = self._workers.fork_until_stopping(self.name)
+                if self.worker is None:
+                    return
+            if not self._serve_next():
+                self._stop_worker()
+                return
+
+    def _serve_next(self) -> bool:
+        """Serve the next job, if any; False once the pool stops. (A method of its own so
+        no frame keeps an answered job alive while the slot waits.)"""
+        q = self._queue
+        job = q.next_job(self)
+        if job is None:
+            return not q.stopping
+        if job.deadline <= time.monotonic():
+            q.finish(job, timed_out(job, "while it waited for a worker"))
+        elif self.worker is not None:
+            self._run(self.worker, job)
+        return True
+
+    def _stop_worker(self) -> None:
+        w = self.worker
+        if w is None:
+            return
+        try:
+            w.conn.send(StopMsg())
+        except OSError:
+            pass  # already gone
+        self._workers.retire(w, kill=False)
+        self.worker = None
+
+    def _run(self, w: WorkerProcess, job: Job) -> None:
+        q = self._queue
+        q.set_busy(self, job)
+        t0 = time.monotonic()
+        taken, outcome, stop = False, None, None
+        try:
+            w.conn.send(job.message())
+            while outcome is None:
+                stop = self._why_stop(job, w)
+                if stop is not None:
+                    break
+                if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
+                    continue
+                msg = receive(w.conn)
+                if msg is None:
+                    break  # the worker died: below
+                if isinstance(msg, Taken):
+                    taken = True
+                elif isinstance(msg, Deadline):
+                    job.deadline = msg.deadline
+                elif isinstance(msg, Done):
+                    outcome = msg.outcome
+        except OSError:
+            pass  # the worker died: neither an outcome nor a stop, handled below
+        finally:
+            q.set_busy(self, None)
+        if outcome is not None:
+            q.served(time.monotonic() - t0)
+            if isinstance(outcome, Failure):
+                outcome = failure(job, outcome.code, outcome.message, **outcome.details)
+            q.finish(job, outcome)
+            return
+        if stop is not None:
+            self._workers.retire(w, kill=True)
+            self.worker = None
+            q.count({"deadline": "timeouts_in_worker", "memory": "memory_kills",
+                     "shutdown": "shutdown_kills"}[stop])
+            q.finish(job, stopped(job, stop, q.memory_cap))
+            return
+        how = self._workers.retire(w, kill=False)
+        self.worker = None
+        if q.stopping:
+            q.finish(job, shutting_down(job))
+            return
+        q.count("worker_crashes")
+        if not taken and not job.retried:
+            # it died before receiving this job (killed while idle, the report not yet
+            # in): the job is not the cause, so it goes first to the next worker
+            _log.error("%s died (%s) before taking request %s; re-dispatching it",
+                       self.name, how, job.request_id)
+            q.count("redispatched")
+            job.retried = True
+            q.requeue(job)
+            return
+        _log.error("%s died (%s) on request %s; replacing it", self.name, how,
+                   job.request_id)
+        q.finish(job, failure(job, Code.INTERNAL, f"the worker process died "
+                              f"({how or 'unknown'}) while planning this request; it has "
+                              "been replaced", worker_exit=how))
+
+    def _why_stop(self, job: Job, w: WorkerProcess) -> Stop | None:
+        q = self._queue
+        now = time.monotonic()
+        if q.stopping and now >= q.grace_end:
+            return "shutdown"
+        if now >= job.deadline:
+            return "deadline"
+        if q.memory_cap is not None and rss_bytes(w.pid) > q.memory_cap:
+            return "memory"
+        return None
