@@ -300,6 +300,21 @@ class CollisionWorld:
         self._place(poses, b)
         return self._distance(a, b)
 
+    def lower_bound(self, q: ArrayLike) -> float:
+        """A lower bound [m] on the distance between the moving checked pairs at ``q``
+        (shape (dof,)), from the OBB trees alone (no FCL); at most 0.3 m."""
+        poses = self._poses_of(q)
+        f = self._forest
+        scratch = np.empty((8, 3, 3))
+        best = _CLEARANCE_CAP
+        for a, b in self._pairs:
+            ta = poses[self._frame[a]] if self._frame[a] >= 0 else self._static_pose[a]
+            tb = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
+            best = min(best, tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes,
+                                              f.half, f.left, f.right, 0.0, best,
+                                              self._stack, self._gaps, scratch))
+        return float(best)
+
     def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
         """Every colliding pair at ``q``, and the minimum clearance if asked."""
         self.checks += 1

@@ -325,14 +325,17 @@ class PathPlanner:
 
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
                 roomy: CollisionWorld, rng: np.random.Generator) -> np.ndarray | None:
-        # ``end`` if it has the room, else the first state with room that a free
-        # straight edge reaches from it: towards ``toward`` first, then seeded random
-        # directions of the group's joints, each at growing distances [rad]
+        # ``end`` if it has the room, else a state with room that a free straight edge
+        # reaches from it, at the shortest distance [rad] where one does: of the
+        # directions tried (towards ``toward``, then seeded random ones of the group's
+        # joints), the one leaving contact fastest (largest tree bound), so the edge's
+        # proof needs few exact distances
         if roomy.is_valid(end):
             return end
         lim = self._limits[cols]
         dirs = [toward[cols] - end[cols]] + list(rng.normal(size=(8, len(cols))))
         for r in (0.05, 0.1, 0.2, 0.4):
+            found = []
             for d in dirs:
                 n = float(np.linalg.norm(d))
                 if n == 0:
@@ -340,7 +343,9 @@ class PathPlanner:
                 e = end.copy()
                 e[cols] = np.clip(end[cols] + r * d / n, lim[:, 0], lim[:, 1])
                 if roomy.is_valid(e) and self._edge_free(end, e):
-                    return e
+                    found.append(e)
+            if found:
+                return max(found, key=roomy.lower_bound)
         return None
 
     def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,

@@ -102,3 +102,15 @@ def test_without_narrow_phase_a_world_is_conservative(d):
         assert any(t for _, t in verdicts)
         i = trees.first_invalid(qs)
         assert i == next(k for k, (_, t) in enumerate(verdicts) if not t)
+
+
+def test_lower_bound_never_exceeds_the_exact_distance(world, d):
+    lim = d.robot.position_limits()
+    qs = np.random.default_rng(8).uniform(lim[:, 0], lim[:, 1], size=(100, 4))
+    positive = 0
+    for q in qs:
+        lb = world.lower_bound(q)
+        exact = min(world.pair_distance(q, p) for p in range(len(world.pair_names)))
+        assert lb <= exact + 1e-12
+        positive += lb > 0
+    assert positive > 0
