@@ -1,12 +1,7 @@
-"""The command line's values: argparse types, and the usage error for what one flag alone
-cannot tell.
-
-A type raises :class:`argparse.ArgumentTypeError`, so argparse prints the usage and
-``arduinobot <cmd>: error: argument --goal: ...`` and exits 2. A check across flags, or
-against the robot (how many joints a group has), raises :class:`UsageError`, which the
-CLI's entry point (:func:`clients.common.run_guarded`) turns into the same message and
-exit code.
-"""
+"""The command line's values: argparse types (their errors: argparse's usage message,
+``arduinobot <cmd>: error: argument --goal: ...``, exit 2), and :class:`UsageError` for
+checks across flags or against the robot, which :func:`clients.common.run_guarded` turns
+into the same message and exit code."""
 
 from __future__ import annotations
 
@@ -113,10 +108,7 @@ def xacro_arg(text: str) -> tuple[str, str]:
 
 
 def positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    n = int(text)  # a ValueError: argparse's "invalid positive_int value: 'x'"
     if n < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, not {n}")
     return n

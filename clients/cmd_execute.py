@@ -12,6 +12,8 @@ import sys
 import threading
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -211,20 +213,15 @@ def _publisher(ns: argparse.Namespace) -> tuple[Any, Any]:
     return s, JointStatePublisher(s, ns.prefix)
 
 
-class _sigint_sets:
+@contextmanager
+def _sigint_sets(event: threading.Event) -> Iterator[None]:
     """While active, Ctrl-C (and SIGTERM) set ``event`` instead of raising."""
-
-    def __init__(self, event: threading.Event) -> None:
-        self.event = event
-        self._old: dict[int, Any] = {}
-
-    def __enter__(self) -> _sigint_sets:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, lambda *_: self.event.set())
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, h in self._old.items():
+    old = {sig: signal.signal(sig, lambda *_: event.set())
+           for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, h in old.items():
             signal.signal(sig, h)
 
 

@@ -67,16 +67,6 @@ class SimulationReport:
         motors can give)."""
         return max(f / e for f, e in zip(self.peak_need, self.effort))
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"joint_names": list(self.joint_names), "duration": self.duration,
-                "tracking_error": list(self.tracking_error),
-                "final_error": list(self.final_error), "peak_force": list(self.peak_force),
-                "peak_need": list(self.peak_need), "effort": list(self.effort),
-                "force_ratio": self.force_ratio, "need_ratio": self.need_ratio,
-                "saturated_steps": self.saturated_steps, "steps": self.steps,
-                "contacts": [list(p) for p in self.contacts],
-                "contact_steps": self.contact_steps}
-
 
 def simulate(description: Description, trajectory: SampledTrajectory, *,
              obstacles: Sequence[Mapping[str, Any]] = (), rate: float = 100.0,
