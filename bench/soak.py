@@ -5,13 +5,18 @@ scenes (bench/scenes.py), fk and state checks, and bad inputs (malformed JSON, u
 fields, out-of-limit joints, oversized payloads) that must come back as coded errors.
 Prints throughput, latency percentiles, lost replies (no reply at all, or an unexpected
 code: target 0), the resident memory of every serve process (server, forkserver, zygote,
-workers) at start and end (target: growth under 5%), and the time from a worker's SIGKILL
+workers) at start and end (target: growth under 5%) and every ``--sample-every`` seconds
+in between (the series), and the time from a worker's SIGKILL
 to the next successful plan on a one-worker server (median of ``--kills``). Then one
 line of JSON. Valid plans that time out (coded TIMEOUT) are counted apart: a few of the
 scenes' detours take seconds each, and a shared 2-core machine stretches them.
 
     .venv/bin/python bench/soak.py                # 10 minutes, 4 clients
     .venv/bin/python bench/soak.py --minutes 1 --clients 4 --kills 5
+    .venv/bin/python bench/soak.py --minutes 2 --kills 0 --memtrace 20  # where memory goes
+
+``--memtrace`` runs the server with its memory probe (service/memtrace.py: resident set by
+kind, Python's traced memory, glibc's heap, live jobs, tracemalloc diffs) and prints it.
 """
 
 from __future__ import annotations
@@ -68,6 +73,37 @@ def rss_by_role(server_pid: int, endpoint: str) -> dict[str, tuple[int, int]]:
     return out
 
 
+class RssSampler:
+    """Every ``every`` seconds [s], the resident set of each role (see
+    :func:`rss_by_role`) on a background thread: the series, not only start and end."""
+
+    def __init__(self, server_pid: int, endpoint: str, every: float) -> None:
+        self.server_pid, self.endpoint, self.every = server_pid, endpoint, every
+        self.series: list[tuple[float, dict[str, tuple[int, int]]]] = []
+        self._stop = threading.Event()
+        self._t0 = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="rss-sampler", daemon=True)
+
+    def __enter__(self) -> RssSampler:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def _run(self) -> None:
+        while True:
+            self.series.append((time.monotonic() - self._t0,
+                                rss_by_role(self.server_pid, self.endpoint)))
+            if self._stop.wait(self.every):
+                return
+
+    def role(self, name: str) -> list[tuple[float, float]]:
+        """``[(t [s], MiB)]`` of one role."""
+        return [(t, by.get(name, (0, 0))[1] / 2**20) for t, by in self.series]
+
+
 def requests(seed: int) -> list[tuple[str, object, set[str] | None]]:
     """A seeded mix: (kind, body, allowed error codes; None: must succeed)."""
     from description import load_description
@@ -114,7 +150,7 @@ def load(endpoint: str, clients: int, seconds: float, seed: int) -> dict:
                 except errors.ServiceUnavailable as e:
                     code = f"LOST({e.reason})"
                 except errors.ServiceError as e:
-                    code = e.code
+                    code = str(e.code)
                 dt = time.perf_counter() - t
                 expected = (code == "ok" and not bad) or code in (allowed or set())
                 with lock:
@@ -184,7 +220,14 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--warmup", type=float, default=30.0,
                     help="seconds of load before the RSS baseline [s]")
+    ap.add_argument("--memtrace", type=float, default=0.0,
+                    help="run the server with its memory probe every this many seconds "
+                    "(service/memtrace.py) and print what it logged [s]")
+    ap.add_argument("--sample-every", type=float, default=10.0,
+                    help="seconds between RSS samples during the run [s]")
     a = ap.parse_args()
+    if a.memtrace:
+        os.environ["ARDUINOBOT_MEMTRACE"] = str(a.memtrace)  # the server inherits it
     srv = start_server(["--workers", str(a.workers), "--queue", str(4 * a.clients)])
     try:
         with PlannerClient(srv.endpoint, timeout=60) as c:
@@ -194,7 +237,8 @@ def main() -> None:
         # baseline is taken
         load(srv.endpoint, a.clients, a.warmup, a.seed + 100)
         rss0 = rss_by_role(srv.proc.pid, srv.endpoint)
-        res = load(srv.endpoint, a.clients, 60 * a.minutes, a.seed)
+        with RssSampler(srv.proc.pid, srv.endpoint, a.sample_every) as sampler:
+            res = load(srv.endpoint, a.clients, 60 * a.minutes, a.seed)
         rss1 = rss_by_role(srv.proc.pid, srv.endpoint)
         with PlannerClient(srv.endpoint, timeout=60) as c:
             counters = c.health()["counters"]
@@ -228,6 +272,11 @@ def main() -> None:
     growth = 100 * (total1 - total0) / total0
     print(f"rss all serve processes {total0 / 2**20:.0f} -> {total1 / 2**20:.0f} MiB "
           f"({growth:+.1f}%, target < 5%); server counters {counters}; exit code {code}")
+    for role in ("server", "workers", "zygote"):
+        print(f"  rss {role} every {a.sample_every:g} s [MiB]: "
+              + " ".join(f"{mib:.0f}" for _, mib in sampler.role(role)))
+    for line in (ln for ln in srv.stderr_lines if "memtrace:" in ln):
+        print("  server " + line.split("memtrace:", 1)[1].rstrip())
     if rec:
         print(f"recovery after a worker SIGKILL (1 worker, next plan ok): median "
               f"{1000 * statistics.median(rec):.0f} ms, all {[round(1000 * r) for r in rec]} ms")
@@ -238,6 +287,7 @@ def main() -> None:
                       "timeouts": timeouts,
                       "rss_start_mib": round(total0 / 2**20), "rss_end_mib": round(total1 / 2**20),
                       "rss_growth_pct": round(growth, 2),
+                      "rss_server_series_mib": [round(m) for _, m in sampler.role("server")],
                       "recovery_median_ms": round(1000 * statistics.median(rec)) if rec else None,
                       "load_average": round(os.getloadavg()[0], 2)}))
 

@@ -16,6 +16,7 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Callable
 from typing import Any, Protocol
 
 from planner.codes import Code
@@ -64,11 +65,11 @@ class Workers:
         ctx: a :mod:`multiprocessing` context for the zygote.
         spec: how the zygote loads the description.
         cond: the pool's condition: notified when a worker ends.
-        count: the pool's counters.
+        count: adds one to one of the pool's counters (worker_restarts, ...).
     """
 
     def __init__(self, ctx: Any, spec: DescriptionSpec, cond: threading.Condition, *,
-                 count: Any) -> None:
+                 count: Callable[[str], None]) -> None:
         self._ctx, self._spec, self._cond, self._count = ctx, spec, cond, count
         self._live: set[int] = set()  # pids of the slots' current workers
         self._exits: dict[int, str] = {}  # ... that ended: how
