@@ -14,7 +14,6 @@ instance dies, the others.
 from __future__ import annotations
 
 import itertools
-import json
 import logging
 import os
 import time
@@ -77,11 +76,8 @@ class ServeOptions:
     memory_cap: int | None = DEFAULT_MEMORY_CAP
     #: on close, how long requests already in a worker may still take [s]
     grace: float = 2.0
-    #: Zenoh's shared-memory transport with clients on this host. Off: with it (zenoh
-    #: 1.10's default), every client session that sends a message over 3 KB makes a
-    #: 16 MiB pool this process maps and keeps mapped after the client has gone, so the
-    #: resident set grows 16 MiB per client ever connected (bench/soak.py measured it;
-    #: requests are at most 256 KiB, so TCP on loopback costs nothing that matters)
+    #: Zenoh's shared-memory transport with clients on this host (off: see
+    #: :func:`service.zconfig.zenoh_config`)
     shared_memory: bool = False
     #: more queryables on the service's session, each built once it is open:
     #: ``make(session, prefix, description, submit_plan) -> object with close()``
@@ -140,8 +136,8 @@ class PlannerService:
         try:
             cfg = zenoh_config(mode=o.mode, listen=o.listen, connect=o.connect,
                                config_file=o.config_file,
-                               multicast_scouting=o.multicast_scouting)
-            cfg.insert_json5("transport/shared_memory/enabled", json.dumps(o.shared_memory))
+                               multicast_scouting=o.multicast_scouting,
+                               shared_memory=o.shared_memory)
             self.session = zenoh.open(cfg)
             self.instance = str(self.session.zid())
             p = o.prefix

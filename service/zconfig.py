@@ -18,13 +18,20 @@ DEFAULT_PREFIX = "arduinobot"
 
 def zenoh_config(*, mode: Mode | None = None, listen: Sequence[str] | None = None,
                  connect: Sequence[str] | None = None, config_file: str | Path | None = None,
-                 multicast_scouting: bool = False) -> zenoh.Config:
+                 multicast_scouting: bool = False, shared_memory: bool = False
+                 ) -> zenoh.Config:
     """A session config: ``config_file`` (zenoh JSON5: TLS, user/password, access
     control, ...) if given, then each explicit option on top of it.
 
     Multicast scouting is set off unless ``multicast_scouting``: a service does not
     announce itself on the LAN unless asked, even when a config file leaves it at
     zenoh's default (on).
+
+    Zenoh's shared-memory transport is set off unless ``shared_memory``: with it (zenoh
+    1.10's default) every peer on the host that sends a message over 3 KB makes a 16 MiB
+    pool that this process maps and keeps mapped after the peer has gone, so a
+    long-running service or router grows 16 MiB per client ever connected (measured by
+    bench/soak.py); over loopback TCP our messages (at most 256 KiB) lose nothing.
     """
     cfg = zenoh.Config.from_file(str(config_file)) if config_file else zenoh.Config()
     if mode is not None:
@@ -34,4 +41,5 @@ def zenoh_config(*, mode: Mode | None = None, listen: Sequence[str] | None = Non
     if connect is not None:
         cfg.insert_json5("connect/endpoints", json.dumps(list(connect)))
     cfg.insert_json5("scouting/multicast/enabled", json.dumps(bool(multicast_scouting)))
+    cfg.insert_json5("transport/shared_memory/enabled", json.dumps(bool(shared_memory)))
     return cfg

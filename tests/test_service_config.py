@@ -19,6 +19,9 @@ def test_embedded_default_is_a_loopback_peer_without_multicast():
     assert _get(cfg, "mode") == "peer"
     assert _get(cfg, "listen/endpoints") == ["tcp/127.0.0.1:7447"]
     assert _get(cfg, "scouting/multicast/enabled") is False
+    # shared memory off for every session (service, router, client): see zenoh_config
+    assert _get(cfg, "transport/shared_memory/enabled") is False
+    assert _get(zenoh_config(shared_memory=True), "transport/shared_memory/enabled") is True
 
 
 def test_a_config_file_is_passed_through_and_options_override_it(tmp_path):
