@@ -24,7 +24,7 @@ TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 EFFORT_STEP = 1e-3
 #: ... within this fraction of the effort limits: a margin for the peaks between the
 #: samples, which a verifier's finer grid finds (measured: 1.9% over between 2 ms
-#: samples, braking joint_1 from 0.2 rad/s)
+#: samples, braking the shipped arm's base joint from 0.2 rad/s)
 EFFORT_MARGIN = 0.95
 
 

@@ -188,7 +188,7 @@ def validate(kind: Kind, value: Any) -> dict[str, Any]:
 
 def _deepest(err: jsonschema_rs.ValidationError) -> jsonschema_rs.ValidationError:
     """Inside ``oneOf``/``anyOf``, the violation the user most likely meant, recursively:
-    from the alternative that got furthest into the request (``goal.joints.joint_1``
+    from the alternative that got furthest into the request (``goal.joints.<name>``
     rather than ``goal``), else the one alternative with the fewest violations; the
     summary when alternatives tie."""
     for _ in range(MAX_DEPTH * 4):  # schemas nest a few levels; bounded all the same
