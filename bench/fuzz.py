@@ -38,6 +38,7 @@ import zenoh  # noqa: E402 -- after the sys.path line
 
 from service import caps  # noqa: E402 -- after the sys.path line
 from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path line
+from tests.helpers.json_paths import json_get, json_paths  # noqa: E402 -- after the sys.path line
 
 KINDS = ("plan", "fk", "ik", "check")
 CODES = {"INVALID_REQUEST", "START_IN_COLLISION", "GOAL_IN_COLLISION", "GOAL_OUT_OF_REACH",
@@ -155,12 +156,12 @@ class Generator:
     def same_type(self, kind: str) -> bytes:
         """Leaves replaced by values of their own type: gets past the schema more often."""
         value = self.base(kind)
-        leaves = [p for p in _paths(value) if not isinstance(_get(value, p), (dict, list))]
+        leaves = [p for p in json_paths(value) if not isinstance(json_get(value, p), (dict, list))]
         for _ in range(self.r.randint(1, 2)):
             if not leaves:
                 break
             path = self.r.choice(leaves)
-            old = _get(value, path)
+            old = json_get(value, path)
             if isinstance(old, (int, float)) and not isinstance(old, bool):
                 new: Any = self.r.choice([self.r.choice(NUMBERS), self.r.uniform(-2, 2),
                                           self.r.uniform(-10, 10)])
@@ -173,25 +174,25 @@ class Generator:
 
     def _mutate_once(self, value: Any) -> Any:
         r = self.r
-        paths = _paths(value)
+        paths = json_paths(value)
         path = r.choice(paths)
         op = r.choice(["replace", "replace", "delete", "add", "duplicate"])
         if op == "replace" or not path:
             return _set(value, path, self.value())
         if op == "delete":
-            parent = _get(value, path[:-1])
+            parent = json_get(value, path[:-1])
             if isinstance(parent, dict):
                 parent.pop(path[-1], None)
             else:
                 del parent[path[-1]]
             return value
-        target = _get(value, path[:-1])
+        target = json_get(value, path[:-1])
         if op == "add" and isinstance(target, dict):
             target[self.key()] = self.value()
         elif isinstance(target, list):
             target.extend([target[path[-1]]] * r.randint(1, 300))
         elif isinstance(target, dict):
-            target[path[-1]] = [_get(value, path)] * r.randint(1, 300)
+            target[path[-1]] = [json_get(value, path)] * r.randint(1, 300)
         return value
 
     def random_bytes(self, kind: str) -> bytes:
@@ -226,13 +227,13 @@ class Generator:
 
     def extreme(self, kind: str) -> bytes:
         value = self.base(kind)
-        nums = [p for p in _paths(value) if isinstance(_get(value, p), (int, float))
-                and not isinstance(_get(value, p), bool)]
+        nums = [p for p in json_paths(value) if isinstance(json_get(value, p), (int, float))
+                and not isinstance(json_get(value, p), bool)]
         if kind == "plan" and self.r.random() < 0.5:
             value[self.r.choice(["velocity_scaling", "acceleration_scaling", "planning_time",
                                  "sample_rate", "seed"])] = 0.0
-            nums = [p for p in _paths(value) if isinstance(_get(value, p), (int, float))
-                    and not isinstance(_get(value, p), bool)]
+            nums = [p for p in json_paths(value) if isinstance(json_get(value, p), (int, float))
+                    and not isinstance(json_get(value, p), bool)]
         if not nums:
             return _dumps(value)
         marker = "\u0001MARK\u0001"
@@ -243,18 +244,18 @@ class Generator:
 
     def wrong_types(self, kind: str) -> bytes:
         value = self.base(kind)
-        paths = [p for p in _paths(value) if p]
+        paths = [p for p in json_paths(value) if p]
         if not paths:
             return _dumps(self.r.choice([[], "x", 1, None, [value]]))
         path = self.r.choice(paths)
-        old = _get(value, path)
+        old = json_get(value, path)
         choices = [None, True, "1", [old], {"v": old}, 1, [], {}]
         return _dumps(_set(value, path, self.r.choice(choices)))
 
     def unicode_keys(self, kind: str) -> bytes:
         value = self.base(kind)
-        dicts = [p for p in _paths(value) if isinstance(_get(value, p), dict)]
-        target = _get(value, self.r.choice(dicts))
+        dicts = [p for p in json_paths(value) if isinstance(json_get(value, p), dict)]
+        target = json_get(value, self.r.choice(dicts))
         for _ in range(self.r.randint(1, 4)):
             target[self.unicode(self.r.randint(1, 40))] = self.scalar()
         return _dumps(value)
@@ -267,27 +268,10 @@ def _dumps(value: Any) -> bytes:
     return json.dumps(value, ensure_ascii=False).encode("utf-8", "surrogatepass")
 
 
-def _paths(value: Any, path: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
-    out = [path]
-    if isinstance(value, dict):
-        for k, v in value.items():
-            out += _paths(v, (*path, k))
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            out += _paths(v, (*path, i))
-    return out
-
-
-def _get(value: Any, path: tuple[Any, ...]) -> Any:
-    for p in path:
-        value = value[p]
-    return value
-
-
 def _set(value: Any, path: tuple[Any, ...], new: Any) -> Any:
     if not path:
         return new
-    _get(value, path[:-1])[path[-1]] = new
+    json_get(value, path[:-1])[path[-1]] = new
     return value
 
 

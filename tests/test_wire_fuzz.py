@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from planner.errors import InvalidRequest, PlanningError
 from service import caps, wire
+from tests.helpers.json_paths import json_get, json_paths
 
 SETTINGS = settings(derandomize=True, deadline=None, database=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -143,17 +144,6 @@ def test_non_finite_numbers_are_refused_anywhere(kind, number):
 
 # -- mutations of valid requests, through the checks a worker runs ---------------------
 
-def _paths(value: Any, path: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
-    out = [path]
-    if isinstance(value, dict):
-        for k, v in value.items():
-            out += _paths(v, (*path, k))
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            out += _paths(v, (*path, i))
-    return out
-
-
 def _replace(value: Any, path: tuple[Any, ...], new: Any) -> Any:
     if not path:
         return new
@@ -180,11 +170,11 @@ def _delete(value: Any, path: tuple[Any, ...]) -> Any:
 def mutated(draw: Any, kind: str) -> dict[str, Any]:
     value: Any = draw(st.sampled_from(VALID[kind]))
     for _ in range(draw(st.integers(1, 3))):
-        paths = _paths(value)
+        paths = json_paths(value)
         op = draw(st.sampled_from(["same_type", "same_type", "replace", "delete", "add"]))
-        leaves = [p for p in paths if not isinstance(_get(value, p), (dict, list))]
+        leaves = [p for p in paths if not isinstance(json_get(value, p), (dict, list))]
         path = draw(st.sampled_from(leaves if op == "same_type" and leaves else paths))
-        old = _get(value, path)
+        old = json_get(value, path)
         if op == "same_type" and isinstance(old, (int, float)) and not isinstance(old, bool):
             value = _replace(value, path, draw(numbers))
         elif op == "same_type" and isinstance(old, str):
@@ -197,19 +187,13 @@ def mutated(draw: Any, kind: str) -> dict[str, Any]:
             target = draw(st.sampled_from([p for p in paths if _is_dict(value, p)] or [()]))
             key = draw(st.one_of(st.sampled_from(NASTY_STRINGS), st.text(max_size=10)))
             new = draw(json_values)
-            value = _replace(value, target, {**_get(value, target), key: new}) \
+            value = _replace(value, target, {**json_get(value, target), key: new}) \
                 if _is_dict(value, target) else value
     return value
 
 
-def _get(value: Any, path: tuple[Any, ...]) -> Any:
-    for p in path:
-        value = value[p]
-    return value
-
-
 def _is_dict(value: Any, path: tuple[Any, ...]) -> bool:
-    return isinstance(_get(value, path), dict)
+    return isinstance(json_get(value, path), dict)
 
 
 @pytest.fixture(scope="module")
