@@ -57,10 +57,19 @@ def start_server(args: Sequence[str] = (), *, port: int | None = None,
 def start_servers(arg_lists: Sequence[Sequence[str]], *, timeout: float = 90.0,
                   ports: Sequence[int | None] | None = None) -> list[Server]:
     """Start several servers at once (their workers load in parallel), wait for all."""
+    endpoints = [f"tcp/127.0.0.1:{port or free_port()}"
+                 for port in (ports or [None] * len(arg_lists))]
+    return launch_serves([["--listen", e, *args] for e, args in zip(endpoints, arg_lists)],
+                         endpoints=endpoints, timeout=timeout)
+
+
+def launch_serves(arg_lists: Sequence[Sequence[str]], *, endpoints: Sequence[str] | None = None,
+                  timeout: float = 90.0) -> list[Server]:
+    """`arduinobot serve` with exactly these arguments (``endpoints``: where each
+    listens, for :class:`Server`; "" if none), all at once; waits for every ready line."""
     launched = []
-    for args, port in zip(arg_lists, ports or [None] * len(arg_lists)):
-        endpoint = f"tcp/127.0.0.1:{port or free_port()}"
-        argv = [sys.executable, "-m", "clients.cli", "serve", "--listen", endpoint, *args]
+    for args, endpoint in zip(arg_lists, endpoints or [""] * len(arg_lists)):
+        argv = [sys.executable, "-m", "clients.cli", "serve", *args]
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.PIPE, text=True)

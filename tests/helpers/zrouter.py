@@ -16,7 +16,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..conftest import REPO, Server, _pump
+from ..conftest import REPO, Server
+from ..conftest import launch_serves as _launch
 from .procs import stop_process
 
 SECURITY = REPO / "service" / "security"
@@ -80,27 +81,7 @@ def _pump_until(proc: subprocess.Popen, lines: list[str], ready: threading.Event
 def launch_serves(arg_lists: Sequence[Sequence[str]], *, timeout: float = 120.0) -> list[Server]:
     """`arduinobot serve` with exactly these arguments (conftest's start_servers adds a
     loopback listener; a service behind a secured router must have none)."""
-    launched = []
-    for args in arg_lists:
-        proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", *args],
-                                cwd=REPO, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        lines: list[str] = []
-        ready = threading.Event()
-        threading.Thread(target=_pump, args=(proc, lines, ready), daemon=True).start()
-        launched.append((proc, lines, ready))
-    deadline = time.monotonic() + timeout
-    servers = []
-    for proc, lines, ready in launched:
-        while not ready.wait(0.2):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                for p, *_ in launched:
-                    p.kill()
-                    p.wait(5)
-                raise RuntimeError("arduinobot serve did not start:\n" + "\n".join(lines[-30:]))
-        line = next(ln for ln in lines if "service ready" in ln)
-        servers.append(Server(proc, "", line, lines))
-    return servers
+    return _launch(arg_lists, timeout=timeout)
 
 
 def derive_config(template: str | Path, out: Path, settings: Mapping[str, object]) -> Path:
