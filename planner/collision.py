@@ -303,17 +303,28 @@ class CollisionWorld:
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
         (shape (dof,)), from the OBB trees alone (no FCL); at most 0.3 m."""
-        poses = self._poses_of(q)
+        lb = self._tree_bounds(self._poses_of(q), list(map(tuple, self._pairs)))
+        return float(lb.min()) if len(lb) else _CLEARANCE_CAP
+
+    def rigid_pairs(self, joints: Sequence[str]) -> tuple[tuple[str, str], ...]:
+        """The checked pairs whose distance no motion of ``joints`` changes (both bodies
+        move with them rigidly, or neither moves: a gripper's fingers in an arm motion)."""
+        cols = [self.kin.joint_names.index(j) for j in joints]
+        return tuple(self.pair_names[p] for p in range(len(self.pair_names))
+                     if self._weight[p, cols].max() < 1e-9)
+
+    def _tree_bounds(self, poses: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
+        # OBB-tree lower bounds [m] of body pairs at link poses ``poses``, capped
         f = self._forest
         scratch = np.empty((8, 3, 3))
-        best = _CLEARANCE_CAP
-        for a, b in self._pairs:
+        lb = np.empty(len(pairs))
+        for k, (a, b) in enumerate(pairs):
             ta = poses[self._frame[a]] if self._frame[a] >= 0 else self._static_pose[a]
             tb = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
-            best = min(best, tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes,
-                                              f.half, f.left, f.right, 0.0, best,
-                                              self._stack, self._gaps, scratch))
-        return float(best)
+            lb[k] = tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes, f.half,
+                                     f.left, f.right, 0.0, _CLEARANCE_CAP, self._stack,
+                                     self._gaps, scratch)
+        return lb
 
     def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
         """Every colliding pair at ``q``, and the minimum clearance if asked."""
@@ -335,15 +346,7 @@ class CollisionWorld:
         allp = list(map(tuple, self._pairs)) + list(self._fixed_pairs)
         if not allp:
             return float("inf"), ("", "")
-        f = self._forest
-        scratch = np.empty((8, 3, 3))
-        lb = np.empty(len(allp))
-        for k, (a, b) in enumerate(allp):
-            ta = poses[self._frame[a]] if self._frame[a] >= 0 else self._static_pose[a]
-            tb = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
-            lb[k] = tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes, f.half,
-                                     f.left, f.right, 0.0, _CLEARANCE_CAP, self._stack,
-                                     self._gaps, scratch)
+        lb = self._tree_bounds(poses, allp)
         closest = (self.body_names[allp[0][0]], self.body_names[allp[0][1]])
         for k in np.argsort(lb, kind="stable"):
             if lb[k] >= best:

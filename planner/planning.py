@@ -133,11 +133,6 @@ class PathResult:
     certificate: Certificate | None = None
 
 
-def _dedupe(path: np.ndarray) -> np.ndarray:
-    keep = np.concatenate([[True], np.abs(np.diff(path, axis=0)).max(axis=1) > 0])
-    return path[keep]
-
-
 def _path_length(path: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
 
@@ -187,13 +182,10 @@ class PathPlanner:
         to the exact world (a gripper's fingers stay as close as they are)."""
         w = self._roomy.get(joints)
         if w is None:
-            cols = [self.world.kin.joint_names.index(j) for j in joints]
-            rigid = [self.world.pair_names[p] for p in range(len(self.world.pair_names))
-                     if self.world._weight[p, cols].max() < 1e-9]
             w = self._roomy[joints] = self.world.with_scene(
                 self.world.obstacles, padding=self.world.padding + self.room,
-                narrow_phase=False,
-                acm=self.world.acm.with_pairs(rigid, reason="Rigid in the group"))
+                narrow_phase=False, acm=self.world.acm.with_pairs(
+                    self.world.rigid_pairs(joints), reason="Rigid in the group"))
         return w
 
     def _edge_free(self, a: np.ndarray, b: np.ndarray, world: CollisionWorld | None = None
@@ -318,9 +310,10 @@ class PathPlanner:
                     _log.info("no detour with %.1f mm of room; searching without",
                               1e3 * self.room)
                 else:
-                    goal = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))[0]
-                    path = np.vstack([start, mid, goal])
-                    return _dedupe(path), roomy
+                    goal, end = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))
+                    # the escape edges, where an end needed one
+                    return np.vstack([[start]] * (head is not start) + [mid]
+                                     + [[goal]] * (end is not goal)), roomy
         return self._plan(req, start, goals, joints, None, budget), None
 
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
