@@ -11,6 +11,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Protocol
 
 from description import Description, DescriptionError, load_description
+from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX
 
 from .argtypes import UsageError, xacro_arg
 
@@ -18,8 +19,6 @@ if TYPE_CHECKING:
     from .client import PlannerClient
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_UNAVAILABLE = 0, 1, 2, 3
-#: service.zconfig.DEFAULT_ENDPOINT, not imported: that module imports zenoh (not for --local)
-DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 
 def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None:
@@ -50,7 +49,7 @@ def add_connection_args(g: argparse._ArgumentGroup, *, timeout_help: str,
     g.add_argument("--connect", action="append", metavar="ENDPOINT",
                    help="the service's (or a router's) zenoh endpoint, repeatable "
                    f"(default {DEFAULT_ENDPOINT})")
-    g.add_argument("--prefix", default="arduinobot", help="the service's key prefix")
+    g.add_argument("--prefix", default=DEFAULT_PREFIX, help="the service's key prefix")
     g.add_argument("--timeout", type=float, default=60.0, metavar="S", help=timeout_help)
     g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the client "
                    "session (TLS, credentials)")

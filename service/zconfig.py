@@ -1,13 +1,17 @@
-"""Zenoh session configuration shared by the service, the client and the tests."""
+"""Zenoh session configuration shared by the service, the client and the tests.
+
+Importing this module does not import zenoh (only :func:`zenoh_config` does), so the
+command line's ``--local`` path can read the defaults without it."""
 
 from __future__ import annotations
 
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
-import zenoh
+if TYPE_CHECKING:
+    import zenoh
 
 Mode = Literal["peer", "client", "router"]
 
@@ -33,6 +37,8 @@ def zenoh_config(*, mode: Mode | None = None, listen: Sequence[str] | None = Non
     long-running service or router grows 16 MiB per client ever connected (measured by
     bench/soak.py); over loopback TCP our messages (at most 256 KiB) lose nothing.
     """
+    import zenoh
+
     cfg = zenoh.Config.from_file(str(config_file)) if config_file else zenoh.Config()
     if mode is not None:
         cfg.insert_json5("mode", json.dumps(mode))
