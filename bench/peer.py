@@ -55,7 +55,7 @@ sys.path.insert(0, str(REPO))
 from clients import errors  # noqa: E402, I001
 from clients.client import PlannerClient  # noqa: E402
 from clients.replies import PlanReply  # noqa: E402
-from planner.certify import Certifier  # noqa: E402
+from planner.collision.certify import Certifier  # noqa: E402
 from planner.curve import build_curve  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
 from planner.pipeline import MotionPlanner  # noqa: E402

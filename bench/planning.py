@@ -19,10 +19,10 @@ import trimesh
 from scenes import SCENES, problems
 
 from description import Description, load_description
-from planner.collision import CollisionWorld
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.errors import PlanningError
 from planner.goals import JointGoal
-from planner.motion_check import interpolate
 from planner.planning import PathPlanner, PathRequest
 
 

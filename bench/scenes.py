@@ -12,8 +12,8 @@ import numpy as np
 
 from description import load_description
 from description.loader import read_model_text
-from planner.collision import CollisionWorld
-from planner.motion_check import interpolate
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle
 
 SCENES = {

@@ -107,7 +107,7 @@ class RssSampler:
 def requests(seed: int) -> list[tuple[str, object, set[str] | None]]:
     """A seeded mix: (kind, body, allowed error codes; None: must succeed)."""
     from description import load_description
-    from planner.collision import CollisionWorld
+    from planner.collision.world import CollisionWorld
     desc = load_description()
     rng = np.random.default_rng(seed)
     mix: list[tuple[str, object, set[str] | None]] = []

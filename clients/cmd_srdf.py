@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def cmd_srdf(ns: argparse.Namespace) -> int:
     from description.srdf import replace_disabled_collisions
-    from planner.acm_gen import compute_acm  # FCL, numba: only for this command
+    from planner.collision.acm_gen import compute_acm  # FCL, numba: only for this command
 
     d = load_from_args(ns)
     src = d.srdf.source if d.srdf is not None else None

@@ -16,7 +16,7 @@ from description import Description
 from description.errors import SrdfError
 
 from .checks import check_joint_names, check_positions
-from .collision import CollisionWorld
+from .collision.world import CollisionWorld
 from .errors import GoalInCollision, GoalOutOfReach, InvalidRequest
 
 

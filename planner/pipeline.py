@@ -23,11 +23,11 @@ import numpy as np
 
 from description import Description
 
-from .acm_proof import proven_never_pairs
 from .cache import ArtifactCache
-from .certify import Certificate, Certifier, combine
 from .checks import check_joint_names, check_positions
-from .collision import CollisionWorld
+from .collision.acm_proof import proven_never_pairs
+from .collision.certify import Certificate, Certifier, combine
+from .collision.world import CollisionWorld
 from .curve import Curve, build_curve
 from .dynamics import InverseDynamics
 from .errors import InvalidRequest, TrajectoryError

@@ -21,8 +21,15 @@ import ompl.util as ou
 
 from description import Description
 
-from .certify import Certificate, Certifier
-from .collision import CollisionWorld
+from .collision.certify import Certificate, Certifier
+from .collision.motion_check import (
+    MotionChecker,
+    StateCodec,
+    ValidityChecker,
+    motion_valid,
+    sampled_motion_valid,
+)
+from .collision.world import CollisionWorld
 from .errors import InvalidRequest, NoPathFound, StartInCollision
 from .goals import (
     Goal,
@@ -30,13 +37,6 @@ from .goals import (
     check_limits,
     resolve_goal,
     resolve_group,
-)
-from .motion_check import (
-    MotionChecker,
-    StateCodec,
-    ValidityChecker,
-    motion_valid,
-    sampled_motion_valid,
 )
 
 _log = logging.getLogger(__name__)
@@ -112,14 +112,14 @@ class PathResult:
     Attributes:
         joint_names: the order of the joint vectors.
         path: waypoints, shape (k, dof), k >= 2, first = start; every straight segment
-            is certified free over its whole length (:mod:`planner.certify`).
+            is certified free over its whole length (:mod:`planner.collision.certify`).
         planner: the planner that produced it ("straight line" if none was needed).
         timings: seconds per stage: validate, straight_line, plan, simplify, recheck.
         checks: state validity checks made (narrow or broad phase).
         straight_line: the straight line to the goal was free.
         length: joint-space path length [rad] (sum of Euclidean segment lengths).
         certificate: the proof that every segment is free, with its certified clearance
-            (:class:`planner.certify.Certificate`); reused for anything that follows the
+            (:class:`planner.collision.certify.Certificate`); reused for anything that follows the
             segments, such as the straight parts of a blended curve.
     """
 

@@ -32,8 +32,8 @@ from typing import Protocol
 
 import numpy as np
 
-from .certify import Certificate
 from .checks import CHECK_STEP
+from .collision.certify import Certificate
 from .path_limits import BatchDynamics, Derating
 from .trajectory import JointTrajectory
 
@@ -79,7 +79,7 @@ class VerificationReport:
             motion (every checked pair, every point between samples); else measured on
             ``clearance_states`` states. ``closest_pair`` is its pair.
         certified: collisions were decided by the curve's certificate
-            (:mod:`planner.certify`), not by sampling.
+            (:mod:`planner.collision.certify`), not by sampling.
         derating: factors applied to the limits to get here; ``attempts`` timings tried.
         tolerance: relative tolerance on the ratios.
     """

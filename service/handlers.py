@@ -18,7 +18,7 @@ import numpy as np
 
 from description import Description
 from planner.cache import ArtifactCache
-from planner.collision import CollisionWorld
+from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest
 from planner.goals import tcp_joints
 from planner.ik import position_ik

@@ -1,6 +1,6 @@
 from description import load_description
-from planner.acm import AllowedCollisionMatrix
-from planner.acm_gen import compute_acm
+from planner.collision.acm import AllowedCollisionMatrix
+from planner.collision.acm_gen import compute_acm
 
 
 def test_from_srdf_and_pairs_are_unordered():
@@ -64,8 +64,8 @@ def test_srdf_pairs_add_to_the_adjacent_ones():
 def test_proven_pairs_never_collide_anywhere_sampled():
     import numpy as np
 
-    from planner.acm_proof import prove_never
-    from planner.collision import CollisionWorld
+    from planner.collision.acm_proof import prove_never
+    from planner.collision.world import CollisionWorld
     world = CollisionWorld(_no_srdf(load_description()))
     r = prove_never(world, seed=3)
     assert len(r.proven) >= 3  # the sphere bound of acm_gen proved none of them
@@ -83,8 +83,8 @@ def test_proven_pairs_never_collide_anywhere_sampled():
 
 
 def test_proof_is_cached_by_content(tmp_path):
-    from planner.acm_proof import proven_never_pairs
-    from planner.collision import CollisionWorld
+    from planner.collision.acm_proof import proven_never_pairs
+    from planner.collision.world import CollisionWorld
     from service.disk_cache import DiskCache
     world = CollisionWorld(_no_srdf(load_description()))
     cache = DiskCache(tmp_path)

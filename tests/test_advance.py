@@ -6,9 +6,9 @@ import pytest
 
 from description import load_description
 from description.meshes import shape_mesh
-from planner.advance import tree_lower_bound
-from planner.collision import CollisionWorld
-from planner.motion_check import interpolate
+from planner.collision.advance import tree_lower_bound
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle
 
 

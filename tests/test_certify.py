@@ -1,4 +1,4 @@
-"""Certified collision checking between samples (planner.certify), against FCL."""
+"""Certified collision checking between samples (planner.collision.certify), against FCL."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.certify import Certificate, Certifier, combine
-from planner.collision import CollisionWorld
+from planner.collision.certify import Certificate, Certifier, combine
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.curve import build_curve
-from planner.motion_check import interpolate
 from planner.scene import Obstacle
 
 NEEDLE = """<robot name="needle">

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.collision import CollisionWorld
+from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest
 from planner.scene import Obstacle
 
@@ -72,7 +72,7 @@ def test_link_trees_are_cached_by_content(tmp_path):
     import numpy as np
 
     from description import load_description
-    from planner.collision import CollisionWorld
+    from planner.collision.world import CollisionWorld
     from service.disk_cache import DiskCache
     d = load_description()
     first = CollisionWorld(d, cache=DiskCache(tmp_path))

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.collision import CollisionWorld
+from planner.collision.world import CollisionWorld
 from planner.errors import GoalInCollision, GoalOutOfReach, InvalidRequest, JointLimitViolation
 from planner.goals import JointGoal, NamedGoal, PositionGoal, resolve_goal
 

@@ -21,9 +21,9 @@ import pytest
 from clients import errors
 from clients.client import PlannerClient
 from description import load_description
-from planner.collision import CollisionWorld
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.kinematics import Kinematics
-from planner.motion_check import interpolate
 
 from .conftest import REPO, start_server
 

@@ -8,7 +8,7 @@ import pytest
 
 from description import load_description
 from planner.checks import LIMIT_TOL, check_joint_names, check_positions
-from planner.collision import CollisionWorld
+from planner.collision.world import CollisionWorld
 from planner.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
 from planner.goals import JointGoal, resolve_goal
 from planner.ik import position_ik

@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.collision import CollisionWorld
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest, NoPathFound, StartInCollision
 from planner.goals import JointGoal, NamedGoal
-from planner.motion_check import interpolate
 from planner.planning import PathPlanner, PathRequest
 from planner.scene import Obstacle
 

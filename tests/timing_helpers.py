@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from description import load_description
-from planner.collision import CollisionWorld
+from planner.collision.world import CollisionWorld
 from planner.dynamics import InverseDynamics
 
 DESC = load_description()

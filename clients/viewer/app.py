@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from description import Description
-from planner.collision import CollisionWorld, StateCheck
+from planner.collision.world import CollisionWorld, StateCheck
 from planner.scene import Obstacle
 
 from . import require

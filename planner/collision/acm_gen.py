@@ -4,7 +4,7 @@ Pairs are disabled as ``Adjacent`` (joined by a joint, possibly through links wi
 geometry, or rigidly by fixed joints), ``Always`` (colliding in every one of N seeded
 samples), or ``Never-proven``: the setup assistant calls a pair "never" when it did not
 touch in N samples, which a narrow corner of the joint space can prove wrong; here a
-pair is skipped only when :mod:`planner.acm_proof` proves it apart everywhere within the
+pair is skipped only when :mod:`planner.collision.acm_proof` proves it apart everywhere within the
 joint limits. Pairs that merely never touched in the samples can be recorded as
 ``Never-sampled`` for MoveIt (which skips them); this project keeps checking them.
 """
@@ -23,7 +23,7 @@ from description.srdf import DisabledCollision
 
 from .acm import AllowedCollisionMatrix, adjacent_pairs
 from .acm_proof import prove_never
-from .collision import CollisionWorld
+from .world import CollisionWorld
 
 _log = logging.getLogger(__name__)
 

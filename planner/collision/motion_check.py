@@ -4,7 +4,7 @@ Two checks of an edge a -> b, both at a fixed joint step [rad] (not OMPL's fract
 the space's extent): :func:`sampled_motion_valid` checks its states that far apart in one
 batched call (fast: what search and shortcutting try thousands of times), and
 :func:`motion_valid` proves it free over its whole length with
-:class:`planner.certify.Certifier` (what a returned path must pass).
+:class:`planner.collision.certify.Certifier` (what a returned path must pass).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 import ompl.base as ob
 
 from .certify import Certifier
-from .collision import CollisionWorld
+from .world import CollisionWorld
 
 
 def interpolate(path: np.ndarray, step: float) -> np.ndarray:

@@ -24,7 +24,7 @@ import numpy as np
 
 from description.model import Joint, Robot
 
-from .kinematics import _fk_into
+from ..kinematics import _fk_into
 from .obbtree import box_in_frame, relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:

@@ -6,7 +6,7 @@ straight edge when ``u1 == u2``, a corner blend of :mod:`planner.curve` otherwis
 a piece every joint's speed ``|q_k'(sigma)|`` stays between ``|u1_k|`` and ``|u2_k|`` (the
 tangent moves from ``u1`` to ``u2`` by a smoothstep), so a point of one body moves
 relative to another by at most ``speed = sum_k weight_k max(|u1_k|, |u2_k|)`` per unit of
-``sigma`` (``weight`` [m/rad] from :func:`planner.advance.pair_weights`).
+``sigma`` (``weight`` [m/rad] from :func:`planner.collision.advance.pair_weights`).
 
 Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lower bound
 ``d`` on the pair's distance; no point of the next ``(d - covered) / speed`` of the piece
@@ -28,9 +28,9 @@ from typing import Any
 import numba
 import numpy as np
 
+from ..kinematics import _fk_into
 from .advance import tree_lower_bound
-from .collision import CollisionWorld
-from .kinematics import _fk_into
+from .world import CollisionWorld
 
 _DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more

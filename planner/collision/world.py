@@ -2,7 +2,7 @@
 
 Built once per (description, obstacles, padding) and reused for every check. A check is
 fast FK (numba), an OBB-tree broad phase over every checked pair (numba,
-:mod:`planner.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
+:mod:`planner.collision.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
 separate; FCL objects are built once and only moved.
 """
 
@@ -21,11 +21,12 @@ from numpy.typing import ArrayLike
 from description import Description
 from description.meshes import shape_mesh
 
+from ..cache import ArtifactCache
+from ..errors import InvalidRequest
+from ..kinematics import Kinematics
+from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
-from .cache import ArtifactCache
-from .errors import InvalidRequest
-from .kinematics import Kinematics
 from .obbtree import (
     Forest,
     ObbTree,
@@ -34,7 +35,6 @@ from .obbtree import (
     cached_tree,
     pair_candidates,
 )
-from .scene import Obstacle, validate_obstacles
 
 _log = logging.getLogger(__name__)
 _STACK = 4096
@@ -380,7 +380,7 @@ class CollisionWorld:
         """Index of the first colliding state of ``qs`` (shape (m, dof)), -1 if none.
 
         Every state is decided (nothing between states is implied): pairs that
-        conservative advancement (:mod:`planner.advance`) proves apart are skipped, the
+        conservative advancement (:mod:`planner.collision.advance`) proves apart are skipped, the
         rest go to the narrow phase. The walk stops at the first colliding state.
         """
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)

@@ -3,8 +3,8 @@
 Links joined by a joint are always allowed (they touch by construction), and so are
 links held rigidly together by fixed joints (a camera bolted to the base): whatever the
 SRDF says, and with no SRDF at all. The SRDF's ``<disable_collisions>`` (MoveIt's
-format) add to that; :mod:`planner.acm_gen` computes them (``arduinobot srdf``) and
-:mod:`planner.acm_proof` proves pairs that can never touch.
+format) add to that; :mod:`planner.collision.acm_gen` computes them (``arduinobot srdf``) and
+:mod:`planner.collision.acm_proof` proves pairs that can never touch.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from .cache import ArtifactCache, content_key
+from ..cache import ArtifactCache, content_key
 
 
 @dataclass(frozen=True)
