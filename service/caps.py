@@ -44,19 +44,17 @@ MIN_SCALING = 0.01
 MAX_SAMPLES = 20_000
 
 
-def check_structure(value: Any, *, max_items: int | None = MAX_ITEMS,
-                    max_elements: int | None = MAX_ELEMENTS) -> None:
-    """Refuse a decoded payload nested deeper than :data:`MAX_DEPTH`, an array or object
-    of more than ``max_items``, more than ``max_elements`` values in all, or a string
-    longer than :data:`MAX_STRING`.
+def check_structure(value: Any, *, counts: bool = True) -> None:
+    """Refuse a decoded payload nested deeper than :data:`MAX_DEPTH`, a string longer
+    than :data:`MAX_STRING` and, if ``counts``, an array or object of more than
+    :data:`MAX_ITEMS` or more than :data:`MAX_ELEMENTS` values in all.
 
     Iterative (no recursion), and it stops at the first excess, so it visits at most
-    ``max_elements`` values.
+    :data:`MAX_ELEMENTS` values when ``counts``.
 
     Args:
-        max_items, max_elements: None for no count cap (a payload that is no
-            plan/fk/ik/check request, such as a trajectory to execute, which only
-            :data:`MAX_PAYLOAD` bounds).
+        counts: False for a payload that is no plan/fk/ik/check request, such as a
+            trajectory to execute, which only :data:`MAX_PAYLOAD` bounds.
 
     Raises:
         InvalidRequest: naming the field where the cap was passed and ``details.limit``.
@@ -74,24 +72,18 @@ def check_structure(value: Any, *, max_items: int | None = MAX_ITEMS,
             _check_scalar(node, path)
             continue
         if depth > MAX_DEPTH:
-            raise InvalidRequest(f"nested deeper than {MAX_DEPTH} levels of arrays and "
-                                 "objects", field=_path(path),
-                                 details={"limit": MAX_DEPTH, "cap": "MAX_DEPTH"})
-        if max_items is not None and len(node) > max_items:
-            raise InvalidRequest(f"{len(node)} {'members' if isinstance(node, dict) else 'elements'}"
-                                 f", more than the {MAX_ITEMS} any array or object may hold",
-                                 field=_path(path),
-                                 details={"limit": MAX_ITEMS, "cap": "MAX_ITEMS"})
+            raise _over("MAX_DEPTH", f"nested deeper than {MAX_DEPTH} levels of arrays and "
+                        "objects", path)
+        if counts and len(node) > MAX_ITEMS:
+            what = "members" if isinstance(node, dict) else "elements"
+            raise _over("MAX_ITEMS", f"{len(node)} {what}, more than the {MAX_ITEMS} any array "
+                        "or object may hold", path)
         total += len(node)
-        if max_elements is not None and total > max_elements:
-            raise InvalidRequest(f"more than {MAX_ELEMENTS} values in the request",
-                                 field=_path(path),
-                                 details={"limit": MAX_ELEMENTS, "cap": "MAX_ELEMENTS"})
+        if counts and total > MAX_ELEMENTS:
+            raise _over("MAX_ELEMENTS", f"more than {MAX_ELEMENTS} values in the request", path)
         for k, v in items:
             if isinstance(k, str) and len(k) > MAX_STRING:
-                raise InvalidRequest(f"a key longer than {MAX_STRING} characters",
-                                     field=_path(path),
-                                     details={"limit": MAX_STRING, "cap": "MAX_STRING"})
+                raise _over("MAX_STRING", f"a key longer than {MAX_STRING} characters", path)
             if isinstance(v, (dict, list)):
                 stack.append((v, (*path, k), depth + 1))
             elif isinstance(v, str) and len(v) > MAX_STRING:
@@ -100,9 +92,14 @@ def check_structure(value: Any, *, max_items: int | None = MAX_ITEMS,
 
 def _check_scalar(v: Any, path: tuple[Any, ...]) -> None:
     if isinstance(v, str) and len(v) > MAX_STRING:
-        raise InvalidRequest(f"a string of {len(v)} characters, longer than {MAX_STRING}",
-                             field=_path(path),
-                             details={"limit": MAX_STRING, "cap": "MAX_STRING"})
+        raise _over("MAX_STRING", f"a string of {len(v)} characters, longer than {MAX_STRING}",
+                    path)
+
+
+def _over(cap: str, message: str, path: tuple[Any, ...]) -> InvalidRequest:
+    """The refusal for passing ``cap`` (the name of one of this module's caps) at ``path``."""
+    return InvalidRequest(message, field=field_path(path) or "(root)",
+                          details={"limit": globals()[cap], "cap": cap})
 
 
 def field_path(parts: Any) -> str:
@@ -118,7 +115,3 @@ def field_path(parts: Any) -> str:
             p = p[:MAX_NAME] + "..."
         out += f".{p}" if out else p
     return out
-
-
-def _path(parts: tuple[Any, ...]) -> str:
-    return field_path(parts) or "(root)"

@@ -99,10 +99,7 @@ def parse_json(payload: bytes | str, *, counts: bool = False) -> Any:
         value = orjson.loads(payload)
     except orjson.JSONDecodeError as e:
         raise _malformed(e) from None
-    if counts:
-        check_structure(value)
-    else:
-        check_structure(value, max_items=None, max_elements=None)
+    check_structure(value, counts=counts)
     return value
 
 
@@ -227,18 +224,14 @@ def _refusal(err: jsonschema_rs.ValidationError, name: str) -> InvalidRequest:
         forms = _forms(name, list(err.schema_path))
         if forms:
             message = f"must be exactly one of: {', '.join(forms)}"
-    return InvalidRequest(_short(message), field=field_path(path) or "(root)",
-                          details=details)
+    if len(message) > 300:
+        message = message[:300] + "..."
+    return InvalidRequest(message, field=field_path(path) or "(root)", details=details)
 
 
 def _forms(name: str, schema_path: list[Any]) -> list[str]:
     """``oneOf`` alternatives that are objects, as ``{joints}``, ``{named}``, ..."""
-    node: Any = schema(name)
-    for part in schema_path:
-        try:
-            node = node[part]
-        except (KeyError, IndexError, TypeError):
-            return []
+    node = _schema_at(name, schema_path)
     if not isinstance(node, list):
         return []
     return ["{" + ", ".join(alt["required"]) + "}" for alt in node
@@ -248,17 +241,19 @@ def _forms(name: str, schema_path: list[Any]) -> list[str]:
 def _allowed(name: str, schema_path: list[Any]) -> list[str]:
     """The property names schema ``name`` allows where ``additionalProperties`` failed
     (``schema_path``, with references resolved, ends with that keyword)."""
-    node: Any = schema(name)
-    for part in schema_path[:-1]:
-        try:
-            node = node[part]
-        except (KeyError, IndexError, TypeError):
-            return []
+    node = _schema_at(name, schema_path[:-1])
     return list(node.get("properties", {})) if isinstance(node, Mapping) else []
 
 
-def _short(msg: str, limit: int = 300) -> str:
-    return msg if len(msg) <= limit else msg[:limit] + "..."
+def _schema_at(name: str, schema_path: list[Any]) -> Any:
+    """The part of schema ``name`` at ``schema_path``, or None if there is none."""
+    node: Any = schema(name)
+    for part in schema_path:
+        try:
+            node = node[part]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return node
 
 
 def decode(kind: Kind, payload: bytes | str) -> dict[str, Any]:
