@@ -18,10 +18,6 @@ log = logging.getLogger(__name__)
 JSON = "application/json"
 
 
-def joint_states_key(prefix: str) -> str:
-    return f"{prefix}/joint_states"
-
-
 def tick_message(tick: Tick) -> dict[str, Any]:
     return {**tick.state.to_dict(), "phase": tick.phase, "progress": tick.progress}
 
@@ -30,7 +26,7 @@ class JointStatePublisher:
     """Publishes each tick's state on ``<prefix>/joint_states`` through ``session``."""
 
     def __init__(self, session: Any, prefix: str) -> None:
-        self.key = joint_states_key(prefix)
+        self.key = f"{prefix}/joint_states"
         self._pub = session.declare_publisher(self.key, encoding=JSON)
 
     def __call__(self, tick: Tick) -> None:

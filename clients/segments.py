@@ -13,7 +13,6 @@ A segment has ``joint_names``, ``duration`` [s] and ``evaluate(t) -> (q, qd, qdd
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -234,10 +233,6 @@ def move_segment(joint_names: Sequence[str], start: np.ndarray, goal: np.ndarray
     return RuckigSegment(joint_names, _calculate(inp, dof, "move"))
 
 
-def finite_or_none(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 class PathStop:
     """Braking along a segment's own path: the segment's time ``s`` slows from speed 1 to
     0 with a jerk-limited ruckig profile, ``q(t) = Q(s(t))``. The positions stay on the
@@ -279,11 +274,6 @@ class PathStop:
             sd = sdd = 0.0
         q, q1, q2 = self.segment.evaluate(s)
         return q, q1 * sd, q2 * sd * sd + q1 * sdd
-
-
-def remainder(segment: Segment, s0: float) -> RestOf:
-    """The rest of ``segment`` from its time ``s0`` (it ends at rest)."""
-    return RestOf(segment, s0)
 
 
 class RestOf:

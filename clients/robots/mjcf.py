@@ -221,7 +221,6 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             if j.type in ("revolute", "continuous", "prismatic"):
                 kind = "slide" if j.type == "prismatic" else "hinge"
                 lim = j.limit
-                rng = ""
                 if j.type != "continuous" and lim is not None and lim.lower is not None \
                         and lim.upper is not None:
                     rng = f'limited="true" range="{lim.lower!r} {lim.upper!r}"'

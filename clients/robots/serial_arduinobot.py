@@ -46,7 +46,6 @@ from .base import (
 log = logging.getLogger(__name__)
 
 DEFAULT_BAUD = 115200
-MESSAGE_LENGTH = 20  # "bNNN,sNNN,eNNN,gNNN,"
 
 
 def servo_angles(q: Sequence[float] | np.ndarray) -> tuple[int, int, int, int]:
