@@ -23,11 +23,12 @@ import threading
 import tracemalloc
 from collections.abc import Callable, Mapping
 
+from .slot import rss_bytes
+
 _log = logging.getLogger(__name__)
 
 ENV = "ARDUINOBOT_MEMTRACE"
 ENV_TRIM = "ARDUINOBOT_MEMTRACE_TRIM"
-_PAGE = os.sysconf("SC_PAGE_SIZE")
 _MIB = 2**20
 
 
@@ -37,18 +38,16 @@ class _MallInfo2(ctypes.Structure):
         "uordblks", "fordblks", "keepcost")]
 
 
-def _libc() -> ctypes.CDLL | None:
-    try:
-        return ctypes.CDLL(None)
-    except OSError:
-        return None
+try:  # loaded once: a CDLL per probe shows up in the probe's own growth
+    _LIBC: ctypes.CDLL | None = ctypes.CDLL(None)
+except OSError:
+    _LIBC = None
 
 
 def malloc_heap() -> tuple[int, int] | None:
     """glibc's heap over every arena: (bytes in use, bytes free but kept), None when
     this is not glibc >= 2.33."""
-    libc = _libc()
-    fn = getattr(libc, "mallinfo2", None)
+    fn = getattr(_LIBC, "mallinfo2", None)
     if fn is None:
         return None
     fn.restype = _MallInfo2
@@ -58,35 +57,25 @@ def malloc_heap() -> tuple[int, int] | None:
 
 def malloc_trim() -> bool:
     """Ask glibc to return free heap memory to the system; False if unavailable."""
-    fn = getattr(_libc(), "malloc_trim", None)
+    fn = getattr(_LIBC, "malloc_trim", None)
     return False if fn is None else bool(fn(0))
-
-
-def own_rss() -> int:
-    """This process's resident set [bytes]."""
-    with open("/proc/self/statm", "rb") as f:
-        return int(f.read().split()[1]) * _PAGE
 
 
 def rss_kinds() -> dict[str, int]:
     """This process's resident set by kind [bytes]: ``anon`` (heaps, stacks), ``file``
     (code, mapped files), ``shmem`` (shared memory, e.g. Zenoh's SHM pools)."""
-    out = {}
     with open("/proc/self/status") as f:
-        for line in f:
-            for kind in ("Anon", "File", "Shmem"):
-                if line.startswith(f"Rss{kind}:"):
-                    out[kind.lower()] = int(line.split()[1]) * 1024
-    return out
+        status = dict(line.split(":", 1) for line in f)  # e.g. "RssAnon:\t 1234 kB"
+    return {k.lower(): int(status[f"Rss{k}"].split()[0]) * 1024
+            for k in ("Anon", "File", "Shmem") if f"Rss{k}" in status}
 
 
 def count_live(types: tuple[type, ...]) -> dict[str, int]:
     """How many instances of each of ``types`` the garbage collector tracks."""
     out = dict.fromkeys((t.__name__ for t in types), 0)
     for o in gc.get_objects():
-        for t in types:
-            if type(o) is t:
-                out[t.__name__] += 1
+        if type(o) in types:
+            out[type(o).__name__] += 1
     return out
 
 
@@ -153,11 +142,11 @@ class MemTrace:
         traced = sum(s.size for s in snap.statistics("filename"))
         heap = malloc_heap()
         extra = dict(self.counts()) if self.counts is not None else {}
-        rss, kinds = own_rss(), rss_kinds()
+        rss, kinds = rss_bytes(os.getpid()), rss_kinds()
         trimmed = ""
         if self.trim:
             malloc_trim()
-            trimmed = f" -> {own_rss() / _MIB:.1f} MiB after malloc_trim"
+            trimmed = f" -> {rss_bytes(os.getpid()) / _MIB:.1f} MiB after malloc_trim"
         _log.info("memtrace: rss %.1f MiB (%s)%s, traced %.1f MiB, malloc in use %s, "
                   "free %s; %s", rss / _MIB,
                   ", ".join(f"{k} {v / _MIB:.1f}" for k, v in kinds.items()), trimmed,
