@@ -22,11 +22,10 @@ from numpy.typing import ArrayLike
 from description.model import Robot, rpy_matrix
 
 from .errors import InvalidRequest
-from .kinematics import Kinematics
+from .kinematics import FIXED, PRISMATIC, REVOLUTE, Kinematics, joint_rotation
+from .path_limits import torque_coefficients
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2] in the root frame
-
-_FIXED, _REVOLUTE, _PRISMATIC = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
@@ -58,7 +57,7 @@ def _rnea_into(q, qd, qdd, gravity, parent, origin, jtype, axis, src, scale, off
         v = offset[k]
         vd = 0.0
         vdd = 0.0
-        if jtype[k] != _FIXED and src[k] >= 0:
+        if jtype[k] != FIXED and src[k] >= 0:
             v += scale[k] * q[src[k]]
             vd = scale[k] * qd[src[k]]
             vdd = scale[k] * qdd[src[k]]
@@ -67,28 +66,13 @@ def _rnea_into(q, qd, qdd, gravity, parent, origin, jtype, axis, src, scale, off
         r = work[c, 5]
         for i in range(3):
             r[i] = origin[k, i, 3]
-        if jtype[k] == _REVOLUTE:
-            c_, s_ = np.cos(v), np.sin(v)
-            t_ = 1.0 - c_
-            j00 = t_ * x * x + c_
-            j01 = t_ * x * y - s_ * z
-            j02 = t_ * x * z + s_ * y
-            j10 = t_ * x * y + s_ * z
-            j11 = t_ * y * y + c_
-            j12 = t_ * y * z - s_ * x
-            j20 = t_ * x * z - s_ * y
-            j21 = t_ * y * z + s_ * x
-            j22 = t_ * z * z + c_
-            for i in range(3):
-                a0, a1, a2 = origin[k, i, 0], origin[k, i, 1], origin[k, i, 2]
-                rot[k, i, 0] = a0 * j00 + a1 * j10 + a2 * j20
-                rot[k, i, 1] = a0 * j01 + a1 * j11 + a2 * j21
-                rot[k, i, 2] = a0 * j02 + a1 * j12 + a2 * j22
+        if jtype[k] == REVOLUTE:
+            joint_rotation(origin[k], x, y, z, v, rot[k])
         else:
             for i in range(3):
                 for j in range(3):
                     rot[k, i, j] = origin[k, i, j]
-            if jtype[k] == _PRISMATIC:
+            if jtype[k] == PRISMATIC:
                 for i in range(3):
                     r[i] += v * (origin[k, i, 0] * x + origin[k, i, 1] * y + origin[k, i, 2] * z)
         wp, dwp, ap = work[p, 0], work[p, 1], work[p, 2]
@@ -104,12 +88,12 @@ def _rnea_into(q, qd, qdd, gravity, parent, origin, jtype, axis, src, scale, off
             dw[i] = rot[k, 0, i] * dwp[0] + rot[k, 1, i] * dwp[1] + rot[k, 2, i] * dwp[2]
             a[i] = rot[k, 0, i] * tmp[0] + rot[k, 1, i] * tmp[1] + rot[k, 2, i] * tmp[2]
         s = axis[k]
-        if jtype[k] == _REVOLUTE:
+        if jtype[k] == REVOLUTE:
             _cross(w, s, tmp)  # w here is still the parent's, in the child frame
             for i in range(3):
                 dw[i] += s[i] * vdd + tmp[i] * vd
                 w[i] += s[i] * vd
-        elif jtype[k] == _PRISMATIC:
+        elif jtype[k] == PRISMATIC:
             _cross(w, s, tmp)
             for i in range(3):
                 a[i] += s[i] * vdd + 2.0 * tmp[i] * vd
@@ -135,9 +119,9 @@ def _rnea_into(q, qd, qdd, gravity, parent, origin, jtype, axis, src, scale, off
         c = k + 1
         p = parent[k]
         f, n, r = work[c, 3], work[c, 4], work[c, 5]
-        if jtype[k] != _FIXED and src[k] >= 0:
+        if jtype[k] != FIXED and src[k] >= 0:
             s = axis[k]
-            t = s[0] * n[0] + s[1] * n[1] + s[2] * n[2] if jtype[k] == _REVOLUTE \
+            t = s[0] * n[0] + s[1] * n[1] + s[2] * n[2] if jtype[k] == REVOLUTE \
                 else s[0] * f[0] + s[1] * f[1] + s[2] * f[2]
             tau[src[k]] += scale[k] * t
         if p == 0:
@@ -193,9 +177,7 @@ class InverseDynamics:
             self._mass[i] = inertial.mass
             self._com[i] = inertial.origin.xyz
             self._inertia[i] = rot @ inertial.tensor() @ rot.T  # about the COM, link axes
-        kin = self.kinematics
-        self._model = (kin._parent, kin._origin, kin._jtype, kin._axis_arr, kin._src,
-                       kin._scale, kin._offset, self._mass, self._com, self._inertia)
+        self._model = (*self.kinematics._args(), self._mass, self._com, self._inertia)
 
     @property
     def dof(self) -> int:
@@ -279,9 +261,4 @@ class InverseDynamics:
             ``a``, ``b``, ``c``, each shape (N, dof), in one batched call (what toppra's
             ``JointTorqueConstraint`` computes with 3N single calls).
         """
-        p = np.asarray(p, float)
-        zero = np.zeros_like(p)
-        c = self.torques_batch(p, zero, zero)
-        a = self.torques_batch(p, zero, ps) - c
-        b = self.torques_batch(p, ps, pss) - c
-        return a, b, c
+        return torque_coefficients(self, np.asarray(p, float), ps, pss)

@@ -17,7 +17,31 @@ from description.model import Robot
 
 from .errors import InvalidRequest
 
-_FIXED, _REVOLUTE, _PRISMATIC = 0, 1, 2
+# joint type codes of the kernels (shared with planner.dynamics)
+FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def joint_rotation(origin: np.ndarray, x: float, y: float, z: float, v: float,
+                   out: np.ndarray) -> None:
+    """``out[:3, :3] = origin[:3, :3] @ R``, R the rotation by ``v`` [rad] about the unit
+    axis (x, y, z) (Rodrigues). Shared by the FK and inverse dynamics kernels."""
+    c_, s_ = np.cos(v), np.sin(v)
+    t_ = 1.0 - c_
+    j00 = t_ * x * x + c_
+    j01 = t_ * x * y - s_ * z
+    j02 = t_ * x * z + s_ * y
+    j10 = t_ * x * y + s_ * z
+    j11 = t_ * y * y + c_
+    j12 = t_ * y * z - s_ * x
+    j20 = t_ * x * z - s_ * y
+    j21 = t_ * y * z + s_ * x
+    j22 = t_ * z * z + c_
+    for i in range(3):
+        a0, a1, a2 = origin[i, 0], origin[i, 1], origin[i, 2]
+        out[i, 0] = a0 * j00 + a1 * j10 + a2 * j20
+        out[i, 1] = a0 * j01 + a1 * j11 + a2 * j21
+        out[i, 2] = a0 * j02 + a1 * j12 + a2 * j22
 
 
 @numba.njit(cache=True, nogil=True)
@@ -33,26 +57,11 @@ def _fk_into(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.nd
         for r in range(4):
             for c in range(4):
                 local[r, c] = origin[k, r, c]
-        if jtype[k] != _FIXED:
+        if jtype[k] != FIXED:
             v = offset[k] + (scale[k] * q[src[k]] if src[k] >= 0 else 0.0)
             x, y, z = axis[k, 0], axis[k, 1], axis[k, 2]
-            if jtype[k] == _REVOLUTE:
-                c_, s_ = np.cos(v), np.sin(v)
-                t_ = 1.0 - c_
-                rot = np.empty((3, 3))
-                rot[0, 0] = t_ * x * x + c_
-                rot[0, 1] = t_ * x * y - s_ * z
-                rot[0, 2] = t_ * x * z + s_ * y
-                rot[1, 0] = t_ * x * y + s_ * z
-                rot[1, 1] = t_ * y * y + c_
-                rot[1, 2] = t_ * y * z - s_ * x
-                rot[2, 0] = t_ * x * z - s_ * y
-                rot[2, 1] = t_ * y * z + s_ * x
-                rot[2, 2] = t_ * z * z + c_
-                for r in range(3):
-                    a0, a1, a2 = origin[k, r, 0], origin[k, r, 1], origin[k, r, 2]
-                    for c in range(3):
-                        local[r, c] = a0 * rot[0, c] + a1 * rot[1, c] + a2 * rot[2, c]
+            if jtype[k] == REVOLUTE:
+                joint_rotation(origin[k], x, y, z, v, local)
             else:
                 for r in range(3):
                     local[r, 3] += v * (origin[k, r, 0] * x + origin[k, r, 1] * y
@@ -104,48 +113,30 @@ class Kinematics:
         joints = robot.topological_joints
         self._parent = np.array([self.link_index[j.parent] for j in joints], dtype=np.int64)
         self._origin = np.array([j.origin.matrix() for j in joints])
-        self._type = [j.type for j in joints]
-        self._axis = [np.asarray(j.axis, float) / (np.linalg.norm(j.axis) or 1.0) for j in joints]
+        self._axis = np.ascontiguousarray(
+            [np.asarray(j.axis, float) / (np.linalg.norm(j.axis) or 1.0) for j in joints])
         # Each joint's value is scale * q[source] + offset; source -1 means fixed at offset.
-        src, scale, offset = [], [], []
+        drive = []  # (source, scale, offset) per joint
         for j in joints:
             if j.mimic is not None:
-                leader = index.get(j.mimic.joint, -1)
-                src.append(leader)
-                scale.append(j.mimic.multiplier)
-                offset.append(j.mimic.offset)
+                drive.append((index.get(j.mimic.joint, -1), j.mimic.multiplier, j.mimic.offset))
             elif j.movable and j.name in index:
-                src.append(index[j.name])
-                scale.append(1.0)
-                offset.append(0.0)
-            else:
-                # a fixed joint, or an actuated joint left out of joint_names (held at 0)
-                src.append(-1)
-                scale.append(0.0)
-                offset.append(0.0)
-        self._src = np.array(src, dtype=np.int64)
-        self._scale = np.array(scale)
-        self._offset = np.array(offset)
-        codes = {"fixed": _FIXED, "prismatic": _PRISMATIC}
-        self._jtype = np.array([codes.get(t, _REVOLUTE) if s >= 0 or t == "fixed" else _FIXED
-                                for t, s in zip(self._type, src)], dtype=np.int64)
-        self._axis_arr = np.ascontiguousarray(self._axis)
+                drive.append((index[j.name], 1.0, 0.0))
+            else:  # a fixed joint, or an actuated joint left out of joint_names (held at 0)
+                drive.append((-1, 0.0, 0.0))
+        self._src = np.array([d[0] for d in drive], dtype=np.int64)
+        self._scale = np.array([d[1] for d in drive], dtype=float)
+        self._offset = np.array([d[2] for d in drive], dtype=float)
+        codes = {"fixed": FIXED, "prismatic": PRISMATIC}
+        self._jtype = np.array([codes.get(j.type, REVOLUTE) if d[0] >= 0 or j.type == "fixed"
+                                else FIXED for j, d in zip(joints, drive)], dtype=np.int64)
 
     @property
     def dof(self) -> int:
         return len(self.joint_names)
 
-    def joint_values(self, q: ArrayLike) -> np.ndarray:
-        """Every tree joint's value (mimics applied), in topological order, shape (..., nj)."""
-        q = np.asarray(q, dtype=float)
-        if q.shape[-1] != self.dof:
-            raise InvalidRequest(f"expected {self.dof} joint values ({', '.join(self.joint_names)})"
-                                 f", got {q.shape[-1]}", field="q")
-        safe = np.where(self._src >= 0, self._src, 0)
-        return np.where(self._src >= 0, q[..., safe] * self._scale, 0.0) + self._offset
-
     def _args(self) -> tuple[np.ndarray, ...]:
-        return (self._parent, self._origin, self._jtype, self._axis_arr, self._src,
+        return (self._parent, self._origin, self._jtype, self._axis, self._src,
                 self._scale, self._offset)
 
     def link_poses(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
