@@ -23,6 +23,10 @@ class BatchDynamics(Protocol):
 
 
 class LimitsLike(Protocol):
+    """Per-joint limits as :class:`planner.limits.JointLimits` has them, shape (dof,) each."""
+
+    lower: np.ndarray
+    upper: np.ndarray
     velocity: np.ndarray
     acceleration: np.ndarray
     jerk: np.ndarray
@@ -43,13 +47,6 @@ class Derating:
             v = getattr(self, name)
             if not (0.0 < v <= 1.0):
                 raise InvalidRequest(f"{v!r} must be in (0, 1]", field=f"derating.{name}")
-
-    @property
-    def is_identity(self) -> bool:
-        return self.velocity == self.acceleration == self.jerk == self.effort == 1.0
-
-    def key(self) -> tuple[float, float, float, float]:
-        return (self.velocity, self.acceleration, self.jerk, self.effort)
 
     def to_dict(self) -> dict[str, float]:
         return {"velocity": self.velocity, "acceleration": self.acceleration,

@@ -34,7 +34,7 @@ import numpy as np
 
 from .checks import CHECK_STEP
 from .collision.certify import Certificate
-from .path_limits import BatchDynamics, Derating
+from .path_limits import BatchDynamics, Derating, LimitsLike
 from .trajectory import JointTrajectory
 
 log = logging.getLogger(__name__)
@@ -47,15 +47,6 @@ class _World(Protocol):
     def first_invalid(self, qs: np.ndarray) -> int: ...
     def min_clearance(self, qs: np.ndarray) -> tuple[float, tuple[str, str]]: ...
     def check(self, q: np.ndarray, *, clearance: bool = False): ...
-
-
-class _Limits(Protocol):
-    lower: np.ndarray
-    upper: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    jerk: np.ndarray
-    effort: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -149,7 +140,7 @@ class Verifier:
         clearance_states: states the clearance is measured on (0 to skip).
     """
 
-    def __init__(self, limits: _Limits, dynamics: BatchDynamics, world: _World, *,
+    def __init__(self, limits: LimitsLike, dynamics: BatchDynamics, world: _World, *,
                  step: float = CHECK_STEP, clearance_states: int = 3) -> None:
         self.limits = limits
         self.dynamics = dynamics
@@ -208,24 +199,22 @@ class Verifier:
         stride = max(1, int(step(aj) / (traj.duration / (n - 1))))
         return (t, *traj.evaluate(t), stride)
 
-    def _thin(self, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        n = len(t)
-        if n < 2:
-            return t, q, qd, qdd
+    def _thin(self, t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        # the states of (t, q) to collision-check: consecutive ones at most ``step`` apart
+        if len(t) < 2:
+            return t, q
         inc = np.max(np.abs(np.diff(q, axis=0)), axis=1)
         if np.any(inc > self.step):  # the bound did not hold: never thin across such a step
-            keep = np.arange(n)
-        else:
-            keep, acc = [0], 0.0
-            for i, d in enumerate(inc, start=1):
-                if acc + d > self.step:
-                    keep.append(i - 1)
-                    acc = 0.0
-                acc += d
-            keep.append(n - 1)
-            keep = np.unique(keep)
-        return t[keep], q[keep], qd[keep], qdd[keep]
+            return t, q
+        keep, acc = [0], 0.0
+        for i, d in enumerate(inc, start=1):
+            if acc + d > self.step:
+                keep.append(i - 1)
+                acc = 0.0
+            acc += d
+        keep.append(len(t) - 1)
+        keep = np.unique(keep)
+        return t[keep], q[keep]
 
     def verify(self, traj: JointTrajectory, *, enforce_jerk: bool = True,
                derating: Derating | None = None, attempts: int = 1,
@@ -266,44 +255,39 @@ class Verifier:
         worst = {k: float(np.max(v)) for k, v in ratios.items()}
         violations = tuple(k for k in enforced if worst[k] > 1.0 + TOLERANCE)
         pairs: tuple[tuple[str, str], ...] = ()
-        when = None
+        when, checked, max_step = None, 0, 0.0
         if certificate is not None:
             free = certificate.free
             if not free and certificate.failure is not None:
                 pairs = (certificate.failure[2],)
-            return VerificationReport(
-                ok=not violations and free, joint_names=tuple(traj.joint_names),
-                ratios={k: tuple(float(x) for x in v) for k, v in ratios.items()},
-                worst=worst, enforced=tuple(enforced), violations=violations,
-                collision_free=free, colliding_time=None, colliding_pairs=pairs,
-                checked_states=0, max_step=0.0,
-                min_clearance=float(certificate.certified_clearance),
-                closest_pair=tuple(certificate.closest or ("", "")), clearance_states=0,
-                derating=derating, attempts=attempts, certified=True)
-        # no certificate: thin the fine states to collision-check them
-        td, qx, qdx, qddx = self._thin(*fine)
-        max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
-        bad = self.world.first_invalid(qx)
-        if bad >= 0:
-            when = float(td[bad])
-            pairs = tuple(self.world.check(qx[bad]).pairs)
-            clearance, closest = 0.0, (pairs[0] if pairs else ("", ""))
-            n_clear = 1
-        elif self.clearance_states > 0:
-            idx = np.unique(np.linspace(0, len(qx) - 1, self.clearance_states).round()
-                            .astype(int))
-            clearance, closest = self.world.min_clearance(qx[idx])
-            n_clear = len(idx)
-        else:
-            clearance, closest, n_clear = math.inf, ("", ""), 0
+            clearance, closest = certificate.certified_clearance, certificate.closest or ("", "")
+            n_clear = 0
+        else:  # thin the fine states to collision-check them
+            td, qx = self._thin(fine[0], fine[1])
+            checked = len(qx)
+            max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
+            bad = self.world.first_invalid(qx)
+            free = bad < 0
+            if not free:
+                when = float(td[bad])
+                pairs = tuple(self.world.check(qx[bad]).pairs)
+                clearance, closest = 0.0, (pairs[0] if pairs else ("", ""))
+                n_clear = 1
+            elif self.clearance_states > 0:
+                idx = np.unique(np.linspace(0, len(qx) - 1, self.clearance_states).round()
+                                .astype(int))
+                clearance, closest = self.world.min_clearance(qx[idx])
+                n_clear = len(idx)
+            else:
+                clearance, closest, n_clear = math.inf, ("", ""), 0
         return VerificationReport(
-            ok=not violations and bad < 0, joint_names=tuple(traj.joint_names),
+            ok=not violations and free, joint_names=tuple(traj.joint_names),
             ratios={k: tuple(float(x) for x in v) for k, v in ratios.items()},
             worst=worst, enforced=tuple(enforced), violations=violations,
-            collision_free=bad < 0, colliding_time=when, colliding_pairs=pairs,
-            checked_states=len(qx), max_step=max_step, min_clearance=float(clearance),
+            collision_free=free, colliding_time=when, colliding_pairs=pairs,
+            checked_states=checked, max_step=max_step, min_clearance=float(clearance),
             closest_pair=tuple(closest), clearance_states=n_clear, derating=derating,
-            attempts=attempts)
+            attempts=attempts, certified=certificate is not None)
 
 
 def derate(report: VerificationReport, current: Derating, *, margin: float = 0.98,
