@@ -94,10 +94,6 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
         return np.array([0.0, self.length])
 
     @property
-    def waypoints(self) -> np.ndarray:
-        return np.vstack([self.starts, self.eval(self.length)[None]])
-
-    @property
     def start(self) -> np.ndarray:
         return self.starts[0].copy()
 
@@ -105,33 +101,33 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
     def end(self) -> np.ndarray:
         return self(np.array([self.length]))[0]
 
-    def piece_of(self, s: np.ndarray) -> np.ndarray:
-        """Index of the piece holding each ``s``, shape like ``s``."""
-        return np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.lengths) - 1)
-
     def __call__(self, path_positions: float | np.ndarray, order: int = 0) -> np.ndarray:
         """``order``-th derivative (0..3) at ``path_positions``: shape (m, dof) or (dof,)."""
         scalar = np.ndim(path_positions) == 0
         s = np.clip(np.atleast_1d(np.asarray(path_positions, float)), 0.0, self.length)
-        k = self.piece_of(s)
-        sigma = np.clip(s - self.s0[k], 0.0, self.lengths[k])
+        k = np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.lengths) - 1)
+        out = self.in_piece(k, s - self.s0[k], order)
+        return out[0] if scalar else out
+
+    def in_piece(self, k: np.ndarray, sigma: np.ndarray, order: int = 0) -> np.ndarray:
+        """``order``-th derivative (0..3) at ``sigma`` [rad] into piece ``k`` (each shape
+        (m,), sigma clamped to the piece), shape (m, dof): a piece's end stays its own."""
         L = self.lengths[k]
+        sigma = np.clip(sigma, 0.0, L)
         x = np.where(L > 0, sigma / np.where(L > 0, L, 1.0), 0.0)[:, None]
         Lc = L[:, None]
         # a zero-length piece (start == goal) has no curvature: its derivatives are 0
         inv_l = np.where(Lc > 0, 1.0 / np.where(Lc > 0, Lc, 1.0), 0.0)
         du = self.u2[k] - self.u1[k]
         if order == 0:
-            out = self.starts[k] + self.u1[k] * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4)
-        elif order == 1:
-            out = self.u1[k] + du * (3 * x**2 - 2 * x**3)
-        elif order == 2:
-            out = du * (6 * x - 6 * x**2) * inv_l
-        elif order == 3:
-            out = du * (6 - 12 * x) * inv_l**2
-        else:
-            raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
-        return out[0] if scalar else out
+            return self.starts[k] + self.u1[k] * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4)
+        if order == 1:
+            return self.u1[k] + du * (3 * x**2 - 2 * x**3)
+        if order == 2:
+            return du * (6 * x - 6 * x**2) * inv_l
+        if order == 3:
+            return du * (6 - 12 * x) * inv_l**2
+        raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
 
     def dense(self, step: float, s_from: float = 0.0, s_to: float | None = None) -> np.ndarray:
         """States along [s_from, s_to] no more than ``step`` [rad] apart per joint, (m, dof)."""

@@ -113,16 +113,11 @@ class JerkLimitedTiming:
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Constant (v, a, j) bounds on (sd, sdd, sddd) per piece, each shape (n,)."""
         n = len(curve.lengths)
-        ss, owner = [], []
-        for k in range(n):
-            m = _BLEND_SAMPLES if curve.kinds[k] == "blend" else _LINE_SAMPLES
-            ss.append(curve.s0[k] + np.linspace(0.0, curve.lengths[k], m))
-            owner.append(np.full(m, k))
-        s = np.concatenate(ss)
-        own = np.concatenate(owner)
-        # evaluate each sample inside its own piece (searchsorted puts piece ends in the next)
-        d1, d2, d3 = self._derivs(curve, own, s - curve.s0[own])
-        q = self._pos(curve, own, s - curve.s0[own])
+        counts = [_BLEND_SAMPLES if kind == "blend" else _LINE_SAMPLES for kind in curve.kinds]
+        own = np.repeat(np.arange(n), counts)
+        # each sample evaluated inside its own piece (by s, a piece's end is the next's start)
+        sigma = np.concatenate([np.linspace(0.0, L, m) for L, m in zip(curve.lengths, counts)])
+        q, d1, d2, d3 = (curve.in_piece(own, sigma, order) for order in range(4))
         mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
         V, A, J, E = limits.velocity, limits.acceleration, limits.jerk, limits.effort
         d1, d2, d3, mt, bt, gt = (np.abs(x) for x in (d1, d2, d3, mt, bt, gt))
@@ -148,21 +143,6 @@ class JerkLimitedTiming:
                                       details={"stage": "ruckig", "piece": k})
             vs[k], as_[k], js[k] = v, a, j
         return vs, as_, js
-
-    @staticmethod
-    def _derivs(curve: PathCurve, k: np.ndarray, sigma: np.ndarray):
-        L = curve.lengths[k][:, None]
-        x = (sigma[:, None] / L)
-        du = curve.u2[k] - curve.u1[k]
-        return (curve.u1[k] + du * (3 * x**2 - 2 * x**3), du * (6 * x - 6 * x**2) / L,
-                du * (6 - 12 * x) / L**2)
-
-    @staticmethod
-    def _pos(curve: PathCurve, k: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-        L = curve.lengths[k][:, None]
-        x = sigma[:, None] / L
-        return (curve.starts[k] + curve.u1[k] * sigma[:, None]
-                + (curve.u2[k] - curve.u1[k]) * L * (x**3 - 0.5 * x**4))
 
     def section(self, curve: PathCurve, limits: ActiveLimits, *,
                 blend_speed: bool = True) -> RuckigProfile:
