@@ -95,7 +95,7 @@ def read_obstacles(items: list[str], scene: str | None) -> tuple[Obstacle, ...]:
 
 def cmd_view(ns: argparse.Namespace) -> int:
     from .viewer import ViewerUnavailable
-    from .viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
+    from .viewer.trajectory import PlaybackTrajectory
 
     try:
         obstacles = read_obstacles(ns.obstacle, ns.scene)
@@ -106,9 +106,6 @@ def cmd_view(ns: argparse.Namespace) -> int:
         return _serve(ns, d, obstacles, traj)
     except ViewerUnavailable as e:
         print(f"arduinobot: {e}", file=sys.stderr)
-        return EXIT_FAIL
-    except TrajectoryFileError as e:
-        print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
         return EXIT_FAIL
 
 

@@ -4,7 +4,8 @@ A segment has ``joint_names``, ``duration`` [s] and ``evaluate(t) -> (q, qd, qdd
 [rad, rad/s, rad/s^2], each shape (dof,), with ``t`` clamped to [0, duration].
 
 - :class:`SampledTrajectory`: what ``arduinobot plan --json`` writes (the plan reply, or a
-  bare ``JointTrajectory`` dict). Between samples it is the quintic that matches position,
+  bare ``JointTrajectory`` dict), read by :func:`parse_trajectory` (the viewer's reader
+  too). Between samples it is the quintic that matches position,
   velocity and acceleration at both ends, so replaying at any rate follows the plan.
 - :func:`stop_segment`: ruckig's time-optimal, jerk-limited stop from a moving state.
 - :func:`move_segment`: ruckig's jerk-limited move from rest to rest.
@@ -29,7 +30,8 @@ from .robots.base import RobotError
 
 
 class InvalidTrajectory(RobotError):
-    """A trajectory file or body that cannot be played (shape, order, non-finite)."""
+    """A trajectory file or body that cannot be played (shape, order, non-finite); the
+    message names the field (also ``details.field``)."""
 
     code: str = Code.INVALID_TRAJECTORY
 
@@ -38,6 +40,84 @@ class MotionError(RobotError):
     """ruckig could not compute a stop or a move."""
 
     code: str = Code.MOTION_ERROR
+
+
+COLUMNS = ("positions", "velocities", "accelerations", "effort")
+
+
+def _bad(field: str, problem: str) -> InvalidTrajectory:
+    return InvalidTrajectory(f"{field} {problem}", details={"field": field})
+
+
+def parse_trajectory(body: object) -> tuple[tuple[str, ...], np.ndarray, dict[str, np.ndarray]]:
+    """The joint names, the points' ``time_from_start`` (m,) [s] (seconds, or ROS's
+    ``{"sec", "nanosec"}``) and their :data:`COLUMNS`, each (m, dof): positions [rad],
+    velocities [rad/s], accelerations [rad/s^2], effort [N m]; NaN in the rows of the
+    points that lack an optional column.
+
+    Raises:
+        InvalidTrajectory: naming the field that is wrong.
+    """
+    if isinstance(body, Mapping) and "trajectory" in body:
+        body = body["trajectory"]
+    if not isinstance(body, Mapping):
+        raise InvalidTrajectory("not a trajectory: expected a plan reply (plan --json) or "
+                                "{joint_names, points}")
+    names, points = body.get("joint_names"), body.get("points")
+    if not (isinstance(names, list | tuple) and names
+            and all(isinstance(n, str) for n in names)):
+        raise _bad("trajectory.joint_names", "must be a non-empty list of names")
+    if not (isinstance(points, list | tuple) and points):
+        raise _bad("trajectory.points", "must be a non-empty list")
+    dof = len(names)
+    cols = {k: np.full((len(points), dof), np.nan) for k in COLUMNS}
+    times = np.empty(len(points))
+    for k, pt in enumerate(points):
+        where = f"trajectory.points[{k}]"
+        if not isinstance(pt, Mapping):
+            raise _bad(where, "must be an object")
+        times[k] = _seconds(pt.get("time_from_start"), f"{where}.time_from_start")
+        for key, col in cols.items():
+            val = pt.get(key)
+            if val is None or (key != "positions" and val == []):
+                if key == "positions":
+                    raise _bad(f"{where}.positions", "is required")
+                continue
+            try:
+                row = np.array(val, float)
+            except (TypeError, ValueError):
+                raise _bad(f"{where}.{key}", "must be numbers") from None
+            if row.shape != (dof,) or not np.all(np.isfinite(row)):
+                raise _bad(f"{where}.{key}", f"must be {dof} finite numbers")
+            col[k] = row
+    if np.any(np.diff(times) < 0):
+        raise _bad("trajectory.points", "time_from_start must not decrease")
+    return tuple(names), times, cols
+
+
+def read_json(path: str | Path) -> Any:
+    """The JSON in the file ``path`` (InvalidTrajectory if it cannot be read or parsed)."""
+    try:
+        return json.loads(Path(path).read_text("utf-8"))
+    except OSError as e:
+        raise InvalidTrajectory(f"cannot read {path}: {e.strerror}") from None
+    except json.JSONDecodeError as e:
+        raise InvalidTrajectory(f"{path} is not JSON: {e}") from None
+
+
+def _seconds(value: object, field: str) -> float:
+    if isinstance(value, Mapping):
+        try:
+            return float(value.get("sec", 0)) + float(value.get("nanosec", 0)) * 1e-9
+        except (TypeError, ValueError):
+            raise _bad(field, "must be seconds") from None
+    try:
+        t = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise _bad(field, "must be a number of seconds") from None
+    if not np.isfinite(t) or t < 0:
+        raise _bad(field, "must be a finite number >= 0")
+    return t
 
 
 class Segment(Protocol):
@@ -84,38 +164,17 @@ class SampledTrajectory:
         return float(self.times[-1])
 
     @classmethod
-    def from_json(cls, body: Mapping[str, Any]) -> SampledTrajectory:
-        """From a plan reply (``{"trajectory": {...}, ...}``) or a JointTrajectory dict
-        (``{"joint_names": [...], "points": [{"positions", "velocities",
-        "accelerations", "time_from_start"}, ...]}``); missing velocities or
+    def from_json(cls, body: object) -> SampledTrajectory:
+        """From a plan reply or a JointTrajectory dict
+        (:func:`parse_trajectory`); missing velocities or
         accelerations are 0."""
-        t = body.get("trajectory", body) if isinstance(body, Mapping) else None
-        if not isinstance(t, Mapping) or "joint_names" not in t or "points" not in t:
-            raise InvalidTrajectory("not a trajectory: expected a plan reply (plan --json) or "
-                                    "{joint_names, points}")
-        names = tuple(str(n) for n in t["joint_names"])
-        pts = t["points"]
-        try:
-            times = [float(p["time_from_start"]) for p in pts]
-            q = [list(map(float, p["positions"])) for p in pts]
-            qd = [list(map(float, p.get("velocities") or [0.0] * len(names))) for p in pts]
-            qdd = [list(map(float, p.get("accelerations") or [0.0] * len(names)))
-                   for p in pts]
-        except (KeyError, TypeError, ValueError) as e:
-            raise InvalidTrajectory(f"malformed trajectory point: {e}") from None
-        try:
-            return cls(names, np.array(times), np.array(q), np.array(qd), np.array(qdd))
-        except ValueError as e:  # ragged rows
-            raise InvalidTrajectory(f"malformed trajectory: {e}") from None
+        names, times, cols = parse_trajectory(body)
+        return cls(names, times, cols["positions"],
+                   *(np.nan_to_num(cols[k], nan=0.0) for k in ("velocities", "accelerations")))
 
     @classmethod
     def load(cls, path: str | Path) -> SampledTrajectory:
-        p = Path(path)
-        try:
-            body = json.loads(p.read_text("utf-8"))
-        except (OSError, json.JSONDecodeError) as e:
-            raise InvalidTrajectory(f"cannot read {p}: {e}") from None
-        return cls.from_json(body)
+        return cls.from_json(read_json(path))
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ts = self.times

@@ -6,16 +6,15 @@ controller will follow), linear otherwise.
 
 from __future__ import annotations
 
-import json
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..segments import InvalidTrajectory, parse_trajectory, read_json
 
-class TrajectoryFileError(ValueError):
-    """A trajectory file or object is not in the `arduinobot plan --json` format."""
+#: the viewer's name for a file or object not in the `arduinobot plan --json` format
+TrajectoryFileError = InvalidTrajectory
 
 
 @dataclass(frozen=True)
@@ -64,67 +63,21 @@ class PlaybackTrajectory:
 
     @classmethod
     def from_json(cls, data: object) -> PlaybackTrajectory:
-        """From `arduinobot plan --json` output (``{"trajectory": {...}, ...}``) or the
-        trajectory object itself (``{"joint_names": [...], "points": [...]}``).
+        """From `arduinobot plan --json` output or the trajectory object itself
+        (:func:`~clients.segments.parse_trajectory`); an optional column that
+        some point lacks is left out.
 
         Raises:
             TrajectoryFileError: naming the field that is wrong.
         """
-        if isinstance(data, Mapping) and "trajectory" in data:
-            data = data["trajectory"]
-        if not isinstance(data, Mapping):
-            raise TrajectoryFileError("expected an object with 'joint_names' and 'points'")
-        names = data.get("joint_names")
-        points = data.get("points")
-        if (not isinstance(names, Sequence) or isinstance(names, str) or not names
-                or not all(isinstance(n, str) for n in names)):
-            raise TrajectoryFileError("trajectory.joint_names must be a non-empty list of names")
-        if not isinstance(points, Sequence) or not points:
-            raise TrajectoryFileError("trajectory.points must be a non-empty list")
-        j = len(names)
-        cols: dict[str, list[list[float]]] = {
-            "positions": [], "velocities": [], "accelerations": [], "effort": []}
-        times: list[float] = []
-        for k, pt in enumerate(points):
-            where = f"trajectory.points[{k}]"
-            if not isinstance(pt, Mapping):
-                raise TrajectoryFileError(f"{where} must be an object")
-            times.append(_time(pt.get("time_from_start"), f"{where}.time_from_start"))
-            for key, col in cols.items():
-                val = pt.get(key)
-                if val is None or (key != "positions" and len(val) == 0):
-                    if key == "positions":
-                        raise TrajectoryFileError(f"{where}.positions is required")
-                    continue
-                try:
-                    row = [float(x) for x in val]
-                except (TypeError, ValueError):
-                    raise TrajectoryFileError(f"{where}.{key} must be numbers") from None
-                if len(row) != j or not all(np.isfinite(row)):
-                    raise TrajectoryFileError(f"{where}.{key} must be {j} finite numbers")
-                col.append(row)
-        ts = np.asarray(times)
-        if np.any(np.diff(ts) < 0):
-            raise TrajectoryFileError("trajectory.points: time_from_start must not decrease")
-        n = len(points)
-
-        def full(key: str) -> np.ndarray | None:
-            return np.asarray(cols[key]) if len(cols[key]) == n else None
-
-        return cls(joint_names=tuple(names), times=ts, positions=np.asarray(cols["positions"]),
-                   velocities=full("velocities"), accelerations=full("accelerations"),
-                   effort=full("effort"))
+        names, times, cols = parse_trajectory(data)
+        return cls(names, times, **{k: None if np.isnan(c).any() else c
+                                    for k, c in cols.items()})
 
     @classmethod
     def from_file(cls, path: str | Path) -> PlaybackTrajectory:
         """Read a JSON file (see :meth:`from_json`)."""
-        try:
-            data = json.loads(Path(path).read_text())
-        except OSError as e:
-            raise TrajectoryFileError(f"cannot read {path}: {e.strerror}") from None
-        except json.JSONDecodeError as e:
-            raise TrajectoryFileError(f"{path} is not JSON: {e}") from None
-        return cls.from_json(data)
+        return cls.from_json(read_json(path))
 
     @classmethod
     def from_trajectory(cls, trajectory: object) -> PlaybackTrajectory:
@@ -137,18 +90,3 @@ class PlaybackTrajectory:
                    accelerations=np.asarray(t.accelerations, float),  # type: ignore[attr-defined]
                    effort=np.asarray(t.efforts, float))  # type: ignore[attr-defined]
 
-
-def _time(value: object, field: str) -> float:
-    # time_from_start is seconds, or ROS's {"sec", "nanosec"}.
-    if isinstance(value, Mapping):
-        try:
-            return float(value.get("sec", 0)) + float(value.get("nanosec", 0)) * 1e-9
-        except (TypeError, ValueError):
-            raise TrajectoryFileError(f"{field} must be seconds") from None
-    try:
-        t = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise TrajectoryFileError(f"{field} must be a number of seconds") from None
-    if not np.isfinite(t) or t < 0:
-        raise TrajectoryFileError(f"{field} must be a finite number >= 0")
-    return t
