@@ -202,8 +202,7 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
     radii = np.zeros(len(wp))
     corners: list[CornerReport] = []
     for i in range(1, len(wp) - 1):
-        if np.allclose(u[i - 1], u[i], atol=1e-12):
-            radii[i] = 0.0  # collinear: no corner at all
+        if np.allclose(u[i - 1], u[i], atol=1e-12):  # collinear: no corner at all
             corners.append(CornerReport(i, "straight", 0.0, 0))
             continue
         r = min(max_radius, edge_fraction * lens[i - 1], edge_fraction * lens[i])
@@ -211,7 +210,6 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
         if r <= 0.0:
             corners.append(CornerReport(i, "stop", 0.0, 0))
             continue
-        cert = None
         while True:
             blend = PathCurve((wp[i] - r * u[i - 1])[None], u[i - 1][None], u[i][None],
                               np.array([2 * r]), ["blend"])
@@ -229,18 +227,14 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
         if r == 0.0:
             log.info("corner %d: every blend collides, the motion stops there", i)
     sections: list[PathCurve] = []
-    starts: list[np.ndarray] = []
-    u1s: list[np.ndarray] = []
-    u2s: list[np.ndarray] = []
-    ls: list[float] = []
-    kinds: list[str] = []
+    pieces: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, str]] = []  # of a section
 
     def flush() -> None:
-        if ls:
+        if pieces:
+            starts, u1s, u2s, lengths, kinds = zip(*pieces)
             sections.append(PathCurve(np.array(starts), np.array(u1s), np.array(u2s),
-                                      np.array(ls), kinds.copy()))
-        for lst in (starts, u1s, u2s, ls, kinds):
-            lst.clear()
+                                      np.array(lengths), kinds))
+        pieces.clear()
 
     for e in range(len(d)):
         collinear_in = e > 0 and np.allclose(u[e - 1], u[e], atol=1e-12)
@@ -250,16 +244,8 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
             flush()  # a hard corner: rest at wp[e]
         line_len = lens[e] - r0 - r1
         if line_len > 1e-12:
-            starts.append(wp[e] + r0 * u[e])
-            u1s.append(u[e])
-            u2s.append(u[e])
-            ls.append(float(line_len))
-            kinds.append("line")
+            pieces.append((wp[e] + r0 * u[e], u[e], u[e], float(line_len), "line"))
         if r1 > 0.0:
-            starts.append(wp[e + 1] - r1 * u[e])
-            u1s.append(u[e])
-            u2s.append(u[e + 1])
-            ls.append(float(2 * r1))
-            kinds.append("blend")
+            pieces.append((wp[e + 1] - r1 * u[e], u[e], u[e + 1], float(2 * r1), "blend"))
     flush()
     return Curve(tuple(sections), tuple(corners), wp[-1].copy())
