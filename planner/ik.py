@@ -112,33 +112,30 @@ def position_ik(
         raw = [(q, "") for q in found]
         solver = "numeric"
 
+    def full(q: np.ndarray) -> np.ndarray:  # q_base with the solved-for joints at q
+        out = q_base.copy()
+        out[chain.columns] = q
+        return out
+
     candidates: list[tuple[np.ndarray, str]] = []
     outside: list[tuple[np.ndarray, str]] = []
     for q, label in raw:
-        full = q_base.copy()
-        full[chain.columns] = q
-        if np.linalg.norm(_fk(kin, tcp, full) - target) > tolerance:
+        if np.linalg.norm(_fk(kin, tcp, full(q)) - target) > tolerance:
             continue
         q = np.where(chain.revolute, np.remainder(q + np.pi, 2 * np.pi) - np.pi, q)
         shifted = wrap_into_limits(q, lower, upper, chain.revolute)
         if not shifted:
-            full = q_base.copy()
-            full[chain.columns] = q
-            outside.append((full, label))
-        for qs in shifted:
-            full = q_base.copy()
-            full[chain.columns] = qs
-            candidates.append((full, label))
+            outside.append((full(q), label))
+        candidates += [(full(qs), label) for qs in shifted]
     kept = dedupe(candidates, chain)
     if not kept:
         raise _out_of_reach(kin, tcp, chain, q_base, target, lower, upper, outside, geo,
                             tolerance)
+    # closed form: by branch, then joint values; numeric: by joint values, then numbered
+    kept.sort(key=lambda c: (_BRANCHES.index(c[1]) if geo is not None else 0,
+                             tuple(np.round(c[0][chain.columns], 9))))
     if solver == "numeric":
-        kept.sort(key=lambda c: tuple(np.round(c[0][chain.columns], 9)))
         kept = [(q, f"solution {k + 1}") for k, (q, _) in enumerate(kept)]
-    else:
-        order = {b: i for i, b in enumerate(_BRANCHES)}
-        kept.sort(key=lambda c: (order[c[1]], tuple(np.round(c[0][chain.columns], 9))))
     _log.debug("position_ik %s: %d solutions (%s)", target, len(kept), solver)
     return tuple(IkSolution(q=q, branch=b) for q, b in kept)
 
@@ -150,8 +147,7 @@ def _validate_position(position: ArrayLike) -> np.ndarray:
     try:
         p = np.asarray(position, dtype=float)
     except (TypeError, ValueError):
-        raise InvalidRequest(f"must be 3 finite numbers [m], got {position!r}",
-                             field="position") from None
+        p = np.empty(0)
     if p.shape != (3,) or not np.all(np.isfinite(p)):
         raise InvalidRequest(f"must be 3 finite numbers [m], got {position!r}",
                              field="position")

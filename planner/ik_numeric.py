@@ -191,15 +191,13 @@ def wrap_into_limits(q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
             w = math.remainder(float(v), 2 * math.pi)
             options.append([w])
             continue
-        vals = []
         if rev:
             k_min = math.ceil((lo - LIMIT_SLACK - v) / (2 * math.pi))
             k_max = math.floor((hi + LIMIT_SLACK - v) / (2 * math.pi))
             shifts = range(k_min, k_max + 1)
         else:
             shifts = range(0, 1) if lo - LIMIT_SLACK <= v <= hi + LIMIT_SLACK else range(0)
-        for k in shifts:
-            vals.append(min(max(float(v) + 2 * math.pi * k, lo), hi))
+        vals = [min(max(float(v) + 2 * math.pi * k, lo), hi) for k in shifts]
         if not vals:
             return []
         options.append(vals)
