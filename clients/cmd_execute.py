@@ -113,7 +113,8 @@ def _add_robot_args(g: argparse._ArgumentGroup) -> None:
 
 
 def robot_spec(ns: argparse.Namespace) -> Any:
-    """The :class:`clients.execute_service.RobotSpec` of ``serve``'s robot options."""
+    """The :class:`clients.execute_service.RobotSpec` of the robot options (``serve``'s,
+    or ``execute``'s --serial/--sim)."""
     from .execute_service import RobotSpec
     if getattr(ns, "no_robot", False):
         return RobotSpec(kind="none")
@@ -150,14 +151,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
     from .replies import PlanReply
     from .segments import SampledTrajectory
     desc = local_description(ns)
-    obstacles = (req or {}).get("obstacles", [])
-    if ns.sim:
-        from .robots.sim_arduinobot import SimArduinobot
-        robot: Any = SimArduinobot(desc, obstacles=obstacles)
-    else:
-        from .robots.serial_arduinobot import SerialArduinobot
-        robot = SerialArduinobot.from_description(desc, ns.serial or None, baud=ns.baud,
-                                                  rate=ns.rate, boot_wait=ns.boot_wait)
+    robot = robot_spec(ns).open(desc, obstacles=(req or {}).get("obstacles", []))
     session = None
     try:
         if req is not None:

@@ -39,8 +39,9 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import orjson
@@ -83,10 +84,41 @@ class RobotSpec:
     boot_wait: float = 2.0
     realtime: bool = True
 
+    def open(self, description: Any, *, obstacles: Sequence[Mapping[str, Any]] = ()) -> Any:
+        """The driver: the real arm (its port opened) or the twin among ``obstacles``.
 
-def _err(code: str, message: str, details: Mapping[str, Any] | None = None) -> bytes:
-    return wire.encode({"error": {"code": code, "message": message,
-                                  "details": dict(details or {})}})
+        Raises:
+            RobotError: kind ``none``, or the port's error (PortNotFound, PortBusy, ...).
+        """
+        if self.kind == "serial":
+            from .robots.serial_arduinobot import SerialArduinobot
+            return SerialArduinobot.from_description(description, self.port, baud=self.baud,
+                                                     rate=self.rate, boot_wait=self.boot_wait)
+        if self.kind == "sim":
+            from .robots.sim_arduinobot import SimArduinobot
+            return SimArduinobot(description, obstacles=obstacles)
+        from .robots import RobotError
+        raise RobotError("this service drives no robot (serve --no-robot)")
+
+
+def _reply_err(query: zenoh.Query, code: str, message: str,
+               details: Mapping[str, Any] | None = None) -> None:
+    query.reply_err(wire.encode({"error": {"code": code, "message": message,
+                                           "details": dict(details or {})}}), encoding=JSON)
+
+
+@contextmanager
+def _answering(query: zenoh.Query, where: str, internal: str) -> Iterator[None]:
+    """A coded error (planner or robot) in the block answers ``query`` as itself; any
+    other is logged and answered INTERNAL with the message ``internal``."""
+    from .robots import RobotError
+    try:
+        yield
+    except (PlanningError, RobotError) as e:
+        _reply_err(query, e.code, e.message, e.details)
+    except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
+        _log.exception("%s: %s", where, internal)
+        _reply_err(query, Code.INTERNAL, internal)
 
 
 class ExecuteService:
@@ -106,14 +138,8 @@ class ExecuteService:
         self._thread: threading.Thread | None = None
         self._running: Any = None  # the Executor playing now
         self._ids = itertools.count(1)
-        self._entities: list[Any] = []
         self._publisher: Any = None
-
-    @property
-    def keys(self) -> list[str]:
-        p = self.prefix
-        return [f"{p}/execute", f"{p}/execute/cancel", f"{p}/robot_state",
-                f"{p}/joint_states"]
+        self._entities: list[Any] = []  # the publisher, then the queryables
 
     def start(self) -> None:
         if self.spec.kind == "serial":
@@ -122,6 +148,7 @@ class ExecuteService:
         p = self.prefix
         s = self.session
         self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
+        self._entities.append(self._publisher)
         # execute and robot_state may build the twin (~1.5 s) or wait for the pool: they
         # run on their own threads, never on Zenoh's callback thread
         for key, fn, threaded in ((f"{p}/execute", self._on_execute, True),
@@ -129,9 +156,9 @@ class ExecuteService:
                                   (f"{p}/robot_state", self._on_state, True)):
             self._entities.append(s.declare_queryable(
                 key, self._guard(key, fn, threaded=threaded), complete=True))
-        _log.info("execute: robot %s%s, %g Hz; keys %s", self.spec.kind,
-                  f" on {self.spec.port}" if self.spec.port else "", self.spec.rate,
-                  ", ".join(self.keys))
+        _log.info("execute: robot %s%s, %g Hz; keys %s/{execute,execute/cancel,robot_state,"
+                  "joint_states}", self.spec.kind,
+                  f" on {self.spec.port}" if self.spec.port else "", self.spec.rate, p)
 
     def close(self) -> None:
         """Stop a running execution smoothly, then release the robot."""
@@ -144,11 +171,6 @@ class ExecuteService:
             except zenoh.ZError:
                 pass
         self._entities.clear()
-        if self._publisher is not None:
-            try:
-                self._publisher.undeclare()
-            except zenoh.ZError:
-                pass
         if self._robot is not None:
             self._robot.close()
             self._robot = None
@@ -160,34 +182,18 @@ class ExecuteService:
         with self._robot_lock:
             if self._robot is None:
                 from .execute import ExecuteOptions, Executor
-                sp, d = self.spec, self.description
-                if sp.kind == "serial":
-                    from .robots.serial_arduinobot import SerialArduinobot
-                    self._robot = SerialArduinobot.from_description(
-                        d, sp.port, baud=sp.baud, rate=sp.rate, boot_wait=sp.boot_wait)
-                elif sp.kind == "sim":
-                    from .robots.sim_arduinobot import SimArduinobot
-                    self._robot = SimArduinobot(d)
-                else:
-                    from .robots import RobotError
-                    raise RobotError("this service drives no robot (serve --no-robot)")
+                sp = self.spec
+                self._robot = sp.open(self.description)
                 self._executor = Executor.for_description(
-                    self._robot, d, options=ExecuteOptions(
+                    self._robot, self.description, options=ExecuteOptions(
                         rate=sp.rate, realtime=sp.realtime or sp.kind == "serial"))
             return self._robot
 
     # -- queries --------------------------------------------------------------------------
     def _guard(self, key: str, fn: Callable[[zenoh.Query], None], *, threaded: bool):
         def handle(query: zenoh.Query) -> None:
-            from .robots import RobotError
-            try:
+            with _answering(query, key, "unexpected failure in the service"):
                 fn(query)
-            except (PlanningError, RobotError) as e:
-                query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
-            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
-                _log.exception("%s: unexpected failure", key)
-                query.reply_err(_err(Code.INTERNAL, "unexpected failure in the service"),
-                                encoding=JSON)
 
         def on_query(query: zenoh.Query) -> None:
             if not addressed_exactly(key, query):
@@ -228,26 +234,27 @@ class ExecuteService:
         if isinstance(tol, bool) or not isinstance(tol, (int, float)) \
                 or not (math.isfinite(tol) and 0 < tol <= 1):
             raise InvalidRequest(f"{tol!r} must be in (0, 1] rad", field="start_tolerance")
-        move = body.get("move_to_start", False)
-        if not isinstance(move, bool):
-            raise InvalidRequest("must be true or false", field="move_to_start")
+        for flag in ("move_to_start", "blend"):
+            if not isinstance(body.get(flag, False), bool):
+                raise InvalidRequest("must be true or false", field=flag)
         client = body.get("client")
         if client is not None and (not isinstance(client, str) or not client.isalnum()):
             raise InvalidRequest("must be an alphanumeric id", field="client")
-        blend = body.get("blend", False)
-        if not isinstance(blend, bool):
-            raise InvalidRequest("must be true or false", field="blend")
         robot = self.robot()
-        if blend:
+        if body.get("blend", False):
             self._blend(query, body)
             return
         if not self._busy.acquire(blocking=False):
-            raise _busy(self._current)
+            from .execute import ExecutionBusy
+            raise ExecutionBusy(f"the robot is executing {self._current}; cancel it first "
+                                "(<prefix>/execute/cancel)",
+                                details={"execution": self._current})
         try:
             execution = f"x{next(self._ids)}"
             self._current = execution
             self._cancel.clear()
-            run = _Run(self, query, execution, float(tol), move, client)
+            run = _Run(self, query, execution, float(tol), body.get("move_to_start", False),
+                       client)
             if "trajectory" in body:
                 run.start_with(body["trajectory"])
                 return
@@ -283,21 +290,16 @@ class ExecuteService:
         key = f"{self.prefix}/execute"
 
         def on_planned(outcome: Outcome) -> None:
-            from .robots import RobotError
-            try:
+            with _answering(query, key, "the blend failed"):
                 if isinstance(outcome, Failure):
-                    query.reply_err(_err(outcome.code, outcome.message, outcome.details),
-                                    encoding=JSON)
-                    return
-                traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
-                ex.switch(traj, k)
-                query.reply(key, wire.encode({"event": "blended", "execution": execution,
-                                              "tick": k, "duration": traj.duration}),
-                            encoding=JSON)
-            except RobotError as e:
-                query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
-            finally:
-                query.drop()
+                    _reply_err(query, outcome.code, outcome.message, outcome.details)
+                else:
+                    traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
+                    ex.switch(traj, k)
+                    query.reply(key, wire.encode({"event": "blended", "execution": execution,
+                                                  "tick": k, "duration": traj.duration}),
+                                encoding=JSON)
+            query.drop()
         if self.submit_plan is None:
             raise InvalidRequest("this service cannot plan", field="plan")
         self.submit_plan(data, on_planned)
@@ -306,12 +308,6 @@ class ExecuteService:
         self._current = None
         if self._busy.locked():
             self._busy.release()
-
-
-def _busy(current: str | None) -> Exception:
-    from .execute import ExecutionBusy
-    return ExecutionBusy(f"the robot is executing {current}; cancel it first "
-                         "(<prefix>/execute/cancel)", details={"execution": current})
 
 
 def _payload(query: zenoh.Query, *, required: bool) -> Any:
@@ -354,7 +350,7 @@ class _Run:
         t.start()
 
     def _fail(self, code: str, message: str, details: Mapping[str, Any]) -> None:
-        self.query.reply_err(_err(code, message, details), encoding=JSON)
+        _reply_err(self.query, code, message, details)
         self.query.drop()
         self.svc._finish()
 
@@ -362,54 +358,45 @@ class _Run:
         self.query.reply(self.key, json.dumps(body).encode(), encoding=JSON)
 
     def _run(self, traj: Any) -> None:
-        from dataclasses import replace
-
         from .execute import Executor
         from .joint_states import tick_message
-        from .robots import RobotError
         svc = self.svc
         watch = None
-        try:
-            if self.client is not None:
-                watch = self._watch_client()
-            base = svc._executor
-            pub = svc._publisher
+        with _answering(self.query, f"execution {self.execution}", "the execution failed"):
+            try:
+                if self.client is not None:
+                    watch = self._watch_client()
+                base = svc._executor
+                pub = svc._publisher
 
-            def on_tick(tick: Any) -> None:
-                msg = tick_message(tick)
-                pub.put(json.dumps(msg).encode())
-                if tick.index % PROGRESS_EVERY == 0:
-                    self._reply({"event": "progress", "execution": self.execution,
-                                 "time": tick.time, **msg})
-            ex = Executor(base.robot, base.limits, torques=base.torques, on_tick=on_tick,
-                          options=replace(base.options, start_tolerance=self.tolerance,
-                                          move_to_start=self.move))
-            ex.check_start(traj)  # refuse before telling the client it started
-            svc._running = ex
-            self._reply({"event": "started", "execution": self.execution,
-                         "duration": traj.duration, "joint_names": list(traj.joint_names)})
-            t0 = time.monotonic()
-            report = ex.execute(traj, cancel=svc._cancel)
-            if watch is not None:  # done: the client may leave now
-                watch.undeclare()
-                watch = None
-            _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
-                      time.monotonic() - t0)
-            self._reply({"event": "finished", "execution": self.execution,
-                         "report": report.to_dict()})
-            self.query.drop()
-        except (RobotError, PlanningError) as e:
-            self.query.reply_err(_err(e.code, e.message, e.details), encoding=JSON)
-            self.query.drop()
-        except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
-            _log.exception("execution %s failed", self.execution)
-            self.query.reply_err(_err(Code.INTERNAL, "the execution failed"), encoding=JSON)
-            self.query.drop()
-        finally:
-            svc._running = None
-            if watch is not None:
-                watch.undeclare()
-            svc._finish()
+                def on_tick(tick: Any) -> None:
+                    msg = tick_message(tick)
+                    pub.put(json.dumps(msg).encode())
+                    if tick.index % PROGRESS_EVERY == 0:
+                        self._reply({"event": "progress", "execution": self.execution,
+                                     "time": tick.time, **msg})
+                ex = Executor(base.robot, base.limits, torques=base.torques, on_tick=on_tick,
+                              options=replace(base.options, start_tolerance=self.tolerance,
+                                              move_to_start=self.move))
+                ex.check_start(traj)  # refuse before telling the client it started
+                svc._running = ex
+                self._reply({"event": "started", "execution": self.execution,
+                             "duration": traj.duration, "joint_names": list(traj.joint_names)})
+                t0 = time.monotonic()
+                report = ex.execute(traj, cancel=svc._cancel)
+                if watch is not None:  # done: the client may leave now
+                    watch.undeclare()
+                    watch = None
+                _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
+                          time.monotonic() - t0)
+                self._reply({"event": "finished", "execution": self.execution,
+                             "report": report.to_dict()})
+            finally:
+                svc._running = None
+                if watch is not None:
+                    watch.undeclare()
+                svc._finish()
+        self.query.drop()
 
     def _watch_client(self) -> Any:
         """Cancel when the client's liveliness token goes (the client died or lost the
