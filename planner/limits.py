@@ -131,10 +131,8 @@ class JointLimits:
         yaml_src = "config/joint_limits.yaml"
         sources: dict[str, str] = {}
         vals: dict[str, list[float]] = {k: [] for k in _KINDS}
-        missing_acc: list[int] = []
-        for i, name in enumerate(names):
-            joint = robot.joints[name]
-            lim = joint.limit
+        for name in names:
+            lim = robot.joints[name].limit
             cfg = description.joint_limits.get(name, {})
             lo, hi = robot.position_limits((name,))[0]
             if lo > hi:
@@ -152,17 +150,12 @@ class JointLimits:
             vel, vsrc = _velocity(name, lim.velocity if lim is not None else 0.0, cfg, yaml_src)
             vals["velocity"].append(vel * velocity_scaling)
             sources[f"{name}.velocity"] = vsrc
-            acc = _yaml_limit(name, cfg, "acceleration")
-            if acc is None:
-                missing_acc.append(i)
-                vals["acceleration"].append(math.nan)
-            else:
-                vals["acceleration"].append(acc)
-                sources[f"{name}.acceleration"] = yaml_src
-            jerk = _yaml_limit(name, cfg, "jerk")
-            vals["jerk"].append(math.nan if jerk is None else jerk)
-            if jerk is not None:
-                sources[f"{name}.jerk"] = yaml_src
+            for kind in ("acceleration", "jerk"):  # nan: derived below
+                value = _yaml_limit(name, cfg, kind)
+                vals[kind].append(math.nan if value is None else value)
+                if value is not None:
+                    sources[f"{name}.{kind}"] = yaml_src
+        missing_acc = [i for i, a in enumerate(vals["acceleration"]) if math.isnan(a)]
         if missing_acc:
             derived = derive_accelerations(description, [names[i] for i in missing_acc])
             for i, a in zip(missing_acc, derived):
