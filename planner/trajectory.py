@@ -102,6 +102,12 @@ class TrajectoryPoint:
     effort: tuple[float, ...]
     time_from_start: float
 
+    @classmethod
+    def of(cls, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray,
+           t: float) -> TrajectoryPoint:
+        """From one state's arrays, each shape (dof,)."""
+        return cls(*(tuple(map(float, a)) for a in (q, qd, qdd, tau)), float(t))
+
     def to_dict(self) -> dict[str, object]:
         return {"positions": list(self.positions), "velocities": list(self.velocities),
                 "accelerations": list(self.accelerations), "effort": list(self.effort),
@@ -194,12 +200,8 @@ class JointTrajectory:
 
     @cached_property
     def points(self) -> tuple[TrajectoryPoint, ...]:
-        return tuple(TrajectoryPoint(tuple(map(float, self.positions[i])),
-                                     tuple(map(float, self.velocities[i])),
-                                     tuple(map(float, self.accelerations[i])),
-                                     tuple(map(float, self.efforts[i])),
-                                     float(self.times[i]))
-                     for i in range(len(self.times)))
+        return tuple(map(TrajectoryPoint.of, self.positions, self.velocities,
+                         self.accelerations, self.efforts, self.times))
 
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, qd, qdd) at any times [s], each (m, dof); clamped to [0, duration]."""
@@ -211,9 +213,7 @@ class JointTrajectory:
             raise InvalidRequest(f"{t!r} is not a finite time", field="t")
         q, qd, qdd = self.timing.evaluate(np.array([t]))
         tau = np.asarray(self.effort_fn(q, qd, qdd), float)
-        t = min(max(float(t), 0.0), self.duration)
-        return TrajectoryPoint(tuple(map(float, q[0])), tuple(map(float, qd[0])),
-                               tuple(map(float, qdd[0])), tuple(map(float, tau[0])), t)
+        return TrajectoryPoint.of(q[0], qd[0], qdd[0], tau[0], min(max(t, 0.0), self.duration))
 
     def to_dict(self) -> dict[str, object]:
         return {"joint_names": list(self.joint_names), "duration": self.duration,
@@ -228,12 +228,9 @@ class JointTrajectory:
         """One row per sample: time, then position/velocity/acceleration/effort per joint."""
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
-        header = ["time_from_start"]
-        for kind in ("position", "velocity", "acceleration", "effort"):
-            header += [f"{n}.{kind}" for n in self.joint_names]
-        w.writerow(header)
-        for i, t in enumerate(self.times):
-            w.writerow([repr(float(t))] + [repr(float(x)) for x in np.concatenate(
-                (self.positions[i], self.velocities[i], self.accelerations[i],
-                 self.efforts[i]))])
+        kinds = ("position", "velocity", "acceleration", "effort")
+        w.writerow(["time_from_start", *(f"{n}.{k}" for k in kinds for n in self.joint_names)])
+        rows = np.column_stack([self.times, self.positions, self.velocities,
+                                self.accelerations, self.efforts])
+        w.writerows([repr(float(x)) for x in row] for row in rows)
         return buf.getvalue()
