@@ -122,15 +122,13 @@ class TimeOptimalTiming:
                     int(np.ceil(self.min_grid * L / curve.length)))
             pts.append(s0 + np.linspace(0.0, L, n + 1)[:-1])
         pts.append([curve.length])
-        g = np.concatenate(pts)
-        g[-1] = curve.length
-        return g
+        return np.concatenate(pts)
 
     def section(self, curve: PathCurve, limits: ActiveLimits) -> ConstAccelProfile:
         grid = self.gridpoints(curve)
         algo = toppra.algorithm.TOPPRA(self.constraints(limits), curve, gridpoints=grid,
                                        solver_wrapper="seidel")
-        data = algo.compute_parameterization(0.0, 0.0, return_data=True)
+        algo.compute_parameterization(0.0, 0.0, return_data=True)
         if algo.problem_data.return_code != toppra.algorithm.ParameterizationReturnCode.Ok \
                 or algo.problem_data.sd_vec is None:
             raise TrajectoryError(
@@ -140,7 +138,6 @@ class TimeOptimalTiming:
                          "velocity": limits.velocity.tolist(),
                          "acceleration": limits.acceleration.tolist(),
                          "effort": limits.effort.tolist()})
-        del data
         return ConstAccelProfile(grid, algo.problem_data.sd_vec)
 
     def parameterise(self, curve: Curve, limits: ActiveLimits) -> CurveTiming:
