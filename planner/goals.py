@@ -67,12 +67,6 @@ class PositionGoal:
 Goal = JointGoal | NamedGoal | PositionGoal
 
 
-def group_names(description: Description) -> tuple[str, ...]:
-    """The groups a request may name: the SRDF's, and ``all``."""
-    srdf = description.srdf
-    return (*(srdf.groups if srdf is not None else ()), "all")
-
-
 def resolve_group(description: Description, group: str | None, goal: Goal) -> str:
     """The planning group of a request: ``group`` if given (it must exist); for a named
     goal, the group that defines the state; else the description's default group.
@@ -81,16 +75,17 @@ def resolve_group(description: Description, group: str | None, goal: Goal) -> st
         InvalidRequest: an unknown group (naming the known ones), or a named state that
             several groups define when no group was given (naming them).
     """
-    known = group_names(description)
+    srdf = description.srdf
+    known = (*(srdf.groups if srdf is not None else ()), "all")  # the groups a request may name
     if group is not None:
         if not isinstance(group, str) or group not in known:
             raise InvalidRequest(f"{group!r} is not a group of this robot (groups: "
                                  f"{', '.join(known)})", field="group",
                                  details={"groups": list(known)})
         return group
-    if isinstance(goal, NamedGoal) and description.srdf is not None:
+    if isinstance(goal, NamedGoal) and srdf is not None:
         try:
-            return description.srdf.named_state(goal.name).group
+            return srdf.named_state(goal.name).group
         except SrdfError as e:
             raise InvalidRequest(e.message, field="goal.named",
                                  details={"hint": e.hint} if e.hint else None) from None
