@@ -1,24 +1,17 @@
-"""Verify a trajectory before it is returned: every limit at every sample, and collisions.
+"""Verify a trajectory before it is returned: every limit between samples, and collisions.
 
-Checks, per joint, the worst ratio of each quantity to its limit:
-- position: ``|q - mid| / half_range`` at every sample and every fine state (a uniform
-  time grid on which no joint moves more than ``step / 4``);
-- velocity, acceleration: at every sample and every fine state;
-- jerk: finite differences of the sampled accelerations (the mean jerk over each sample
-  interval), as a motor controller would see them;
-- effort: inverse dynamics at every sample and every fine state (toppra bounds torque
-  only at its gridpoints, and a blend's torque can peak between two samples; the
-  thinned collision states, up to ``step`` apart, missed such peaks by ~0.3 %).
-Collisions: the trajectory is evaluated at a time step small enough that no joint moves
-more than ``step`` (0.002 rad) between checked states, and every state is checked with
-``first_invalid``. The step bound uses the sampled peak speed plus the acceleration limit
-times half a sample interval, and is re-measured on the dense states.
+Per joint, the worst ratio of each quantity to its limit (position: ``|q - mid| /
+half_range``). Position, velocity, acceleration and effort are checked at every sample
+and on a fine time grid between them (toppra bounds torque only at its gridpoints, and a
+blend's torque can peak between two samples); jerk by finite differences of the sampled
+accelerations (the mean jerk over each interval), as a motor controller sees it. A ratio
+passes if it is <= 1 + ``TOLERANCE`` (1e-6 relative): only the rounding of limits met
+exactly (ruckig saturates its limits) is forgiven.
 
-A ratio passes if it is <= 1 + ``TOLERANCE`` (1e-6 relative): only floating-point
-rounding of limits that are met exactly (ruckig saturates its limits) is forgiven.
-The minimum clearance is an FCL distance query and slow (~ms per state), so it is
-measured on ``clearance_states`` states spread over the trajectory (reported as such);
-collision-freedom itself is checked on every dense state.
+Collisions: the certificate of the curve the trajectory follows decides them over the
+whole continuous motion (:mod:`planner.collision.certify`). Without one, states at most
+``step`` (0.002 rad) apart are checked with ``first_invalid``, and the minimum clearance,
+an FCL distance query (~ms per state), is measured on ``clearance_states`` of them.
 """
 
 from __future__ import annotations
@@ -124,9 +117,8 @@ def _ratio(values: np.ndarray, limit: np.ndarray) -> np.ndarray:
     """Worst |value| / limit per joint, shape (dof,); a zero limit with motion is inf."""
     peak = np.max(np.abs(values), axis=0) if len(values) else np.zeros(len(limit))
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(limit > 0, peak / np.where(limit > 0, limit, 1.0),
-                     np.where(peak > 0, np.inf, 0.0))
-    return r
+        return np.where(limit > 0, peak / np.where(limit > 0, limit, 1.0),
+                        np.where(peak > 0, np.inf, 0.0))
 
 
 class Verifier:
@@ -149,19 +141,19 @@ class Verifier:
         self.clearance_states = clearance_states
 
     def fine_states(self, traj: JointTrajectory
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(times, q, qd, qdd) on a uniform time grid fine enough that no joint moves more
-        than ``step / 4`` between states (from the sampled peak speed plus the acceleration
-        limit times half a sample interval)."""
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+        """(times, q, qd, qdd, 1) on a uniform time grid fine enough that no joint moves
+        more than ``step / 4`` between states (from the sampled peak speed plus the
+        acceleration limit times half a sample interval): every limit, and collisions."""
         if traj.duration <= 0.0:
             t = np.array([0.0])
-            return (t, *traj.evaluate(t))
+            return (t, *traj.evaluate(t), 1)
         h = float(np.max(np.diff(traj.times))) if len(traj.times) > 1 else traj.duration
         vpeak = float(np.max(np.abs(traj.velocities)
                              + 0.5 * h * np.asarray(self.limits.acceleration)[None, :]))
         n = max(2, int(math.ceil(traj.duration * vpeak / (0.25 * self.step))) + 1)
         t = np.linspace(0.0, traj.duration, n)
-        return (t, *traj.evaluate(t))
+        return (t, *traj.evaluate(t), 1)
 
     def limit_states(self, traj: JointTrajectory
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
@@ -230,13 +222,9 @@ class Verifier:
         lo, hi = np.asarray(lim.lower, float), np.asarray(lim.upper, float)
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
         t, q, qd, qdd = traj.times, traj.positions, traj.velocities, traj.accelerations
-        # fine states: every limit between samples; thinned dense states: collisions
-        # (a certificate proves those: then the grid need only resolve the limits)
-        if certificate is None:
-            fine, stride = self.fine_states(traj), 1
-        else:
-            *fine, stride = self.limit_states(traj)
-        _, qf, qdf, qddf = fine
+        # a certificate proves collisions: then the grid need only resolve the limits
+        tf, qf, qdf, qddf, stride = (self.fine_states(traj) if certificate is None
+                                     else self.limit_states(traj))
         tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
         pick = np.unique(np.append(np.arange(0, len(qf), stride), len(qf) - 1))
         tau_dense = np.asarray(self.dynamics.torques_batch(qf[pick], qdf[pick], qddf[pick]),
@@ -263,7 +251,7 @@ class Verifier:
             clearance, closest = certificate.certified_clearance, certificate.closest or ("", "")
             n_clear = 0
         else:  # thin the fine states to collision-check them
-            td, qx = self._thin(fine[0], fine[1])
+            td, qx = self._thin(tf, qf)
             checked = len(qx)
             max_step = float(np.abs(np.diff(qx, axis=0)).max()) if len(qx) > 1 else 0.0
             bad = self.world.first_invalid(qx)
