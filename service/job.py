@@ -9,11 +9,14 @@ from typing import Any, Literal
 
 from planner.codes import Code
 
-from .messages import Failure, JobMsg, Outcome
-from .worker import DEFAULT_PLANNING_TIME, job_deadline
+from .messages import Failure, Outcome
+from .worker import job_deadline
 
 #: why the pool stopped a worker in the middle of a job
 Stop = Literal["deadline", "memory", "shutdown"]
+#: what a request gets once its instance is stopping
+SHUTTING_DOWN = ("this instance is shutting down; retry (another instance, if any, takes "
+                 "the request)")
 
 
 @dataclass(eq=False)
@@ -38,19 +41,8 @@ class Job:
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def __post_init__(self) -> None:
-        if isinstance(self.payload, Mapping):
-            self.deadline = job_deadline(self.kind, self.payload, self.base_deadline)
-        else:
-            self.deadline = self.base_deadline + (
-                DEFAULT_PLANNING_TIME if self.kind == "plan" else 0.0)
-
-    @property
-    def done(self) -> bool:
-        return self.respond is None
-
-    def message(self) -> JobMsg:
-        """What a worker is sent."""
-        return JobMsg(self.request_id, self.kind, self.payload, self.base_deadline)
+        valid = self.payload if isinstance(self.payload, Mapping) else {}
+        self.deadline = job_deadline(self.kind, valid, self.base_deadline)
 
     def claim(self) -> Callable[[Outcome], None] | None:
         """Take the right to reply (once): the responder, or None if already taken."""
@@ -69,8 +61,7 @@ def timed_out(job: Job, when: str) -> Failure:
 
 
 def shutting_down(job: Job) -> Failure:
-    return failure(job, Code.SHUTTING_DOWN, "this instance is shutting down; retry "
-                   "(another instance, if any, takes the request)")
+    return failure(job, Code.SHUTTING_DOWN, SHUTTING_DOWN)
 
 
 def stopped(job: Job, stop: Stop, cap: int | None) -> Failure:

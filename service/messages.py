@@ -21,6 +21,7 @@ from multiprocessing.connection import Connection
 from typing import Any
 
 from planner.codes import Code
+from planner.errors import PlanningError
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,11 @@ class Failure:
     code: Code
     message: str
     details: Mapping[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, e: PlanningError, **details: Any) -> Failure:
+        """The failure ``e`` codes, with ``details`` added to its own."""
+        return cls(e.code, e.message, {**e.details, **details})
 
     def to_json(self) -> dict[str, Any]:
         return {"error": {"code": self.code, "message": self.message,
@@ -73,7 +79,8 @@ class Taken:
 
 @dataclass(frozen=True)
 class Deadline:
-    """The request is valid; it must be answered by ``deadline`` [monotonic s]."""
+    """The request is valid; it must be answered by ``deadline`` [monotonic s] (plans
+    add their planning_time)."""
 
     job_id: str
     deadline: float

@@ -31,7 +31,7 @@ import time
 import weakref
 from collections import Counter, deque
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 
 from planner.codes import Code
 
@@ -61,14 +61,11 @@ class WorkerPool:
         spec: how the zygote loads the description.
         workers: number of worker processes (>= 1).
         queue_size: jobs that may wait for a free worker; more are refused (BUSY).
-        start_method: how the zygote is started: ``forkserver`` (default; the planner's
-            imports are preloaded) or ``spawn``.
         memory_cap: a worker's largest resident set [bytes]; past it the worker is
             killed and its job answered RESOURCE_LIMIT (None: no cap).
     """
 
     def __init__(self, spec: DescriptionSpec, *, workers: int, queue_size: int,
-                 start_method: Literal["forkserver", "spawn"] = "forkserver",
                  memory_cap: int | None = None) -> None:
         if workers < 1 or queue_size < 0:
             raise ValueError("workers must be >= 1 and queue_size >= 0")
@@ -76,13 +73,13 @@ class WorkerPool:
             raise ValueError("memory_cap must be > 0 bytes")
         self.spec, self.workers, self.queue_size = spec, workers, queue_size
         self.memory_cap = memory_cap
-        ctx = mp.get_context(start_method)
-        if start_method == "forkserver":
-            # the planner's imports (trimesh, toppra, OMPL: ~2 s) run in the forkserver
-            # while the caller loads the description, not again in the zygote
-            ctx.set_forkserver_preload(["service.worker", "planner.pipeline"])
-            from multiprocessing import forkserver
-            forkserver.ensure_running()
+        # the zygote is started by a forkserver, never forked from a process that may
+        # hold a Zenoh session; the planner's imports (trimesh, toppra, OMPL: ~2 s) run in
+        # the forkserver while the caller loads the description, not again in the zygote
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["service.worker", "planner.pipeline"])
+        from multiprocessing import forkserver
+        forkserver.ensure_running()
         self.counters: Counter[str] = Counter()
         self._lock = threading.Lock()
         self._cond = threading.Condition(self._lock)
@@ -99,7 +96,7 @@ class WorkerPool:
         self._busy: dict[int, Job] = {}  # slot index -> its job
         self._service_time = 0.5  # moving average of a job's time in a worker [s]
         self.stopping = False
-        self.grace_end = 0.0
+        self.grace_end = 0.0  # when running jobs stop getting time after close [monotonic s]
         self._threads: list[threading.Thread] = []
 
     # -- lifecycle ---------------------------------------------------------------------
@@ -166,7 +163,9 @@ class WorkerPool:
                 retry_after=round(retry, 3)))
 
     def status(self) -> dict[str, Any]:
-        """Live workers (pid, busy request), queue depth and counters, JSON-ready."""
+        """Live workers (pid, busy request), queue depth, counters and the load (busy
+        workers plus waiting jobs, per worker: clients pick the least loaded instance by
+        it), JSON-ready."""
         with self._lock:
             workers = [{"pid": s.live_pid(),
                         "busy": None if s.index not in self._busy
@@ -174,9 +173,10 @@ class WorkerPool:
                        for s in self._slots]
             counters = dict(self.counters)
             depth = self._waiting
+            load = (len(self._busy) + depth) / self.workers
         return {"workers": workers, "queue_depth": depth, "queue_size": self.queue_size,
                 "memory_cap": self.memory_cap, "zygote": self._workers.zygote_pid,
-                "counters": counters}
+                "counters": counters, "load": load}
 
     def count(self, key: str) -> None:
         with self._lock:
@@ -189,7 +189,7 @@ class WorkerPool:
             return {"queued": len(self._jobs), "heap": len(self._heap),
                     "running": len(self._busy)}
 
-    # -- what the slots call (service.slot.JobQueue) -------------------------------------
+    # -- what the slots call (service.slot.Slot) -----------------------------------------
     def next_job(self, slot: Slot) -> Job | None:
         """The next waiting job, or None when stopping or the slot's worker has died."""
         with self._cond:

@@ -13,25 +13,27 @@ instance dies, the others.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import logging
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import zenoh
 
 from planner.codes import Code
-from planner.errors import PlanningError
+from planner.errors import PlanningError, ShuttingDown
 
 from . import wire
 from .bodies import description_body
+from .job import SHUTTING_DOWN, Job
 from .keyguard import addressed_exactly
 from .memtrace import MemTrace, count_live
 from .messages import Failure, Outcome, Success
-from .pool import Job, WorkerPool
+from .pool import WorkerPool
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
 
@@ -70,7 +72,6 @@ class ServeOptions:
     workers: int = field(default_factory=lambda: os.cpu_count() or 1)
     queue_size: int | None = None
     timeout: float = 30.0
-    start_method: Literal["forkserver", "spawn"] = "forkserver"
     #: a worker's largest resident set [bytes] before it is killed and its request
     #: answered RESOURCE_LIMIT (None: no cap); see DEFAULT_MEMORY_CAP
     memory_cap: int | None = DEFAULT_MEMORY_CAP
@@ -94,7 +95,7 @@ def _package_version() -> str:
 
 
 class PlannerService:
-    """Start with :meth:`start` (or ``with``), stop with :meth:`close`.
+    """Start with :meth:`start`, stop with :meth:`close`.
 
     The pool starts (and every worker loads the description) before the Zenoh session
     opens, so no process is ever forked from one holding a session.
@@ -115,17 +116,12 @@ class PlannerService:
         self._extensions: list[Any] = []
         self._memtrace: MemTrace | None = None
 
-    @property
-    def keys(self) -> list[str]:
-        p = self.options.prefix
-        return [f"{p}/{k}" for k in (*WORK_KINDS, *INFO_KINDS)]
-
     def start(self) -> None:
         o = self.options
         qsize = o.queue_size if o.queue_size is not None else 4 * o.workers
         # the pool's forkserver imports the planner meanwhile; no worker starts yet
         self.pool = WorkerPool(o.description, workers=o.workers, queue_size=qsize,
-                               start_method=o.start_method, memory_cap=o.memory_cap)
+                               memory_cap=o.memory_cap)
         desc = o.description.load()  # fails here, clearly, before any worker starts
         self._static["description"] = wire.encode(description_body(desc))
         self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas(),
@@ -142,12 +138,10 @@ class PlannerService:
             self.instance = str(self.session.zid())
             p = o.prefix
             for kind in (*WORK_KINDS, *INFO_KINDS):
-                key = f"{p}/{kind}"
-                self._shared.append(self.session.declare_queryable(
-                    key, self._callback(kind, key), complete=True))
-                key = f"{p}/instance/{self.instance}/{kind}"
-                self._entities.append(self.session.declare_queryable(
-                    key, self._callback(kind, key), complete=True))
+                for key, held in ((f"{p}/{kind}", self._shared),
+                                  (f"{p}/instance/{self.instance}/{kind}", self._entities)):
+                    held.append(self.session.declare_queryable(
+                        key, self._callback(kind, key), complete=True))
             self._entities.append(
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
             for make in o.extensions:
@@ -158,8 +152,9 @@ class PlannerService:
         self._started = time.monotonic()
         _log.info("arduinobot service ready: instance %s, %d workers, robot '%s', serving %s "
                   "(and %s/instance/%s/*), liveliness %s/alive/%s", self.instance,
-                  o.workers, desc.robot.name, ", ".join(self.keys), p, self.instance, p,
-                  self.instance)
+                  o.workers, desc.robot.name,
+                  ", ".join(f"{p}/{k}" for k in (*WORK_KINDS, *INFO_KINDS)), p, self.instance,
+                  p, self.instance)
 
     def close(self) -> None:
         """Hand the keys over, answer what is in flight, then close the session.
@@ -172,10 +167,8 @@ class PlannerService:
             self._extensions.pop().close()
         # the liveliness token first: clients that pick instances stop picking this one
         for e in reversed(self._entities):
-            try:
+            with contextlib.suppress(zenoh.ZError):  # already gone with the session
                 e.undeclare()
-            except zenoh.ZError:
-                pass  # already gone with the session
         self._entities.clear()
         self._draining = True
         if self.pool is not None:
@@ -194,19 +187,11 @@ class PlannerService:
             self._memtrace.close()
             self._memtrace = None
 
-    def __enter__(self) -> PlannerService:
-        self.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
     def health(self) -> dict[str, Any]:
-        st = self.pool.status() if self.pool is not None else {}
+        st = self.pool.status() if self.pool is not None else {"load": 0.0}
         return {"version": _package_version(), "api": VERSION, "instance": self.instance,
                 "prefix": self.options.prefix, "uptime": time.monotonic() - self._started,
-                "workers": self.options.workers, "config": self._config, **st,
-                "load": pool_load(st, self.options.workers)}
+                "workers": self.options.workers, "config": self._config, **st}
 
     # -- queries -----------------------------------------------------------------------
     def _callback(self, kind: str, key: str):
@@ -231,20 +216,15 @@ class PlannerService:
             return
         request_id = f"{self.instance[:8]}-{next(self._ids)}"
         pool = self.pool
-        if self._draining or pool is None:
-            self._count_refusal(Code.SHUTTING_DOWN)
-            _reply_error(query, Failure(
-                Code.SHUTTING_DOWN, "this instance is shutting down; retry (another "
-                "instance, if any, takes the request)", {"request_id": request_id}))
-            return
         try:
+            if self._draining or pool is None:
+                raise ShuttingDown(SHUTTING_DOWN)
             zb = query.payload
             if zb is not None and len(zb) > wire.MAX_PAYLOAD:  # refuse before copying it
                 wire.check_size(len(zb))
         except PlanningError as e:
             self._count_refusal(e.code)
-            _reply_error(query, Failure(e.code, e.message,
-                                        {**e.details, "request_id": request_id}))
+            _reply_error(query, Failure.of(e, request_id=request_id))
             return
         # Decoding and validation run in a worker (wire.decode there), not on this
         # thread: Zenoh calls every queryable's callback on one thread, so a request
@@ -276,13 +256,6 @@ class PlannerService:
         """Live jobs and what the pool holds (the memory probe's numbers)."""
         pool = self.pool
         return {**(pool.held() if pool is not None else {}), **count_live((Job,))}
-
-
-def pool_load(status: Mapping[str, Any], workers: int) -> float:
-    """Jobs per worker: busy workers plus queued requests, over the workers (0 idle, 1
-    every worker busy, above 1 a queue). Clients pick the least loaded instance by it."""
-    busy = sum(1 for w in status.get("workers", ()) if w.get("busy") is not None)
-    return (busy + int(status.get("queue_depth", 0))) / max(1, workers)
 
 
 def _reply_error(query: zenoh.Query, failure: Failure) -> None:

@@ -1,31 +1,32 @@
 """The pool's workers: the zygote that forks them, and one slot thread per worker that
-feeds it jobs, watches it (deadline, memory cap, death), kills and replaces it.
+feeds it jobs, watches it (deadline, memory cap, death), kills and replaces it (what
+the job is answered in each case: :mod:`service.pool`).
 
 :class:`Workers` owns the zygote and knows which forked workers are alive (the zygote
 reports every exit at once, so an idle worker's death is noticed without a job).
-:class:`Slot` runs one worker's loop: take the next job from the pool
-(:class:`JobQueue`), send it, wait for the outcome while polling the worker; on a stop
-(deadline, memory, shutdown) kill it and answer the job, on a death answer INTERNAL, or
-hand the job back once if the worker died before taking it; then fork a replacement.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import signal
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from planner.codes import Code
 
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
-from .messages import Deadline, Done, Failure, Outcome, Taken, receive
+from .messages import Deadline, Done, Failure, JobMsg, Taken, receive
 from .messages import Stop as StopMsg
 from .worker import DescriptionSpec
 from .zygote import WorkerProcess, Zygote, ZygoteError
+
+if TYPE_CHECKING:
+    from .pool import WorkerPool
 
 _log = logging.getLogger(__name__)
 
@@ -41,21 +42,6 @@ def rss_bytes(pid: int) -> int:
             return int(f.read().split()[1]) * _PAGE
     except (OSError, IndexError, ValueError):
         return 0
-
-
-class JobQueue(Protocol):
-    """What a slot needs from the pool (:class:`service.pool.WorkerPool`)."""
-
-    stopping: bool
-    grace_end: float  # when running jobs stop getting time after close [monotonic s]
-    memory_cap: int | None
-
-    def next_job(self, slot: Slot) -> Job | None: ...
-    def finish(self, job: Job, outcome: Outcome) -> None: ...
-    def requeue(self, job: Job) -> None: ...
-    def count(self, key: str) -> None: ...
-    def served(self, seconds: float) -> None: ...
-    def set_busy(self, slot: Slot, job: Job | None) -> None: ...
 
 
 class Workers:
@@ -133,10 +119,8 @@ class Workers:
     def retire(self, w: WorkerProcess, *, kill: bool) -> str | None:
         """Forget ``w`` (killing it first if asked); how it ended if known."""
         if kill:
-            try:
+            with contextlib.suppress(ProcessLookupError):  # it died on its own meanwhile
                 os.kill(w.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass  # it died on its own meanwhile
         with self._cond:
             self._cond.wait_for(lambda: w.pid in self._exits, 0.0 if kill else 1.0)
             how = self._exits.pop(w.pid, None)
@@ -164,7 +148,7 @@ class Workers:
 class Slot:
     """One worker and the thread that feeds and watches it (see the module)."""
 
-    def __init__(self, index: int, workers: Workers, queue: JobQueue) -> None:
+    def __init__(self, index: int, workers: Workers, queue: WorkerPool) -> None:
         self.index, self._workers, self._queue = index, workers, queue
         self.worker: WorkerProcess | None = None
 
@@ -211,10 +195,8 @@ class Slot:
         w = self.worker
         if w is None:
             return
-        try:
+        with contextlib.suppress(OSError):  # already gone
             w.conn.send(StopMsg())
-        except OSError:
-            pass  # already gone
         self._workers.retire(w, kill=False)
         self.worker = None
 
@@ -224,7 +206,7 @@ class Slot:
         t0 = time.monotonic()
         taken, outcome, stop = False, None, None
         try:
-            w.conn.send(job.message())
+            w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline))
             while outcome is None:
                 stop = self._why_stop(job, w)
                 if stop is not None:

@@ -4,15 +4,7 @@ Workers are forked, already warm, from :mod:`service.zygote` (which builds the m
 once); :func:`serve_jobs` is what each fork runs. Validation runs here, not on the
 serving process's Zenoh thread, so a request that is slow to validate holds one worker
 until its deadline (then the worker is killed and replaced), never the whole service.
-
-Protocol (``conn`` is a :class:`multiprocessing.connection.Connection`; the messages are
-:mod:`service.messages`): in, a :class:`~service.messages.JobMsg` per job and
-:class:`~service.messages.Stop` to end; out, per job, :class:`~service.messages.Taken` on
-receipt (a worker that dies before it did not die of this job),
-:class:`~service.messages.Deadline` once the request is valid (plans add their
-``planning_time``), then :class:`~service.messages.Done` with a
-:class:`~service.messages.Success` (the reply, encoded here) or a
-:class:`~service.messages.Failure`.
+What crosses the socket, and in which order: :mod:`service.messages`.
 """
 
 from __future__ import annotations
@@ -54,9 +46,6 @@ class DescriptionSpec:
     #: cache folder, see :mod:`service.disk_cache`; "" to keep nothing)
     cache_dir: str | None = None
 
-    def cache(self) -> DiskCache | None:
-        return None if self.cache_dir == "" else DiskCache(self.cache_dir)
-
     def load(self):  # -> Description
         return load_description(self.path, package_dirs=list(self.package_dirs),
                                 args=dict(self.args), moveit_config=self.moveit_config,
@@ -70,7 +59,8 @@ def build_handlers(spec: DescriptionSpec) -> Handlers:
     _log.info("loading the robot")
     description = spec.load()
     _log.info("building the planner: collision geometry, limits, dynamics")
-    handlers = Handlers(description, cache=spec.cache())
+    handlers = Handlers(description,
+                        cache=None if spec.cache_dir == "" else DiskCache(spec.cache_dir))
     handlers.warm_up()
     for kind in ("plan", "fk", "ik", "check"):
         # builds and caches each request validator now (tens of ms), not in every fork
@@ -113,7 +103,7 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers) -> tuple[Success 
         return Success(wire.encode({**body, "request_id": job.job_id},
                                    finite=job.kind == "plan")), False
     except PlanningError as e:
-        return Failure(e.code, e.message, e.details), False
+        return Failure.of(e), False
     except MemoryError:
         # the heap may be half-built: answer, then leave so a fresh fork takes over
         return Failure(Code.RESOURCE_LIMIT, "the request needed more memory than a worker "
