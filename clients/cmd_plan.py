@@ -149,31 +149,16 @@ def summary(res: PlanReply, limits: Limits) -> str:
 
 def plot_trajectory(res: PlanReply, limits: Limits, out: str) -> None:
     """Positions, velocities, accelerations and efforts over time with their limits
-    (dashed), one panel each, saved to ``out``. Needs matplotlib (optional)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    t = res.times
-    panels = (("positions", "position [rad]", ("lower", "upper")),
-              ("velocities", "velocity [rad/s]", ("velocity",)),
-              ("accelerations", "acceleration [rad/s²]", ("acceleration",)),
-              ("efforts", "effort [N m]", ("effort",)))
-    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(9, 10))
-    for ax, (attr, label, kinds) in zip(axes, panels):
-        data = getattr(res, attr)
-        for i, j in enumerate(res.joint_names):
-            line, = ax.plot(t, data[:, i], label=j)
-            for kind in kinds:
-                v = limits.get(j, {}).get(kind)
-                if v is None:
-                    continue
-                for sign in ((1,) if kind in ("lower", "upper") else (1, -1)):
-                    ax.axhline(sign * v, color=line.get_color(), ls="--", lw=0.8, alpha=0.6)
-        ax.set_ylabel(label)
-        ax.grid(alpha=0.3)
-    axes[0].legend(loc="upper right", fontsize="small")
-    axes[-1].set_xlabel("time [s]")
-    fig.suptitle(f"{res.duration:.3f} s, {len(res.times)} samples (dashed: limits)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    (dashed), one panel each (:mod:`clients.viewer.plots`), saved to ``out``. Needs
+    matplotlib (optional)."""
+    import numpy as np
+
+    from .viewer.plots import plot_figure, plot_panels
+    from .viewer.trajectory import PlaybackTrajectory
+    traj = PlaybackTrajectory(res.joint_names, res.times, res.positions, res.velocities,
+                              res.accelerations, res.efforts)
+    lim = {k: np.array([limits.get(j, {}).get(k) for j in res.joint_names], float)
+           for k in ("lower", "upper", "velocity", "acceleration", "effort")}
+    fig = plot_figure(plot_panels(traj, lim), title=f"{res.duration:.3f} s, "
+                      f"{len(res.times)} samples (dashed: limits)", dpi=100)
+    fig.savefig(out)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import io
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -68,8 +68,9 @@ def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list
             for q, u, v, lo, hi in specs if v is not None]
 
 
-def plot_png(panels: list[PlotPanel], *, title: str = "", dpi: int = 110) -> bytes:
-    """The panels as one PNG: one row per quantity, limits dashed in each joint's colour."""
+def plot_figure(panels: list[PlotPanel], *, title: str = "", dpi: int = 110) -> Any:
+    """The panels as one matplotlib figure: one row per quantity, limits dashed in each
+    joint's colour."""
     matplotlib = require("matplotlib")
     matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure  # the OO API: no global pyplot state
@@ -91,6 +92,11 @@ def plot_png(panels: list[PlotPanel], *, title: str = "", dpi: int = 110) -> byt
     axes[-1].set_xlabel("time [s]")
     if title:
         fig.suptitle(title)
+    return fig
+
+
+def plot_png(panels: list[PlotPanel], *, title: str = "", dpi: int = 110) -> bytes:
+    """:func:`plot_figure` as PNG."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png")
+    plot_figure(panels, title=title, dpi=dpi).savefig(buf, format="png")
     return buf.getvalue()
