@@ -20,8 +20,8 @@ import numpy as np
 _log = logging.getLogger(__name__)
 
 
-def default_cache_dir(env: Mapping[str, str] | None = None) -> Path:
-    env = os.environ if env is None else env
+def default_cache_dir() -> Path:
+    env = os.environ
     if env.get("ARDUINOBOT_CACHE"):
         return Path(env["ARDUINOBOT_CACHE"]).expanduser()
     base = Path(env["XDG_CACHE_HOME"]).expanduser() if env.get("XDG_CACHE_HOME") \

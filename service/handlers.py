@@ -8,9 +8,9 @@ only for its own work. Results are JSON-ready dicts; failures raise
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
-from collections import OrderedDict
 from collections.abc import Mapping
 from typing import Any
 
@@ -19,8 +19,8 @@ import numpy as np
 from description import Description
 from planner.cache import ArtifactCache
 from planner.collision.world import CollisionWorld
-from planner.errors import InvalidRequest
-from planner.goals import tcp_joints
+from planner.errors import InvalidRequest, PlanningError
+from planner.goals import JointGoal, tcp_joints
 from planner.ik import position_ik
 from planner.kinematics import Kinematics
 
@@ -51,16 +51,14 @@ class Handlers:
         self.cache = cache
         self.kin = Kinematics(description.robot)
         # Padded scenes are not the planner's (it caches unpadded worlds): keep a few here.
-        self._scenes: OrderedDict[tuple[Any, ...], CollisionWorld] = OrderedDict()
+        self._padded_scene = functools.lru_cache(_SCENE_CACHE)(self._padded)
         self._planner: Any = None
 
     def warm_up(self) -> None:
         """Build the planner (and its obstacle-free world) and plan one short motion now,
         not on the first request: every compiled kernel is loaded (or, on a machine's
         first start, compiled and cached) before the service says it is ready."""
-        from planner.errors import PlanningError
-        from planner.goals import JointGoal
-        from planner.pipeline import MotionRequest
+        from planner.pipeline import MotionRequest  # the heaviest import: only if used
 
         mp = self._motion_planner()
         desc = self.description
@@ -142,14 +140,10 @@ class Handlers:
     def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
         if padding == 0.0:
             return self._motion_planner().world(obs)
-        key = (obs, padding)
-        world = self._scenes.pop(key, None)
-        if world is None:
-            world = self._motion_planner().world(()).with_scene(obs, padding=padding)
-        self._scenes[key] = world
-        while len(self._scenes) > _SCENE_CACHE:
-            self._scenes.popitem(last=False)
-        return world
+        return self._padded_scene(obs, padding)
+
+    def _padded(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
+        return self._motion_planner().world(()).with_scene(obs, padding=padding)
 
     def plan(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """A v1 plan request (validated by the schema) -> the v1 response body."""

@@ -6,7 +6,7 @@ request is parsed, refused and answered the same way in both.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -20,6 +20,13 @@ from planner.trajectory import check_sample_count
 from .caps import MAX_SAMPLES
 from .requests import obstacles
 from .wire import check_finite
+
+#: a plan request's options, each as :class:`~planner.pipeline.MotionRequest` takes it
+#: (JSON Schema counts 7.0 as an integer: the planner wants an int seed)
+_OPTIONS: dict[str, Callable[[Any], Any]] = {
+    "group": str, "planner": str, "planning_time": float, "velocity_scaling": float,
+    "acceleration_scaling": float, "profile": str, "sample_rate": float, "seed": int,
+    "start_velocity": dict, "start_acceleration": dict}
 
 
 def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | NamedGoal | PositionGoal:
@@ -35,15 +42,7 @@ def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | Named
 def plan_request(description: Description, data: Mapping[str, Any]) -> MotionRequest:
     """A validated v1 plan request (see ``service/schema/plan_request.json``) as a
     :class:`planner.pipeline.MotionRequest`. A missing start is all actuated joints at 0."""
-    opts = {k: data[k] for k in ("group", "planner", "planning_time", "velocity_scaling",
-                                 "acceleration_scaling", "profile", "sample_rate", "seed",
-                                 "start_velocity", "start_acceleration")
-            if k in data}
-    for k in ("planning_time", "velocity_scaling", "acceleration_scaling", "sample_rate"):
-        if k in opts:
-            opts[k] = float(opts[k])
-    if "seed" in opts:  # JSON Schema counts 7.0 as an integer; the planner wants an int
-        opts["seed"] = int(opts["seed"])
+    opts = {k: convert(data[k]) for k, convert in _OPTIONS.items() if k in data}
     return MotionRequest(
         goal=goal(description, data["goal"]),
         start=data.get("start"),  # names and limits: checked by the planner, once

@@ -16,16 +16,16 @@ from planner.scene import Obstacle, validate_obstacles
 
 
 def joint_values(description: Description, values: Mapping[str, float] | None, *,
-                 field: str, fill: bool = True) -> dict[str, float]:
+                 field: str) -> dict[str, float]:
     """Check a ``{joint: value}`` map: actuated joints only, within position limits.
 
     Args:
         values: joint values [rad]; ``None`` is an empty map.
         field: the request field named in errors (``start``, ``goal.joints``).
-        fill: give every actuated joint missing from ``values`` the value 0.
 
     Returns:
-        The values in actuated-joint order (all of them if ``fill``).
+        Every actuated joint's value in actuated-joint order, 0 for a joint missing from
+        ``values``.
 
     Raises:
         InvalidRequest: an unknown joint, a fixed joint, or a mimic joint (naming its leader).
@@ -37,8 +37,7 @@ def joint_values(description: Description, values: Mapping[str, float] | None, *
     names = [n for n in actuated if n in values]
     check_positions(names, [float(values[n]) for n in names],
                     description.robot.position_limits(tuple(names)), field=field)
-    return {n: float(values[n]) if n in values else 0.0 for n in actuated
-            if fill or n in values}
+    return {n: float(values.get(n, 0.0)) for n in actuated}
 
 
 def obstacles(description: Description, items: Sequence[Mapping[str, Any]] | None

@@ -63,11 +63,8 @@ def describe_status(status: int) -> str:
 
 # -- the zygote process ---------------------------------------------------------------
 def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:
-    """Build the handlers, say :class:`~service.messages.Ready` (or
-    :class:`~service.messages.StartFailed`), then answer each
-    :class:`~service.messages.Fork` with :class:`~service.messages.Forked` plus the
-    socket's fd, and report an :class:`~service.messages.Exited` for every worker that
-    ends; stop on :class:`~service.messages.Stop` or EOF."""
+    """The zygote process: build the handlers, then fork workers and report their exits
+    until :class:`~service.messages.Stop` or EOF (the messages: :mod:`service.messages`)."""
     # Ctrl-C reaches the whole process group: the pool shuts everything down itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
