@@ -82,12 +82,10 @@ def effort_safe(make: Callable[[float], Trajectory], torques: TorqueFn, effort: 
     ``margin``, when none fits (the caller decides whether that is an error).
     """
     scale = 1.0
-    tr = make(scale)
-    ratio = effort_ratio(tr, torques, effort)
-    for _ in range(tries - 1):
+    for _ in range(max(tries, 1)):
+        tr = make(scale)
+        ratio = effort_ratio(tr, torques, effort)
         if ratio <= margin:
             break
         scale *= 0.8
-        tr = make(scale)
-        ratio = effort_ratio(tr, torques, effort)
     return tr, ratio
