@@ -106,8 +106,7 @@ class BlendTiming:
             if t >= self.brake_duration:
                 bq[k] = self.rest
             else:
-                p, v, a = self.brake.at_time(float(t))
-                bq[k], bqd[k], bqdd[k] = p, v, a
+                bq[k], bqd[k], bqdd[k] = self.brake.at_time(float(t))
         nq, nqd, nqdd = self.new.evaluate(ts - self.shift)  # clamped: rest at q_r before
         q = bq + nq - self.rest
         end = ts >= self.duration
@@ -153,12 +152,10 @@ def solve_moving(planner: MotionPlanner, request: MotionRequest) -> MotionResult
         return planner.solve(replace(request, start_velocity=None, start_acceleration=None))
     scaled = planner.limits(*planner.scaling(request))
     # the moving state may already exceed a slow request's limits: brake within its own
-    lim = JointLimits(scaled.joint_names, scaled.lower, scaled.upper,
-                      np.maximum(scaled.velocity, np.abs(v0)),
-                      np.maximum(scaled.acceleration, np.abs(a0)),
-                      np.maximum(scaled.jerk, np.where(np.abs(a0) > scaled.acceleration,
-                                                       full.jerk, scaled.jerk)),
-                      scaled.effort, sources=scaled.sources)
+    lim = replace(scaled, velocity=np.maximum(scaled.velocity, np.abs(v0)),
+                  acceleration=np.maximum(scaled.acceleration, np.abs(a0)),
+                  jerk=np.maximum(scaled.jerk, np.where(np.abs(a0) > scaled.acceleration,
+                                                        full.jerk, scaled.jerk)))
     brake = _effort_safe_brake(planner, q0, v0, a0, lim)
     ext = brake.position_extrema
     lo, hi = np.array([e.min for e in ext]), np.array([e.max for e in ext])
