@@ -16,9 +16,7 @@ import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from .errors import TrajectoryError
-
-# Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
-TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+from .trajectory import TorqueFn
 
 #: [s] torques are checked this often along a ruckig motion ...
 EFFORT_STEP = 1e-3

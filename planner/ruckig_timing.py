@@ -41,8 +41,8 @@ class RuckigProfile:
     """Piecewise ruckig profiles of ``s``, evaluated from their polynomial phases."""
 
     def __init__(self, pieces: Sequence[tuple[float, Trajectory]]) -> None:
-        # (s offset, trajectory); each phase: start time, p, v, a, j
-        starts, p, v, a, j = [], [], [], [], []
+        # (s offset, trajectory); each phase: start time, and (p, v, a, j) at it
+        starts, coeffs = [], []
         t = 0.0
         for s_off, tr in pieces:
             prof = tr.profiles[0][0]
@@ -53,14 +53,11 @@ class RuckigProfile:
             tt = t
             for i in range(7):
                 starts.append(tt)
-                p.append(s_off + prof.p[i])
-                v.append(prof.v[i])
-                a.append(prof.a[i])
-                j.append(prof.j[i])
+                coeffs.append((s_off + prof.p[i], prof.v[i], prof.a[i], prof.j[i]))
                 tt += prof.t[i]
             t += tr.duration
         self._start = np.array(starts)
-        self._c = np.array([p, v, a, j]).T
+        self._c = np.array(coeffs).reshape(-1, 4)
         self.duration = t
         self._end = (s_off + pieces[-1][1].profiles[0][0].pf) if pieces else 0.0
 

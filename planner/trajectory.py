@@ -28,7 +28,7 @@ from .curve import PathCurve
 from .errors import InvalidRequest
 
 # Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
-EffortFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
 class ScalarProfile(Protocol):
@@ -181,10 +181,10 @@ class JointTrajectory:
     sample_rate: float
     profile: str
     timing: CurveTiming = field(repr=False, compare=False)
-    effort_fn: EffortFn = field(repr=False, compare=False)
+    effort_fn: TorqueFn = field(repr=False, compare=False)
 
     @classmethod
-    def sample(cls, timing: CurveTiming, effort_fn: EffortFn, *,
+    def sample(cls, timing: CurveTiming, effort_fn: TorqueFn, *,
                joint_names: Sequence[str], sample_rate: float = 100.0,
                profile: str = "jerk_limited", max_samples: int | None = None
                ) -> JointTrajectory:
