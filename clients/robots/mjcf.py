@@ -149,13 +149,19 @@ def _geom(shape: Shape, name: str, assets: list[str], *, visual: bool,
             out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
                        f'{common}/>')
         return " ".join(out)
-    common = f'name="{_esc(name)}" {common}'
-    if g.kind == "box":
-        return f'<geom type="box" size="{_f(0.5 * np.asarray(g.size))}" {common}/>'
-    if g.kind == "sphere":
-        return f'<geom type="sphere" size="{g.radius!r}" {common}/>'
-    if g.kind == "cylinder":
-        return f'<geom type="cylinder" size="{g.radius!r} {0.5 * g.length!r}" {common}/>'
+    size = _size(g.kind, g.size, g.radius, g.length)
+    return None if size is None else \
+        f'<geom type="{g.kind}" size="{size}" name="{_esc(name)}" {common}/>'
+
+
+def _size(kind: str, size: Any, radius: Any, length: Any) -> str | None:
+    """MJCF's size [m] of a box (half extents), sphere or cylinder (radius, half length)."""
+    if kind == "box":
+        return _f(0.5 * np.asarray(size, float))
+    if kind == "sphere":
+        return repr(float(radius))
+    if kind == "cylinder":
+        return f"{float(radius)!r} {0.5 * float(length)!r}"
     return None
 
 
@@ -167,13 +173,8 @@ def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]]) -> list[str]:
         pose = (f'pos="{_f(o.get("xyz", (0, 0, 0)))}" '
                 f'quat="{_quat(rpy_matrix(tuple(o.get("rpy", (0, 0, 0)))))}"')
         name = f'obstacle:{o["id"]}'
-        if o["shape"] == "box":
-            size = _f(0.5 * np.asarray(o["size"], float))
-        elif o["shape"] == "sphere":
-            size = repr(float(o["radius"]))
-        elif o["shape"] == "cylinder":
-            size = f'{float(o["radius"])!r} {0.5 * float(o["length"])!r}'
-        else:
+        size = _size(o["shape"], o.get("size"), o.get("radius"), o.get("length"))
+        if size is None:
             raise ValueError(f"obstacle shape {o['shape']!r} is not box, sphere or cylinder")
         out.append(f'<geom name="{_esc(name)}" type="{o["shape"]}" size="{size}" {pose} '
                    'contype="1" conaffinity="1" rgba="0.3 0.6 0.9 0.5"/>')

@@ -17,7 +17,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -68,24 +68,18 @@ class SimStats:
     time: float
 
     def to_dict(self) -> dict[str, Any]:
-        return {"peak_force": list(self.peak_force),
-                "peak_feedforward": list(self.peak_feedforward), "effort": list(self.effort),
-                "saturated_steps": self.saturated_steps,
-                "contacts": [list(p) for p in self.contacts],
-                "contact_steps": self.contact_steps, "steps": self.steps, "time": self.time}
+        return asdict(self)
 
 
 def find_controllers_yaml(description: Description) -> Path | None:
     """A ros2_control controllers yaml next to the robot's config: a
     ``config/*controllers*.yaml`` with ``ros__parameters`` (not MoveIt's controller list)
     of the MoveIt package, the description package, or a ``<robot>_controller`` package."""
-    dirs: list[Path] = []
     cfg = description.config
-    for p in (cfg.srdf.parent if cfg.srdf else None,
-              cfg.moveit_package / "config" if cfg.moveit_package else None,
-              description.package_root / "config" if description.package_root else None):
-        if p is not None:
-            dirs.append(p)
+    dirs = [p for p in (cfg.srdf.parent if cfg.srdf else None,
+                        cfg.moveit_package / "config" if cfg.moveit_package else None,
+                        description.package_root / "config" if description.package_root
+                        else None) if p is not None]
     pkgs = description.packages.packages
     for name in (f"{description.robot.name}_controller", f"{description.robot.name}_control"):
         if name in pkgs:
@@ -204,14 +198,9 @@ class SimArduinobot(Robot):
             a = self._act[i]
             m.actuator_gainprm[a, 0] = g.kp
             m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
-        self._q_ref: np.ndarray = np.asarray(q0, float)
-        self._qd_ref: np.ndarray | None = None
-        self._qdd_ref: np.ndarray | None = None
-        self._jerk: np.ndarray | None = None
         self._tick = 0.0
         self._scratch = mujoco.MjData(m)
-        self.data.ctrl[self._act] = servo_ctrl(q0, None, self.gains)
-        self.reset_stats()
+        self.reset(q0)
         log.info("MuJoCo twin of '%s': %d bodies, %d geoms, timestep %g s; gains %s",
                  robot.name, m.nbody, m.ngeom, timestep,
                  {n: (round(g.kp, 1), round(g.kv, 1)) for n, g in zip(self.joint_names,
@@ -235,8 +224,7 @@ class SimArduinobot(Robot):
                             for g in range(m.ngeom)]
 
     def _set_positions(self, q: np.ndarray) -> None:
-        full = self.mimic.expand(q)
-        self.data.qpos[self._qadr] = full
+        self.data.qpos[self._qadr] = self.mimic.expand(q)
         self.data.qvel[:] = 0.0
         self._mj.mj_forward(self.model, self.data)
 
@@ -313,13 +301,9 @@ class SimArduinobot(Robot):
             if np.any(f >= self.effort * (1 - 1e-9)):
                 self._saturated += 1
             if d.ncon:
-                live = False
-                for c in d.contact[:d.ncon]:
-                    if c.dist > 0:
-                        continue
-                    live = True
-                    self._contacts.add(self._pair(int(c.geom1), int(c.geom2)))
-                self._contact_steps += live
+                touching = self.contacts_now()
+                self._contacts.update(touching)
+                self._contact_steps += bool(touching)
             self._steps += 1
         if not np.all(np.isfinite(d.qpos)):
             raise SimulationError("the simulation diverged (non-finite positions)",
@@ -344,7 +328,10 @@ class SimArduinobot(Robot):
         q = check_setpoint(positions, self.joint_names, "positions")
         self._mj.mj_resetData(self.model, self.data)
         self._set_positions(q)
-        self._q_ref, self._qd_ref, self._qdd_ref, self._jerk = q, None, None, None
+        self._q_ref: np.ndarray = q
+        self._qd_ref: np.ndarray | None = None
+        self._qdd_ref: np.ndarray | None = None
+        self._jerk: np.ndarray | None = None
         self.data.ctrl[self._act] = servo_ctrl(q, None, self.gains)
         self.reset_stats()
 
