@@ -56,8 +56,7 @@ class PositionGoal:
         try:
             p = tuple(float(v) for v in self.position)
         except (TypeError, ValueError):
-            raise InvalidRequest(f"{self.position!r} must be 3 numbers [m]",
-                                 field=self.where) from None
+            p = ()
         if len(p) != 3 or not all(math.isfinite(v) for v in p):
             raise InvalidRequest(f"{self.position!r} must be 3 finite numbers [m]",
                                  field=self.where)

@@ -4,8 +4,7 @@ A request may carry ``start_velocity`` [rad/s] and ``start_acceleration`` [rad/s
 trajectory then begins exactly in that state and reaches the goal at rest, without
 stopping when the motions allow it, by superposition:
 
-1. ``B``: ruckig's time-optimal jerk-limited brake from (q0, v0, a0) to rest at q_r,
-   every joint on its own (the velocity interface), all reaching rest together, its
+1. ``B``: the brake from (q0, v0, a0) to rest at q_r (:mod:`planner.braking`), its
    acceleration and jerk scaled down until its torques fit the effort limits;
 2. ``N``: the ordinary plan from rest at q_r to the goal (collision-free path, timing);
 3. ``q(t) = B(t) + N(t - s) - q_r``: the new motion starts ``s`` seconds into the
@@ -16,10 +15,8 @@ stopping when the motions allow it, by superposition:
 
 Limits: the request's scaled limits, except where the moving state already exceeds
 them (a joint moving faster than a slow request allows brakes within its own full
-limits). Both profiles work the same way (the brake is ruckig's either way); a start
-velocity above the full velocity limit, or an acceleration above the full acceleration
-limit, is refused naming the field, and so is a brake that cannot stop within the
-position limits.
+limits), for either profile. A start velocity or acceleration above its full limit is
+refused naming the field, and so is a brake that cannot stop within the position limits.
 """
 
 from __future__ import annotations
