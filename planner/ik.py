@@ -83,11 +83,14 @@ def position_ik(
             ``"outside_joint_limits"``, with the nearest tcp distance [m] the solver
             achieved with and without the limits (a best-found figure, not a bound).
     """
-    target = _validate_position(position)
+    target = _finite_vector(position, 3, must_be=f"3 finite numbers [m], got {position!r}",
+                            field="position")
     if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
         raise InvalidRequest(f"must be a positive number of metres, got {tolerance!r}",
                              field="tolerance")
-    q_base = _validate_q_fixed(kin, q_fixed)
+    q_base = np.zeros(kin.dof) if q_fixed is None else _finite_vector(
+        q_fixed, kin.dof, must_be=f"{kin.dof} finite joint values ({', '.join(kin.joint_names)})",
+        field="q_fixed")
     if joints is None:  # the robot's own: no joint names assumed
         joints = tuple(j.name for j in kin.robot.link_path(tcp.parent_link)
                        if j.movable and j.name in kin.joint_names)
@@ -143,28 +146,15 @@ def position_ik(
 _BRANCHES = ("front/elbow_up", "front/elbow_down", "back/elbow_up", "back/elbow_down")
 
 
-def _validate_position(position: ArrayLike) -> np.ndarray:
+def _finite_vector(value: ArrayLike, n: int, *, must_be: str, field: str) -> np.ndarray:
+    """``value`` as a new float array of shape (n,); else InvalidRequest on ``field``."""
     try:
-        p = np.asarray(position, dtype=float)
+        a = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        p = np.empty(0)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise InvalidRequest(f"must be 3 finite numbers [m], got {position!r}",
-                             field="position")
-    return p
-
-
-def _validate_q_fixed(kin: Kinematics, q_fixed: ArrayLike | None) -> np.ndarray:
-    if q_fixed is None:
-        return np.zeros(kin.dof)
-    try:
-        q = np.asarray(q_fixed, dtype=float)
-    except (TypeError, ValueError):
-        q = np.empty(0)
-    if q.shape != (kin.dof,) or not np.all(np.isfinite(q)):
-        raise InvalidRequest(f"must be {kin.dof} finite joint values "
-                             f"({', '.join(kin.joint_names)})", field="q_fixed")
-    return q.copy()
+        a = np.empty(0)
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise InvalidRequest(f"must be {must_be}", field=field)
+    return a
 
 
 def _fk(kin: Kinematics, tcp: Tcp, q: np.ndarray) -> np.ndarray:
