@@ -94,10 +94,6 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
         return np.array([0.0, self.length])
 
     @property
-    def start(self) -> np.ndarray:
-        return self.starts[0].copy()
-
-    @property
     def end(self) -> np.ndarray:
         return self(np.array([self.length]))[0]
 
@@ -144,10 +140,6 @@ class Curve:
     sections: tuple[PathCurve, ...]
     corners: tuple[CornerReport, ...]
     goal: np.ndarray  # the exact last waypoint, shape (dof,)
-
-    @property
-    def length(self) -> float:
-        return float(sum(c.length for c in self.sections))
 
 
 def _dedupe(waypoints: np.ndarray, tol: float = 1e-9) -> np.ndarray:
