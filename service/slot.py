@@ -68,12 +68,13 @@ class Workers:
         return None if self._zygote is None else self._zygote.pid
 
     def start(self) -> None:
-        """Start the zygote (it builds the model).
+        """Start a zygote (it builds the model), in place of the last one if any.
 
         Raises:
             ZygoteError: it could not.
         """
-        self._zygote = self._new_zygote()
+        self._zygote = Zygote(self._ctx, self._spec, on_exit=self._on_exit,
+                              on_lost=self._on_lost)
 
     def close(self) -> None:
         self.stopping = True
@@ -109,7 +110,7 @@ class Workers:
                     continue
                 try:
                     self._zygote.close(timeout=0.5)  # type: ignore[union-attr]
-                    self._zygote = self._new_zygote()
+                    self.start()
                     self._count("zygote_restarts")
                 except ZygoteError:
                     _log.exception("the worker zygote could not be restarted; retrying")
@@ -127,11 +128,6 @@ class Workers:
             self._live.discard(w.pid)
         w.conn.close()
         return how
-
-    def _new_zygote(self) -> Zygote:
-        z = Zygote(self._ctx, self._spec, on_exit=self._on_exit, on_lost=self._on_lost)
-        z.start()
-        return z
 
     def _on_exit(self, pid: int, how: str) -> None:
         with self._cond:

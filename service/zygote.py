@@ -156,37 +156,28 @@ def _die_with_parent() -> None:
 
 # -- the pool's handle on it ----------------------------------------------------------
 class Zygote:
-    """Start the zygote, fork workers from it, hear about their exits.
+    """The zygote, started with the model built: fork workers from it, hear of their exits.
 
     Args:
-        ctx: a :mod:`multiprocessing` context (forkserver or spawn).
+        ctx: a :mod:`multiprocessing` context (forkserver).
         spec: how the zygote loads the description.
         on_exit: called ``(pid, how)`` on the reader thread when a worker ends.
         on_lost: called on the reader thread if the zygote itself ends.
+
+    Raises:
+        ZygoteError: it could not load the description (the message says why).
     """
 
     def __init__(self, ctx: Any, spec: DescriptionSpec, *,
                  on_exit: Callable[[int, str], None], on_lost: Callable[[], None]) -> None:
-        self._ctx, self._spec = ctx, spec
         self._on_exit, self._on_lost = on_exit, on_lost
-        self._conn: Connection | None = None
-        self._proc: Any = None
         self._send_lock = threading.Lock()
         self._tokens = itertools.count(1)
         self._pending: dict[int, tuple[threading.Event, list[Any]]] = {}
-        self._gone = False
-        self.pid: int | None = None
-
-    def start(self) -> None:
-        """Start it and wait until the model is built.
-
-        Raises:
-            ZygoteError: it could not load the description (the message says why).
-        """
-        parent, child = self._ctx.Pipe(duplex=True)
-        self._proc = self._ctx.Process(target=zygote_main, name="arduinobot-zygote",
-                                       args=(child, self._spec, logging.getLogger().level),
-                                       daemon=True)
+        self.alive = True  # until the reader sees the zygote end
+        parent, child = ctx.Pipe(duplex=True)
+        self._proc = ctx.Process(target=zygote_main, name="arduinobot-zygote",
+                                 args=(child, spec, logging.getLogger().level), daemon=True)
         self._proc.start()
         child.close()
         try:
@@ -199,12 +190,9 @@ class Zygote:
             self._proc.join(1.0)
             why = msg.message if isinstance(msg, StartFailed) else repr(msg)
             raise ZygoteError(f"the worker zygote could not start: {why}")
-        self._conn, self.pid = parent, msg.pid
+        self._conn: Connection = parent
+        self.pid: int = msg.pid
         threading.Thread(target=self._read, name="zygote-reader", daemon=True).start()
-
-    @property
-    def alive(self) -> bool:
-        return self._conn is not None and not self._gone
 
     def fork(self, *, timeout: float = 10.0) -> WorkerProcess:
         """A new warm worker (milliseconds).
@@ -219,7 +207,7 @@ class Zygote:
         self._pending[token] = (event, box)
         try:
             with self._send_lock:
-                self._conn.send(Fork(token))  # type: ignore[union-attr]
+                self._conn.send(Fork(token))
             if not event.wait(timeout) or not box:
                 raise ZygoteError("the worker zygote did not fork a worker")
         except OSError as e:
@@ -230,21 +218,18 @@ class Zygote:
 
     def close(self, *, timeout: float = 2.0) -> None:
         """Stop it (its remaining workers die with it)."""
-        if self._conn is not None:
-            with contextlib.suppress(OSError), self._send_lock:
-                self._conn.send(Stop())
-        if self._proc is not None:
-            self._proc.join(timeout)
-            if self._proc.is_alive():
-                self._proc.kill()
-                self._proc.join(1.0)
-        if self._conn is not None:
-            self._conn.close()
+        with contextlib.suppress(OSError), self._send_lock:
+            self._conn.send(Stop())
+        self._proc.join(timeout)
+        if self._proc.is_alive():
+            self._proc.kill()
+            self._proc.join(1.0)
+        self._conn.close()
 
     def _read(self) -> None:
         conn = self._conn
         try:
-            while (msg := receive(conn)) is not None:  # type: ignore[arg-type]
+            while (msg := receive(conn)) is not None:
                 if isinstance(msg, Forked):
                     fd = reduction.recv_handle(conn)
                     worker = WorkerProcess(msg.pid, Connection(fd))
@@ -258,7 +243,7 @@ class Zygote:
                     self._on_exit(msg.pid, msg.how)
         except OSError:
             pass  # the zygote ended (or we closed it): below
-        self._gone = True
+        self.alive = False
         for event, _ in list(self._pending.values()):
             event.set()
         self._on_lost()
