@@ -11,7 +11,7 @@ only) no wall clock paces the ticks.
   first point (:class:`NotAtStart` otherwise); ``move_to_start`` first plays a
   jerk-limited ruckig move there (a straight line in joint space, not collision-checked).
 - Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
-  the next tick to a jerk-limited stop within every limit (:meth:`Executor.choose_stop`):
+  the next tick to a jerk-limited stop within every limit (:func:`clients.stops.choose_stop`):
   preferably braking along the planned path (so the arm stays on the collision-checked
   path), else ruckig's per-joint stop from the commanded state when it stays within the
   position limits, else the rest of the motion (which ends at rest).
@@ -40,7 +40,7 @@ from planner.limits import JointLimits
 
 from .execution_report import ExecutionReport, Phase, Recorder, Tick
 from .robots.base import Robot, RobotError
-from .segments import RuckigSegment, SampledTrajectory, Segment, move_segment
+from .segments import SampledTrajectory, Segment, move_segment
 from .stops import StopKind, TorqueFn, choose_stop, effort_safe
 
 log = logging.getLogger(__name__)
@@ -115,10 +115,7 @@ class _Clock:
         if not self.realtime:
             self._virtual = max(self._virtual, t)
             return
-        while True:
-            left = t - self.now()
-            if left <= 0:
-                return
+        while (left := t - self.now()) > 0:
             time.sleep(left)
 
 
@@ -204,16 +201,6 @@ class Executor:
             hold = self._playing[1].evaluate(0.0)[0]
             self._switch = (at_tick, trajectory.for_joints(names, hold))
 
-    def choose_stop(self, seg: Segment, s: float,
-                    cur: tuple[np.ndarray, np.ndarray, np.ndarray]
-                    ) -> tuple[StopKind, Segment]:
-        """How to stop (:func:`clients.stops.choose_stop`)."""
-        return choose_stop(seg, s, cur, limits=self.limits, torques=self.torques)
-
-    def effort_safe(self, make: Callable[[float], RuckigSegment]) -> RuckigSegment:
-        """:func:`clients.stops.effort_safe` with this robot's limits and dynamics."""
-        return effort_safe(make, self.limits, self.torques)
-
     # -- checks -------------------------------------------------------------------------
     def check_start(self, trajectory: SampledTrajectory) -> SampledTrajectory:
         """The trajectory over the robot's joints; raises :class:`NotAtStart` if the robot
@@ -263,9 +250,10 @@ class Executor:
         plan: list[tuple[Phase, Segment]] = []
         if np.max(np.abs(now - traj.positions[0])) > 1e-9 and o.move_to_start:
             s, goal = o.move_scaling, traj.positions[0]
-            plan.append(("move_to_start", self.effort_safe(lambda f: move_segment(
+            plan.append(("move_to_start", effort_safe(lambda f: move_segment(
                 names, now, goal, velocity=s * lim.velocity,
-                acceleration=f * s * lim.acceleration, jerk=f * s * lim.jerk))))
+                acceleration=f * s * lim.acceleration, jerk=f * s * lim.jerk),
+                lim, self.torques)))
             log.info("moving to the start first (%.3f s)", plan[0][1].duration)
         plan.append(("trajectory", traj))
         rec = Recorder()
@@ -276,11 +264,26 @@ class Executor:
         cancelled_at: float | None = None
         stop_time: float | None = None
         last: tuple[Segment, float] = (plan[0][1], 0.0)
+
+        def tick(phase: Phase, traj_t: float, cur: tuple[np.ndarray, np.ndarray, np.ndarray],
+                 jerk: np.ndarray) -> None:
+            """Command ``cur`` at tick ``k``, let the tick pass, record the state."""
+            nonlocal k
+            clock.wait_until(k * dt)
+            late = clock.now() - k * dt
+            q, qd, qdd = cur
+            self.robot.command(q, qd, qdd, jerks=jerk)
+            self.robot.advance(dt)
+            st = self.robot.state()
+            rec.add(k * dt, phase, traj_t, q, qd, qdd, st, names, late, dt)
+            if self.on_tick is not None:
+                prog = traj_t / traj.duration if traj.duration > 0 else 1.0
+                self.on_tick(Tick(k, k * dt, phase, traj_t, min(1.0, prog), q, qd, qdd, st))
+            k += 1
         try:
             for phase, seg in plan:
                 n = int(math.ceil(seg.duration * o.rate - 1e-9))
-                first = 0 if k == 0 else 1  # a junction is one tick, not two
-                i = first
+                i = 0 if k == 0 else 1  # a junction is one tick, not two
                 self._playing = (phase, seg, k - i, k)
                 while i <= n:
                     if cancel.is_set():
@@ -299,10 +302,8 @@ class Executor:
                     t = min(i * dt, seg.duration)
                     cur = seg.evaluate(t)
                     jerk = (seg.evaluate(t + dt)[2] - cur[2]) / dt
-                    prog_t = t if phase == "trajectory" else 0.0
-                    self._tick(k, clock, dt, phase, prog_t, traj.duration, cur, jerk, rec)
+                    tick(phase, t if phase == "trajectory" else 0.0, cur, jerk)
                     last = (seg, t)
-                    k += 1
                     i += 1
                 if cancel.is_set():
                     cancelled_at = rec.traj_time
@@ -310,7 +311,7 @@ class Executor:
             with self._switch_lock:
                 self._playing, self._switch = None, None
             if cancelled_at is not None:
-                how, stop = self.choose_stop(*last, cur)
+                how, stop = choose_stop(*last, cur, limits=lim, torques=self.torques)
                 stop_time = stop.duration
                 self.last_stop = how
                 log.info("cancelled at %.3f s of the trajectory: stopping (%s) in %.3f s",
@@ -320,34 +321,16 @@ class Executor:
                     t = min(i * dt, stop.duration)
                     cur = stop.evaluate(t)
                     jerk = (stop.evaluate(t + dt)[2] - cur[2]) / dt
-                    self._tick(k, clock, dt, "stop", cancelled_at, traj.duration, cur, jerk,
-                               rec)
-                    k += 1
+                    tick("stop", cancelled_at, cur, jerk)
             held = (cur[0], np.zeros_like(cur[0]), np.zeros_like(cur[0]))
             for _ in range(int(round(o.settle * o.rate))):
                 v = np.abs(rec.rows[-1][6]) if rec.rows else np.zeros(1)
                 if np.all(v < o.settle_velocity):
                     break
-                self._tick(k, clock, dt, "settle", rec.traj_time, traj.duration, held,
-                           held[2], rec)
-                k += 1
+                tick("settle", rec.traj_time, held, held[2])
         except BaseException:
             # the driver failed or we are interrupted mid-motion: hold the last setpoint
             log.exception("execution aborted at tick %d", k)
             raise
         return rec.report("cancelled" if cancelled_at is not None else "completed", names,
                           traj.duration, cancelled_at, stop_time, lim, dt)
-
-    def _tick(self, k: int, clock: _Clock, dt: float, phase: Phase, traj_t: float,
-              traj_duration: float, cur: tuple[np.ndarray, np.ndarray, np.ndarray],
-              jerk: np.ndarray, rec: Recorder) -> None:
-        clock.wait_until(k * dt)
-        late = clock.now() - k * dt
-        q, qd, qdd = cur
-        self.robot.command(q, qd, qdd, jerks=jerk)
-        self.robot.advance(dt)
-        st = self.robot.state()
-        rec.add(k * dt, phase, traj_t, q, qd, qdd, st, self.robot.joint_names, late, dt)
-        if self.on_tick is not None:
-            prog = traj_t / traj_duration if traj_duration > 0 else 1.0
-            self.on_tick(Tick(k, k * dt, phase, traj_t, min(1.0, prog), q, qd, qdd, st))
