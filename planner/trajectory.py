@@ -142,8 +142,7 @@ def sample_times(duration: float, rate: float, *, max_samples: int | None = None
 
     Raises:
         InvalidRequest: (field ``sample_rate``) a rate outside [1, 1000] Hz, or more than
-            ``max_samples`` samples: decided before any is made, naming the largest rate
-            that fits (``details.max_sample_rate`` [Hz], 0 if none of at least 1 Hz does).
+            ``max_samples`` samples, decided before any is made (:func:`check_sample_count`).
     """
     if not (math.isfinite(rate) and 1.0 <= rate <= 1000.0):
         raise InvalidRequest(f"{rate!r} must be within [1, 1000] Hz", field="sample_rate")
