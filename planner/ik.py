@@ -83,14 +83,16 @@ def position_ik(
             ``"outside_joint_limits"``, with the nearest tcp distance [m] the solver
             achieved with and without the limits (a best-found figure, not a bound).
     """
-    target = _finite_vector(position, 3, must_be=f"3 finite numbers [m], got {position!r}",
-                            field="position")
+    target = _finite_vector(position, 3)
+    if target is None:
+        raise InvalidRequest(f"must be 3 finite numbers [m], got {position!r}", field="position")
     if not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
         raise InvalidRequest(f"must be a positive number of metres, got {tolerance!r}",
                              field="tolerance")
-    q_base = np.zeros(kin.dof) if q_fixed is None else _finite_vector(
-        q_fixed, kin.dof, must_be=f"{kin.dof} finite joint values ({', '.join(kin.joint_names)})",
-        field="q_fixed")
+    q_base = np.zeros(kin.dof) if q_fixed is None else _finite_vector(q_fixed, kin.dof)
+    if q_base is None:
+        raise InvalidRequest(f"must be {kin.dof} finite joint values "
+                             f"({', '.join(kin.joint_names)})", field="q_fixed")
     if joints is None:  # the robot's own: no joint names assumed
         joints = tuple(j.name for j in kin.robot.link_path(tcp.parent_link)
                        if j.movable and j.name in kin.joint_names)
@@ -146,15 +148,13 @@ def position_ik(
 _BRANCHES = ("front/elbow_up", "front/elbow_down", "back/elbow_up", "back/elbow_down")
 
 
-def _finite_vector(value: ArrayLike, n: int, *, must_be: str, field: str) -> np.ndarray:
-    """``value`` as a new float array of shape (n,); else InvalidRequest on ``field``."""
+def _finite_vector(value: ArrayLike, n: int) -> np.ndarray | None:
+    """``value`` as a new float array of shape (n,), or None if it is not n finite numbers."""
     try:
         a = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        a = np.empty(0)
-    if a.shape != (n,) or not np.all(np.isfinite(a)):
-        raise InvalidRequest(f"must be {must_be}", field=field)
-    return a
+        return None
+    return a if a.shape == (n,) and np.all(np.isfinite(a)) else None
 
 
 def _fk(kin: Kinematics, tcp: Tcp, q: np.ndarray) -> np.ndarray:
