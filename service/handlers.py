@@ -126,9 +126,8 @@ class Handlers:
     def check(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """Validity of one state: colliding pairs, clearance [m] and the closest pair."""
         q = self._q(data.get("joints"), "joints")
-        obs = obstacles(self.description, data.get("obstacles"))
-        padding = float(data.get("padding", 0.0))
-        world = self._scene(obs, padding)
+        world = self._scene(obstacles(self.description, data.get("obstacles")),
+                            float(data.get("padding", 0.0)))
         res = world.check(q, clearance=True)
         clearance = res.clearance if res.clearance is not None and math.isfinite(
             res.clearance) else None

@@ -30,6 +30,8 @@ _log = logging.getLogger(__name__)
 ENV = "ARDUINOBOT_MEMTRACE"
 ENV_TRIM = "ARDUINOBOT_MEMTRACE_TRIM"
 _MIB = 2**20
+#: how many growing lines of code each probe logs
+_TOP = 8
 
 
 class _MallInfo2(ctypes.Structure):
@@ -85,17 +87,14 @@ class MemTrace:
     Args:
         every: seconds between probes [s].
         counts: called at each probe; its numbers (e.g. live jobs) are logged too.
-        frames: traceback depth tracemalloc keeps (deeper costs more memory).
-        top: how many growing lines of code each probe logs.
         trim: call ``malloc_trim(0)`` at each probe and log what it returned.
     """
 
     def __init__(self, every: float, *, counts: Callable[[], Mapping[str, int]] | None = None,
-                 frames: int = 1, top: int = 8, trim: bool = False) -> None:
+                 trim: bool = False) -> None:
         if every <= 0:
             raise ValueError(f"every must be > 0 s, not {every}")
-        self.every, self.counts, self.frames, self.top, self.trim = (every, counts, frames,
-                                                                     top, trim)
+        self.every, self.counts, self.trim = every, counts, trim
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._base: tracemalloc.Snapshot | None = None
@@ -120,7 +119,7 @@ class MemTrace:
         return probe
 
     def start(self) -> None:
-        tracemalloc.start(self.frames)
+        tracemalloc.start(1)  # one frame per trace: deeper costs more memory
         self._thread = threading.Thread(target=self._run, name="memtrace", daemon=True)
         self._thread.start()
         _log.info("memtrace: probing every %g s (%s)", self.every, ENV)
@@ -157,6 +156,6 @@ class MemTrace:
         if self._base is None:
             self._base = snap
             return
-        for stat in snap.compare_to(self._base, "lineno")[:self.top]:
+        for stat in snap.compare_to(self._base, "lineno")[:_TOP]:
             _log.info("memtrace:   %+.1f KiB (%+d blocks) %s", stat.size_diff / 1024,
                       stat.count_diff, stat.traceback[0])

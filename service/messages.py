@@ -105,8 +105,6 @@ class Fork:
 class Ready:
     """The zygote built the model."""
 
-    pid: int
-
 
 @dataclass(frozen=True)
 class StartFailed:

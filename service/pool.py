@@ -71,7 +71,7 @@ class WorkerPool:
             raise ValueError("workers must be >= 1 and queue_size >= 0")
         if memory_cap is not None and memory_cap <= 0:
             raise ValueError("memory_cap must be > 0 bytes")
-        self.spec, self.workers, self.queue_size = spec, workers, queue_size
+        self.workers, self.queue_size = workers, queue_size
         self.memory_cap = memory_cap
         # the zygote is started by a forkserver, never forked from a process that may
         # hold a Zenoh session; the planner's imports (trimesh, toppra, OMPL: ~2 s) run in
@@ -84,7 +84,6 @@ class WorkerPool:
         self._lock = threading.Lock()
         self._cond = threading.Condition(self._lock)
         self._jobs: deque[Job] = deque()  # the waiting jobs, and only they
-        self._waiting = 0
         # (deadline, seq, job) of the waiting jobs, the job by weak reference: a job that
         # left the queue is answered and freed (with its payload and its query) at once,
         # not when its deadline reaches the top. Dead entries go at the top, or all at
@@ -128,7 +127,6 @@ class WorkerPool:
                 j.waiting = False
             self._jobs.clear()
             self._heap.clear()
-            self._waiting = 0
             self._cond.notify_all()
         for job in drained:
             self.finish(job, shutting_down(job))
@@ -149,7 +147,7 @@ class WorkerPool:
         ``details.retry_after`` [s]), SHUTTING_DOWN once :meth:`close` has begun."""
         self.count("received")
         with self._cond:
-            stopping, full = self.stopping, self._waiting >= self.queue_size
+            stopping, full = self.stopping, len(self._jobs) >= self.queue_size
             if not (stopping or full):
                 self._enqueue(job, first=False)
             retry = max(0.05, self._service_time / self.workers)
@@ -172,7 +170,7 @@ class WorkerPool:
                         else self._busy[s.index].request_id}
                        for s in self._slots]
             counters = dict(self.counters)
-            depth = self._waiting
+            depth = len(self._jobs)
             load = (len(self._busy) + depth) / self.workers
         return {"workers": workers, "queue_depth": depth, "queue_size": self.queue_size,
                 "memory_cap": self.memory_cap, "zygote": self._workers.zygote_pid,
@@ -199,7 +197,6 @@ class WorkerPool:
                 if self._jobs:
                     job = self._jobs.popleft()
                     job.waiting = False
-                    self._waiting -= 1
                     self._drop_stale()
                     return job
                 self._cond.wait()
@@ -236,7 +233,6 @@ class WorkerPool:
     def _enqueue(self, job: Job, *, first: bool) -> None:
         """(with the condition held)"""
         job.waiting = True
-        self._waiting += 1
         if first:
             self._jobs.appendleft(job)
         else:
@@ -247,7 +243,7 @@ class WorkerPool:
     def _drop_stale(self) -> None:
         """Forget the heap entries of jobs no longer waiting once they are many (with
         the condition held), so the heap stays as small as the queue."""
-        if len(self._heap) > self._waiting + _HEAP_SLACK:
+        if len(self._heap) > len(self._jobs) + _HEAP_SLACK:
             self._heap = [e for e in self._heap if _waiting(e)]
             heapq.heapify(self._heap)
 
@@ -274,7 +270,6 @@ class WorkerPool:
                     job = heapq.heappop(self._heap)[2]()
                     if job is not None and job.waiting:  # (a slot times out its own job)
                         job.waiting = False
-                        self._waiting -= 1
                         self._jobs.remove(job)  # O(queue_size): it holds no answered job
                         expired.append(job)
                 if expired:
@@ -283,6 +278,7 @@ class WorkerPool:
         for job in expired:
             self.finish(job, timed_out(job, "while it waited for a worker"))
         return True
+
 
 def _waiting(entry: tuple[float, int, weakref.ref[Job]]) -> bool:
     job = entry[2]()

@@ -84,7 +84,7 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     os.set_blocking(wake_w, False)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # the wakeup fd carries it
     signal.set_wakeup_fd(wake_w)
-    conn.send(Ready(os.getpid()))
+    conn.send(Ready())
     try:
         while True:
             for ready in wait([conn, wake_r]):
@@ -191,7 +191,7 @@ class Zygote:
             why = msg.message if isinstance(msg, StartFailed) else repr(msg)
             raise ZygoteError(f"the worker zygote could not start: {why}")
         self._conn: Connection = parent
-        self.pid: int = msg.pid
+        self.pid: int = self._proc.pid
         threading.Thread(target=self._read, name="zygote-reader", daemon=True).start()
 
     def fork(self, *, timeout: float = 10.0) -> WorkerProcess:
