@@ -111,10 +111,8 @@ class PlannerClient:
             payload = body.encode()
         else:
             payload = body
-        if timeout is not None:
-            wait = float(timeout)
-        else:
-            wait = self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
+        wait = float(timeout) if timeout is not None else \
+            self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
         if instance is not None:
             key = f"{self.prefix}/instance/{instance}/{kind}"
         else:

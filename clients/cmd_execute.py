@@ -10,7 +10,6 @@ import queue
 import signal
 import sys
 import threading
-import time
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -178,10 +177,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
         summary = report.to_dict()
         if ns.sim:
             summary["simulation"] = robot.stats().to_dict()
-        _print_report(summary)
-        if ns.report:
-            Path(ns.report).write_text(json.dumps(summary, indent=1))
-        return EXIT_OK if report.outcome == "completed" else EXIT_CANCELLED
+        return _report(ns, summary)
     finally:
         robot.close()
         if session is not None:
@@ -219,7 +215,9 @@ def _sigint_sets(event: threading.Event) -> Iterator[None]:
             signal.signal(sig, h)
 
 
-def _print_report(r: dict[str, Any]) -> None:
+def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
+    """Print the execution report ``r`` (and write it to --report); the exit code of its
+    outcome."""
     pk = r["peak_ratio"]
     lines = [f"{r['outcome']}: {r['duration']:.3f} s, {r['ticks']} ticks ({r['late_ticks']} "
              f"late, max lateness {1000 * r['max_lateness']:.1f} ms)"]
@@ -238,6 +236,9 @@ def _print_report(r: dict[str, Any]) -> None:
         lines.append(f"saturated steps {sim['saturated_steps']}/{sim['steps']}; contacts: "
                      + (", ".join("/".join(p) for p in sim["contacts"]) or "none"))
     print("\n".join(lines))
+    if ns.report:
+        Path(ns.report).write_text(json.dumps(r, indent=1))
+    return EXIT_OK if r["outcome"] == "completed" else EXIT_CANCELLED
 
 
 def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
@@ -247,6 +248,7 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
 
     from .client import decode_reply
     from .errors import ServiceUnavailable
+    from .segments import read_json
     if ns.blend:
         with client(ns) as c:
             msg = c.request("execute", {"plan": req, "blend": True}, timeout=ns.timeout)
@@ -259,7 +261,7 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
     if req is not None:
         body["plan"] = req
     else:
-        body["trajectory"] = json.loads(Path(ns.trajectory).read_text("utf-8"))
+        body["trajectory"] = read_json(ns.trajectory)
     with client(ns) as c:
         s = c.session
         token = s.liveliness().declare_token(f"{key}/client/{client_id}")
@@ -290,10 +292,5 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
                     print(f"executing {execution}: {msg['duration']:.3f} s on the service's "
                           "robot (Ctrl-C stops smoothly)", file=sys.stderr)
                 elif msg.get("event") == "finished":
-                    report = msg["report"]
-                    _print_report(report)
-                    if ns.report:
-                        Path(ns.report).write_text(json.dumps(report, indent=1))
                     token.undeclare()
-                    return EXIT_OK if report["outcome"] == "completed" else EXIT_CANCELLED
-                time.sleep(0)
+                    return _report(ns, msg["report"])

@@ -262,13 +262,16 @@ class ExecuteService:
             if isinstance(req, dict) and "start" not in req:
                 from .execute import plan_start
                 req["start"] = plan_start(robot, self.description)
-            data = wire.decode("plan", wire.encode(req))
-            if self.submit_plan is None:
-                raise InvalidRequest("this service cannot plan", field="plan")
-            self.submit_plan(data, run.on_planned)
+            self._plan(req, run.on_planned)
         except BaseException:
             self._finish()
             raise
+
+    def _plan(self, request: Any, respond: Callable[[Outcome], None]) -> None:
+        """Hand the plan ``request`` to the pool (checked first); ``respond`` gets its outcome."""
+        if self.submit_plan is None:
+            raise InvalidRequest("this service cannot plan", field="plan")
+        self.submit_plan(wire.decode("plan", wire.encode(request)), respond)
 
     def _blend(self, query: zenoh.Query, body: Mapping[str, Any]) -> None:
         """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
@@ -286,7 +289,6 @@ class ExecuteService:
         req = {**body["plan"], "start": dict(zip(names, q.tolist())),
                "start_velocity": dict(zip(names, qd.tolist())),
                "start_acceleration": dict(zip(names, qdd.tolist()))}
-        data = wire.decode("plan", wire.encode(req))
         key = f"{self.prefix}/execute"
 
         def on_planned(outcome: Outcome) -> None:
@@ -300,9 +302,7 @@ class ExecuteService:
                                                   "tick": k, "duration": traj.duration}),
                                 encoding=JSON)
             query.drop()
-        if self.submit_plan is None:
-            raise InvalidRequest("this service cannot plan", field="plan")
-        self.submit_plan(data, on_planned)
+        self._plan(req, on_planned)
 
     def _finish(self) -> None:
         self._current = None

@@ -243,15 +243,6 @@ class RuckigSegment:
         return np.array([e.min for e in ext]), np.array([e.max for e in ext])
 
 
-def _limits_input(dof: int, velocity: np.ndarray, acceleration: np.ndarray,
-                  jerk: np.ndarray) -> InputParameter:
-    inp = InputParameter(dof)
-    inp.max_velocity = [float(v) for v in velocity]
-    inp.max_acceleration = [float(v) for v in acceleration]
-    inp.max_jerk = [float(v) for v in jerk]
-    return inp
-
-
 def _calculate(inp: InputParameter, dof: int, what: str) -> Trajectory:
     tr = Trajectory(dof)
     res = Ruckig(dof).calculate(inp, tr)
@@ -281,7 +272,10 @@ def move_segment(joint_names: Sequence[str], start: np.ndarray, goal: np.ndarray
     """A jerk-limited, time-synchronised move from rest at ``start`` to rest at ``goal``
     [rad] (a straight line in joint space: no collision check)."""
     dof = len(joint_names)
-    inp = _limits_input(dof, velocity, acceleration, jerk)
+    inp = InputParameter(dof)
+    inp.max_velocity = [float(v) for v in velocity]
+    inp.max_acceleration = [float(v) for v in acceleration]
+    inp.max_jerk = [float(v) for v in jerk]
     inp.current_position = [float(v) for v in start]
     inp.current_velocity = [0.0] * dof
     inp.current_acceleration = [0.0] * dof

@@ -74,13 +74,12 @@ def simulate(description: Description, trajectory: SampledTrajectory, *,
     """Replay ``trajectory`` on a fresh twin (or ``twin``, a :class:`SimArduinobot` to
     reuse: it is reset to the trajectory's start) and measure it."""
     from .robots.sim_arduinobot import SimArduinobot
+    names = description.robot.actuated_joints if twin is None else twin.joint_names
+    positions = trajectory.for_joints(names, np.zeros(len(names))).positions
     if twin is None:
-        names = description.robot.actuated_joints
-        start = trajectory.for_joints(names, np.zeros(len(names))).positions[0]
-        twin = SimArduinobot(description, obstacles=obstacles, initial=start)
+        twin = SimArduinobot(description, obstacles=obstacles, initial=positions[0])
     else:
-        names = twin.joint_names
-        twin.reset(trajectory.for_joints(names, np.zeros(len(names))).positions[0])
+        twin.reset(positions[0])
     ex = Executor.for_description(twin, description, options=ExecuteOptions(
         rate=rate, realtime=False, settle=settle, settle_velocity=1e-3))
     rep = ex.execute(trajectory)
@@ -88,10 +87,9 @@ def simulate(description: Description, trajectory: SampledTrajectory, *,
     playing = np.array([p == "trajectory" for p in rep.phases])
     target = np.vstack([rep.q[1:], rep.q[-1:]])  # the state after tick k vs tick k+1's
     err = np.max(np.abs(rep.measured - target)[playing], axis=0)
-    goal = trajectory.for_joints(names, np.zeros(len(names))).positions[-1]
     return SimulationReport(
         tuple(names), trajectory.duration, tuple(map(float, err)),
-        tuple(map(float, np.abs(rep.measured[-1] - goal))), st.peak_force,
+        tuple(map(float, np.abs(rep.measured[-1] - positions[-1]))), st.peak_force,
         st.peak_feedforward, st.effort,
         st.saturated_steps, st.steps, st.contacts, st.contact_steps, rep.times, rep.q,
         rep.measured)

@@ -164,12 +164,9 @@ class PlaybackPanel:
                     title=f"{p.quantity} [{p.unit}]", aspect=1.6))
 
     def _download_png(self, event: object) -> None:
-        client = getattr(event, "client", None)
-        data = self.png()
-        if client is not None:
-            client.send_file_download("trajectory_plots.png", data)
-        else:
-            self.viewer.server.send_file_download("trajectory_plots.png", data)
+        # to the browser that clicked (else to every connected one)
+        target = getattr(event, "client", None) or self.viewer.server
+        target.send_file_download("trajectory_plots.png", self.png())
 
 
 def _json(content: bytes) -> object:
