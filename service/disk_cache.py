@@ -21,12 +21,10 @@ _log = logging.getLogger(__name__)
 
 
 def default_cache_dir() -> Path:
-    env = os.environ
-    if env.get("ARDUINOBOT_CACHE"):
-        return Path(env["ARDUINOBOT_CACHE"]).expanduser()
-    base = Path(env["XDG_CACHE_HOME"]).expanduser() if env.get("XDG_CACHE_HOME") \
-        else Path.home() / ".cache"
-    return base / "arduinobot"
+    if os.environ.get("ARDUINOBOT_CACHE"):
+        return Path(os.environ["ARDUINOBOT_CACHE"]).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base).expanduser() / "arduinobot"
 
 
 class DiskCache:

@@ -24,10 +24,9 @@ class Job:
     """One request in flight. ``respond`` is called exactly once (first outcome wins),
     then dropped, so whatever it holds (a Zenoh query) is released.
 
-    ``payload`` is the raw request (validated by the worker) or an already valid dict;
-    ``base_deadline`` is arrival + the service's timeout [monotonic s]. ``deadline`` is
-    provisional (plans: + the default planning_time) until the worker has read the
-    request's own planning_time.
+    ``payload`` and ``base_deadline``: as in :class:`~service.messages.JobMsg`.
+    ``deadline`` is provisional (plans: + the default planning_time) until the worker has
+    read the request's own planning_time.
     """
 
     kind: str

@@ -20,7 +20,7 @@ import threading
 
 import zenoh
 
-from .zconfig import zenoh_config
+from .zconfig import DEFAULT_ENDPOINT, zenoh_config
 
 _log = logging.getLogger(__name__)
 
@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     ns = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    listen = ns.listen if ns.listen or ns.config else ["tcp/127.0.0.1:7447"]
+    listen = ns.listen if ns.listen or ns.config else [DEFAULT_ENDPOINT]
     cfg = zenoh_config(mode="router", listen=listen, connect=ns.connect,
                        config_file=ns.config, multicast_scouting=ns.multicast_scouting)
     stop = threading.Event()

@@ -74,9 +74,8 @@ def build_handlers(spec: DescriptionSpec) -> Handlers:
 
 def job_deadline(kind: str, data: Mapping[str, Any], base_deadline: float) -> float:
     """When a valid job must be answered [monotonic s]: plans add their planning_time."""
-    if kind != "plan":
-        return base_deadline
-    return base_deadline + float(data.get("planning_time", DEFAULT_PLANNING_TIME))
+    plan = float(data.get("planning_time", DEFAULT_PLANNING_TIME)) if kind == "plan" else 0.0
+    return base_deadline + plan
 
 
 def serve_jobs(conn: Connection, handlers: Handlers) -> None:
