@@ -14,7 +14,7 @@ from typing import Any
 #: joint values as given: positional (in the model's order) or by name
 JointValues = tuple[float, ...] | dict[str, float]
 
-_OBSTACLE_FORMS = "box:ID:sx,sy,sz@x,y,z, sphere:ID:r@x,y,z or cylinder:ID:r,l@x,y,z"
+_OBSTACLE_FORMS = "box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or cylinder:ID:r,l@x,y,z"
 
 
 class UsageError(Exception):
@@ -97,6 +97,12 @@ def json_object(path: str) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise argparse.ArgumentTypeError(f"{path} must hold a JSON object")
     return data
+
+
+def add_obstacle_arg(p: argparse.ArgumentParser) -> None:
+    """--obstacle SPEC (repeatable), as plan and check-state take it."""
+    p.add_argument("--obstacle", action="append", default=[], metavar="SPEC", type=obstacle,
+                   help=f"{_OBSTACLE_FORMS}; repeatable")
 
 
 def xacro_arg(text: str) -> tuple[str, str]:

@@ -24,7 +24,7 @@ from .common import (
     client,
     connect,
     endpoints,
-    local_description,
+    load_from_args,
 )
 
 EXIT_CANCELLED = 130
@@ -149,7 +149,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
     from .execute import ExecuteOptions, Executor, plan_start
     from .replies import PlanReply
     from .segments import SampledTrajectory
-    desc = local_description(ns)
+    desc = load_from_args(ns)
     robot = robot_spec(ns).open(desc, obstacles=(req or {}).get("obstacles", []))
     session = None
     try:

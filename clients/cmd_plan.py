@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .argtypes import UsageError, joint_map, joint_values, json_object, numbers, obstacle
+from .argtypes import UsageError, add_obstacle_arg, joint_map, joint_values, json_object, numbers
 from .common import EXIT_OK, add_service_args, connect, joint_order
 
 if TYPE_CHECKING:
@@ -44,9 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--start", metavar="Q", type=joint_values, help="start: every actuated joint's value in the "
                    "model's order or name=value,...; "
                    "default all 0")
-    p.add_argument("--obstacle", action="append", default=[], metavar="SPEC", type=obstacle,
-                   help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
-                   "cylinder:ID:r,l@x,y,z; repeatable")
+    add_obstacle_arg(p)
     p.add_argument("--group", metavar="NAME", help="a planning group of the model's SRDF, "
                    "or all (default: a named goal's own group, else arm, else the first)")
     p.add_argument("--planner", metavar="NAME", help="an OMPL planner (default RRTConnect)")

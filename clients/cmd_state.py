@@ -8,14 +8,12 @@ import json
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .argtypes import joint_map, joint_values, numbers, obstacle
+from .argtypes import add_obstacle_arg, joint_map, joint_values, numbers
 from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joint_order
 from .replies import CheckReply, FkReply, IkReply
 
 _JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot model` "
                 "lists them), or name=value,... [rad]")
-_OBSTACLE_HELP = ("box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or "
-                  "cylinder:ID:r,l@x,y,z; repeatable")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,8 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="example:\n  arduinobot check-state --joints 0,0.8,0.6 --obstacle "
         "box:table:1,1,0.1@0,1,0.5", formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
-    p.add_argument("--obstacle", action="append", default=[], metavar="SPEC", type=obstacle,
-                   help=_OBSTACLE_HELP)
+    add_obstacle_arg(p)
     p.add_argument("--padding", type=float, metavar="M", help="safety margin [m]")
     _add_common(p, cmd_check_state)
 

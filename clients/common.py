@@ -82,16 +82,11 @@ def model_chosen(ns: argparse.Namespace) -> bool:
 
 
 def load_from_args(ns: argparse.Namespace) -> Description:
-    """The model of FILE (or --description) and the model options."""
-    path = getattr(ns, "file", None) or getattr(ns, "description_path", None)
-    return load_description(path, **model_options(ns))  # type: ignore[arg-type]
-
-
-def local_description(ns: argparse.Namespace) -> Description:
-    """:func:`load_from_args`, once per command: the request, the robot and a simulation
-    of one command share the loaded model."""
+    """The model of FILE (or --description) and the model options, loaded once per
+    command: the request, the robot and a simulation of one command share it."""
     if getattr(ns, "_description", None) is None:
-        ns._description = load_from_args(ns)
+        path = getattr(ns, "file", None) or getattr(ns, "description_path", None)
+        ns._description = load_description(path, **model_options(ns))  # type: ignore[arg-type]
     return ns._description
 
 
@@ -130,7 +125,7 @@ def connect(ns: argparse.Namespace, *, model_drives_robot: bool = False) -> Iter
     """
     if ns.local:
         from service.local import LocalService
-        yield LocalService(local_description(ns))  # type: ignore[misc]
+        yield LocalService(load_from_args(ns))  # type: ignore[misc]
         return
     if model_chosen(ns) and not model_drives_robot:
         raise UsageError("FILE, --package-dir, --arg, --moveit-config, --srdf and "

@@ -94,9 +94,8 @@ class Recorder:
     def add(self, t: float, phase: Phase, traj_t: float, q: np.ndarray, qd: np.ndarray,
             qdd: np.ndarray, st: JointState, names: tuple[str, ...], late: float,
             dt: float) -> None:
-        idx = {n: i for i, n in enumerate(st.names)}
-        meas = np.array([st.positions[idx[n]] for n in names])
-        vel = np.array([st.velocities[idx[n]] for n in names])
+        idx = [st.names.index(n) for n in names]
+        meas, vel = np.array(st.positions)[idx], np.array(st.velocities)[idx]
         self.rows.append((t, phase, q.copy(), qd.copy(), qdd.copy(), meas, vel))
         self.traj_time = traj_t
         if late > 0.5 * dt:

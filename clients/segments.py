@@ -178,12 +178,10 @@ class SampledTrajectory:
 
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ts = self.times
-        if t <= 0.0 or len(ts) == 1:
-            return self.positions[0].copy(), self.velocities[0].copy(), \
-                self.accelerations[0].copy()
-        if t >= ts[-1]:
-            return self.positions[-1].copy(), self.velocities[-1].copy(), \
-                self.accelerations[-1].copy()
+        if t <= 0.0 or t >= ts[-1] or len(ts) == 1:
+            i = 0 if t <= 0.0 else -1
+            return self.positions[i].copy(), self.velocities[i].copy(), \
+                self.accelerations[i].copy()
         k = int(np.searchsorted(ts, t, side="right")) - 1
         h = ts[k + 1] - ts[k]
         p0, v0, a0 = self.positions[k], self.velocities[k], self.accelerations[k]

@@ -161,7 +161,7 @@ def simulate_command(ns: Any, res: PlanReply, req: Mapping[str, Any]) -> int:
 
 def _model(ns: Any) -> Description:
     if getattr(ns, "local", False):
-        from .common import local_description
-        return local_description(ns)
+        from .common import load_from_args
+        return load_from_args(ns)
     from description import load_description
     return load_description()

@@ -99,15 +99,11 @@ class MimicMap:
     @classmethod
     def from_description(cls, description: Description) -> MimicMap:
         robot = description.robot
-        act = tuple(robot.actuated_joints)
-        mims = tuple(robot.mimic_joints)
-        lead, mult, off = [], [], []
-        for n in mims:
-            m = robot.joints[n].mimic
-            lead.append(act.index(m.joint))  # type: ignore[union-attr]
-            mult.append(float(m.multiplier))  # type: ignore[union-attr]
-            off.append(float(m.offset))  # type: ignore[union-attr]
-        return cls(act, mims, tuple(lead), tuple(mult), tuple(off))
+        act, mims = tuple(robot.actuated_joints), tuple(robot.mimic_joints)
+        ms = [robot.joints[n].mimic for n in mims]
+        return cls(act, mims, tuple(act.index(m.joint) for m in ms),  # type: ignore[union-attr]
+                   tuple(float(m.multiplier) for m in ms),  # type: ignore[union-attr]
+                   tuple(float(m.offset) for m in ms))  # type: ignore[union-attr]
 
     @property
     def names(self) -> tuple[str, ...]:

@@ -61,8 +61,7 @@ def servo_angles(q: Sequence[float] | np.ndarray) -> tuple[int, int, int, int]:
 
 def encode(angles: Sequence[int]) -> bytes:
     """One protocol message: ``b%03d,s%03d,e%03d,g%03d,`` in ASCII, no newline."""
-    b, s, e, g = angles
-    return b"b%03d,s%03d,e%03d,g%03d," % (b, s, e, g)
+    return b"b%03d,s%03d,e%03d,g%03d," % tuple(angles)
 
 
 def hardware_params(urdf: str) -> dict[str, str]:

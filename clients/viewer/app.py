@@ -136,11 +136,7 @@ class RobotViewer:
                 @pick.on_update
                 def _(_event: object) -> None:
                     if pick.value in states:
-                        q = self.q.copy()
-                        for j, v in states[pick.value].items():
-                            if j in self.joint_names:
-                                q[self.joint_names.index(j)] = v
-                        self.set_q(q)
+                        self.set_joints(states[pick.value])
             frames = gui.add_checkbox("Show link frames", False)
 
             @frames.on_update
@@ -210,6 +206,15 @@ class RobotViewer:
         for fn in self._listeners:
             fn(q, check)
         return check
+
+    def set_joints(self, values: Mapping[str, float]) -> StateCheck:
+        """Show the current pose with the named joints at ``values`` [rad] (names that are
+        not actuated joints are ignored); see :meth:`set_q`."""
+        q = self.q
+        for name, v in values.items():
+            if name in self.joint_names:
+                q[self.joint_names.index(name)] = float(v)
+        return self.set_q(q)
 
     def link_poses(self) -> np.ndarray:
         """The shown links' poses, shape (n_links, 4, 4), in ``kin.link_names`` order."""

@@ -12,8 +12,6 @@ import threading
 import time
 from typing import Any
 
-import numpy as np
-
 from .app import RobotViewer
 
 _log = logging.getLogger(__name__)
@@ -57,7 +55,6 @@ class JointStateFollower:
             self._cond.notify()
 
     def _run(self) -> None:
-        names = self.viewer.joint_names
         while True:
             with self._cond:
                 while self._latest is None and not self._stop:
@@ -65,12 +62,8 @@ class JointStateFollower:
                 if self._stop:
                     return
                 msg, self._latest = self._latest, None
-            pos = dict(zip(msg.get("name", []), msg.get("position", [])))
-            q = self.viewer.q
-            for i, n in enumerate(names):
-                if n in pos:
-                    q[i] = float(pos[n])
-            check = self.viewer.set_q(np.asarray(q))
+            check = self.viewer.set_joints(dict(zip(msg.get("name", []),
+                                                    msg.get("position", []))))
             self.shown += 1
             self._status.content = (
                 f"**live** `{self.key}`: {msg.get('phase', '?')} "

@@ -102,11 +102,7 @@ class PlaybackPanel:
         traj = self.trajectory
         if traj is None:
             return
-        q = self.viewer.q
-        pos = traj.at(t)
-        for k, name in enumerate(traj.joint_names):
-            q[self.viewer.joint_names.index(name)] = pos[k]
-        self.viewer.set_q(q)
+        self.viewer.set_joints(dict(zip(traj.joint_names, traj.at(t))))
 
     def _run(self) -> None:
         last = time.monotonic()
