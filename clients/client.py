@@ -5,13 +5,10 @@
         res = c.plan({"goal": {"named": "reach_forward"}})
         print(res.duration, res.positions.shape)
 
-Each reply comes back as its frozen dataclass (:mod:`clients.replies`: PlanReply, FkReply,
-IkReply, CheckReply), checked against its schema. Every service error raises its own class (:mod:`clients.errors`); no reply at all raises
-:class:`~clients.errors.ServiceUnavailable` with a hint (and says when the connection
-itself is down, e.g. a router restarting). With ``spread=True`` each request goes to the
-least loaded live instance (:mod:`clients.balance`: liveliness on ``<prefix>/alive/*``,
-load on ``/health``), by its own key, and on to another one if that instance has gone or
-is BUSY.
+Each reply comes back as its frozen dataclass (:mod:`clients.replies`), checked against
+its schema; every service error raises its own class (:mod:`clients.errors`), no reply
+at all :class:`~clients.errors.ServiceUnavailable` with a hint. With ``spread=True`` each
+request goes to the least loaded live instance (:mod:`clients.balance`).
 """
 
 from __future__ import annotations
@@ -47,7 +44,7 @@ class PlannerClient:
         mode: the client's Zenoh mode (``client`` needs a reachable endpoint).
         config_file: a zenoh JSON5 config (TLS, credentials); options here override it.
         spread: send each request to the least loaded live instance, and to another
-            one if it has gone or is BUSY (see :mod:`clients.balance`).
+            one if it has gone or is BUSY.
 
     Raises:
         ServiceUnavailable: ``reason="connect_failed"`` if no session could be opened.

@@ -11,16 +11,12 @@ only) no wall clock paces the ticks.
   first point (:class:`NotAtStart` otherwise); ``move_to_start`` first plays a
   jerk-limited ruckig move there (a straight line in joint space, not collision-checked).
 - Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
-  the next tick to a jerk-limited stop within every limit (:func:`clients.stops.choose_stop`):
-  preferably braking along the planned path (so the arm stays on the collision-checked
-  path), else ruckig's per-joint stop from the commanded state when it stays within the
-  position limits, else the rest of the motion (which ends at rest).
+  the next tick to a jerk-limited stop within every limit, on the planned path when it
+  can (:func:`clients.stops.choose_stop`).
 - Every tick goes to ``on_tick`` (e.g. the ``<prefix>/joint_states`` publisher).
-- A new goal while moving: :meth:`Executor.lookahead` gives a tick a little ahead and
-  the setpoint then; a plan from that moving state (``start_velocity`` and
-  ``start_acceleration``, see :mod:`planner.moving_start`) handed to
-  :meth:`Executor.switch` takes over at that tick, without a jump in position,
-  velocity or acceleration.
+- A new goal while moving: a plan from the setpoint :meth:`Executor.lookahead` gives (a
+  moving start, :mod:`planner.moving_start`) takes over at that tick through
+  :meth:`Executor.switch`, without a jump in position, velocity or acceleration.
 """
 
 from __future__ import annotations

@@ -128,19 +128,7 @@ def frame_box(bounds: np.ndarray, *, fov: float = math.radians(45.0), aspect: fl
 
 def matrix_to_wxyz(rot: np.ndarray) -> tuple[float, float, float, float]:
     """Unit quaternion (w, x, y, z) of a rotation matrix, shape (3, 3)."""
-    m = np.asarray(rot, float)
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2.0
-        q = (0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s)
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2.0
-        q = ((m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s)
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2.0
-        q = ((m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s)
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2.0
-        q = ((m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s)
-    n = math.sqrt(sum(v * v for v in q))
-    return tuple(float(v / n) for v in q)  # type: ignore[return-value]
+    t = np.eye(4)
+    t[:3, :3] = rot
+    q = trimesh.transformations.quaternion_from_matrix(t, isprecise=True)
+    return tuple(float(v) for v in q)  # type: ignore[return-value]
