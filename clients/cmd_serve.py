@@ -10,7 +10,7 @@ import sys
 import threading
 
 from .argtypes import UsageError, positive_int
-from .common import EXIT_FAIL, EXIT_OK, add_model_args
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, model_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -74,20 +74,22 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_serve(ns: argparse.Namespace) -> int:
+    import zenoh
+
+    from service.pool import PoolStartError
     from service.server import PlannerService, ServeOptions
     from service.worker import DescriptionSpec
     from service.zconfig import DEFAULT_ENDPOINT
 
     from .cmd_execute import robot_spec
     from .execute_service import execute_extension
+    from .robots import RobotError
 
     if ns.file and ns.description_path:
         raise UsageError("give the model as FILE or --description, not both")
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
-                           package_dirs=tuple(ns.package_dir), args=dict(ns.arg),
-                           moveit_config=ns.moveit_config, srdf=ns.srdf,
-                           joint_limits=ns.joint_limits,
+                           **model_options(ns),  # type: ignore[arg-type]
                            cache_dir="" if ns.no_cache else ns.cache_dir)
     # a client-mode instance is reached through its router only: a listener of its own
     # would be a way around the router's TLS, passwords and access control
@@ -105,16 +107,9 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     svc = PlannerService(opts)
     try:
         svc.start()
-    except Exception as e:
-        import zenoh
-
-        from service.pool import PoolStartError
-
-        from .robots import RobotError
-        if isinstance(e, (PoolStartError, zenoh.ZError, RobotError)):
-            print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
-            return EXIT_FAIL
-        raise
+    except (PoolStartError, zenoh.ZError, RobotError) as e:
+        print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
+        return EXIT_FAIL
     try:
         while not stop.wait(0.5):  # short waits keep the signal handler responsive
             pass
