@@ -118,28 +118,40 @@ class JerkLimitedTiming:
         mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
         V, A, J, E = limits.velocity, limits.acceleration, limits.jerk, limits.effort
         d1, d2, d3, mt, bt, gt = (np.abs(x) for x in (d1, d2, d3, mt, bt, gt))
-        vs, as_, js = np.empty(n), np.empty(n), np.empty(n)
-        for k in range(n):
-            sel = own == k
-            p1, p2, p3, pm, pb, pg = (x[sel] for x in (d1, d2, d3, mt, bt, gt))
-            slack_e = E - pg
-            if np.any(slack_e <= 0):
-                raise TrajectoryError("gravity alone exceeds the effort limit on the path",
-                                      details={"stage": "ruckig", "piece": k})
-            v = _min_ratio(V, p1)
-            # leave half of the acceleration and effort budgets for sdd
-            v = min(v, math.sqrt(_min_ratio(0.5 * A, p2)), math.sqrt(_min_ratio(0.5 * slack_e, pb)))
-            for _ in range(30):
-                a = min(_min_ratio(A - p2 * v * v, p1), _min_ratio(slack_e - pb * v * v, pm))
-                j = _min_ratio(J - 3 * p2 * v * a - p3 * v**3, p1) if a > 0 else -1.0
-                if a > 0 and j > 0 and (curve.kinds[k] == "line" or j > 0.25 * _min_ratio(J, p1)):
-                    break
-                v *= 0.8
-            else:
-                raise TrajectoryError("no feasible path speed on a curve piece",
-                                      details={"stage": "ruckig", "piece": k})
-            vs[k], as_[k], js[k] = v, a, j
-        return vs, as_, js
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+
+        def least(budget: np.ndarray, use: np.ndarray) -> np.ndarray:
+            # per piece: min over its samples and joints of budget / use where use > 0
+            # (inf if nothing is used), shape (n,); all pieces at once, not a loop
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = np.where(use > _TINY, np.broadcast_to(budget, use.shape) / use, np.inf)
+            return np.minimum.reduceat(r.min(axis=1), first)
+
+        slack_e = E - gt
+        short = np.flatnonzero(np.minimum.reduceat((slack_e <= 0).any(axis=1), first))
+        if len(short):
+            raise TrajectoryError("gravity alone exceeds the effort limit on the path",
+                                  details={"stage": "ruckig", "piece": int(short[0])})
+        # leave half of the acceleration and effort budgets for sdd
+        v = np.minimum(least(V, d1), np.sqrt(np.minimum(least(0.5 * A, d2),
+                                                        least(0.5 * slack_e, bt))))
+        line = np.array([kind == "line" for kind in curve.kinds])
+        j_free = least(J, d1)
+        done = np.zeros(n, dtype=bool)
+        vs, as_, js = v.copy(), np.zeros(n), np.zeros(n)
+        for _ in range(30):
+            w = v[own][:, None]
+            a = np.minimum(least(A - d2 * w * w, d1), least(slack_e - bt * w * w, mt))
+            j = np.where(a > 0, least(J - 3 * d2 * w * np.maximum(a, 0)[own][:, None]
+                                      - d3 * w**3, d1), -1.0)
+            ok = ~done & (a > 0) & (j > 0) & (line | (j > 0.25 * j_free))
+            vs[ok], as_[ok], js[ok] = v[ok], a[ok], j[ok]
+            done |= ok
+            if done.all():
+                return vs, as_, js
+            v = np.where(done, v, 0.8 * v)
+        raise TrajectoryError("no feasible path speed on a curve piece",
+                              details={"stage": "ruckig", "piece": int(np.argmin(done))})
 
     def section(self, curve: PathCurve, limits: ActiveLimits, *,
                 blend_speed: bool = True) -> RuckigProfile:
@@ -202,12 +214,3 @@ class JerkLimitedTiming:
         if not secs:
             secs.append((curve.sections[0], RestProfile()))
         return CurveTiming(secs, goal=curve.goal)
-
-
-def _min_ratio(budget: np.ndarray, use: np.ndarray) -> float:
-    """min over entries of budget / use where use > 0 (inf if nothing is used)."""
-    budget = np.broadcast_to(budget, use.shape)
-    m = use > _TINY
-    if not m.any():
-        return math.inf
-    return float(np.min(budget[m] / use[m]))
