@@ -158,8 +158,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
                 req["start"] = plan_start(robot, desc)
             with connect(ns, model_drives_robot=True) as service:
                 res = PlanReply.parse(service.request("plan", req))
-            traj = SampledTrajectory(res.joint_names, res.times, res.positions,
-                                     res.velocities, res.accelerations)
+            traj = SampledTrajectory.from_json(res.raw)
         else:
             traj = SampledTrajectory.load(ns.trajectory)
         publish = None

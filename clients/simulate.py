@@ -150,9 +150,7 @@ def simulate_command(ns: Any, res: PlanReply, req: Mapping[str, Any]) -> int:
         raise UsageError(f"--simulate: the service's robot moves {', '.join(missing)}, "
                          "which the local model lacks; plan with --local and the model "
                          "options")
-    r = simulate(desc, SampledTrajectory(res.joint_names, res.times, res.positions,
-                                         res.velocities, res.accelerations),
-                 obstacles=req.get("obstacles", ()))
+    r = simulate(desc, SampledTrajectory.from_json(res.raw), obstacles=req.get("obstacles", ()))
     print(summary(r))
     if ns.plot:
         plot(r, ns.plot)

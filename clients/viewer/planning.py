@@ -50,7 +50,7 @@ class LocalBackend:
                                                 obstacles=self.obstacles, seed=self.seed))
         _log.info("planned %.2f s of motion with %s in %.3f s", res.trajectory.duration,
                   res.planner, res.timing.get("total", float("nan")))
-        return PlaybackTrajectory.from_trajectory(res.trajectory)
+        return PlaybackTrajectory.from_json(res.trajectory.to_dict())
 
 
 class RemoteBackend:

@@ -78,15 +78,3 @@ class PlaybackTrajectory:
     def from_file(cls, path: str | Path) -> PlaybackTrajectory:
         """Read a JSON file (see :meth:`from_json`)."""
         return cls.from_json(read_json(path))
-
-    @classmethod
-    def from_trajectory(cls, trajectory: object) -> PlaybackTrajectory:
-        """From a planner :class:`~planner.trajectory.JointTrajectory` (its sampled arrays)."""
-        t = trajectory
-        return cls(joint_names=tuple(t.joint_names),  # type: ignore[attr-defined]
-                   times=np.asarray(t.times, float),  # type: ignore[attr-defined]
-                   positions=np.asarray(t.positions, float),  # type: ignore[attr-defined]
-                   velocities=np.asarray(t.velocities, float),  # type: ignore[attr-defined]
-                   accelerations=np.asarray(t.accelerations, float),  # type: ignore[attr-defined]
-                   effort=np.asarray(t.efforts, float))  # type: ignore[attr-defined]
-
