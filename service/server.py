@@ -223,7 +223,9 @@ class PlannerService:
             if zb is not None and len(zb) > wire.MAX_PAYLOAD:  # refuse before copying it
                 wire.check_size(len(zb))
         except PlanningError as e:
-            self._count_refusal(e.code)
+            if pool is not None:  # counted as the pool counts the requests it refuses
+                pool.count("received")
+                pool.count(e.code.value)
             _reply_error(query, Failure.of(e, request_id=request_id))
             return
         # Decoding and validation run in a worker (wire.decode there), not on this
@@ -246,11 +248,6 @@ class PlannerService:
         """A plan job for an extension's own planning, through the same pool."""
         self.pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
                              time.monotonic() + self.options.timeout, respond))
-
-    def _count_refusal(self, code: Code) -> None:
-        if self.pool is not None:
-            self.pool.count("received")
-            self.pool.count(code.value)
 
     def _held(self) -> dict[str, int]:
         """Live jobs and what the pool holds (the memory probe's numbers)."""
