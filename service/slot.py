@@ -48,8 +48,7 @@ class Workers:
     """The zygote and the live workers' pids, guarded by the pool's condition.
 
     Args:
-        ctx: a :mod:`multiprocessing` context for the zygote.
-        spec: how the zygote loads the description.
+        ctx, spec: as for :class:`~service.zygote.Zygote`.
         cond: the pool's condition: notified when a worker ends.
         count: adds one to one of the pool's counters (worker_restarts, ...).
     """
