@@ -73,9 +73,9 @@ class WorkerPool:
             raise ValueError("memory_cap must be > 0 bytes")
         self.workers, self.queue_size = workers, queue_size
         self.memory_cap = memory_cap
-        # the zygote is started by a forkserver, never forked from a process that may
-        # hold a Zenoh session; the planner's imports (trimesh, toppra, OMPL: ~2 s) run in
-        # the forkserver while the caller loads the description, not again in the zygote
+        # the zygote's forkserver (see service.zygote): the planner's imports (trimesh,
+        # toppra, OMPL: ~2 s) run in it while the caller loads the description, not again
+        # in the zygote
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(["service.worker", "planner.pipeline"])
         from multiprocessing import forkserver

@@ -5,7 +5,7 @@ holds it costs milliseconds, and the fork shares its pages copy-on-write. So the
 starts one zygote, asks it for a worker per slot, and asks again whenever a worker dies
 or is killed (deadline, memory cap): the next request is served by a warm process at once.
 
-The zygote is started through :mod:`multiprocessing` (forkserver or spawn), never by
+The zygote is started through :mod:`multiprocessing`'s forkserver, never by
 forking a process that holds a Zenoh session; it never plans after its warm-up, and it
 is single-threaded when it forks. Each worker gets its own socket, passed to the pool
 over the zygote's control pipe. The zygote reaps its workers and reports each exit at
