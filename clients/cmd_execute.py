@@ -17,15 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from .argtypes import UsageError, json_object
-from .common import (
-    EXIT_OK,
-    add_connection_args,
-    add_model_args,
-    client,
-    connect,
-    endpoints,
-    load_from_args,
-)
+from .common import EXIT_OK, add_connection_args, add_model_args, client, connect, load_from_args
 
 EXIT_CANCELLED = 130
 log = logging.getLogger(__name__)
@@ -184,22 +176,17 @@ def cmd_execute(ns: argparse.Namespace) -> int:
 
 
 def _publisher(ns: argparse.Namespace) -> tuple[Any, Any]:
-    """A session and a joint_states publisher, or (None, None) with a warning when no
-    zenoh peer is reachable."""
-    import zenoh
-
-    from service.zconfig import zenoh_config
-
+    """A client session and a joint_states publisher, or (None, None) with a warning when
+    no zenoh peer is reachable."""
+    from .errors import ServiceUnavailable
     from .joint_states import JointStatePublisher
     try:
-        s = zenoh.open(zenoh_config(mode="client", connect=endpoints(ns), listen=[],
-                                    config_file=ns.config))
-    except zenoh.ZError as e:
-        log.warning("not publishing %s/joint_states: no zenoh service or router reachable "
-                    "at %s (%s); --no-publish silences this", ns.prefix,
-                    ", ".join(endpoints(ns)), e)
+        c = client(ns)
+    except ServiceUnavailable as e:
+        log.warning("not publishing %s/joint_states: %s; --no-publish silences this",
+                    ns.prefix, e.message)
         return None, None
-    return s, JointStatePublisher(s, ns.prefix)
+    return c, JointStatePublisher(c.session, ns.prefix)
 
 
 @contextmanager

@@ -90,15 +90,10 @@ def load_from_args(ns: argparse.Namespace) -> Description:
     return ns._description
 
 
-def endpoints(ns: argparse.Namespace) -> list[str]:
-    """The service's endpoints (--connect)."""
-    return ns.connect or [DEFAULT_ENDPOINT]
-
-
 def client(ns: argparse.Namespace) -> PlannerClient:
     """A client session to the service the connection options name."""
     from .client import PlannerClient  # zenoh: not for --local
-    return PlannerClient(endpoints(ns), prefix=ns.prefix, timeout=ns.timeout,
+    return PlannerClient(ns.connect or [DEFAULT_ENDPOINT], prefix=ns.prefix, timeout=ns.timeout,
                          config_file=ns.config)
 
 
