@@ -104,6 +104,27 @@ def test_without_narrow_phase_a_world_is_conservative(d):
         assert i == next(k for k, (_, t) in enumerate(verdicts) if not t)
 
 
+def test_pair_distance_to_a_box_is_fcl_distance_to_the_solid_box_at_free_states(d):
+    # the box is measured by its surface (faster): at a free state that is the distance
+    # to the solid box FCL's primitive gives
+    w = CollisionWorld(d, obstacles=[Obstacle("table", "box", size=(0.6, 1.2, 0.05),
+                                              xyz=(0.3, 0.6, 1.0), rpy=(0.2, 0, 0.4))])
+    lim = d.robot.position_limits()
+    box = next(p for p, (_, b) in enumerate(w.pair_names) if b == "table")
+    a, b = w._pairs[box]
+    compared = 0
+    for q in np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(60, 4)):
+        if not w.is_valid(q):
+            continue
+        got = w.pair_distance(q, box)
+        w._place(w.kin.link_poses(q), a)
+        solid = fcl.distance(w._objs[a], w._objs[b], fcl.DistanceRequest(),
+                             fcl.DistanceResult())
+        assert got == pytest.approx(max(solid, 0.0), abs=1e-9)
+        compared += got < 0.2
+    assert compared > 5
+
+
 def test_lower_bound_never_exceeds_the_exact_distance(world, d):
     lim = d.robot.position_limits()
     qs = np.random.default_rng(8).uniform(lim[:, 0], lim[:, 1], size=(100, 4))

@@ -243,6 +243,8 @@ class Certifier:
                                    int(counts[0]), exact)
             x = s / lengths[k] if lengths[k] > 0 else 0.0
             q = starts[k] + u1[k] * s + (u2[k] - u1[k]) * lengths[k] * (x**3 - 0.5 * x**4)
+            # free: the walk reached it from a checked sample, every point farther than
+            # the clearance, so neither body can be inside the other
             d = w.pair_distance(q, p)
             exact += 1
             if d <= clear + GAP:

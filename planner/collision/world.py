@@ -167,6 +167,9 @@ class CollisionWorld:
         frames = list(bodies.frames)
         trees = list(bodies.trees)
         objs = [fcl.CollisionObject(g, fcl.Transform()) for g in bodies.geometries]
+        # a box obstacle's surface as 12 triangles, for distances at free states only
+        # (FCL's mesh-box distance is 2.5x slower than mesh-mesh on CAD links, measured)
+        self._surfaces: dict[int, fcl.CollisionObject] = {}
         statics = list(bodies.statics)
         points = list(bodies.points)
         self.link_bodies = tuple(names)
@@ -178,6 +181,10 @@ class CollisionWorld:
             frames.append(-1)
             trees.append(tree)
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
+            if o.shape == "box":
+                self._surfaces[len(objs) - 1] = fcl.CollisionObject(
+                    _bvh(trimesh.creation.box(extents=o.size)),
+                    fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
             static_pose[len(self.link_bodies) + i] = pose
@@ -292,13 +299,18 @@ class CollisionWorld:
 
     def pair_distance(self, q: ArrayLike, pair: int) -> float:
         """FCL's exact distance [m] between the bodies of checked pair ``pair`` (an index
-        into :attr:`pair_names`) at state ``q``; 0 when they touch."""
+        into :attr:`pair_names`) at a state ``q`` where neither body is inside the other
+        (a free state, or one reached from a free state without contact); 0 when they
+        touch. A box obstacle is measured by its surface there (the same distance,
+        faster)."""
         poses = self._poses_of(q)
         self._stamp += 1
         a, b = self._pairs[pair]
         self._place(poses, a)
         self._place(poses, b)
-        return self._distance(a, b)
+        d = fcl.distance(self._objs[a], self._surfaces.get(b, self._objs[b]), self._dreq,
+                         fcl.DistanceResult())
+        return max(float(d), 0.0)
 
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
