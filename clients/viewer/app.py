@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -41,28 +41,24 @@ class RobotViewer:
         obstacles: scene obstacles to show (and check against).
         host: the address to listen on (127.0.0.1: this machine only).
         port: the HTTP/websocket port.
-        q0: the first pose, shape (dof,) in ``robot.actuated_joints`` order [rad];
-            default: all zeros clamped into the limits.
-        padding: collision padding [m] (a pair closer than this shows as colliding).
+
+    The first pose is all zeros clamped into the limits.
     """
 
     def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
-                 host: str = "127.0.0.1", port: int = 8080, q0: ArrayLike | None = None,
-                 padding: float = 0.0) -> None:
+                 host: str = "127.0.0.1", port: int = 8080) -> None:
         viser = require("viser")
         self.description = description
         self.obstacles = tuple(obstacles)
-        self.world = CollisionWorld(description, obstacles=self.obstacles, padding=padding)
+        self.world = CollisionWorld(description, obstacles=self.obstacles)
         self.kin = self.world.kin
         self.joint_names = self.kin.joint_names
         lim = description.robot.position_limits(self.joint_names)
         self.lower = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -math.pi)
         self.upper = np.where(np.isfinite(lim[:, 1]), lim[:, 1], math.pi)
-        q = np.zeros(self.kin.dof) if q0 is None else np.asarray(q0, dtype=float)
-        self._q = np.clip(q, self.lower, self.upper)
+        self._q = np.clip(np.zeros(self.kin.dof), self.lower, self.upper)
         self._lock = threading.RLock()
         self._local = threading.local()  # marks set_q's own slider writes
-        self._listeners: list[Callable[[np.ndarray, StateCheck], None]] = []
         self.meshes = link_meshes(description, self.kin)
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.server.gui.configure_theme(control_layout="floating", control_width="medium",
@@ -164,10 +160,6 @@ class RobotViewer:
     def url(self) -> str:
         return f"http://{self.server.get_host()}:{self.server.get_port()}/"
 
-    def on_change(self, fn: Callable[[np.ndarray, StateCheck], None]) -> None:
-        """Call ``fn(q, check)`` after every pose change."""
-        self._listeners.append(fn)
-
     def _slider_moved(self, _event: object) -> None:
         if getattr(self._local, "setting", False):
             return
@@ -203,8 +195,6 @@ class RobotViewer:
                     self._local.setting = False
                 self._collision_md.content = _collision_text(check)
             self.check, self._poses = check, poses
-        for fn in self._listeners:
-            fn(q, check)
         return check
 
     def set_joints(self, values: Mapping[str, float]) -> StateCheck:

@@ -29,17 +29,15 @@ class JointStateFollower:
 
     def __init__(self, viewer: RobotViewer, endpoint: str, *, prefix: str = "arduinobot",
                  rate: float = 30.0) -> None:
-        import zenoh
-
-        from service.zconfig import zenoh_config
+        from ..client import PlannerClient  # raises ServiceUnavailable if unreachable
         self.viewer, self.period = viewer, 1.0 / rate
         self.key = f"{prefix}/joint_states"
         self._latest: dict[str, Any] | None = None
         self._cond = threading.Condition()
         self._stop = False
         self.shown = 0
-        self.session = zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[]))
-        self._sub = self.session.declare_subscriber(self.key, self._on_sample)
+        self.client = PlannerClient(endpoint, prefix=prefix)
+        self._sub = self.client.session.declare_subscriber(self.key, self._on_sample)
         self._status = viewer.server.gui.add_markdown(f"**live** `{self.key}`: waiting")
         self._thread = threading.Thread(target=self._run, name="joint-states", daemon=True)
         self._thread.start()
@@ -80,4 +78,4 @@ class JointStateFollower:
             self._cond.notify()
         self._thread.join(2.0)
         self._sub.undeclare()
-        self.session.close()
+        self.client.close()

@@ -15,6 +15,7 @@ from .trajectory import PlaybackTrajectory
 _log = logging.getLogger(__name__)
 
 Group = str  # an SRDF group of the robot, or "all"
+SEED = 0  # the planners' seed: the same goal from the same pose plans the same motion
 Goal = JointGoal | NamedGoal
 
 
@@ -34,11 +35,9 @@ class LocalBackend:
 
     name = "in-process"
 
-    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
-                 seed: int | None = 0) -> None:
+    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = ()) -> None:
         self.description = description
         self.obstacles = tuple(obstacles)
-        self.seed = seed
         self._planner = None
 
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
@@ -47,7 +46,7 @@ class LocalBackend:
         if self._planner is None:
             self._planner = MotionPlanner(self.description)
         res = self._planner.solve(MotionRequest(goal=goal, start=dict(start), group=group,
-                                                obstacles=self.obstacles, seed=self.seed))
+                                                obstacles=self.obstacles, seed=SEED))
         _log.info("planned %.2f s of motion with %s in %.3f s", res.trajectory.duration,
                   res.planner, res.timing.get("total", float("nan")))
         return PlaybackTrajectory.from_json(res.trajectory.to_dict())
@@ -58,23 +57,18 @@ class RemoteBackend:
     (connected on the first request). Its failures raise :class:`clients.errors.ServiceError`
     subclasses."""
 
-    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = (),
-                 seed: int | None = 0) -> None:
+    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = ()) -> None:
         self.endpoint = endpoint
         self.name = f"through the service at {endpoint}"
         self.obstacles = tuple(obstacles)
-        self.seed = seed
         self._client = None
 
     def request(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> dict:
         """The v1 plan request (service/schema/plan_request.json)."""
         wire_goal = ({"named": goal.name} if isinstance(goal, NamedGoal)
                      else {"joints": dict(goal.values)})
-        req: dict = {"goal": wire_goal, "start": dict(start), "group": group,
-                     "obstacles": [obstacle_json(o) for o in self.obstacles]}
-        if self.seed is not None:
-            req["seed"] = self.seed
-        return req
+        return {"goal": wire_goal, "start": dict(start), "group": group,
+                "obstacles": [obstacle_json(o) for o in self.obstacles], "seed": SEED}
 
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
         from clients.client import PlannerClient
