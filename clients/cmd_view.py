@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import signal
 import sys
 import threading
@@ -15,8 +14,6 @@ from planner.scene import Obstacle
 
 from .argtypes import UsageError
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args
-
-_log = logging.getLogger(__name__)
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -8,12 +8,9 @@ Payload: ``{"stamp": s, "name": [...], "position": [rad], "velocity": [rad/s],
 from __future__ import annotations
 
 import json
-import logging
 from typing import Any
 
 from .execute import Tick
-
-log = logging.getLogger(__name__)
 
 JSON = "application/json"
 
@@ -31,6 +28,3 @@ class JointStatePublisher:
 
     def __call__(self, tick: Tick) -> None:
         self._pub.put(json.dumps(tick_message(tick)).encode())
-
-    def close(self) -> None:
-        self._pub.undeclare()

@@ -149,7 +149,6 @@ class SerialArduinobot(Robot):
         self._q = np.clip(q0, self.lower, self.upper)
         self._qd = np.zeros(4)
         self._last: tuple[int, int, int, int] | None = None
-        self.sent = 0
         self.limited = 0  # setpoints the step or position limits changed
         self.port = port
         self._serial = open_port(port, baud)
@@ -217,7 +216,6 @@ class SerialArduinobot(Robot):
             raise PortError(f"writing to {self.port} failed: {e}",
                             details={"port": self.port}) from e
         self._last = angles
-        self.sent += 1
 
     def advance(self, dt: float) -> None:
         """Hardware keeps its own time: the executor's clock paces the ticks."""

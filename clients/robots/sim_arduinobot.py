@@ -163,7 +163,6 @@ class SimArduinobot(Robot):
             if description.srdf is not None else []
         q0 = initial_positions(description, self.joint_names) if initial is None \
             else check_setpoint(initial, self.joint_names, "initial positions")
-        self.hull_excluded: tuple[tuple[str, str], ...] = ()
         for _ in range(2):
             self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded,
                                obstacles=obstacles, visual=visual, timestep=timestep)
@@ -178,7 +177,6 @@ class SimArduinobot(Robot):
                 break
             log.info("MuJoCo (convex hulls) sees %s touching in the initial pose; their "
                      "contacts are ignored", ", ".join(f"{a}/{b}" for a, b in touching))
-            self.hull_excluded += tuple(touching)
             excluded = [*excluded, *touching]
         m = self.model
         self.effort = np.array([m.actuator_forcerange[a, 1] for a in self._act])

@@ -89,7 +89,6 @@ class RobotViewer:
         cam.look_at = view.look_at
         cam.position = view.position
         cam.up = (0.0, 0.0, 1.0)
-        self.camera = view
         axes = 0.12 * size
         self._frames = {}
         self._mesh_handles = {}

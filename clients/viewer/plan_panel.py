@@ -43,7 +43,6 @@ class PlanningPanel:
             self._plan = gui.add_button("Plan")
             self._plan.on_click(lambda _e: self.plan_async())
             self._status = gui.add_markdown("")
-        self.last_error: PlanningError | ServiceError | None = None
         self.done = threading.Event()
 
     def mark_goal(self) -> None:
@@ -83,12 +82,10 @@ class PlanningPanel:
             goal, group = self.goal()
             start = {n: float(v) for n, v in zip(self.viewer.joint_names, self.viewer.q)}
             traj = self.backend.plan(goal, start=start, group=group)
-            self.last_error = None
             self.playback.load(traj, source="planned")
             self._status.content = f"Planned {traj.duration:.2f} s; playing."
             self.playback.toggle()
         except (PlanningError, ServiceError) as e:
-            self.last_error = e
             self._status.content = f"**{type(e).__name__}**: {e}"
         except Exception as e:  # the page must say why, whatever failed; logged in full
             _log.exception("planning failed")

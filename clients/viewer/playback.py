@@ -7,7 +7,6 @@ scrubber's callback, so the scrubber, the pose and the collision colours always 
 from __future__ import annotations
 
 import json
-import logging
 import threading
 import time
 
@@ -17,8 +16,6 @@ from . import require
 from .app import RobotViewer
 from .plots import PlotPanel, joint_limits, plot_panels, plot_png
 from .trajectory import PlaybackTrajectory, TrajectoryFileError
-
-_log = logging.getLogger(__name__)
 
 _SPEEDS = ("0.1", "0.25", "0.5", "1", "2")
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf")
