@@ -4,29 +4,18 @@
 ``extensions``): the service plans, this drives the robot, so the service itself never
 imports the drivers.
 
-Keys (``<p>`` the prefix):
-
-- ``<p>/execute``: start an execution. Request ``{"trajectory": <plan reply or
-  {joint_names, points}>}`` or ``{"plan": <plan request v1>}`` (planned by the pool; a
-  request without ``start`` starts from the robot's state), plus optional
-  ``start_tolerance`` [rad] (default 0.01), ``move_to_start`` (bool) and ``client``
-  (an id: while the client holds the liveliness token ``<p>/execute/client/<id>`` the
-  execution runs; when the token goes, the client is lost and the arm stops). Replies,
-  streamed on the one query (get it with consolidation NONE): ``{"event": "started",
-  "execution", "duration"}``, ``{"event": "progress", ...}`` at 10 Hz, then
-  ``{"event": "finished", "execution", "report"}``; errors as everywhere
-  (``{"error": {code, message, details}}``; ``BUSY`` while another execution runs).
-  With ``"blend": true`` and a ``plan`` while the arm moves, the new goal is planned
-  from the setpoint 0.8 s ahead (a moving start) and takes over there without a jump;
-  one reply ``{"event": "blended", "execution", "tick", "duration"}`` (or ``TOO_LATE``),
-  the running execution's stream goes on to its final report.
-- ``<p>/execute/cancel``: ``{"execution": id}`` (or empty: the running one) stops it
-  smoothly (jerk-limited); replies ``{"cancelled": id or null}``.
-- ``<p>/robot_state``: the robot's joint state now.
-- ``<p>/joint_states``: published at every control tick while the arm moves.
+The keys and their requests are the README's ("Moving the arm"). What it leaves out:
+``<p>/execute`` replies on the one query (get it with consolidation NONE) ``{"event":
+"started", "execution", "duration"}``, ``{"event": "progress", ...}`` every
+:data:`PROGRESS_EVERY` ticks, then ``{"event": "finished", "execution", "report"}``; a
+plan without ``start`` starts from the robot's state; ``start_tolerance`` defaults to
+0.01 rad. A blend (``"blend": true`` with a ``plan`` while the arm moves) is planned from
+the setpoint :data:`BLEND_LEAD` ahead and gets one reply, ``{"event": "blended",
+"execution", "tick", "duration"}`` (or ``TOO_LATE``); the running execution's stream goes
+on to its final report. Errors as everywhere: ``{"error": {code, message, details}}``.
 
 The robot is MuJoCo's twin by default (built on first use, off Zenoh's callback thread,
-so ``serve`` starts as before and needs MuJoCo only when executing), the real arm with ``serve --serial PORT``
+so ``serve`` needs MuJoCo only when executing), the real arm with ``serve --serial PORT``
 (opened at start, so a missing or busy port fails the start). Nothing here imports
 mujoco or serial at import time.
 """
@@ -340,10 +329,8 @@ class _Run:
             self._fail(getattr(e, "code", Code.INTERNAL), str(e), getattr(e, "details", {}))
 
     def start_with(self, trajectory: Any) -> None:
-        from .segments import InvalidTrajectory, SampledTrajectory
-        if not isinstance(trajectory, dict):
-            raise InvalidTrajectory("trajectory must be a JSON object (a plan reply)")
-        traj = SampledTrajectory.from_json(trajectory)
+        from .segments import SampledTrajectory
+        traj = SampledTrajectory.from_json(trajectory)  # InvalidTrajectory if it is none
         t = threading.Thread(target=self._run, args=(traj,), name=f"execute-{self.execution}",
                              daemon=True)
         self.svc._thread = t
