@@ -270,17 +270,13 @@ def move_segment(joint_names: Sequence[str], start: np.ndarray, goal: np.ndarray
     """A jerk-limited, time-synchronised move from rest at ``start`` to rest at ``goal``
     [rad] (a straight line in joint space: no collision check)."""
     dof = len(joint_names)
-    inp = InputParameter(dof)
+    inp = InputParameter(dof)  # velocities and accelerations 0: rest to rest
     inp.max_velocity = [float(v) for v in velocity]
     inp.max_acceleration = [float(v) for v in acceleration]
     inp.max_jerk = [float(v) for v in jerk]
     inp.current_position = [float(v) for v in start]
-    inp.current_velocity = [0.0] * dof
-    inp.current_acceleration = [0.0] * dof
-    inp.synchronization = Synchronization.Phase  # rest to rest: a straight line
     inp.target_position = [float(v) for v in goal]
-    inp.target_velocity = [0.0] * dof
-    inp.target_acceleration = [0.0] * dof
+    inp.synchronization = Synchronization.Phase  # rest to rest: a straight line
     return RuckigSegment(joint_names, _calculate(inp, dof, "move"))
 
 
@@ -296,13 +292,10 @@ class PathStop:
                  ) -> None:
         self.segment, self.s0 = segment, float(s0)
         self.joint_names = segment.joint_names
-        inp = InputParameter(1)
+        inp = InputParameter(1)  # target velocity and acceleration 0: at rest
         inp.control_interface = ControlInterface.Velocity
         inp.current_position = [self.s0]
         inp.current_velocity = [1.0]
-        inp.current_acceleration = [0.0]
-        inp.target_velocity = [0.0]
-        inp.target_acceleration = [0.0]
         inp.max_velocity = [1.0 + 1e-9]
         inp.max_acceleration = [float(deceleration)]
         inp.max_jerk = [float(jerk)]
