@@ -121,12 +121,8 @@ def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.nda
         c = np.array([cen[lab == i].mean(axis=0) if np.any(lab == i) else c[i]
                       for i in range(k)])
     lab = np.argmin(((cen[:, None] - c[None]) ** 2).sum(axis=2), axis=1)
-    out = []
-    for i in range(k):
-        idx = np.unique(f[lab == i])
-        if len(idx) >= 3:
-            out.append(_thick(v[idx]))
-    return out
+    groups = (np.unique(f[lab == i]) for i in range(k))
+    return [_thick(v[idx]) for idx in groups if len(idx) >= 3]
 
 
 def _geom(shape: Shape, name: str, assets: list[str], *, visual: bool,
