@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, Literal
 
 import numpy as np
@@ -72,14 +72,10 @@ class ExecutionReport:
     max_tracking_error: tuple[float, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        """The summary, JSON-ready (no per-tick arrays)."""
-        return {"outcome": self.outcome, "joint_names": list(self.joint_names),
-                "trajectory_duration": self.trajectory_duration, "duration": self.duration,
-                "ticks": self.ticks, "late_ticks": self.late_ticks,
-                "max_lateness": self.max_lateness, "cancelled_at": self.cancelled_at,
-                "stop_time": self.stop_time, "peak_ratio": dict(self.peak_ratio),
-                "max_tracking_error": list(self.max_tracking_error),
-                "final_positions": [float(v) for v in self.measured[-1]]}
+        """The summary, JSON-ready: every field but the per-tick arrays (those kept out
+        of the repr), and the final measured positions."""
+        summary = {f.name: getattr(self, f.name) for f in fields(self) if f.repr}
+        return {**summary, "final_positions": [float(v) for v in self.measured[-1]]}
 
 
 class Recorder:
