@@ -54,7 +54,6 @@ def joint_limits(description: Description, joints: tuple[str, ...]) -> dict[str,
 
 def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list[PlotPanel]:
     """The panels the trajectory has data for (positions always)."""
-    nan = np.full(len(traj.joint_names), np.nan)
     specs: list[tuple[Quantity, str, np.ndarray | None, np.ndarray, np.ndarray]] = [
         ("position", "rad", traj.positions, limits["lower"], limits["upper"]),
         ("velocity", "rad/s", traj.velocities, -limits["velocity"], limits["velocity"]),
@@ -62,9 +61,7 @@ def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list
          limits["acceleration"]),
         ("effort", "N·m", traj.effort, -limits["effort"], limits["effort"]),
     ]
-    return [PlotPanel(quantity=q, unit=u, joint_names=traj.joint_names, times=traj.times,
-                      values=v, lower=lo if lo is not None else nan,
-                      upper=hi if hi is not None else nan)
+    return [PlotPanel(q, u, traj.joint_names, traj.times, v, lo, hi)
             for q, u, v, lo, hi in specs if v is not None]
 
 
