@@ -14,9 +14,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from description import Description
+from description import Description, load_description
 
 from .argtypes import UsageError
+from .common import load_from_args
 from .execute import ExecuteOptions, Executor
 from .segments import SampledTrajectory
 
@@ -144,7 +145,7 @@ def simulate_command(ns: Any, res: PlanReply, req: Mapping[str, Any]) -> int:
     Raises:
         UsageError: the service's robot has joints the local model lacks.
     """
-    desc = _model(ns)
+    desc = load_from_args(ns) if ns.local else load_description()
     missing = [n for n in res.joint_names if n not in desc.robot.actuated_joints]
     if missing:
         raise UsageError(f"--simulate: the service's robot moves {', '.join(missing)}, "
@@ -155,11 +156,3 @@ def simulate_command(ns: Any, res: PlanReply, req: Mapping[str, Any]) -> int:
     if ns.plot:
         plot(r, ns.plot)
     return 0
-
-
-def _model(ns: Any) -> Description:
-    if getattr(ns, "local", False):
-        from .common import load_from_args
-        return load_from_args(ns)
-    from description import load_description
-    return load_description()
