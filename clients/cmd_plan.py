@@ -8,13 +8,13 @@ import json
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+import numpy as np
 
 from .argtypes import UsageError, add_obstacle_arg, joint_map, joint_values, json_object, numbers
 from .common import EXIT_OK, add_service_args, connect, joint_order
-
-if TYPE_CHECKING:
-    from .replies import PlanReply
+from .replies import PlanReply
 
 #: per joint: lower, upper [rad], velocity, acceleration, jerk, effort (None: unlimited)
 Limits = Mapping[str, Mapping[str, float | None]]
@@ -96,7 +96,6 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
 
 
 def cmd_plan(ns: argparse.Namespace) -> int:
-    from .replies import PlanReply
     if ns.plot and importlib.util.find_spec("matplotlib") is None:  # before planning
         raise UsageError("--plot needs matplotlib (pip install matplotlib)")
     with connect(ns) as service:
@@ -121,7 +120,6 @@ def cmd_plan(ns: argparse.Namespace) -> int:
 
 def summary(res: PlanReply, limits: Limits) -> str:
     """Duration, per-joint peaks against limits, stage timings."""
-    import numpy as np
     lines = [(f"trajectory: {len(res.times)} points, duration {res.duration:.3f} s, "
               f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}")]
     lines.append(f"{'joint':<10}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
@@ -149,8 +147,6 @@ def plot_trajectory(res: PlanReply, limits: Limits, out: str) -> None:
     """Positions, velocities, accelerations and efforts over time with their limits
     (dashed), one panel each (:mod:`clients.viewer.plots`), saved to ``out``. Needs
     matplotlib (optional)."""
-    import numpy as np
-
     from .viewer.plots import plot_figure, plot_panels
     from .viewer.trajectory import PlaybackTrajectory
     traj = PlaybackTrajectory(res.joint_names, res.times, res.positions, res.velocities,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -19,10 +19,8 @@ from description import Description, load_description
 from .argtypes import UsageError
 from .common import load_from_args
 from .execute import ExecuteOptions, Executor
+from .replies import PlanReply
 from .segments import SampledTrajectory
-
-if TYPE_CHECKING:
-    from .replies import PlanReply
 
 
 @dataclass(frozen=True, eq=False)
