@@ -157,8 +157,8 @@ class ExecuteService:
         for e in reversed(self._entities):
             try:
                 e.undeclare()
-            except zenoh.ZError:
-                pass
+            except zenoh.ZError as err:  # closing goes on: the session's end drops it too
+                _log.warning("undeclaring %s failed: %s", e, err)
         self._entities.clear()
         if self._robot is not None:
             self._robot.close()
