@@ -15,18 +15,15 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from planner.codes import Code
 
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
-from .messages import Deadline, Done, Failure, JobMsg, Taken, receive
+from .messages import Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
 from .messages import Stop as StopMsg
 from .worker import DescriptionSpec
 from .zygote import WorkerProcess, Zygote, ZygoteError
-
-if TYPE_CHECKING:
-    from .pool import WorkerPool
 
 _log = logging.getLogger(__name__)
 
@@ -42,6 +39,22 @@ def rss_bytes(pid: int) -> int:
             return int(f.read().split()[1]) * _PAGE
     except (OSError, IndexError, ValueError):
         return 0
+
+
+class JobQueue(Protocol):
+    """What a slot needs from the pool (:class:`service.pool.WorkerPool`); a protocol, so
+    the pool imports its slots and not the other way round."""
+
+    stopping: bool
+    grace_end: float  # when running jobs stop getting time after close [monotonic s]
+    memory_cap: int | None
+
+    def next_job(self, slot: Slot) -> Job | None: ...
+    def finish(self, job: Job, outcome: Outcome) -> None: ...
+    def requeue(self, job: Job) -> None: ...
+    def count(self, key: str) -> None: ...
+    def served(self, seconds: float) -> None: ...
+    def set_busy(self, slot: Slot, job: Job | None) -> None: ...
 
 
 class Workers:
@@ -143,7 +156,7 @@ class Workers:
 class Slot:
     """One worker and the thread that feeds and watches it (see the module)."""
 
-    def __init__(self, index: int, workers: Workers, queue: WorkerPool) -> None:
+    def __init__(self, index: int, workers: Workers, queue: JobQueue) -> None:
         self.index, self._workers, self._queue = index, workers, queue
         self.worker: WorkerProcess | None = None
 
