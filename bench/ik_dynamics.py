@@ -11,9 +11,9 @@ import time
 import numpy as np
 
 from description import load_description
-from planner.dynamics import InverseDynamics
-from planner.ik import position_ik
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
+from planner.kinematics.dynamics import InverseDynamics
+from planner.kinematics.ik import position_ik
 
 
 def per_call(fn, n: int) -> float:

@@ -42,8 +42,8 @@ from clients.client import PlannerClient  # noqa: E402
 from description import Description, load_description  # noqa: E402
 from description.loader import read_model_text  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
-from planner.goals import JointGoal  # noqa: E402
-from planner.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from planner.planning.goals import JointGoal  # noqa: E402
+from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
 from tests.conftest import free_port  # noqa: E402
 from tests.helpers.course_workspace import make_course_workspace  # noqa: E402
 
@@ -133,7 +133,7 @@ def no_srdf_suite(d: Description, n: int, folder: Path) -> dict[str, dict]:
 
 
 def main(n: int = 40) -> None:
-    from planner.planning import set_ompl_log_level
+    from planner.planning.paths import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-own-robot-"))
     t0 = time.perf_counter()

@@ -56,9 +56,9 @@ from clients import errors  # noqa: E402, I001
 from clients.client import PlannerClient  # noqa: E402
 from clients.replies import PlanReply  # noqa: E402
 from planner.collision.certify import Certifier  # noqa: E402
-from planner.curve import build_curve  # noqa: E402
+from planner.timing.curve import build_curve  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
-from planner.pipeline import MotionPlanner  # noqa: E402
+from planner.planning.pipeline import MotionPlanner  # noqa: E402
 from service.disk_cache import DiskCache  # noqa: E402
 from tests.conftest import start_server  # noqa: E402
 
@@ -324,7 +324,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--state-checks", type=int, default=40,
                     help="random states MPlib and our checker both judge (per model)")
     args = ap.parse_args(argv)
-    from planner.planning import set_ompl_log_level
+    from planner.planning.paths import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
     out: dict[str, Any] = {"n": args.n, "planning_time": args.planning_time}

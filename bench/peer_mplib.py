@@ -20,8 +20,8 @@ from recheck import Limits
 from scenes import SCENES, obstacle_dicts
 from trajectory import MplibTiming, mplib_python
 
-from planner.limits import JointLimits
-from planner.pipeline import MotionPlanner
+from planner.kinematics.limits import JointLimits
+from planner.planning.pipeline import MotionPlanner
 
 ARM = ("joint_1", "joint_2", "joint_3")
 RUNNER = Path(__file__).with_name("mplib_runner.py")

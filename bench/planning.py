@@ -22,8 +22,8 @@ from description import Description, load_description
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
 from planner.errors import PlanningError
-from planner.goals import JointGoal
-from planner.planning import PathPlanner, PathRequest
+from planner.planning.goals import JointGoal
+from planner.planning.paths import PathPlanner, PathRequest
 
 
 def fine_variant(tmp: Path, *, min_faces: int = 50_000) -> tuple[Description, dict[str, int]]:
@@ -86,7 +86,7 @@ def suite(d: Description, n: int) -> dict[str, dict]:
 
 
 def main(n: int = 30) -> None:
-    from planner.planning import set_ompl_log_level
+    from planner.planning.paths import set_ompl_log_level
     set_ompl_log_level("none")
     summary = suite(load_description(), n)
     with tempfile.TemporaryDirectory() as tmp:

@@ -33,15 +33,15 @@ from clients.segments import SampledTrajectory  # noqa: E402
 from clients.simulate import simulate  # noqa: E402
 from description import load_description  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
-from planner.goals import JointGoal  # noqa: E402
-from planner.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from planner.planning.goals import JointGoal  # noqa: E402
+from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
 
 ARM = ("joint_1", "joint_2", "joint_3")
 PROFILES = ("jerk_limited", "time_optimal")
 
 
 def main(n: int = 8) -> None:
-    from planner.planning import set_ompl_log_level
+    from planner.planning.paths import set_ompl_log_level
     set_ompl_log_level("none")
     d = load_description()
     mp = MotionPlanner(d)

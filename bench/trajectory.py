@@ -11,7 +11,7 @@ Per scene (bench/scenes.py, the planning benchmark's scenes and seeded problems)
   (.bench-venvs/mplib, created on demand) through bench/mplib_runner.py, on the same
   problems with the same budget and our velocity/acceleration limits: plan + TOPP time;
 - violations in every returned trajectory, both ours and MPlib's, by our verifier
-  (planner.verify.Verifier) and by the independent re-check (bench/recheck.py).
+  (planner.timing.verify.Verifier) and by the independent re-check (bench/recheck.py).
   MPlib's trajectories are rebuilt from its toppra data (checked against its samples).
 
 Both sides get one warm-up problem per scene that is not counted. Usage:
@@ -37,12 +37,12 @@ from recheck import IndependentModel, Limits, recheck  # noqa: E402
 from scenes import SCENES, obstacle_dicts, problems, write_model  # noqa: E402
 
 from description import load_description  # noqa: E402
-from planner.curve import build_curve  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
-from planner.goals import JointGoal  # noqa: E402
-from planner.pipeline import MotionPlanner, MotionRequest  # noqa: E402
-from planner.trajectory import JointTrajectory  # noqa: E402
-from planner.verify import Verifier  # noqa: E402
+from planner.planning.goals import JointGoal  # noqa: E402
+from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from planner.timing.curve import build_curve  # noqa: E402
+from planner.timing.trajectory import JointTrajectory  # noqa: E402
+from planner.timing.verify import Verifier  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / ".bench-venvs" / "mplib"
@@ -105,7 +105,7 @@ def _recheck_task(i: int):
 
 
 def main(n: int = 8) -> None:
-    from planner.planning import set_ompl_log_level
+    from planner.planning.paths import set_ompl_log_level
     set_ompl_log_level("none")
     global MODEL_FILES
     d = load_description()

@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     # only where OMPL runs in this process: a remote plan must not import it (~1 s)
     if ns.command in _PLANNING_COMMANDS and (ns.command in ("serve", "srdf", "view")
                                              or getattr(ns, "local", False)):
-        from planner.planning import set_ompl_log_level
+        from planner.planning.paths import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     return run_guarded(ns, ns.command_parser)
 

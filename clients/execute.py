@@ -15,7 +15,7 @@ only) no wall clock paces the ticks.
   can (:func:`clients.stops.choose_stop`).
 - Every tick goes to ``on_tick`` (e.g. the ``<prefix>/joint_states`` publisher).
 - A new goal while moving: a plan from the setpoint :meth:`Executor.lookahead` gives (a
-  moving start, :mod:`planner.moving_start`) takes over at that tick through
+  moving start, :mod:`planner.planning.moving_start`) takes over at that tick through
   :meth:`Executor.switch`, without a jump in position, velocity or acceleration.
 """
 
@@ -32,7 +32,7 @@ import numpy as np
 
 from description import Description
 from planner.codes import Code
-from planner.limits import JointLimits
+from planner.kinematics.limits import JointLimits
 
 from .execution_report import ExecutionReport, Phase, Recorder, Tick
 from .robots.base import Robot, RobotError
@@ -152,7 +152,7 @@ class Executor:
                         options: ExecuteOptions = ExecuteOptions(),
                         on_tick: Callable[[Tick], None] | None = None) -> Executor:
         """An executor with the description's full limits and inverse dynamics."""
-        from planner.dynamics import InverseDynamics
+        from planner.kinematics.dynamics import InverseDynamics
         lim = JointLimits.from_description(description, joint_names=robot.joint_names)
         dyn = InverseDynamics(description.robot, robot.joint_names)
         return cls(robot, lim, torques=dyn.torques_batch, options=options, on_tick=on_tick)

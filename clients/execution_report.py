@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from planner.limits import JointLimits
+from planner.kinematics.limits import JointLimits
 
 from .robots.base import JointState
 

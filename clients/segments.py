@@ -22,9 +22,9 @@ from typing import Any, Protocol
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from planner.braking import brake_to_rest
 from planner.codes import Code
 from planner.errors import TrajectoryError
+from planner.timing.braking import brake_to_rest
 
 from .robots.base import RobotError
 

@@ -14,9 +14,9 @@ from typing import Literal
 import numpy as np
 from ruckig import Trajectory
 
-from planner import braking
-from planner.braking import TorqueFn
-from planner.limits import JointLimits
+from planner.timing import braking
+from planner.kinematics.limits import JointLimits
+from planner.timing.braking import TorqueFn
 
 from .segments import PathStop, RestOf, RuckigSegment, Segment, stop_segment
 
@@ -84,7 +84,7 @@ def effort_safe(make: Callable[[float], RuckigSegment], limits: JointLimits,
                 torques: TorqueFn | None) -> RuckigSegment:
     """``make(scale)`` with the largest scale in (0, 1] (tried as 1, 0.8, 0.64, ...)
     whose motion keeps every joint's torque within 95% of its effort limit
-    (:func:`planner.braking.effort_safe`). ``scale`` multiplies acceleration and jerk.
+    (:func:`planner.timing.braking.effort_safe`). ``scale`` multiplies acceleration and jerk.
     A robot must stop anyway: if none fits, the last is used, with a warning."""
     if torques is None:
         return make(1.0)

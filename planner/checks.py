@@ -2,7 +2,7 @@
 (one tolerance), and the joint step between collision-checked states.
 
 The service's wire requests (:mod:`service.requests`), the motion pipeline
-(:mod:`planner.pipeline`), goals (:mod:`planner.goals`) and IK (:mod:`planner.ik`) all
+(:mod:`planner.planning.pipeline`), goals (:mod:`planner.planning.goals`) and IK (:mod:`planner.kinematics.ik`) all
 call these, so the same value is refused alike everywhere, with the same field.
 """
 

@@ -15,7 +15,7 @@ import numpy as np
 def limits_body(desc: Any) -> dict[str, dict[str, float | None]]:
     """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort, as
     the planner enforces them at full scaling (None for an infinite figure)."""
-    from planner.limits import JointLimits
+    from planner.kinematics.limits import JointLimits
     lim = JointLimits.from_description(desc)
     kinds = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
 

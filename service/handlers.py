@@ -20,9 +20,9 @@ from description import Description
 from planner.cache import ArtifactCache
 from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest, PlanningError
-from planner.goals import JointGoal, tcp_joints
-from planner.ik import position_ik
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
+from planner.kinematics.ik import position_ik
+from planner.planning.goals import JointGoal, tcp_joints
 
 from .requests import joint_values, obstacles
 
@@ -58,7 +58,7 @@ class Handlers:
         """Build the planner (and its obstacle-free world) and plan one short motion now,
         not on the first request: every compiled kernel is loaded (or, on a machine's
         first start, compiled and cached) before the service says it is ready."""
-        from planner.pipeline import MotionRequest  # the heaviest import: only if used
+        from planner.planning.pipeline import MotionRequest  # the heaviest import: only if used
 
         mp = self._motion_planner()
         desc = self.description
@@ -78,7 +78,7 @@ class Handlers:
 
     def _motion_planner(self) -> Any:
         if self._planner is None:
-            from planner.pipeline import MotionPlanner  # the heaviest import: only if used
+            from planner.planning.pipeline import MotionPlanner  # the heaviest import: only if used
             self._planner = MotionPlanner(self.description, cache=self.cache)
         return self._planner
 

@@ -1,4 +1,4 @@
-"""Plan requests and responses on the wire <-> :mod:`planner.pipeline`.
+"""Plan requests and responses on the wire <-> :mod:`planner.planning.pipeline`.
 
 Shared by the service's workers and ``arduinobot plan --local [--request FILE]``, so a
 request is parsed, refused and answered the same way in both.
@@ -13,15 +13,15 @@ import numpy as np
 
 from description import Description
 from planner.errors import PlanningError
-from planner.goals import JointGoal, NamedGoal, PositionGoal
-from planner.pipeline import MotionRequest
-from planner.trajectory import check_sample_count
+from planner.planning.goals import JointGoal, NamedGoal, PositionGoal
+from planner.planning.pipeline import MotionRequest
+from planner.timing.trajectory import check_sample_count
 
 from .caps import MAX_SAMPLES
 from .requests import obstacles
 from .wire import check_finite
 
-#: a plan request's options, each as :class:`~planner.pipeline.MotionRequest` takes it
+#: a plan request's options, each as :class:`~planner.planning.pipeline.MotionRequest` takes it
 #: (JSON Schema counts 7.0 as an integer: the planner wants an int seed)
 _OPTIONS: dict[str, Callable[[Any], Any]] = {
     "group": str, "planner": str, "planning_time": float, "velocity_scaling": float,
@@ -41,7 +41,7 @@ def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | Named
 
 def plan_request(description: Description, data: Mapping[str, Any]) -> MotionRequest:
     """A validated v1 plan request (see ``service/schema/plan_request.json``) as a
-    :class:`planner.pipeline.MotionRequest`. A missing start is all actuated joints at 0."""
+    :class:`planner.planning.pipeline.MotionRequest`. A missing start is all actuated joints at 0."""
     opts = {k: convert(data[k]) for k, convert in _OPTIONS.items() if k in data}
     return MotionRequest(
         goal=goal(description, data["goal"]),
@@ -52,7 +52,7 @@ def plan_request(description: Description, data: Mapping[str, Any]) -> MotionReq
 
 
 def plan_response(result: Any) -> dict[str, Any]:
-    """A :class:`planner.pipeline.MotionResult` as the v1 response (without request_id):
+    """A :class:`planner.planning.pipeline.MotionResult` as the v1 response (without request_id):
     trajectory (actuated joints), duration [s], path (waypoints in joint_names order),
     timing (seconds per stage), verification, planner.
 
@@ -91,7 +91,7 @@ def check_samples(samples: int, *, duration: float, sample_rate: float) -> None:
     planner refuses before sampling too: this guards the reply itself).
 
     Raises:
-        InvalidRequest: see :func:`planner.trajectory.check_sample_count`.
+        InvalidRequest: see :func:`planner.timing.trajectory.check_sample_count`.
     """
     check_sample_count(samples, duration=duration, sample_rate=sample_rate,
                        limit=MAX_SAMPLES, cap="MAX_SAMPLES")

@@ -70,7 +70,7 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     logging.basicConfig(level=log_level,
                         format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
-    from planner.planning import set_ompl_log_level
+    from planner.planning.paths import set_ompl_log_level
     set_ompl_log_level("info" if log_level <= logging.INFO else "none")
     # say what a slow start is doing: CAD meshes make the geometry the long part
     logging.getLogger("service").setLevel(min(logging.INFO, log_level))

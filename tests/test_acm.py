@@ -102,7 +102,7 @@ def test_proof_is_cached_by_content(tmp_path):
 
 
 def test_planner_without_srdf_skips_only_adjacent_and_proven_pairs():
-    from planner.pipeline import MotionPlanner
+    from planner.planning.pipeline import MotionPlanner
     mp = MotionPlanner(_no_srdf(load_description()))
     reasons = {e.reason for e in mp.world(()).acm}
     assert reasons == {"Adjacent", "Never-proven"}

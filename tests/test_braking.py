@@ -1,4 +1,4 @@
-"""Braking to rest within the effort limits (planner.braking), shared by the moving
+"""Braking to rest within the effort limits (planner.timing.braking), shared by the moving
 start and the clients' stops."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.braking import EFFORT_MARGIN, brake_to_rest, effort_ratio, effort_safe
-from planner.dynamics import InverseDynamics
 from planner.errors import TrajectoryError
-from planner.pipeline import MotionPlanner
+from planner.kinematics.dynamics import InverseDynamics
+from planner.planning.pipeline import MotionPlanner
+from planner.timing.braking import EFFORT_MARGIN, brake_to_rest, effort_ratio, effort_safe
 
 Q0 = np.array([0.3, 0.2, -0.1, 0.0])
 V0 = np.array([0.8, -0.5, 0.6, 0.0])

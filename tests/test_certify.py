@@ -9,8 +9,8 @@ from description import load_description
 from planner.collision.certify import Certificate, Certifier, combine
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
-from planner.curve import build_curve
 from planner.scene import Obstacle
+from planner.timing.curve import build_curve
 
 NEEDLE = """<robot name="needle">
   <link name="base"/>
@@ -112,8 +112,8 @@ def test_a_blend_whose_bulge_crosses_an_obstacle_is_refused(needle):
 
 def test_the_planner_never_returns_a_path_that_grazes_between_samples(needle):
     from planner.errors import NoPathFound
-    from planner.goals import JointGoal
-    from planner.planning import PathPlanner, PathRequest
+    from planner.planning.goals import JointGoal
+    from planner.planning.paths import PathPlanner, PathRequest
     pp = PathPlanner(needle, needle.description)
     # the straight line's samples are free, so the sampled search accepts it; its
     # certification fails, and a certified re-plan finds no way around in one joint

@@ -20,7 +20,7 @@ from description import load_description
 from description.meshes import shape_mesh
 from description.packages import SHIPPED_PACKAGE_DIR, build_package_index
 from description.xacro_expand import expand_xacro
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
 
 from .conftest import REPO
 from .helpers.course_workspace import PARTS, make_course_workspace

@@ -11,8 +11,8 @@ import pytest
 
 from description import Robot, load_description
 from description.model import rpy_matrix
-from planner.dynamics import InverseDynamics
 from planner.errors import InvalidRequest
+from planner.kinematics.dynamics import InverseDynamics
 
 
 def _quat(rot: np.ndarray) -> str:

@@ -29,8 +29,8 @@ def desc():
 
 @pytest.fixture(scope="module")
 def planned(desc):
-    from planner.goals import NamedGoal
-    from planner.pipeline import MotionPlanner, MotionRequest
+    from planner.planning.goals import NamedGoal
+    from planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     return {name: mp.solve(MotionRequest(goal=NamedGoal(name), seed=11)).trajectory
             for name in ("reach_left", "reach_forward")}
@@ -294,8 +294,8 @@ def test_execute_cli_on_the_local_twin(planned, tmp_path):
 
 
 def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
-    from planner.goals import NamedGoal
-    from planner.pipeline import MotionPlanner, MotionRequest
+    from planner.planning.goals import NamedGoal
+    from planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     first = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=11)).trajectory
     sim = SimArduinobot(desc)

@@ -9,8 +9,8 @@ import pytest
 
 from description import Tcp, load_description
 from planner.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
-from planner.ik import IkSolution, position_ik
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
+from planner.kinematics.ik import IkSolution, position_ik
 
 ARM = ("joint_1", "joint_2", "joint_3")
 

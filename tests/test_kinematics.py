@@ -8,7 +8,7 @@ import yourdfpy
 
 from description import load_description
 from planner.errors import InvalidRequest
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
 
 from .helpers.user_package import make_user_package
 

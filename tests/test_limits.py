@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.dynamics import InverseDynamics
 from planner.errors import InvalidRequest, LimitsError
-from planner.limits import (
+from planner.kinematics.dynamics import InverseDynamics
+from planner.kinematics.limits import (
     ACCELERATION_MARGIN,
     DERIVATION_SAMPLES,
     DERIVATION_SEED,

@@ -1,4 +1,4 @@
-"""Planning from a moving state (planner/moving_start.py), in-process and on the wire."""
+"""Planning from a moving state (planner/planning/moving_start.py), in-process and on the wire."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import pytest
 
 from description import load_description
 from planner.errors import InvalidRequest
-from planner.goals import NamedGoal
-from planner.moving_start import BlendTiming
-from planner.pipeline import MotionPlanner, MotionRequest
+from planner.planning.goals import NamedGoal
+from planner.planning.moving_start import BlendTiming
+from planner.planning.pipeline import MotionPlanner, MotionRequest
 
 
 @pytest.fixture(scope="module")

@@ -23,7 +23,7 @@ from clients.client import PlannerClient
 from description import load_description
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
 
 from .conftest import REPO, start_server
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from planner.errors import InvalidRequest, JointLimitViolation, StartInCollision
-from planner.goals import JointGoal
-from planner.pipeline import MotionPlanner, MotionRequest
+from planner.planning.goals import JointGoal
+from planner.planning.pipeline import MotionPlanner, MotionRequest
 from planner.scene import Obstacle
 
 from .timing_helpers import DESC

@@ -30,7 +30,7 @@ def test_no_rate_fits_a_motion_longer_than_the_cap_in_seconds():
 @pytest.fixture(scope="module")
 def planner():
     from description import load_description
-    from planner.pipeline import MotionPlanner
+    from planner.planning.pipeline import MotionPlanner
     d = load_description()
     return d, MotionPlanner(d)
 

@@ -10,11 +10,11 @@ from description import load_description
 from planner.checks import LIMIT_TOL, check_joint_names, check_positions
 from planner.collision.world import CollisionWorld
 from planner.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
-from planner.goals import JointGoal, resolve_goal
-from planner.ik import position_ik
-from planner.kinematics import Kinematics
-from planner.motion import MotionRequest
-from planner.planning import PathRequest
+from planner.kinematics.chain import Kinematics
+from planner.kinematics.ik import position_ik
+from planner.planning.goals import JointGoal, resolve_goal
+from planner.planning.motion import MotionRequest
+from planner.planning.paths import PathRequest
 from service.requests import joint_values
 
 

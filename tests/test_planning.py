@@ -5,8 +5,8 @@ from description import load_description
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest, NoPathFound, StartInCollision
-from planner.goals import JointGoal, NamedGoal
-from planner.planning import PathPlanner, PathRequest
+from planner.planning.goals import JointGoal, NamedGoal
+from planner.planning.paths import PathPlanner, PathRequest
 from planner.scene import Obstacle
 
 PILLAR = Obstacle("pillar", "box", size=(0.15, 0.15, 3.0), xyz=(0.0, 0.9, 0.6))

@@ -2,10 +2,10 @@
 
 import numpy as np
 
-from planner.curve import build_curve
 from planner.path_limits import ActiveLimits, Derating
-from planner.ruckig_timing import JerkLimitedTiming, _speed_change_distance
-from planner.toppra_timing import TimeOptimalTiming
+from planner.timing.curve import build_curve
+from planner.timing.ruckig_timing import JerkLimitedTiming, _speed_change_distance
+from planner.timing.toppra_timing import TimeOptimalTiming
 
 from .timing_helpers import DYN, WP, active_limits
 

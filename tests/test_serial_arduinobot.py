@@ -93,8 +93,8 @@ def desc():
 
 @pytest.fixture(scope="module")
 def planned(desc):
-    from planner.goals import NamedGoal
-    from planner.pipeline import MotionPlanner, MotionRequest
+    from planner.planning.goals import NamedGoal
+    from planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     res = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=3, sample_rate=100))
     return res.trajectory

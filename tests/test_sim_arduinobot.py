@@ -22,13 +22,13 @@ def desc():
 
 @pytest.fixture(scope="module")
 def planner(desc):
-    from planner.pipeline import MotionPlanner
+    from planner.planning.pipeline import MotionPlanner
     return MotionPlanner(desc)
 
 
 def plan(planner, name, seed=5, **kw):
-    from planner.goals import NamedGoal
-    from planner.pipeline import MotionRequest
+    from planner.planning.goals import NamedGoal
+    from planner.planning.pipeline import MotionRequest
     return planner.solve(MotionRequest(goal=NamedGoal(name), seed=seed, **kw)).trajectory
 
 
@@ -106,7 +106,7 @@ def test_contacts_with_an_obstacle_are_reported(desc, planner):
     traj = plan(planner, "reach_forward")
     tip = traj.positions[-1]
     # a ball where the claw ends up: the plan ignored it, the twin must not
-    from planner.kinematics import Kinematics
+    from planner.kinematics.chain import Kinematics
     kin = Kinematics(desc.robot)
     xyz = kin.link_poses(tip)[kin.link_index["claw_support"]][:3, 3]
     ball = {"id": "ball", "shape": "sphere", "radius": 0.15, "xyz": [float(v) for v in xyz]}

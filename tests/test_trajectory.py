@@ -7,11 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from planner.curve import build_curve
 from planner.errors import InvalidRequest
 from planner.path_limits import ActiveLimits
-from planner.ruckig_timing import JerkLimitedTiming
-from planner.trajectory import JointTrajectory, sample_times
+from planner.timing.curve import build_curve
+from planner.timing.ruckig_timing import JerkLimitedTiming
+from planner.timing.trajectory import JointTrajectory, sample_times
 
 from .timing_helpers import DYN, NAMES, WORLD, WP, active_limits
 
@@ -116,7 +116,7 @@ def test_json_and_csv_export(traj):
 
 def test_sample_times_refuses_more_than_max_samples_before_making_them():
     from planner.errors import InvalidRequest
-    from planner.trajectory import sample_times
+    from planner.timing.trajectory import sample_times
     assert len(sample_times(10.0, 100.0, max_samples=1002)) == 1001
     with pytest.raises(InvalidRequest) as e:
         sample_times(10.0, 100.0, max_samples=1000)

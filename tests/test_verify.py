@@ -5,12 +5,12 @@ import json
 import numpy as np
 
 from planner.collision.world import CollisionWorld
-from planner.curve import build_curve
 from planner.path_limits import ActiveLimits, Derating
-from planner.ruckig_timing import JerkLimitedTiming
 from planner.scene import Obstacle
-from planner.trajectory import JointTrajectory
-from planner.verify import TOLERANCE, Verifier, derate
+from planner.timing.curve import build_curve
+from planner.timing.ruckig_timing import JerkLimitedTiming
+from planner.timing.trajectory import JointTrajectory
+from planner.timing.verify import TOLERANCE, Verifier, derate
 
 from .timing_helpers import DESC, DYN, NAMES, WORLD, WP, active_limits
 

@@ -25,7 +25,7 @@ from clients.viewer.plots import joint_limits, plot_panels, plot_png
 from clients.viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
 from description import load_description
 from description.model import rpy_matrix
-from planner.goals import JointGoal, NamedGoal
+from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -6,7 +6,7 @@ import numpy as np
 
 from description import load_description
 from planner.collision.world import CollisionWorld
-from planner.dynamics import InverseDynamics
+from planner.kinematics.dynamics import InverseDynamics
 
 DESC = load_description()
 WORLD = CollisionWorld(DESC)
@@ -20,7 +20,7 @@ WP = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 0.5, 0.0, 0.0], [1.0, 1.0, -0.5, 0.0]
 def active_limits(velocity_scaling: float = 1.0, acceleration_scaling: float = 1.0):
     """The robot's limits through the limits module (a numeric stand-in until it lands)."""
     try:
-        from planner.limits import JointLimits
+        from planner.kinematics.limits import JointLimits
     except ImportError:
         lo, hi = np.array(DESC.robot.position_limits(NAMES)).T
         return SimpleNamespace(lower=lo, upper=hi,

@@ -169,7 +169,7 @@ class SerialArduinobot(Robot):
         Raises:
             PortNotFound: no port given and the URDF names none (or it does not exist).
         """
-        from planner.limits import JointLimits
+        from planner.kinematics.limits import JointLimits
 
         params = hardware_params(description.robot.urdf)
         port = port or params.get("port")

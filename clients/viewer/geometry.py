@@ -16,7 +16,7 @@ import trimesh
 from description import Description
 from description.meshes import load_mesh, primitive_mesh, shape_mesh
 from description.model import Geometry
-from planner.kinematics import Kinematics
+from planner.kinematics.chain import Kinematics
 from planner.scene import Obstacle
 
 Rgb = tuple[int, int, int]

@@ -8,7 +8,7 @@ import threading
 
 from clients.errors import ServiceError
 from planner.errors import InvalidRequest, PlanningError
-from planner.goals import JointGoal, NamedGoal
+from planner.planning.goals import JointGoal, NamedGoal
 
 from .app import RobotViewer
 from .planning import Goal, Group, PlanBackend

@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 from description import Description
-from planner.goals import JointGoal, NamedGoal
+from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
 
 from .trajectory import PlaybackTrajectory
@@ -30,7 +30,7 @@ class PlanBackend(Protocol):
 
 
 class LocalBackend:
-    """Plans in this process with :class:`planner.pipeline.MotionPlanner` (built on the
+    """Plans in this process with :class:`planner.planning.pipeline.MotionPlanner` (built on the
     first request: it takes a few seconds)."""
 
     name = "in-process"
@@ -41,7 +41,7 @@ class LocalBackend:
         self._planner = None
 
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
-        from planner.pipeline import MotionPlanner, MotionRequest
+        from planner.planning.pipeline import MotionPlanner, MotionRequest
 
         if self._planner is None:
             self._planner = MotionPlanner(self.description)

@@ -13,7 +13,7 @@ from typing import Any, Literal
 import numpy as np
 
 from description import Description
-from planner.limits import JointLimits
+from planner.kinematics.limits import JointLimits
 
 from . import require
 from .trajectory import PlaybackTrajectory
@@ -45,7 +45,7 @@ class PlotPanel:
 
 def joint_limits(description: Description, joints: tuple[str, ...]) -> dict[str, np.ndarray]:
     """Position lower/upper, velocity, acceleration and effort limits of ``joints``, each
-    shape (j,), from :class:`planner.limits.JointLimits` (URDF and joint_limits.yaml)."""
+    shape (j,), from :class:`planner.kinematics.limits.JointLimits` (URDF and joint_limits.yaml)."""
     lim = JointLimits.from_description(description)
     idx = [lim.joint_names.index(n) for n in joints]
     return {k: np.asarray(getattr(lim, k), float)[idx]

@@ -24,7 +24,7 @@ import numpy as np
 
 from description.model import Joint, Robot
 
-from ..kinematics import _fk_into
+from ..kinematics.chain import _fk_into
 from .obbtree import box_in_frame, relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
@@ -217,7 +217,7 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
     the end and returns m. ``cum`` (m, dof) gets the cumulative |joint motion| when
     ``start`` is 0; ``budget`` (n_pairs,) is the distance [m] each pair has proven
     (carried between resumed calls). The kinematics arrays are
-    :class:`~planner.kinematics.Kinematics`'; ``weight`` (n_pairs, dof) [m/rad];
+    :class:`~planner.kinematics.chain.Kinematics`'; ``weight`` (n_pairs, dof) [m/rad];
     ``horizon`` [m] caps how far ahead one bound is asked to prove (deeper proofs cost
     more tree descent); ``poses`` (n_links, 4, 4) work buffer; ``out`` (m, n_pairs)
     int8, zeroed, gets 1 where the narrow phase must decide.

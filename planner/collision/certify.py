@@ -2,7 +2,7 @@
 
 A motion is a sequence of pieces in joint space, each ``q(sigma) = start + u1 sigma +
 (u2 - u1) L H(sigma / L)`` for ``sigma`` in [0, L] with ``H(x) = x^3 - x^4 / 2``: a
-straight edge when ``u1 == u2``, a corner blend of :mod:`planner.curve` otherwise. Along
+straight edge when ``u1 == u2``, a corner blend of :mod:`planner.timing.curve` otherwise. Along
 a piece every joint's speed ``|q_k'(sigma)|`` stays between ``|u1_k|`` and ``|u2_k|`` (the
 tangent moves from ``u1`` to ``u2`` by a smoothstep), so a point of one body moves
 relative to another by at most ``speed = sum_k weight_k max(|u1_k|, |u2_k|)`` per unit of
@@ -28,7 +28,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from ..kinematics import _fk_into
+from ..kinematics.chain import _fk_into
 from .advance import tree_lower_bound
 from .world import CollisionWorld
 
@@ -268,7 +268,7 @@ class Certifier:
         return self.pieces(path[:-1], u, u, lengths, sample_step=sample_step)
 
     def curve(self, sections: Sequence[Any]) -> Certificate:
-        """Certify every piece of a :class:`planner.curve.Curve`'s sections (anything with
+        """Certify every piece of a :class:`planner.timing.curve.Curve`'s sections (anything with
         ``starts``, ``u1``, ``u2`` and ``lengths``) as one motion."""
         if not sections:
             raise ValueError("a curve has at least one section")

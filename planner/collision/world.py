@@ -23,7 +23,7 @@ from description.meshes import shape_mesh
 
 from ..cache import ArtifactCache
 from ..errors import InvalidRequest
-from ..kinematics import Kinematics
+from ..kinematics.chain import Kinematics
 from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound

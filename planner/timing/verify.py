@@ -25,9 +25,9 @@ from typing import Protocol
 
 import numpy as np
 
-from .checks import CHECK_STEP
-from .collision.certify import Certificate
-from .path_limits import BatchDynamics, Derating, LimitsLike
+from ..checks import CHECK_STEP
+from ..collision.certify import Certificate
+from ..path_limits import BatchDynamics, Derating, LimitsLike
 from .trajectory import JointTrajectory
 
 log = logging.getLogger(__name__)

@@ -15,9 +15,9 @@ from numpy.typing import ArrayLike
 
 from description.model import Robot
 
-from .errors import InvalidRequest
+from ..errors import InvalidRequest
 
-# joint type codes of the kernels (shared with planner.dynamics)
+# joint type codes of the kernels (shared with planner.kinematics.dynamics)
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
 
 

@@ -30,11 +30,11 @@ from typing import TYPE_CHECKING, Literal, Protocol
 import numpy as np
 import toppra
 
-from .checks import CHECK_STEP
-from .errors import InvalidRequest
+from ..checks import CHECK_STEP
+from ..errors import InvalidRequest
 
 if TYPE_CHECKING:
-    from .collision.certify import Certificate
+    from ..collision.certify import Certificate
 
 log = logging.getLogger(__name__)
 

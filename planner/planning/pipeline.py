@@ -4,7 +4,7 @@
 build: one :class:`CollisionWorld` (and path planner) per obstacle set, the scaled joint
 limits per scaling pair, the inverse dynamics and toppra's constraint objects.
 
-A trajectory is returned only if the :class:`~planner.verify.Verifier` passes it. When a
+A trajectory is returned only if the :class:`~planner.timing.verify.Verifier` passes it. When a
 check fails (toppra enforces limits only at gridpoints; ruckig's per-piece bounds are
 conservative but sampled), the violated limits are derated by ``0.98 / ratio`` and the
 path is re-timed, up to ``MAX_ATTEMPTS`` times; a collision along the blended curve falls
@@ -23,24 +23,24 @@ import numpy as np
 
 from description import Description
 
-from .cache import ArtifactCache
-from .checks import check_joint_names, check_positions
-from .collision.acm_proof import proven_never_pairs
-from .collision.certify import Certificate, Certifier, combine
-from .collision.world import CollisionWorld
-from .curve import Curve, build_curve
-from .dynamics import InverseDynamics
-from .errors import InvalidRequest, TrajectoryError
+from ..cache import ArtifactCache
+from ..checks import check_joint_names, check_positions
+from ..collision.acm_proof import proven_never_pairs
+from ..collision.certify import Certificate, Certifier, combine
+from ..collision.world import CollisionWorld
+from ..errors import InvalidRequest, TrajectoryError
+from ..kinematics.dynamics import InverseDynamics
+from ..kinematics.limits import JointLimits
+from ..path_limits import ActiveLimits, Derating
+from ..scene import Obstacle
+from ..timing.curve import Curve, build_curve
+from ..timing.ruckig_timing import JerkLimitedTiming
+from ..timing.toppra_timing import TimeOptimalTiming
+from ..timing.trajectory import CurveTiming, JointTrajectory
+from ..timing.verify import VerificationReport, Verifier, derate
 from .goals import resolve_group
-from .limits import JointLimits
 from .motion import MotionRequest, MotionResult, Profile
-from .path_limits import ActiveLimits, Derating
-from .planning import PathPlanner, PathRequest
-from .ruckig_timing import JerkLimitedTiming
-from .scene import Obstacle
-from .toppra_timing import TimeOptimalTiming
-from .trajectory import CurveTiming, JointTrajectory
-from .verify import VerificationReport, Verifier, derate
+from .paths import PathPlanner, PathRequest
 
 log = logging.getLogger(__name__)
 

@@ -21,16 +21,16 @@ import ompl.util as ou
 
 from description import Description
 
-from .collision.certify import Certificate, Certifier
-from .collision.motion_check import (
+from ..collision.certify import Certificate, Certifier
+from ..collision.motion_check import (
     MotionChecker,
     StateCodec,
     ValidityChecker,
     motion_valid,
     sampled_motion_valid,
 )
-from .collision.world import CollisionWorld
-from .errors import InvalidRequest, NoPathFound, StartInCollision
+from ..collision.world import CollisionWorld
+from ..errors import InvalidRequest, NoPathFound, StartInCollision
 from .goals import (
     Goal,
     check_goal,

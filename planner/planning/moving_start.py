@@ -4,7 +4,7 @@ A request may carry ``start_velocity`` [rad/s] and ``start_acceleration`` [rad/s
 trajectory then begins exactly in that state and reaches the goal at rest, without
 stopping when the motions allow it, by superposition:
 
-1. ``B``: the brake from (q0, v0, a0) to rest at q_r (:mod:`planner.braking`), its
+1. ``B``: the brake from (q0, v0, a0) to rest at q_r (:mod:`planner.timing.braking`), its
    acceleration and jerk scaled down until its torques fit the effort limits;
 2. ``N``: the ordinary plan from rest at q_r to the goal (collision-free path, timing);
 3. ``q(t) = B(t) + N(t - s) - q_r``: the new motion starts ``s`` seconds into the
@@ -31,16 +31,16 @@ from typing import Any, Protocol
 import numpy as np
 from ruckig import Trajectory
 
-from .braking import EFFORT_MARGIN, brake_to_rest, effort_safe
-from .errors import InvalidRequest, TrajectoryError
-from .limits import JointLimits
+from ..errors import InvalidRequest, TrajectoryError
+from ..kinematics.limits import JointLimits
+from ..timing.braking import EFFORT_MARGIN, brake_to_rest, effort_safe
+from ..timing.trajectory import CurveTiming, JointTrajectory
+from ..timing.verify import Verifier
 from .motion import MotionRequest, MotionResult
-from .trajectory import CurveTiming, JointTrajectory
-from .verify import Verifier
 
 
 class MotionPlanner(Protocol):
-    """What a moving start needs of :class:`planner.pipeline.MotionPlanner` (named by
+    """What a moving start needs of :class:`planner.planning.pipeline.MotionPlanner` (named by
     its interface so this module, above the pipeline, does not import it)."""
 
     joint_names: tuple[str, ...]
@@ -118,7 +118,7 @@ def _effort_safe_brake(planner: MotionPlanner, q0: np.ndarray, v0: np.ndarray,
                        a0: np.ndarray, lim: JointLimits) -> Trajectory:
     """The brake with the largest acceleration and jerk scale (never below the
     acceleration the arm already has) whose torques fit the effort limits
-    (:func:`planner.braking.effort_safe`)."""
+    (:func:`planner.timing.braking.effort_safe`)."""
     tr, ratio = effort_safe(
         lambda f: brake_to_rest(q0, v0, a0, velocity=lim.velocity,
                                 acceleration=np.maximum(f * lim.acceleration, np.abs(a0)),

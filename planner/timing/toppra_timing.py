@@ -1,6 +1,6 @@
 """Time-optimal timing along the curve with toppra (velocity, acceleration, joint torque).
 
-toppra sees the same blended curve ruckig follows (:mod:`planner.curve`), so its positions
+toppra sees the same blended curve ruckig follows (:mod:`planner.timing.curve`), so its positions
 never leave what was collision-checked. Its solution is the path velocity ``sd`` at the
 gridpoints; we play it back with constant ``sdd`` between gridpoints (toppra's
 ``ParametrizeConstAccel`` model) in our own vectorised profile, which keeps every state
@@ -19,9 +19,9 @@ import toppra.algorithm
 import toppra.constraint as tc
 from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 
+from ..errors import TrajectoryError
+from ..path_limits import ActiveLimits, BatchDynamics, torque_coefficients
 from .curve import Curve, PathCurve
-from .errors import TrajectoryError
-from .path_limits import ActiveLimits, BatchDynamics, torque_coefficients
 from .trajectory import CurveTiming, RestProfile
 
 log = logging.getLogger(__name__)

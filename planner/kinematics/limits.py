@@ -30,8 +30,8 @@ import numpy as np
 
 from description.loader import Description
 
+from ..errors import InvalidRequest, LimitsError
 from .dynamics import InverseDynamics
-from .errors import InvalidRequest, LimitsError
 
 _log = logging.getLogger(__name__)
 

@@ -1,6 +1,6 @@
 """Braking a moving arm to rest with ruckig, within the effort limits.
 
-One mechanism for the planner's moving start (:mod:`planner.moving_start`) and the
+One mechanism for the planner's moving start (:mod:`planner.planning.moving_start`) and the
 clients' stops of a running execution (:mod:`clients.stops`): ruckig's time-optimal,
 jerk-limited brake, every joint on its own (the velocity interface), all reaching rest
 together; and the search for the largest acceleration and jerk scale whose torques fit
@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, RuckigError, Trajectory
 
-from .errors import TrajectoryError
+from ..errors import TrajectoryError
 from .trajectory import TorqueFn
 
 #: [s] torques are checked this often along a ruckig motion ...

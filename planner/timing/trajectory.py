@@ -1,7 +1,7 @@
 """Timed trajectories: a curve followed by a path-parameter profile, sampled for motors.
 
 Both time parameterisations (toppra, ruckig) produce the same thing: for each smooth
-section of the :class:`~planner.curve.Curve`, a scalar profile ``s(t)`` of the path
+section of the :class:`~planner.timing.curve.Curve`, a scalar profile ``s(t)`` of the path
 parameter. Joint states follow exactly from the chain rule::
 
     q = c(s),   qd = c'(s) sd,   qdd = c'(s) sdd + c''(s) sd^2
@@ -24,8 +24,8 @@ from typing import Protocol
 
 import numpy as np
 
+from ..errors import InvalidRequest
 from .curve import PathCurve
-from .errors import InvalidRequest
 
 # Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
 TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]

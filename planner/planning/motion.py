@@ -1,7 +1,7 @@
 """What a motion request asks and what a solved motion is: the planner's value types.
 
-Kept apart from :mod:`planner.pipeline` so the ways of solving (the pipeline, and
-:mod:`planner.moving_start` above it) share them without importing each other.
+Kept apart from :mod:`planner.planning.pipeline` so the ways of solving (the pipeline, and
+:mod:`planner.planning.moving_start` above it) share them without importing each other.
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from typing import Literal
 
 import numpy as np
 
+from ..scene import Obstacle
+from ..timing.trajectory import JointTrajectory
+from ..timing.verify import VerificationReport
 from .goals import JointGoal, NamedGoal, PositionGoal, check_goal
-from .scene import Obstacle
-from .trajectory import JointTrajectory
-from .verify import VerificationReport
 
 Profile = Literal["jerk_limited", "time_optimal"]
 
@@ -44,7 +44,7 @@ class MotionRequest:
     # the most samples the trajectory may have (duration x sample_rate + 2), refused
     # before sampling when it would: what a reply or a robot can take
     max_samples: int | None = None
-    # a moving start [rad/s], [rad/s^2] by joint: see planner.moving_start
+    # a moving start [rad/s], [rad/s^2] by joint: see planner.planning.moving_start
     start_velocity: Mapping[str, float] | None = None
     start_acceleration: Mapping[str, float] | None = None
 

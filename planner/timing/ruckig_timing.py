@@ -25,9 +25,9 @@ from collections.abc import Sequence
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
+from ..errors import TrajectoryError
+from ..path_limits import ActiveLimits, BatchDynamics, torque_coefficients
 from .curve import Curve, PathCurve
-from .errors import TrajectoryError
-from .path_limits import ActiveLimits, BatchDynamics, torque_coefficients
 from .trajectory import CurveTiming, RestProfile
 
 log = logging.getLogger(__name__)

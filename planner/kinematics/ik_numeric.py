@@ -16,8 +16,8 @@ import numpy as np
 
 from description.loader import Tcp
 
-from .errors import InvalidRequest
-from .kinematics import Kinematics
+from ..errors import InvalidRequest
+from .chain import Kinematics
 
 # Solutions closer than this in every joint [rad or m] are one solution.
 DEDUPE_TOL = 1e-5

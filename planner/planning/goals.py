@@ -15,9 +15,9 @@ import numpy as np
 from description import Description
 from description.errors import SrdfError
 
-from .checks import check_joint_names, check_positions
-from .collision.world import CollisionWorld
-from .errors import GoalInCollision, GoalOutOfReach, InvalidRequest
+from ..checks import check_joint_names, check_positions
+from ..collision.world import CollisionWorld
+from ..errors import GoalInCollision, GoalOutOfReach, InvalidRequest
 
 
 @dataclass(frozen=True)
@@ -185,7 +185,9 @@ def resolve_goal(goal: Goal, *, world: CollisionWorld, description: Description,
 def _position_candidates(goal: PositionGoal, *, world: CollisionWorld,
                          description: Description, start: np.ndarray,
                          group_joints: Sequence[str]) -> np.ndarray:
-    from .ik import position_ik  # written alongside; imported late to keep startup light
+    from ..kinematics.ik import (
+        position_ik,  # written alongside; imported late to keep startup light
+    )
 
     ik_joints = tcp_joints(description, group_joints)
     sols = position_ik(world.kin, description.tcp, goal.position, joints=ik_joints,

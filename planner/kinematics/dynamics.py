@@ -1,7 +1,7 @@
 """Rigid-body inverse dynamics (recursive Newton-Euler) from the URDF's inertials.
 
 ``tau = M(q) qdd + c(q, qd) + g(q)`` for the actuated joints, gravity -9.81 m/s^2 along
-the root frame's z. The tree is flattened by :class:`~planner.kinematics.Kinematics` (one
+the root frame's z. The tree is flattened by :class:`~planner.kinematics.chain.Kinematics` (one
 convention for joint order, mimics and held joints) and walked by numba kernels, since a
 trajectory check evaluates every sample: a batch costs about a microsecond per sample.
 
@@ -21,9 +21,9 @@ from numpy.typing import ArrayLike
 
 from description.model import Robot, rpy_matrix
 
-from .errors import InvalidRequest
-from .kinematics import FIXED, PRISMATIC, REVOLUTE, Kinematics, joint_rotation
-from .path_limits import torque_coefficients
+from ..errors import InvalidRequest
+from ..path_limits import torque_coefficients
+from .chain import FIXED, PRISMATIC, REVOLUTE, Kinematics, joint_rotation
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2] in the root frame
 

@@ -7,7 +7,7 @@ Two solvers behind one function, :func:`position_ik`:
   sits at x = -0.02 and the tcp at x = -0.13, so the arm plane is offset from the yaw
   axis). Up to four solutions: base front/back times elbow up/down.
 - for any other chain, a deterministic, seeded multi-start damped-least-squares solver
-  (:mod:`planner.ik_numeric`), deduplicated.
+  (:mod:`planner.kinematics.ik_numeric`), deduplicated.
 
 Both return only solutions within the joint position limits; a point that is reachable
 only outside them raises :class:`~planner.errors.GoalOutOfReach` saying so.
@@ -25,10 +25,10 @@ from numpy.typing import ArrayLike
 
 from description.loader import Tcp
 
-from .checks import check_positions
-from .errors import GoalOutOfReach, InvalidRequest
+from ..checks import check_positions
+from ..errors import GoalOutOfReach, InvalidRequest
+from .chain import Kinematics
 from .ik_numeric import Chain, build_chain, dedupe, nearest_distance, solve_dls, wrap_into_limits
-from .kinematics import Kinematics
 
 _log = logging.getLogger(__name__)
 
