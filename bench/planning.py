@@ -61,8 +61,8 @@ def suite(d: Description, n: int) -> dict[str, dict]:
         stages: dict[str, list[float]] = {}
         for i, (a, b, _) in enumerate(probs):
             try:
-                r = pp.solve(PathRequest(start=a, goal=JointGoal(dict(zip(w.kin.joint_names[:3], b[:3]))),
-                                         seed=i, planning_time=1.0))
+                goal = JointGoal(dict(zip(w.kin.joint_names[:3], b[:3])))
+                r = pp.solve(PathRequest(start=a, goal=goal, seed=i, planning_time=1.0))
             except PlanningError:
                 continue
             ok += 1

@@ -2,8 +2,9 @@
 (one tolerance), and the joint step between collision-checked states.
 
 The service's wire requests (:mod:`service.requests`), the motion pipeline
-(:mod:`planner.planning.pipeline`), goals (:mod:`planner.planning.goals`) and IK (:mod:`planner.kinematics.ik`) all
-call these, so the same value is refused alike everywhere, with the same field.
+(:mod:`planner.planning.pipeline`), goals (:mod:`planner.planning.goals`) and IK
+(:mod:`planner.kinematics.ik`) all call these, so the same value is refused alike
+everywhere, with the same field.
 """
 
 from __future__ import annotations

@@ -23,7 +23,8 @@ class BatchDynamics(Protocol):
 
 
 class LimitsLike(Protocol):
-    """Per-joint limits as :class:`planner.kinematics.limits.JointLimits` has them, shape (dof,) each."""
+    """Per-joint limits as :class:`planner.kinematics.limits.JointLimits` has them, shape
+    (dof,) each."""
 
     lower: np.ndarray
     upper: np.ndarray

@@ -41,7 +41,8 @@ def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | Named
 
 def plan_request(description: Description, data: Mapping[str, Any]) -> MotionRequest:
     """A validated v1 plan request (see ``service/schema/plan_request.json``) as a
-    :class:`planner.planning.pipeline.MotionRequest`. A missing start is all actuated joints at 0."""
+    :class:`planner.planning.motion.MotionRequest`. A missing start is all actuated joints
+    at 0."""
     opts = {k: convert(data[k]) for k, convert in _OPTIONS.items() if k in data}
     return MotionRequest(
         goal=goal(description, data["goal"]),
