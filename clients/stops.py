@@ -14,8 +14,8 @@ from typing import Literal
 import numpy as np
 from ruckig import Trajectory
 
-from planner.timing import braking
 from planner.kinematics.limits import JointLimits
+from planner.timing import braking
 from planner.timing.braking import TorqueFn
 
 from .segments import PathStop, RestOf, RuckigSegment, Segment, stop_segment

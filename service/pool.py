@@ -187,7 +187,7 @@ class WorkerPool:
             return {"queued": len(self._jobs), "heap": len(self._heap),
                     "running": len(self._busy)}
 
-    # -- what the slots call (service.slot.Slot) -----------------------------------------
+    # -- what the slots call (service.slot.JobQueue) -------------------------------------
     def next_job(self, slot: Slot) -> Job | None:
         """The next waiting job, or None when stopping or the slot's worker has died."""
         with self._cond:

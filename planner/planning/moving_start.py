@@ -53,6 +53,7 @@ class MotionPlanner(Protocol):
     def validate(self, req: MotionRequest) -> np.ndarray: ...
     def solve(self, request: MotionRequest) -> MotionResult: ...
 
+
 log = logging.getLogger(__name__)
 
 SHIFTS = (0.0, 0.25, 0.5, 0.7, 0.8, 0.85, 0.9, 0.95, 1.0)  # fractions of the brake time

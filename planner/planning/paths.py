@@ -81,6 +81,7 @@ def set_ompl_log_level(level: OmplLogLevel) -> None:
         raise InvalidRequest(f"'{level}' is not one of {', '.join(levels)}", field="level")
     ou.setLogLevel(levels[level])
 
+
 @dataclass(frozen=True)
 class PathRequest:
     """A planning problem.

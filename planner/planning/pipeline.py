@@ -45,6 +45,8 @@ from .paths import PathPlanner, PathRequest
 log = logging.getLogger(__name__)
 
 MAX_ATTEMPTS = 8
+
+
 def _number(value: object, field: str, lo: float, hi: float, *, open_lo: bool) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not math.isfinite(float(value)):
