@@ -25,7 +25,7 @@ import numpy as np
 from description.model import Joint, Robot
 
 from ..kinematics.chain import _fk_into
-from .obbtree import box_in_frame, relative_pose
+from .obbtree import box_in_frame, in_box_frame, relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
 # absorbs rounding in poses, boxes and weights, far below any mesh feature
@@ -112,12 +112,7 @@ def _box_gap(ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, rb: np.ndarray, cb:
          - np.sqrt(hb[0] * hb[0] + hb[1] * hb[1] + hb[2] * hb[2]))
     if g >= best:
         return g
-    for i in range(3):
-        t[i] = d0 * ra[0, i] + d1 * ra[1, i] + d2 * ra[2, i]
-        for j in range(3):
-            v = ra[0, i] * rb[0, j] + ra[1, i] * rb[1, j] + ra[2, i] * rb[2, j]
-            r[i, j] = v
-            ar[i, j] = abs(v) + 1e-12
+    in_box_frame(ra, rb, d0, d1, d2, r, ar, t)
     for i in range(3):
         gi = abs(t[i]) - (ha[i] + hb[0] * ar[i, 0] + hb[1] * ar[i, 1] + hb[2] * ar[i, 2])
         if gi > g:

@@ -187,17 +187,25 @@ class Forest:
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
-def _sep(ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, rb: np.ndarray, cb: np.ndarray,
-         hb: np.ndarray, pad: float, r: np.ndarray, ar: np.ndarray, t: np.ndarray) -> bool:
-    # Gottschalk's 15-axis separating-axis test; boxes inflated by pad in total.
-    # r, ar (3, 3) and t (3,) are scratch: numba heap-allocates arrays, too slow here.
-    d0, d1, d2 = cb[0] - ca[0], cb[1] - ca[1], cb[2] - ca[2]
+def in_box_frame(ra: np.ndarray, rb: np.ndarray, d0: float, d1: float, d2: float,
+                 r: np.ndarray, ar: np.ndarray, t: np.ndarray) -> None:
+    """Box b in box a's axes, as the separating-axis tests use it: the centre offset
+    (d0, d1, d2) in a's axes into ``t`` (3,), b's axes in a's into ``r`` (3, 3) and their
+    magnitudes, padded against rounding, into ``ar`` (3, 3)."""
     for i in range(3):
         t[i] = d0 * ra[0, i] + d1 * ra[1, i] + d2 * ra[2, i]
         for j in range(3):
             v = ra[0, i] * rb[0, j] + ra[1, i] * rb[1, j] + ra[2, i] * rb[2, j]
             r[i, j] = v
             ar[i, j] = abs(v) + 1e-12
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _sep(ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, rb: np.ndarray, cb: np.ndarray,
+         hb: np.ndarray, pad: float, r: np.ndarray, ar: np.ndarray, t: np.ndarray) -> bool:
+    # Gottschalk's 15-axis separating-axis test; boxes inflated by pad in total.
+    # r, ar (3, 3) and t (3,) are scratch: numba heap-allocates arrays, too slow here.
+    in_box_frame(ra, rb, cb[0] - ca[0], cb[1] - ca[1], cb[2] - ca[2], r, ar, t)
     a0, a1, a2 = ha[0] + pad, ha[1] + pad, ha[2] + pad
     b0, b1, b2 = hb[0], hb[1], hb[2]
     for i in range(3):
