@@ -241,8 +241,8 @@ class Certifier:
             if exact >= MAX_EXACT or status == _BUDGET:
                 return Certificate(False, clear, 0.0, pair, (k, s, pair, float("nan")),
                                    int(counts[0]), exact)
-            x = s / lengths[k] if lengths[k] > 0 else 0.0
-            q = starts[k] + u1[k] * s + (u2[k] - u1[k]) * lengths[k] * (x**3 - 0.5 * x**4)
+            q = np.empty(w.dof)  # the very point the walk stopped at
+            _eval_piece(starts[k], u1[k], u2[k], lengths[k], s, q)
             # free: the walk reached it from a checked sample, every point farther than
             # the clearance, so neither body can be inside the other
             d = w.pair_distance(q, p)
