@@ -62,8 +62,9 @@ def plan_response(result: Any) -> dict[str, Any]:
             ``sample_rate``), before any of the reply is built.
     """
     traj = result.trajectory
-    check_samples(len(traj.times), duration=float(traj.duration),
-                  sample_rate=float(traj.sample_rate))
+    # the planner refuses before sampling too (max_samples): this guards the reply itself
+    check_sample_count(len(traj.times), duration=float(traj.duration),
+                       sample_rate=float(traj.sample_rate), limit=MAX_SAMPLES, cap="MAX_SAMPLES")
     arrays = {"positions": traj.positions, "velocities": traj.velocities,
               "accelerations": traj.accelerations, "effort": traj.efforts,
               "time_from_start": traj.times, "path": result.path}
@@ -86,13 +87,3 @@ def plan_response(result: Any) -> dict[str, Any]:
     check_finite({k: body[k] for k in ("duration", "timing", "verification")})
     return body  # every number finite: wire.encode(..., finite=True) may take it
 
-
-def check_samples(samples: int, *, duration: float, sample_rate: float) -> None:
-    """Refuse a trajectory of more than :data:`service.caps.MAX_SAMPLES` samples (the
-    planner refuses before sampling too: this guards the reply itself).
-
-    Raises:
-        InvalidRequest: see :func:`planner.timing.trajectory.check_sample_count`.
-    """
-    check_sample_count(samples, duration=duration, sample_rate=sample_rate,
-                       limit=MAX_SAMPLES, cap="MAX_SAMPLES")

@@ -7,14 +7,18 @@ import json
 import pytest
 
 from planner.errors import InvalidRequest
+from planner.timing.trajectory import check_sample_count
 from service import caps, wire
-from service.plan_io import check_samples, plan_request, plan_response
+from service.plan_io import plan_request, plan_response
+
+#: the cap plan_response's guard on its reply passes
+CAP = {"limit": caps.MAX_SAMPLES, "cap": "MAX_SAMPLES"}
 
 
-def test_check_samples_names_the_field_the_cap_and_a_rate_that_fits():
-    check_samples(caps.MAX_SAMPLES, duration=20.0, sample_rate=1000.0)
+def test_the_sample_cap_names_the_field_the_cap_and_a_rate_that_fits():
+    check_sample_count(caps.MAX_SAMPLES, duration=20.0, sample_rate=1000.0, **CAP)
     with pytest.raises(InvalidRequest) as e:
-        check_samples(caps.MAX_SAMPLES + 1, duration=20.0, sample_rate=1000.0)
+        check_sample_count(caps.MAX_SAMPLES + 1, duration=20.0, sample_rate=1000.0, **CAP)
     d = e.value.details
     assert d["field"] == "sample_rate" and d["limit"] == caps.MAX_SAMPLES
     assert str(caps.MAX_SAMPLES) in e.value.message
@@ -23,7 +27,8 @@ def test_check_samples_names_the_field_the_cap_and_a_rate_that_fits():
 
 def test_no_rate_fits_a_motion_longer_than_the_cap_in_seconds():
     with pytest.raises(InvalidRequest) as e:
-        check_samples(caps.MAX_SAMPLES * 2, duration=caps.MAX_SAMPLES * 2.0, sample_rate=1.0)
+        check_sample_count(caps.MAX_SAMPLES * 2, duration=caps.MAX_SAMPLES * 2.0, sample_rate=1.0,
+                           **CAP)
     assert e.value.details["max_sample_rate"] == 0.0 and "scalings" in e.value.message
 
 
