@@ -86,4 +86,3 @@ def plan_response(result: Any) -> dict[str, Any]:
     }
     check_finite({k: body[k] for k in ("duration", "timing", "verification")})
     return body  # every number finite: wire.encode(..., finite=True) may take it
-
