@@ -125,22 +125,16 @@ def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.nda
     return [_thick(v[idx]) for idx in groups if len(idx) >= 3]
 
 
-def _geom(shape: Shape, name: str, assets: list[str], *, visual: bool,
-          parts: int = 1) -> str | None:
+def _geom(shape: Shape, name: str, assets: list[str]) -> str | None:
+    """A collision shape as contact geoms (a mesh as :data:`COLLISION_PARTS` pieces)."""
     g = shape.geometry
     pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
-    flags = ('contype="0" conaffinity="0" group="1" rgba="0.8 0.5 0.2 1"' if visual
-             else 'contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4"')
-    common = f'{pose} {flags} mass="0"'
+    common = f'{pose} contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4" mass="0"'
     if g.kind == "mesh":
         if g.path is None:
             return None
-        if visual or parts <= 1:
-            assets.append(f'<mesh name="{_esc(name)}" file="{_esc(str(g.path))}" '
-                          f'scale="{_f(g.scale)}"/>')
-            return f'<geom type="mesh" mesh="{_esc(name)}" name="{_esc(name)}" {common}/>'
         out = []
-        for i, vs in enumerate(mesh_parts(g.path, g.scale, parts)):
+        for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS)):
             assets.append(f'<mesh name="{_esc(name)}/{i}" vertex="{_f(vs)}"/>')
             out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
                        f'{common}/>')
@@ -179,17 +173,13 @@ def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]]) -> list[str]:
 
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
-            obstacles: Sequence[Mapping[str, Any]] = (), visual: bool = False,
-            timestep: float = TIMESTEP, collision_parts: int = COLLISION_PARTS) -> str:
+            obstacles: Sequence[Mapping[str, Any]] = ()) -> str:
     """The MJCF text of ``robot`` (see the module doc).
 
     Args:
         gains: per actuated joint.
         excluded: link pairs whose contacts are ignored (besides parent/child pairs).
         obstacles: world obstacles, as in a plan request.
-        visual: add the visual shapes too (non-colliding, for a viewer).
-        timestep: the physics step [s].
-        collision_parts: convex pieces per collision mesh (:func:`mesh_parts`).
     """
     assets: list[str] = []
 
@@ -204,14 +194,9 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
                        f'mass="{inertial.mass!r}" fullinertia="'
                        f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
         for i, s in enumerate(lk.collisions):
-            g = _geom(s, f"{link}/collision/{i}", assets, visual=False, parts=collision_parts)
+            g = _geom(s, f"{link}/collision/{i}", assets)
             if g:
                 out.append(indent + g)
-        if visual:
-            for i, s in enumerate(lk.visuals):
-                g = _geom(s, f"{link}/visual/{i}", assets, visual=True)
-                if g:
-                    out.append(indent + g)
         for j in robot.child_joints[link]:
             out.append(f'{indent}<body name="{_esc(j.child)}" pos="{_f(j.origin.xyz)}" '
                        f'quat="{_quat(rpy_matrix(j.origin.rpy))}">')
@@ -254,7 +239,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     parts = [f'<mujoco model="{_esc(robot.name)}">',
              '  <compiler angle="radian" inertiafromgeom="false" balanceinertia="false" '
              'boundmass="1e-6" boundinertia="1e-9"/>',
-             f'  <option timestep="{timestep!r}" integrator="Euler" '
+             f'  <option timestep="{TIMESTEP!r}" integrator="Euler" '
              'gravity="0 0 -9.81"/>',
              "  <asset>", *("    " + a for a in assets), "  </asset>",
              "  <worldbody>", *("    " + g for g in obstacle_geoms(obstacles)), *tree,

@@ -129,12 +129,9 @@ class SimArduinobot(Robot):
     Args:
         description: the robot.
         obstacles: world obstacles (the plan request's form).
-        gains: per actuated joint (overrides the controllers yaml and the defaults).
         controllers: a controllers yaml (default: :func:`find_controllers_yaml`).
         initial: actuated positions [rad] to start at (default: initial_positions.yaml, else 0).
         bandwidth: [Hz] of the default servos.
-        timestep: physics step [s].
-        visual: add the visual meshes (for a viewer).
 
     Raises:
         SimulationError: MuJoCo refused the model.
@@ -143,9 +140,8 @@ class SimArduinobot(Robot):
     realtime_only = False
 
     def __init__(self, description: Description, *, obstacles: Sequence[Mapping[str, Any]] = (),
-                 gains: Mapping[str, Gains] | None = None, controllers: Path | None = None,
-                 initial: Sequence[float] | None = None, bandwidth: float = DEFAULT_BANDWIDTH,
-                 timestep: float = TIMESTEP, visual: bool = False) -> None:
+                 controllers: Path | None = None, initial: Sequence[float] | None = None,
+                 bandwidth: float = DEFAULT_BANDWIDTH) -> None:
         import mujoco  # optional dependency (the `sim` extra)
 
         self._mj = mujoco
@@ -154,18 +150,15 @@ class SimArduinobot(Robot):
         self.joint_names = self.mimic.actuated
         self.state_names = self.mimic.names
         ctl = controllers or find_controllers_yaml(description)
-        chosen = dict(controller_gains(ctl, self.joint_names)) if ctl else {}
+        chosen = controller_gains(ctl, self.joint_names) if ctl else {}
         self.gain_source = {n: f"{ctl}" for n in chosen}
-        chosen.update(gains or {})
-        self.gain_source.update({n: "given" for n in (gains or {})})
         placeholder = {n: chosen.get(n, Gains(1.0, 0.0)) for n in self.joint_names}
         excluded = [(d.link1, d.link2) for d in description.srdf.disabled_collisions] \
             if description.srdf is not None else []
         q0 = initial_positions(description, self.joint_names) if initial is None \
             else check_setpoint(initial, self.joint_names, "initial positions")
         for _ in range(2):
-            self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded,
-                               obstacles=obstacles, visual=visual, timestep=timestep)
+            self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded, obstacles=obstacles)
             self._build(robot.name)
             self._set_positions(q0)
             # MuJoCo collides meshes as convex hulls: hulls of concave links (fingers, an
@@ -200,7 +193,7 @@ class SimArduinobot(Robot):
         self._scratch = mujoco.MjData(m)
         self.reset(q0)
         log.info("MuJoCo twin of '%s': %d bodies, %d geoms, timestep %g s; gains %s",
-                 robot.name, m.nbody, m.ngeom, timestep,
+                 robot.name, m.nbody, m.ngeom, TIMESTEP,
                  {n: (round(g.kp, 1), round(g.kv, 1)) for n, g in zip(self.joint_names,
                                                                        self.gains)})
 
@@ -331,23 +324,19 @@ class SimArduinobot(Robot):
         self._qdd_ref: np.ndarray | None = None
         self._jerk: np.ndarray | None = None
         self.data.ctrl[self._act] = servo_ctrl(q, None, self.gains)
-        self.reset_stats()
-
-    # -- simulation figures ------------------------------------------------------------
-    def reset_stats(self) -> None:
         self._peak = np.zeros(len(self.joint_names))
         self._peak_ff = np.zeros(len(self.joint_names))
         self._saturated = 0
         self._contacts: set[tuple[str, str]] = set()
         self._contact_steps = 0
         self._steps = 0
-        self._t0 = float(self.data.time)
 
+    # -- simulation figures ------------------------------------------------------------
     def stats(self) -> SimStats:
         return SimStats(tuple(map(float, self._peak)), tuple(map(float, self._peak_ff)),
                         tuple(map(float, self.effort)),
                         self._saturated, tuple(sorted(self._contacts)), self._contact_steps,
-                        self._steps, float(self.data.time) - self._t0)
+                        self._steps, float(self.data.time))  # 0 at reset
 
     def contacts_now(self) -> list[tuple[str, str]]:
         """Body pairs in contact in the current state."""
