@@ -30,7 +30,6 @@ import threading
 import time
 import weakref
 from collections import Counter, deque
-from collections.abc import Callable
 from typing import Any
 
 from planner.codes import Code
@@ -112,9 +111,11 @@ class WorkerPool:
         except ZygoteError as e:
             self.close()
             raise PoolStartError(str(e)) from None
-        for slot in self._slots:
-            self._spawn_thread(slot.run, name=f"pool-slot-{slot.index}")
-        self._spawn_thread(self._watch, name="pool-deadlines")
+        targets = [(s.run, f"pool-slot-{s.index}") for s in self._slots]
+        for target, name in [*targets, (self._watch, "pool-deadlines")]:
+            t = threading.Thread(target=target, name=name, daemon=True)
+            t.start()
+            self._threads.append(t)
 
     def close(self, *, grace: float = 2.0) -> None:
         """Refuse new jobs and answer waiting ones SHUTTING_DOWN, give running ones
@@ -246,11 +247,6 @@ class WorkerPool:
         if len(self._heap) > len(self._jobs) + _HEAP_SLACK:
             self._heap = [e for e in self._heap if _waiting(e)]
             heapq.heapify(self._heap)
-
-    def _spawn_thread(self, target: Callable[..., None], *args: Any, name: str) -> None:
-        t = threading.Thread(target=target, args=args, name=name, daemon=True)
-        t.start()
-        self._threads.append(t)
 
     def _watch(self) -> None:
         while self._answer_expired():

@@ -172,8 +172,7 @@ class Slot:
         """The slot's thread: until the pool stops."""
         q = self._queue
         while True:
-            if self.worker is not None and self._workers.live_pid(self.worker) is None \
-                    and not q.stopping:
+            if self.worker is not None and self.live_pid() is None and not q.stopping:
                 how = self._workers.retire(self.worker, kill=False)
                 self.worker = None
                 q.count("worker_crashes")
@@ -215,10 +214,7 @@ class Slot:
         taken, outcome, stop = False, None, None
         try:
             w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline))
-            while outcome is None:
-                stop = self._why_stop(job, w)
-                if stop is not None:
-                    break
+            while outcome is None and (stop := self._why_stop(job, w)) is None:
                 if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
                     continue
                 msg = receive(w.conn)
