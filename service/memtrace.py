@@ -21,6 +21,7 @@ import logging
 import os
 import threading
 import tracemalloc
+from collections import Counter
 from collections.abc import Callable, Mapping
 
 from .slot import rss_bytes
@@ -57,12 +58,6 @@ def malloc_heap() -> tuple[int, int] | None:
     return m.uordblks + m.hblkhd, m.fordblks
 
 
-def malloc_trim() -> bool:
-    """Ask glibc to return free heap memory to the system; False if unavailable."""
-    fn = getattr(_LIBC, "malloc_trim", None)
-    return False if fn is None else bool(fn(0))
-
-
 def rss_kinds() -> dict[str, int]:
     """This process's resident set by kind [bytes]: ``anon`` (heaps, stacks), ``file``
     (code, mapped files), ``shmem`` (shared memory, e.g. Zenoh's SHM pools)."""
@@ -74,11 +69,8 @@ def rss_kinds() -> dict[str, int]:
 
 def count_live(types: tuple[type, ...]) -> dict[str, int]:
     """How many instances of each of ``types`` the garbage collector tracks."""
-    out = dict.fromkeys((t.__name__ for t in types), 0)
-    for o in gc.get_objects():
-        if type(o) in types:
-            out[type(o).__name__] += 1
-    return out
+    live = Counter(type(o).__name__ for o in gc.get_objects() if type(o) in types)
+    return {t.__name__: live[t.__name__] for t in types}
 
 
 class MemTrace:
@@ -87,7 +79,7 @@ class MemTrace:
     Args:
         every: seconds between probes [s].
         counts: called at each probe; its numbers (e.g. live jobs) are logged too.
-        trim: call ``malloc_trim(0)`` at each probe and log what it returned.
+        trim: call ``malloc_trim(0)`` at each probe and log the resident set after it.
     """
 
     def __init__(self, every: float, *, counts: Callable[[], Mapping[str, int]] | None = None,
@@ -144,7 +136,8 @@ class MemTrace:
         rss, kinds = rss_bytes(os.getpid()), rss_kinds()
         trimmed = ""
         if self.trim:
-            malloc_trim()
+            if hasattr(_LIBC, "malloc_trim"):  # glibc returns free heap memory to the system
+                _LIBC.malloc_trim(0)
             trimmed = f" -> {rss_bytes(os.getpid()) / _MIB:.1f} MiB after malloc_trim"
         _log.info("memtrace: rss %.1f MiB (%s)%s, traced %.1f MiB, malloc in use %s, "
                   "free %s; %s", rss / _MIB,
