@@ -2,7 +2,7 @@
 
 A request goes through the same steps as in a worker: encoded and decoded by
 :mod:`service.wire` (schema, caps, finiteness), checked against the robot and answered by
-:class:`service.handlers.Handlers`; the limits come from :mod:`service.bodies`, as in the
+:class:`service.handlers.Handlers`; the description from :mod:`service.bodies`, as the
 ``<p>/description`` reply. Imports neither Zenoh nor the server nor the worker pool.
 """
 
@@ -14,7 +14,7 @@ from typing import Any
 from description import Description
 
 from . import wire
-from .bodies import description_body, limits_body
+from .bodies import description_body
 from .handlers import Handlers
 
 #: the ``request_id`` of every local reply (a worker puts its job id there)
@@ -37,10 +37,6 @@ class LocalService:
         """
         data = wire.decode(kind, wire.encode(req))
         return {**self._handlers.handle(kind, data), "request_id": LOCAL_REQUEST_ID}
-
-    def limits(self) -> dict[str, dict[str, float | None]]:
-        """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort."""
-        return limits_body(self._description)
 
     def description(self) -> dict[str, Any]:
         """The ``<p>/description`` reply the service would give."""

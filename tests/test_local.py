@@ -47,10 +47,11 @@ def test_bad_requests_raise_the_services_coded_errors(local: LocalService) -> No
     assert lim.value.details["field"] == "joints.joint_2"
 
 
-def test_limits_and_description_are_the_description_replys(local: LocalService) -> None:
+def test_the_description_reply_limits_every_actuated_joint(local: LocalService) -> None:
     desc = local.description()
-    assert desc["limits"] == local.limits()
-    assert set(local.limits()) == set(desc["actuated_joints"])
+    assert set(desc["limits"]) == set(desc["actuated_joints"])
+    assert {k for lim in desc["limits"].values() for k in lim} == {
+        "lower", "upper", "velocity", "acceleration", "jerk", "effort"}
 
 
 def test_local_cli_loads_neither_zenoh_nor_the_server() -> None:
