@@ -158,13 +158,16 @@ class Verifier:
     def limit_states(self, traj: JointTrajectory
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """(times, q, qd, qdd, stride) on a uniform time grid for the limits alone
-        (collisions proven otherwise): a step of 1% of the shortest time any joint needs to
-        change its velocity or acceleration by its full limit (``v/a``, ``a/j``), at least
-        0.25 ms and at most the sample interval. Between two grid states a velocity or
-        acceleration that keeps the next limit can pass its grid maximum by at most 0.5% of
-        its own limit (half a step at the next limit's rate). Joints the trajectory never
-        moves (a closed gripper during an arm motion) have nothing to resolve and do not
-        set the step.
+        (collisions proven otherwise), fine enough that between two grid states each
+        velocity and acceleration passes its grid maximum by at most 0.5% of its limit.
+
+        An acceleration that keeps the jerk limit ``j`` moves at most ``h j / 2`` past
+        its grid values in a step ``h``, so ``h`` is at most 1% of the shortest ``a/j``
+        (at least 0.25 ms, at most the sample interval). A velocity moves at most
+        ``h A / 2`` past them, ``A`` the joint's peak acceleration: its grid maximum plus
+        ``h j / 2``, at most the limit ``a``. ``h`` is also at most ``1% v / A``; where
+        the first grid is coarser than that, it is refined. Joints the trajectory never
+        moves (a closed gripper during an arm motion) have nothing to resolve.
 
         Effort (``M(q) qdd + c(q, qd) + g(q)``) changes at the rate of acceleration, so
         every ``stride``-th state (and the last) suffices for it: a step of 1% of the
@@ -176,8 +179,9 @@ class Verifier:
         lim = self.limits
         moving = np.any(np.asarray(traj.velocities) != 0.0, axis=0) | (
             np.ptp(np.asarray(traj.positions), axis=0) > 0.0)
-        va = (np.asarray(lim.velocity, float) / np.asarray(lim.acceleration, float))[moving]
-        aj = (np.asarray(lim.acceleration, float) / np.asarray(lim.jerk, float))[moving]
+        vel = np.asarray(lim.velocity, float)[moving]
+        acc = np.asarray(lim.acceleration, float)[moving]
+        jerk = np.asarray(lim.jerk, float)[moving]
         h_samples = float(np.max(np.diff(traj.times))) if len(traj.times) > 1 else traj.duration
 
         def step(rise: np.ndarray) -> float:
@@ -185,11 +189,21 @@ class Verifier:
             h = 0.01 * float(rise.min()) if len(rise) else h_samples
             return min(max(h, 2.5e-4), h_samples)
 
-        h = step(np.concatenate([va, aj]))
-        n = max(2, int(math.ceil(traj.duration / h)) + 1)
-        t = np.linspace(0.0, traj.duration, n)
-        stride = max(1, int(step(aj) / (traj.duration / (n - 1))))
-        return (t, *traj.evaluate(t), stride)
+        def grid(h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            n = max(2, int(math.ceil(traj.duration / h)) + 1)
+            t = np.linspace(0.0, traj.duration, n)
+            return (t, *traj.evaluate(t))
+
+        h_acc = step(acc / jerk)
+        t, q, qd, qdd = grid(h_acc)
+        h = traj.duration / (len(t) - 1)
+        peak = np.minimum(acc, np.max(np.abs(qdd[:, moving]), axis=0) + 0.5 * h * jerk)
+        with np.errstate(divide="ignore"):
+            h_vel = step(vel / peak)
+        if h_vel < h:
+            t, q, qd, qdd = grid(h_vel)
+        stride = max(1, int(h_acc / (traj.duration / (len(t) - 1))))
+        return t, q, qd, qdd, stride
 
     def _thin(self, t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         # the states of (t, q) to collision-check: consecutive ones at most ``step`` apart
