@@ -100,30 +100,39 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
     def __call__(self, path_positions: float | np.ndarray, order: int = 0) -> np.ndarray:
         """``order``-th derivative (0..3) at ``path_positions``: shape (m, dof) or (dof,)."""
         scalar = np.ndim(path_positions) == 0
-        s = np.clip(np.atleast_1d(np.asarray(path_positions, float)), 0.0, self.length)
-        k = np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.lengths) - 1)
-        out = self.in_piece(k, s - self.s0[k], order)
+        out = self.in_piece(*self.locate(np.atleast_1d(path_positions)), order)
         return out[0] if scalar else out
+
+    def locate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(piece, position into it [rad]) of each ``s`` (shape (m,), clamped to the
+        curve): the arguments of :meth:`in_piece` and :meth:`jet`."""
+        s = np.clip(np.asarray(s, float), 0.0, self.length)
+        k = np.clip(np.searchsorted(self.s0, s, side="right") - 1, 0, len(self.lengths) - 1)
+        return k, s - self.s0[k]
 
     def in_piece(self, k: np.ndarray, sigma: np.ndarray, order: int = 0) -> np.ndarray:
         """``order``-th derivative (0..3) at ``sigma`` [rad] into piece ``k`` (each shape
         (m,), sigma clamped to the piece), shape (m, dof): a piece's end stays its own."""
+        if not 0 <= order <= 3:
+            raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
+        return self.jet(k, sigma, order)[order]
+
+    def jet(self, k: np.ndarray, sigma: np.ndarray, upto: int = 3) -> tuple[np.ndarray, ...]:
+        """The derivatives of order 0..``upto`` at ``sigma`` [rad] into piece ``k``, as in
+        :meth:`in_piece` but sharing the piece lookups (what evaluating a timing needs)."""
         L = self.lengths[k]
         sigma = np.clip(sigma, 0.0, L)
         x = np.where(L > 0, sigma / np.where(L > 0, L, 1.0), 0.0)[:, None]
         Lc = L[:, None]
         # a zero-length piece (start == goal) has no curvature: its derivatives are 0
         inv_l = np.where(Lc > 0, 1.0 / np.where(Lc > 0, Lc, 1.0), 0.0)
-        du = self.u2[k] - self.u1[k]
-        if order == 0:
-            return self.starts[k] + self.u1[k] * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4)
-        if order == 1:
-            return self.u1[k] + du * (3 * x**2 - 2 * x**3)
-        if order == 2:
-            return du * (6 * x - 6 * x**2) * inv_l
-        if order == 3:
-            return du * (6 - 12 * x) * inv_l**2
-        raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
+        u1 = self.u1[k]
+        du = self.u2[k] - u1
+        out = [self.starts[k] + u1 * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4),
+               u1 + du * (3 * x**2 - 2 * x**3),
+               du * (6 * x - 6 * x**2) * inv_l,
+               du * (6 - 12 * x) * inv_l**2]
+        return tuple(out[:upto + 1])
 
     def dense(self, step: float, s_from: float = 0.0, s_to: float | None = None) -> np.ndarray:
         """States along [s_from, s_to] no more than ``step`` [rad] apart per joint, (m, dof)."""

@@ -114,7 +114,7 @@ class JerkLimitedTiming:
         own = np.repeat(np.arange(n), counts)
         # each sample evaluated inside its own piece (by s, a piece's end is the next's start)
         sigma = np.concatenate([np.linspace(0.0, L, m) for L, m in zip(curve.lengths, counts)])
-        q, d1, d2, d3 = (curve.in_piece(own, sigma, order) for order in range(4))
+        q, d1, d2, d3 = curve.jet(own, sigma)
         mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
         V, A, J, E = limits.velocity, limits.acceleration, limits.jerk, limits.effort
         d1, d2, d3, mt, bt, gt = (np.abs(x) for x in (d1, d2, d3, mt, bt, gt))

@@ -79,10 +79,9 @@ class CurveTiming:
             if not m.any():
                 continue
             s, sd, sdd = prof.evaluate(ts[m] - self.t0[i])
-            d1 = curve(s, 1)
-            q[m] = curve(s, 0)
+            q[m], d1, d2 = curve.jet(*curve.locate(s), 2)
             qd[m] = d1 * sd[:, None]
-            qdd[m] = d1 * sdd[:, None] + curve(s, 2) * (sd * sd)[:, None]
+            qdd[m] = d1 * sdd[:, None] + d2 * (sd * sd)[:, None]
         # The final state is exact: the goal, at rest (not the curve formula's rounding).
         end = ts >= self.duration
         q[end] = self.goal
