@@ -17,7 +17,7 @@ import json
 import logging
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import orjson
 import zenoh
@@ -41,7 +41,6 @@ class PlannerClient:
         endpoints: where to connect (a service listening, or a router).
         prefix: the service's key prefix.
         timeout: seconds to wait for a reply (plans add their planning_time).
-        mode: the client's Zenoh mode (``client`` needs a reachable endpoint).
         config_file: a zenoh JSON5 config (TLS, credentials); options here override it.
         spread: send each request to the least loaded live instance, and to another
             one if it has gone or is BUSY.
@@ -52,14 +51,12 @@ class PlannerClient:
 
     def __init__(self, endpoints: Sequence[str] | str = (DEFAULT_ENDPOINT,), *,
                  prefix: str = DEFAULT_PREFIX, timeout: float = 60.0,
-                 mode: Literal["client", "peer"] = "client", config_file: str | Path | None = None,
-                 spread: bool = False) -> None:
+                 config_file: str | Path | None = None, spread: bool = False) -> None:
         self.endpoints = [endpoints] if isinstance(endpoints, str) else list(endpoints)
         self.prefix, self.timeout, self.spread = prefix, float(timeout), spread
         try:
-            self.session = zenoh.open(zenoh_config(mode=mode, connect=self.endpoints,
-                                                   listen=[] if mode == "client" else None,
-                                                   config_file=config_file))
+            self.session = zenoh.open(zenoh_config(mode="client", connect=self.endpoints,
+                                                   listen=[], config_file=config_file))
         except zenoh.ZError as e:
             raise ServiceUnavailable(
                 f"cannot reach {', '.join(self.endpoints)}: {e}; {_HINT}",

@@ -83,7 +83,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
 
     from .cmd_execute import robot_spec
     from .execute_service import execute_extension
-    from .robots import RobotError
+    from .robots.base import RobotError
 
     if ns.file and ns.description_path:
         raise UsageError("give the model as FILE or --description, not both")

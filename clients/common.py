@@ -11,9 +11,12 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Protocol
 
 from description import Description, DescriptionError, load_description
+from planner.errors import PlanningError
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX
 
 from .argtypes import UsageError, xacro_arg
+from .errors import ServiceError, ServiceUnavailable
+from .robots.base import RobotError
 
 if TYPE_CHECKING:
     from .client import PlannerClient
@@ -75,12 +78,6 @@ def model_options(ns: argparse.Namespace) -> dict[str, object]:
             "joint_limits": ns.joint_limits}
 
 
-def model_chosen(ns: argparse.Namespace) -> bool:
-    """True if any model option (FILE included) was given."""
-    return bool(getattr(ns, "file", None) or ns.package_dir or ns.arg or ns.moveit_config
-                or ns.srdf or ns.joint_limits)
-
-
 def load_from_args(ns: argparse.Namespace) -> Description:
     """The model of FILE (or --description) and the model options, loaded once per
     command: the request, the robot and a simulation of one command share it."""
@@ -122,7 +119,7 @@ def connect(ns: argparse.Namespace, *, model_drives_robot: bool = False) -> Iter
         from service.local import LocalService
         yield LocalService(load_from_args(ns))  # type: ignore[misc]
         return
-    if model_chosen(ns) and not model_drives_robot:
+    if not model_drives_robot and (getattr(ns, "file", None) or any(model_options(ns).values())):
         raise UsageError("FILE, --package-dir, --arg, --moveit-config, --srdf and "
                          "--joint-limits choose the model for --local; the service plans "
                          "for the model it serves")
@@ -150,10 +147,6 @@ def run_guarded(ns: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     and the exit code: a usage error as argparse's (2, through ``parser``), no service (3),
     a coded error of the service, the planner or a robot (1, with its details), a model
     that does not load (1)."""
-    from planner.errors import PlanningError
-
-    from .errors import ServiceError, ServiceUnavailable
-    from .robots import RobotError
     try:
         return ns.func(ns)
     except UsageError as e:

@@ -42,6 +42,8 @@ from service import wire
 from service.keyguard import addressed_exactly
 from service.messages import Failure, Outcome
 
+from .robots.base import RobotError
+
 _log = logging.getLogger(__name__)
 
 JSON = "application/json"
@@ -63,7 +65,6 @@ class RobotSpec:
         port, baud: the serial port (None: the URDF's ros2_control ``port``) and baud.
         rate: control rate [Hz].
         boot_wait: [s] to wait after opening the port (the Arduino resets).
-        realtime: pace the twin in real time (always for the real arm).
     """
 
     kind: Literal["sim", "serial", "none"] = "sim"
@@ -71,7 +72,6 @@ class RobotSpec:
     baud: int | None = None
     rate: float = 100.0
     boot_wait: float = 2.0
-    realtime: bool = True
 
     def open(self, description: Any, *, obstacles: Sequence[Mapping[str, Any]] = ()) -> Any:
         """The driver: the real arm (its port opened) or the twin among ``obstacles``.
@@ -86,7 +86,6 @@ class RobotSpec:
         if self.kind == "sim":
             from .robots.sim_arduinobot import SimArduinobot
             return SimArduinobot(description, obstacles=obstacles)
-        from .robots import RobotError
         raise RobotError("this service drives no robot (serve --no-robot)")
 
 
@@ -100,7 +99,6 @@ def _reply_err(query: zenoh.Query, code: str, message: str,
 def _answering(query: zenoh.Query, where: str, internal: str) -> Iterator[None]:
     """A coded error (planner or robot) in the block answers ``query`` as itself; any
     other is logged and answered INTERNAL with the message ``internal``."""
-    from .robots import RobotError
     try:
         yield
     except (PlanningError, RobotError) as e:
@@ -171,11 +169,9 @@ class ExecuteService:
         with self._robot_lock:
             if self._robot is None:
                 from .execute import ExecuteOptions, Executor
-                sp = self.spec
-                self._robot = sp.open(self.description)
-                self._executor = Executor.for_description(
-                    self._robot, self.description, options=ExecuteOptions(
-                        rate=sp.rate, realtime=sp.realtime or sp.kind == "serial"))
+                self._robot = self.spec.open(self.description)
+                self._executor = Executor.for_description(  # in real time, the twin too
+                    self._robot, self.description, options=ExecuteOptions(rate=self.spec.rate))
             return self._robot
 
     # -- queries --------------------------------------------------------------------------

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from clients.execute import ExecuteOptions, Executor
-from clients.robots import PortBusy, PortNotFound, UnsupportedRobot
+from clients.robots.base import PortBusy, PortNotFound, UnsupportedRobot
 from clients.robots.serial_arduinobot import SerialArduinobot, hardware_params
 from clients.segments import SampledTrajectory
 from description import load_description

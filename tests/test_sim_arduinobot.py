@@ -166,7 +166,7 @@ def test_the_course_workspace_twin_and_port(course_ws):
     """The course's own packages: its controllers yaml (position-commanded, so its PID
     gains do not apply) is found, the twin holds the arm, and the serial port comes from
     the real-robot ros2_control block."""
-    from clients.robots import PortNotFound
+    from clients.robots.base import PortNotFound
     from clients.robots.serial_arduinobot import SerialArduinobot
     from clients.robots.sim_arduinobot import find_controllers_yaml
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src])

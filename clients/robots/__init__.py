@@ -4,17 +4,3 @@ a serial driver for the real arduinobot and a MuJoCo twin.
 Nothing here is imported by the core; :mod:`serial` and :mod:`mujoco` are imported only
 by the driver that needs them.
 """
-
-from .base import (
-    InvalidSetpoint,
-    JointState,
-    PortBusy,
-    PortError,
-    PortNotFound,
-    Robot,
-    RobotError,
-    UnsupportedRobot,
-)
-
-__all__ = ["InvalidSetpoint", "JointState", "PortBusy", "PortError", "PortNotFound", "Robot",
-           "RobotError", "UnsupportedRobot"]
