@@ -1,14 +1,8 @@
 """The Zenoh service: queryables under a prefix, a liveliness token, a worker pool.
 
-Keys (``<p>`` is the prefix, default ``arduinobot``; ``<id>`` the instance's zenoh id):
-
-- ``<p>/plan``, ``<p>/fk``, ``<p>/ik``, ``<p>/check``: JSON requests, answered by the pool;
-- ``<p>/description``, ``<p>/health``, ``<p>/schema``: answered at once;
-- the same under ``<p>/instance/<id>/...``, so a client can address one instance;
-- the liveliness token ``<p>/alive/<id>``, so clients discover live instances.
-
-Shared keys are declared complete: a plain ``get`` reaches one instance and, once an
-instance dies, the others.
+The keys and their replies: the README's key table. The work kinds (:data:`WORK_KINDS`)
+are answered by the pool, the others at once; each is declared complete under
+``<p>/<kind>`` (shared) and ``<p>/instance/<id>/<kind>`` (this instance only).
 """
 
 from __future__ import annotations
@@ -108,7 +102,6 @@ class PlannerService:
         self.instance = ""
         self._entities: list[Any] = []  # per-instance queryables, liveliness token
         self._shared: list[Any] = []  # queryables on the shared keys
-        self._draining = False
         self._ids = itertools.count(1)
         self._started = time.monotonic()
         self._static: dict[str, bytes] = {}
@@ -170,7 +163,6 @@ class PlannerService:
             with contextlib.suppress(zenoh.ZError):  # already gone with the session
                 e.undeclare()
         self._entities.clear()
-        self._draining = True
         if self.pool is not None:
             self.pool.close(grace=self.options.grace)
             self.pool = None
@@ -217,7 +209,7 @@ class PlannerService:
         request_id = f"{self.instance[:8]}-{next(self._ids)}"
         pool = self.pool
         try:
-            if self._draining or pool is None:
+            if pool is None:  # closed (a closing pool answers SHUTTING_DOWN itself)
                 raise ShuttingDown(SHUTTING_DOWN)
             zb = query.payload
             if zb is not None and len(zb) > wire.MAX_PAYLOAD:  # refuse before copying it
