@@ -14,10 +14,9 @@ One parent thread per slot feeds its worker over a socket and watches it
   it died before taking the job: then the job goes back to the head of the queue, once;
 - an idle worker's death is reported by the zygote at once and the slot re-forks.
 
-This module keeps the jobs: the queue, the waiting jobs' deadlines, the counters.
-Past ``queue_size`` waiting jobs, ``submit`` refuses at once (BUSY, with a retry hint).
-On :meth:`close`, waiting jobs get SHUTTING_DOWN at once and running ones ``grace``
-seconds to finish. Replies are sent from these threads, never from Zenoh's.
+This module keeps the jobs: the queue, the waiting jobs' deadlines, the counters. A
+queued job's reply is sent from the pool's threads (or :meth:`WorkerPool.close`'s
+caller), never from Zenoh's; only :meth:`WorkerPool.submit`'s refusals are sent at once.
 """
 
 from __future__ import annotations

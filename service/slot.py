@@ -1,9 +1,6 @@
-"""The pool's workers: the zygote that forks them, and one slot thread per worker that
-feeds it jobs, watches it (deadline, memory cap, death), kills and replaces it (what
-the job is answered in each case: :mod:`service.pool`).
-
-:class:`Workers` owns the zygote and knows which forked workers are alive (the zygote
-reports every exit at once, so an idle worker's death is noticed without a job).
+"""The pool's workers: the zygote that forks them (:class:`Workers`), and one slot thread
+per worker that feeds it jobs, watches it (deadline, memory cap, death), kills and
+replaces it (what the job is answered in each case: :mod:`service.pool`).
 """
 
 from __future__ import annotations
@@ -58,7 +55,8 @@ class JobQueue(Protocol):
 
 
 class Workers:
-    """The zygote and the live workers' pids, guarded by the pool's condition.
+    """The zygote and the live workers' pids, guarded by the pool's condition (the zygote
+    reports every exit at once, so an idle worker's death is noticed without a job).
 
     Args:
         ctx, spec: as for :class:`~service.zygote.Zygote`.

@@ -1,10 +1,8 @@
 """A worker process's job loop: decode, validate and answer jobs sent over a socket.
 
-Workers are forked, already warm, from :mod:`service.zygote` (which builds the model
-once); :func:`serve_jobs` is what each fork runs. Validation runs here, not on the
-serving process's Zenoh thread, so a request that is slow to validate holds one worker
-until its deadline (then the worker is killed and replaced), never the whole service.
-What crosses the socket, and in which order: :mod:`service.messages`.
+:func:`serve_jobs` is what each fork of :mod:`service.zygote` runs (why validation runs
+here: :meth:`service.server.PlannerService._on_query`); what crosses the socket, and in
+which order: :mod:`service.messages`.
 """
 
 from __future__ import annotations
