@@ -12,7 +12,7 @@ import sys
 import threading
 import uuid
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -142,9 +142,9 @@ def cmd_execute(ns: argparse.Namespace) -> int:
     from .replies import PlanReply
     from .segments import SampledTrajectory
     desc = load_from_args(ns)
-    robot = robot_spec(ns).open(desc, obstacles=(req or {}).get("obstacles", []))
-    session = None
-    try:
+    with ExitStack() as held:  # the robot and the joint_states session, closed at the end
+        robot = held.enter_context(robot_spec(ns).open(
+            desc, obstacles=(req or {}).get("obstacles", [])))
         if req is not None:
             if "start" not in req:  # plan from where the robot is
                 req["start"] = plan_start(robot, desc)
@@ -153,9 +153,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
             traj = SampledTrajectory.from_json(res.raw)
         else:
             traj = SampledTrajectory.load(ns.trajectory)
-        publish = None
-        if not ns.no_publish:
-            session, publish = _publisher(ns)
+        publish = None if ns.no_publish else _publisher(ns, held)
         cancel = threading.Event()
         opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
                               move_to_start=ns.move_to_start, realtime=ns.realtime)
@@ -169,24 +167,20 @@ def cmd_execute(ns: argparse.Namespace) -> int:
         if ns.sim:
             summary["simulation"] = robot.stats().to_dict()
         return _report(ns, summary)
-    finally:
-        robot.close()
-        if session is not None:
-            session.close()
 
 
-def _publisher(ns: argparse.Namespace) -> tuple[Any, Any]:
-    """A client session and a joint_states publisher, or (None, None) with a warning when
-    no zenoh peer is reachable."""
+def _publisher(ns: argparse.Namespace, held: ExitStack) -> Any:
+    """A joint_states publisher on a client session ``held`` closes, or None with a
+    warning when no zenoh peer is reachable."""
     from .errors import ServiceUnavailable
     from .joint_states import JointStatePublisher
     try:
-        c = client(ns)
+        c = held.enter_context(client(ns))
     except ServiceUnavailable as e:
         log.warning("not publishing %s/joint_states: %s; --no-publish silences this",
                     ns.prefix, e.message)
-        return None, None
-    return c, JointStatePublisher(c.session, ns.prefix)
+        return None
+    return JointStatePublisher(c.session, ns.prefix)
 
 
 @contextmanager
