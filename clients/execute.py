@@ -7,16 +7,9 @@ when the loop runs late (a loaded machine), the next setpoints go out at once, s
 sequence of setpoints is always the trajectory's. With ``realtime=False`` (simulation
 only) no wall clock paces the ticks.
 
-- Before moving, the robot must be within ``start_tolerance`` [rad] of the trajectory's
-  first point (:class:`NotAtStart` otherwise); ``move_to_start`` first plays a
-  jerk-limited ruckig move there (a straight line in joint space, not collision-checked).
-- Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
-  the next tick to a jerk-limited stop within every limit, on the planned path when it
-  can (:func:`clients.stops.choose_stop`).
-- Every tick goes to ``on_tick`` (e.g. the ``<prefix>/joint_states`` publisher).
-- A new goal while moving: a plan from the setpoint :meth:`Executor.lookahead` gives (a
-  moving start, :mod:`planner.planning.moving_start`) takes over at that tick through
-  :meth:`Executor.switch`, without a jump in position, velocity or acceleration.
+Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
+the next tick to a stop within every limit (:func:`clients.stops.choose_stop`). A new goal
+while moving takes over through :meth:`Executor.lookahead` and :meth:`Executor.switch`.
 """
 
 from __future__ import annotations
@@ -70,7 +63,8 @@ class ExecuteOptions:
     Attributes:
         rate: control rate [Hz].
         start_tolerance: largest allowed |robot - trajectory start| per joint [rad].
-        move_to_start: move there first (jerk-limited) instead of refusing.
+        move_to_start: move there first (jerk-limited, a straight line in joint space:
+            not collision-checked) instead of refusing (:class:`NotAtStart`).
         move_scaling: velocity, acceleration and jerk scaling of that move, in (0, 1].
         realtime: pace ticks by the wall clock (hardware always is).
         settle: after the last setpoint, hold it for up to this long [s] while any

@@ -165,9 +165,8 @@ class SampledTrajectory:
 
     @classmethod
     def from_json(cls, body: object) -> SampledTrajectory:
-        """From a plan reply or a JointTrajectory dict
-        (:func:`parse_trajectory`); missing velocities or
-        accelerations are 0."""
+        """From a plan reply or a JointTrajectory dict (:func:`parse_trajectory`); missing
+        velocities or accelerations are 0."""
         names, times, cols = parse_trajectory(body)
         return cls(names, times, cols["positions"],
                    *(np.nan_to_num(cols[k], nan=0.0) for k in ("velocities", "accelerations")))

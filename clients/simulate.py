@@ -32,11 +32,9 @@ class SimulationReport:
         duration: [s] of the trajectory.
         tracking_error: per joint, max |simulated - commanded| [rad] while it plays.
         final_error: per joint, |simulated - goal| [rad] after settling.
-        peak_force, effort: per joint, max |actuator force| and its limit [N m].
-        peak_need: per joint, max |torque| the trajectory itself needs (MuJoCo's inverse
-            dynamics of the commanded motion, before feedback) [N m].
-        saturated_steps, steps: physics steps with an actuator at its limit, and all.
-        contacts: body pairs (links, ``obstacle:<id>``) that touched; contact_steps.
+        peak_force, peak_need, effort, saturated_steps, steps, contacts, contact_steps:
+            the twin's :class:`~clients.robots.sim_arduinobot.SimStats` of the replay
+            (``peak_need`` is its ``peak_feedforward``) [N m].
         times (m,) [s], commanded and simulated positions (m, dof) [rad].
     """
 

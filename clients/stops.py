@@ -40,7 +40,6 @@ def choose_stop(seg: Segment, s: float, cur: tuple[np.ndarray, np.ndarray, np.nd
        the position limits.
     4. ``finish`` otherwise.
     """
-    lim = limits
     dec = 8.0
     for _ in range(10):
         ps = PathStop(seg, s, dec, dec / 0.05)
@@ -51,22 +50,21 @@ def choose_stop(seg: Segment, s: float, cur: tuple[np.ndarray, np.ndarray, np.nd
         dec *= 0.7
     q, qd, qdd = cur
     js = effort_safe(lambda f: stop_segment(
-        seg.joint_names, q, qd, qdd, velocity=lim.velocity,
-        acceleration=np.maximum(f * lim.acceleration, np.abs(qdd)), jerk=f * lim.jerk),
+        seg.joint_names, q, qd, qdd, velocity=limits.velocity,
+        acceleration=np.maximum(f * limits.acceleration, np.abs(qdd)), jerk=f * limits.jerk),
         limits, torques)
     lo, hi = js.position_extrema()
-    if np.all(lo >= lim.lower - 1e-9) and np.all(hi <= lim.upper + 1e-9):
+    if np.all(lo >= limits.lower - 1e-9) and np.all(hi <= limits.upper + 1e-9):
         return "joint", js
     log.warning("no stop within the limits leaves the path early: finishing the motion")
     return "finish", RestOf(seg, s)
 
 
-def within_limits(seg: Segment, limits: JointLimits, torques: TorqueFn | None, *,
+def within_limits(seg: Segment, lim: JointLimits, torques: TorqueFn | None, *,
                   step: float = 1e-3) -> bool:
     """Whether ``seg`` keeps positions, velocities, accelerations, jerks (finite
-    differences) and, given the inverse dynamics, efforts within the limits on
+    differences) and, given the inverse dynamics, efforts within the limits ``lim`` on
     ``step`` [s] samples."""
-    lim = limits
     ts = np.linspace(0.0, seg.duration, max(3, int(math.ceil(seg.duration / step)) + 1))
     q, qd, qdd = (np.array(x) for x in zip(*(seg.evaluate(t) for t in ts)))
     h = ts[1] - ts[0]
