@@ -142,6 +142,10 @@ class JerkLimitedTiming:
         for _ in range(30):
             w = v[own][:, None]
             a = np.minimum(least(A - d2 * w * w, d1), least(slack_e - bt * w * w, mt))
+            # a blend's jerk has a term 3 q'' sd sdd: sdd at its bound would leave a
+            # sharp blend almost no speed, yet a blend mostly cruises; so sdd keeps only
+            # what leaves half the jerk budget to sddd, and the speed stays high
+            a = np.where(line, a, np.minimum(a, least(0.5 * (J - d3 * w**3), 3 * d2 * w)))
             j = np.where(a > 0, least(J - 3 * d2 * w * np.maximum(a, 0)[own][:, None]
                                       - d3 * w**3, d1), -1.0)
             ok = ~done & (a > 0) & (j > 0) & (line | (j > 0.25 * j_free))
