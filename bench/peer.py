@@ -22,7 +22,9 @@ problems (at least half needing a detour). Per robot:
   ``timing``) and verification's share; the certified minimum clearance (the reply's
   ``verification.min_clearance``); trajectory durations: ours (jerk-limited, returned),
   toppra's time-optimal on the same reply path (in-process, ``MotionPlanner.time_path``
-  on the reply's waypoints), their ratio (issue target <= 1.2), MPlib's;
+  on the reply's waypoints), their ratio (issue target <= 1.2), MPlib's; and the jerk
+  floor (:func:`jerk_floor`), a lower bound on any jerk-limited motion of the path: where
+  it is itself over 1.2x toppra, no jerk-limited timing can meet the target;
 - every returned trajectory, ours and MPlib's, re-checked independently
   (bench/recheck.py) at 0.002 rad: ours from the reply's samples (bench/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
@@ -133,6 +135,31 @@ def run_service(model: PeerModel, probs_of: dict[str, list], names: tuple[str, .
     return out, desc
 
 
+def jerk_floor(path: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
+               jerk: np.ndarray) -> float:
+    """A lower bound [s] on any jerk-limited motion along ``path`` (shape (k, dof)), rest
+    to rest: each joint covers at least its total travel along the path within its own
+    velocity, acceleration and jerk limits; the slowest joint's fastest such move
+    (ruckig's time-optimal 1-DOF profile, computed offline) bounds the whole motion.
+    Effort and the joints' coupling along the path only make motions slower."""
+    from ruckig import InputParameter, Result, Ruckig, Trajectory
+    travel = np.sum(np.abs(np.diff(np.asarray(path, float), axis=0)), axis=0)
+    otg, floor = Ruckig(1), 0.0
+    for j, d in enumerate(travel):
+        if d <= 0.0:
+            continue
+        inp = InputParameter(1)
+        inp.current_position, inp.target_position = [0.0], [float(d)]
+        inp.max_velocity = [float(velocity[j])]
+        inp.max_acceleration = [float(acceleration[j])]
+        inp.max_jerk = [float(jerk[j])]
+        traj = Trajectory(1)
+        if otg.calculate(inp, traj) != Result.Working:
+            raise RuntimeError(f"ruckig found no 1-DOF profile for joint {j}")
+        floor = max(floor, traj.duration)
+    return floor
+
+
 def toppra_durations(mp: MotionPlanner, replies: dict[str, list], scaling: float
                      ) -> dict[str, list[float | None]]:
     """Toppra's time-optimal duration [s] on each reply's path (None: no timing passed)."""
@@ -229,6 +256,8 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                  if r.verification.min_clearance is not None]
         durs = [r.duration for r in ok]
         ratios = [r.duration / t for r, t in zip(ok, toppra[scene]) if t]
+        floors = [jerk_floor(r.path, lim.velocity, lim.acceleration, lim.jerk) for r in ok]
+        floor_ratios = [f / t for f, t in zip(floors, toppra[scene]) if t]
         obs = obstacle_dicts(list(SCENES[scene]))
         ours_tasks[scene] = [(SampledPositions(r.times, r.positions, r.velocities,
                                                r.accelerations), r.duration, rl, obs,
@@ -245,7 +274,12 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                      "duration_s_median": median(durs),
                      "toppra_duration_s_median": median([t for t in toppra[scene] if t]),
                      "jerk_limited_over_toppra_median": median(ratios),
-                     "jerk_limited_over_toppra_max": max(ratios) if ratios else None},
+                     "jerk_limited_over_toppra_max": max(ratios) if ratios else None,
+                     # no jerk-limited timing can beat the floor: where it is over 1.2x
+                     # toppra, so is every jerk-limited motion of that path
+                     "jerk_floor_over_toppra_median": median(floor_ratios),
+                     "jerk_limited_over_floor_median": median(
+                         [r.duration / f for r, f in zip(ok, floors) if f])},
             "mplib": m,
             "ours_over_mplib_median": ms(walls)["median_ms"] / m["median_ms"]
             if m["median_ms"] else None,
@@ -300,6 +334,9 @@ def report(name: str, res: dict[str, Any]) -> None:
               f"{fmt(o['jerk_limited_over_toppra_median'], '.3f')} max "
               f"{fmt(o['jerk_limited_over_toppra_max'], '.3f')} (target <= 1.2); mplib "
               f"{fmt(m['duration_s_median'], '.3f')}")
+        print(f"      jerk floor (slowest joint's own time-optimal jerk-limited move over its "
+              f"travel) / toppra median {fmt(o['jerk_floor_over_toppra_median'], '.3f')}; "
+              f"ours / floor median {fmt(o['jerk_limited_over_floor_median'], '.3f')}")
         ro, rm = o["recheck"], m["recheck"]
         print(f"    re-check at {res['recheck_step']} rad, trajectories with a collision: ours "
               f"{ro['with_collision']}/{ro['checked']}  mplib {rm['with_collision']}/"
