@@ -26,6 +26,3 @@ def require(module: str) -> ModuleType:
         raise ViewerUnavailable(
             f"the viewer needs '{module.split('.')[0]}', which is not installed "
             f"({e}); install the viewer's extras with: {INSTALL_HINT}") from e
-
-
-__all__ = ["INSTALL_HINT", "ViewerUnavailable", "require"]

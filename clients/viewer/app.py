@@ -123,7 +123,9 @@ class RobotViewer:
                                                (self.lower[i], self.upper[i])))
                 s.on_update(self._slider_moved)
                 sliders[name] = s
-            states = self._named_states()
+            srdf = self.description.srdf
+            states = {label: dict(st.values) for label, st in
+                      srdf.labelled_states().items()} if srdf is not None else {}
             if states:
                 pick = gui.add_dropdown("Named state", ("(choose)",) + tuple(states),
                                         hint="move the sliders to an SRDF named state")
@@ -141,12 +143,6 @@ class RobotViewer:
         with gui.add_folder("Collisions"):
             self._collision_md = gui.add_markdown("")
         return sliders
-
-    def _named_states(self) -> dict[str, Mapping[str, float]]:
-        srdf = self.description.srdf
-        if srdf is None:
-            return {}
-        return {label: dict(st.values) for label, st in srdf.labelled_states().items()}
 
     # -- state -------------------------------------------------------------------------
     @property

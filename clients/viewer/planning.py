@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
+from dataclasses import asdict
 from typing import Protocol
 
 from description import Description
@@ -80,10 +81,7 @@ class RemoteBackend:
 
 
 def obstacle_json(o: Obstacle) -> dict:
-    """An obstacle in the service's wire format."""
-    out: dict = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz), "rpy": list(o.rpy)}
-    for key in ("size", "radius", "length", "mesh_path"):
-        v = getattr(o, key)
-        if v is not None:
-            out[key] = list(v) if isinstance(v, tuple) else v
-    return out
+    """An obstacle in the service's wire format: the fields that are set (but ``where``,
+    the prefix its errors name), tuples as lists."""
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(o).items()
+            if v is not None and k != "where"}

@@ -56,7 +56,10 @@ class PlaybackPanel:
     def _uploaded(self, _event: object) -> None:
         f = self._upload.value
         try:
-            self.load(PlaybackTrajectory.from_json(_json(f.content)), source=f.name)
+            self.load(PlaybackTrajectory.from_json(json.loads(f.content.decode("utf-8"))),
+                      source=f.name)
+        except (UnicodeDecodeError, json.JSONDecodeError) as e:
+            self._info.content = f"**Cannot load {f.name}**: not a JSON file: {e}"
         except TrajectoryFileError as e:
             self._info.content = f"**Cannot load {f.name}**: {e}"
 
@@ -160,10 +163,3 @@ class PlaybackPanel:
         # to the browser that clicked (else to every connected one)
         target = getattr(event, "client", None) or self.viewer.server
         target.send_file_download("trajectory_plots.png", self.png())
-
-
-def _json(content: bytes) -> object:
-    try:
-        return json.loads(content.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise TrajectoryFileError(f"not a JSON file: {e}") from None
