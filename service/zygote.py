@@ -180,15 +180,12 @@ class Zygote:
                                  args=(child, spec, logging.getLogger().level), daemon=True)
         self._proc.start()
         child.close()
-        try:
-            msg = parent.recv()
-        except EOFError:
-            self._proc.join(1.0)
-            raise ZygoteError(f"the worker zygote exited while building the model "
-                              f"(exit code {self._proc.exitcode})") from None
+        msg = receive(parent)  # None: it exited
         if not isinstance(msg, Ready):
             self._proc.join(1.0)
             why = msg.message if isinstance(msg, StartFailed) else repr(msg)
+            if msg is None:
+                why = f"it exited while building the model (exit code {self._proc.exitcode})"
             raise ZygoteError(f"the worker zygote could not start: {why}")
         self._conn: Connection = parent
         self.pid: int = self._proc.pid
