@@ -156,11 +156,8 @@ class Slot:
 
     def __init__(self, index: int, workers: Workers, queue: JobQueue) -> None:
         self.index, self._workers, self._queue = index, workers, queue
+        self.name = f"worker {index}"
         self.worker: WorkerProcess | None = None
-
-    @property
-    def name(self) -> str:
-        return f"worker {self.index}"
 
     def live_pid(self) -> int | None:
         """The pid of this slot's worker while it runs (call with the pool's lock held)."""
