@@ -195,10 +195,9 @@ def _deepest(err: jsonschema_rs.ValidationError) -> jsonschema_rs.ValidationErro
 
         def rank(branch: list[Any]) -> tuple[int, int]:
             return max(len(x.instance_path) for x in branch), -len(branch)
-        ranks = sorted((rank(b) for b in branches), reverse=True)
-        if len(ranks) > 1 and ranks[0] == ranks[1]:
+        best, *others = sorted(branches, key=rank, reverse=True)
+        if others and rank(others[0]) == rank(best):
             return err  # as close to one alternative as to another: the summary says it
-        best = max(branches, key=rank)
         err = max(best, key=lambda x: len(x.instance_path))
     return err
 
@@ -232,9 +231,8 @@ def _refusal(err: jsonschema_rs.ValidationError, name: str) -> InvalidRequest:
 def _forms(name: str, schema_path: list[Any]) -> list[str]:
     """``oneOf`` alternatives that are objects, as ``{joints}``, ``{named}``, ..."""
     node = _schema_at(name, schema_path)
-    if not isinstance(node, list):
-        return []
-    return ["{" + ", ".join(alt["required"]) + "}" for alt in node
+    alts = node if isinstance(node, list) else []
+    return ["{" + ", ".join(alt["required"]) + "}" for alt in alts
             if isinstance(alt, Mapping) and alt.get("required")]
 
 
