@@ -25,7 +25,7 @@ from .zconfig import DEFAULT_ENDPOINT, zenoh_config
 _log = logging.getLogger(__name__)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m service.router",
         description="Run a Zenoh router (what zenohd does) for arduinobot services and "
@@ -39,11 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "user/password, access control); options given here override it")
     p.add_argument("--multicast-scouting", action="store_true",
                    help="announce the router on the LAN (off by default, even with --config)")
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    ns = build_parser().parse_args(argv)
+    ns = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     listen = ns.listen if ns.listen or ns.config else [DEFAULT_ENDPOINT]
