@@ -20,18 +20,15 @@ import numpy as np
 _log = logging.getLogger(__name__)
 
 
-def default_cache_dir() -> Path:
-    if os.environ.get("ARDUINOBOT_CACHE"):
-        return Path(os.environ["ARDUINOBOT_CACHE"]).expanduser()
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base).expanduser() / "arduinobot"
-
-
 class DiskCache:
     """:class:`planner.cache.ArtifactCache` on disk under ``root``."""
 
     def __init__(self, root: str | Path | None = None) -> None:
-        self.root = Path(root) if root is not None else default_cache_dir()
+        if root is None:  # the user's cache folder (see the module)
+            xdg = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+            root = Path(os.environ.get("ARDUINOBOT_CACHE") or Path(xdg) / "arduinobot")
+            root = root.expanduser()
+        self.root = Path(root)
 
     def _path(self, kind: str, key: str) -> Path:
         return self.root / kind / f"{key}.npz"
