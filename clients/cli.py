@@ -9,8 +9,9 @@ import sys
 from . import cmd_execute, cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
 
-# Commands that run OMPL, whose own console log follows -v (quiet by default).
-_PLANNING_COMMANDS = {"plan", "serve", "srdf", "view", "ik", "execute"}
+# Commands that run OMPL in this process (the second set with --local only), whose own log
+# follows -v (quiet by default); a remote plan must not import OMPL (~1 s).
+_OMPL_ALWAYS, _OMPL_LOCAL = {"serve", "srdf", "view"}, {"plan", "ik", "execute"}
 _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_execute]
 
 
@@ -38,9 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
-    # only where OMPL runs in this process: a remote plan must not import it (~1 s)
-    if ns.command in _PLANNING_COMMANDS and (ns.command in ("serve", "srdf", "view")
-                                             or getattr(ns, "local", False)):
+    if ns.command in _OMPL_ALWAYS or (ns.command in _OMPL_LOCAL and ns.local):
         from planner.planning.paths import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     return run_guarded(ns, ns.command_parser)

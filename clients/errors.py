@@ -122,10 +122,9 @@ class ServiceUnavailable(ServiceError):
         super().__init__(message, details={**(details or {}), "reason": reason})
 
 
-ERRORS: dict[str, type[ServiceError]] = {c.code: c for c in (
-    InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
-    TrajectoryFailed, InvalidLimits, RequestTimeout, ServiceBusy, ResourceLimit,
-    ShuttingDown, InternalError)}
+#: every class above for a code the service sends (not the client's own two)
+ERRORS: dict[str, type[ServiceError]] = {c.code: c for c in ServiceError.__subclasses__()
+                                         if c not in (MalformedReply, ServiceUnavailable)}
 
 
 def error_from_reply(body: Mapping[str, Any]) -> ServiceError:

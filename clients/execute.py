@@ -34,9 +34,6 @@ from .stops import StopKind, TorqueFn, choose_stop, effort_safe
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ExecuteOptions", "ExecutionBusy", "ExecutionReport", "Executor", "NotAtStart",
-           "Tick", "TooLate", "plan_start"]
-
 
 class NotAtStart(RobotError):
     """The robot is farther than the tolerance from the trajectory's start."""

@@ -42,7 +42,10 @@ from service import wire
 from service.keyguard import addressed_exactly
 from service.messages import Failure, Outcome
 
+from .execute import ExecuteOptions, ExecutionBusy, Executor, TooLate, plan_start
+from .joint_states import tick_message
 from .robots.base import RobotError
+from .segments import SampledTrajectory
 
 _log = logging.getLogger(__name__)
 
@@ -168,7 +171,6 @@ class ExecuteService:
         """The driver, built on first use (the twin) or at start (the real arm)."""
         with self._robot_lock:
             if self._robot is None:
-                from .execute import ExecuteOptions, Executor
                 self._robot = self.spec.open(self.description)
                 self._executor = Executor.for_description(  # in real time, the twin too
                     self._robot, self.description, options=ExecuteOptions(rate=self.spec.rate))
@@ -230,7 +232,6 @@ class ExecuteService:
             self._blend(query, body)
             return
         if not self._busy.acquire(blocking=False):
-            from .execute import ExecutionBusy
             raise ExecutionBusy(f"the robot is executing {self._current}; cancel it first "
                                 "(<prefix>/execute/cancel)",
                                 details={"execution": self._current})
@@ -245,7 +246,6 @@ class ExecuteService:
                 return
             req = dict(body["plan"]) if isinstance(body["plan"], dict) else body["plan"]
             if isinstance(req, dict) and "start" not in req:
-                from .execute import plan_start
                 req["start"] = plan_start(robot, self.description)
             self._plan(req, run.on_planned)
         except BaseException:
@@ -262,8 +262,6 @@ class ExecuteService:
         """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
         (a moving start) and switch to it at that tick; one reply, ``blended`` or an
         error (``TOO_LATE`` when the arm stops first or planning took too long)."""
-        from .execute import TooLate
-        from .segments import SampledTrajectory
         if not isinstance(body.get("plan"), dict):
             raise InvalidRequest("a blend needs a plan request (the new goal)", field="plan")
         ex, execution = self._running, self._current
@@ -325,7 +323,6 @@ class _Run:
             self._fail(getattr(e, "code", Code.INTERNAL), str(e), getattr(e, "details", {}))
 
     def start_with(self, trajectory: Any) -> None:
-        from .segments import SampledTrajectory
         traj = SampledTrajectory.from_json(trajectory)  # InvalidTrajectory if it is none
         t = threading.Thread(target=self._run, args=(traj,), name=f"execute-{self.execution}",
                              daemon=True)
@@ -341,8 +338,6 @@ class _Run:
         self.query.reply(self.key, json.dumps(body).encode(), encoding=JSON)
 
     def _run(self, traj: Any) -> None:
-        from .execute import Executor
-        from .joint_states import tick_message
         svc = self.svc
         watch = None
         with _answering(self.query, f"execution {self.execution}", "the execution failed"):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from .execute import Tick
+from .execution_report import Tick
 
 JSON = "application/json"
 
