@@ -124,10 +124,11 @@ def _serve(ns: argparse.Namespace, d: object, obstacles: tuple[Obstacle, ...],
     from .viewer.planning import LocalBackend, RemoteBackend
     from .viewer.playback import PlaybackPanel
 
-    viewer = RobotViewer(d, obstacles=obstacles, host=ns.host, port=ns.port)  # type: ignore[arg-type]
-    playback = PlaybackPanel(viewer)
+    # the backend first: it refuses what the service cannot plan around before a page opens
     backend = (RemoteBackend(ns.connect, obstacles=obstacles) if ns.connect
                else LocalBackend(d, obstacles=obstacles))  # type: ignore[arg-type]
+    viewer = RobotViewer(d, obstacles=obstacles, host=ns.host, port=ns.port)  # type: ignore[arg-type]
+    playback = PlaybackPanel(viewer)
     PlanningPanel(viewer, playback, backend)
     if traj is not None:
         playback.load(traj, source=Path(ns.trajectory).name)  # type: ignore[arg-type]

@@ -16,6 +16,7 @@ from pathlib import Path
 import jsonschema
 import numpy as np
 import pytest
+import trimesh
 from PIL import Image
 
 from clients.cmd_view import read_obstacles
@@ -25,6 +26,7 @@ from clients.viewer.plots import joint_limits, plot_panels, plot_png
 from clients.viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
 from description import load_description
 from description.model import rpy_matrix
+from planner.errors import InvalidRequest
 from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
 
@@ -132,6 +134,18 @@ def test_remote_request_matches_the_service_schema():
     b = RemoteBackend("tcp/127.0.0.1:1", obstacles=(box,))
     for goal in (NamedGoal("home"), JointGoal({"joint_2": 0.3})):
         jsonschema.validate(b.request(goal, start={"joint_1": 0.0}, group="arm"), schema)
+
+
+def test_a_mesh_obstacle_is_refused_before_it_reaches_the_service(tmp_path):
+    # the wire takes boxes, spheres and cylinders only: a mesh would be refused by the
+    # service's schema on every plan, so the backend says so when it is made
+    stl = tmp_path / "rock.stl"
+    trimesh.creation.icosphere().export(stl)
+    rock = Obstacle(id="rock", shape="mesh", mesh_path=str(stl))
+    box = Obstacle(id="table", shape="box", size=(1, 1, 0.1))
+    with pytest.raises(InvalidRequest, match="'rock' is a mesh") as e:
+        RemoteBackend("tcp/127.0.0.1:1", obstacles=(box, rock))
+    assert e.value.details["field"] == "obstacles[1].shape"
 
 
 def test_read_obstacles_from_flags_and_scene(tmp_path):

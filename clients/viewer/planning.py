@@ -8,6 +8,7 @@ from dataclasses import asdict
 from typing import Protocol
 
 from description import Description
+from planner.errors import InvalidRequest
 from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
 
@@ -59,6 +60,15 @@ class RemoteBackend:
     subclasses."""
 
     def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = ()) -> None:
+        """Raises:
+            InvalidRequest: a mesh obstacle (the service's requests carry only boxes,
+                spheres and cylinders: a mesh file's path means nothing to it)."""
+        for i, o in enumerate(obstacles):
+            if o.shape == "mesh":
+                raise InvalidRequest(
+                    f"'{o.id}' is a mesh: the service takes boxes, spheres and cylinders "
+                    "(plan without --connect to plan around it in this process)",
+                    field=f"obstacles[{i}].shape")
         self.endpoint = endpoint
         self.name = f"through the service at {endpoint}"
         self.obstacles = tuple(obstacles)
