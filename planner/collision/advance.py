@@ -146,8 +146,9 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
                      pad: float, cap: float, stack: np.ndarray, gaps: np.ndarray,
                      scratch: np.ndarray) -> float:
     """A lower bound [m] on the distance between trees ``a`` (pose ``ta``) and ``b``
-    (pose ``tb``): the smallest leaf-pair bound, or ``cap`` if none is below it. Stops
-    early with a value <= ``pad`` once a leaf pair is that close.
+    (pose ``tb``): the smallest leaf-pair bound, or ``cap`` if none is below it, or the
+    root boxes' gap if even that is above ``cap`` (a far pair proves all its distance
+    for one box test). Stops early with a value <= ``pad`` once a leaf pair is that close.
 
     ``stack`` (s, 2) int64 and ``gaps`` (s,) are work buffers; ``scratch`` (8, 3, 3).
     """
@@ -174,6 +175,8 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
         if gaps[top] > g:
             g = gaps[top]
         if g >= best:
+            if top == 0 and na == a and nb == b:
+                return g
             continue
         la, lb = left[na], left[nb]
         if (la < 0 and lb < 0) or top + 2 > stack.shape[0]:

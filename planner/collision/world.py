@@ -333,9 +333,9 @@ class CollisionWorld:
         for k, (a, b) in enumerate(pairs):
             ta = poses[self._frame[a]] if self._frame[a] >= 0 else self._static_pose[a]
             tb = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
-            lb[k] = tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes, f.half,
-                                     f.left, f.right, 0.0, _CLEARANCE_CAP, self._stack,
-                                     self._gaps, scratch)
+            lb[k] = min(tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes,
+                                         f.half, f.left, f.right, 0.0, _CLEARANCE_CAP,
+                                         self._stack, self._gaps, scratch), _CLEARANCE_CAP)
         return lb
 
     def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
