@@ -146,9 +146,10 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
                      pad: float, cap: float, stack: np.ndarray, gaps: np.ndarray,
                      scratch: np.ndarray) -> float:
     """A lower bound [m] on the distance between trees ``a`` (pose ``ta``) and ``b``
-    (pose ``tb``): the smallest leaf-pair bound, or ``cap`` if none is below it, or the
-    root boxes' gap if even that is above ``cap`` (a far pair proves all its distance
-    for one box test). Stops early with a value <= ``pad`` once a leaf pair is that close.
+    (pose ``tb``): the smallest leaf-pair bound if one is below ``cap``, else the
+    smallest gap of the node pairs the search pruned (``>= cap``: a far pair proves its
+    whole distance for the box tests it took). Stops early with a value <= ``pad`` once
+    a leaf pair is that close.
 
     ``stack`` (s, 2) int64 and ``gaps`` (s,) are work buffers; ``scratch`` (8, 3, 3).
     """
@@ -158,6 +159,8 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
     cb = scratch[1, 1]
     relative_pose(ta, tb, rel_r, rel_t)
     best = cap
+    found = False  # a leaf pair below the cap set ``best``
+    pruned = np.inf  # the smallest gap of a pruned node pair
     stack[0, 0] = a
     stack[0, 1] = b
     gaps[0] = -np.inf
@@ -166,6 +169,7 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
         top -= 1
         na, nb = stack[top, 0], stack[top, 1]
         if gaps[top] >= best:
+            pruned = min(pruned, gaps[top])
             continue
         box_in_frame(rel_r, rel_t, center[nb], axes[nb], rb, cb)
         g = _box_gap(axes[na], center[na], half[na], rb, cb, half[nb], best, scratch[3],
@@ -175,13 +179,13 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
         if gaps[top] > g:
             g = gaps[top]
         if g >= best:
-            if top == 0 and na == a and nb == b:
-                return g
+            pruned = min(pruned, g)
             continue
         la, lb = left[na], left[nb]
         if (la < 0 and lb < 0) or top + 2 > stack.shape[0]:
             # a leaf pair (or no room to descend: the node's bound holds for its leaves)
             best = g
+            found = True
             if best <= pad:
                 return best
             continue
@@ -197,7 +201,8 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
         gaps[top] = g
         gaps[top + 1] = g
         top += 2
-    return best
+    # every pair was pruned at or above best, which only fell: what was pruned bounds it
+    return best if found else pruned
 
 
 @numba.njit(cache=True, nogil=True)
