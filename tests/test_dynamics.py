@@ -264,3 +264,38 @@ def test_matches_mujoco_on_a_mixed_robot(tmp_path):
     np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)
     for q in qs[:10]:
         np.testing.assert_allclose(dyn.mass_matrix(q), ref.mass_matrix(q), atol=1e-9)
+
+
+def test_links_on_fixed_joints_are_merged_with_the_same_torques(tmp_path):
+    # a CAD export's mounts: a massive link on a fixed joint between b and c (c's joint
+    # now hangs from it) and a fixed tool on e; merged into the links they hang from
+    mount = """
+  <link name="mount">
+    <inertial><origin xyz="0.05 -0.03 0.02" rpy="0.2 0.3 -0.1"/><mass value="0.9"/>
+      <inertia ixx="0.006" ixy="0.001" ixz="-0.0004" iyy="0.005" iyz="0.0007" izz="0.004"/>
+    </inertial>
+  </link>
+  <link name="tool">
+    <inertial><origin xyz="0.0 0.04 0.0" rpy="0 0 0"/><mass value="0.3"/>
+      <inertia ixx="0.0007" ixy="0" ixz="0" iyy="0.0005" iyz="0" izz="0.0006"/>
+    </inertial>
+  </link>
+  <joint name="to_mount" type="fixed">
+    <parent link="b"/><child link="mount"/><origin xyz="0.15 0.02 -0.05" rpy="0.3 -0.2 0.4"/>
+  </joint>
+  <joint name="to_tool" type="fixed">
+    <parent link="e"/><child link="tool"/><origin xyz="0.0 0.1 0.02" rpy="0 0.6 0"/>
+  </joint>
+</robot>"""
+    text = textwrap.dedent(_URDF).replace("</robot>", mount).replace(
+        '<parent link="b"/><child link="c"/>', '<parent link="mount"/><child link="c"/>')
+    path = tmp_path / "mounts.urdf"
+    path.write_text(text)
+    robot = load_description(path).robot
+    dyn = InverseDynamics(robot)
+    assert len(dyn._model[0]) == len(dyn.kinematics.link_names) - 1 - 2  # two merged
+    ref = MujocoReference(robot, dyn)
+    qs, qds, qdds = random_states(np.random.default_rng(6), 4, 100)
+    ours = dyn.torques_batch(qs, qds, qdds)
+    theirs = np.array([ref.torques(*s) for s in zip(qs, qds, qdds)])
+    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)

@@ -147,6 +147,47 @@ def _rnea_batch(qs, qds, qdds, gravity, parent, origin, jtype, axis, src, scale,
                    offset, mass, com, inertia, work, out[m])
 
 
+def _lump_fixed(args: tuple[np.ndarray, ...], mass: np.ndarray, com: np.ndarray,
+                inertia: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The RNEA's arrays with every link on a fixed joint merged into the link it hangs
+    from (its mass, centre of mass and inertia combined there, parallel axes): the same
+    torques for fewer links (a CAD export's camera mounts, flanges and tool frames).
+
+    ``args`` are :meth:`Kinematics._args`' arrays; link ``k + 1`` hangs from joint ``k``.
+    """
+    parent, origin, jtype, axis, src, scale, offset = args
+    host = [0]  # per link: the reduced link it is merged into
+    place = [np.eye(4)]  # per link: its pose in that reduced link's frame
+    keep: list[int] = []  # the joints the reduced model keeps
+    for k in range(len(parent)):
+        p = parent[k]
+        if jtype[k] == FIXED:
+            host.append(host[p])
+            place.append(place[p] @ origin[k])
+        else:
+            keep.append(k)
+            host.append(len(keep))
+            place.append(np.eye(4))
+    n = len(keep) + 1
+    m, c, inertia_c = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for link in range(len(host)):  # first moments, then inertia about each new COM
+        h, t = host[link], place[link]
+        m[h] += mass[link]
+        c[h] += mass[link] * (t[:3, :3] @ com[link] + t[:3, 3])
+    c /= np.where(m > 0, m, 1.0)[:, None]
+    for link in range(len(host)):
+        h, t = host[link], place[link]
+        r = t[:3, :3]
+        d = r @ com[link] + t[:3, 3] - c[h]
+        inertia_c[h] += r @ inertia[link] @ r.T + mass[link] * (d @ d * np.eye(3)
+                                                                 - np.outer(d, d))
+    org = np.array([place[parent[k]] @ origin[k] for k in keep]).reshape(-1, 4, 4)
+    par = np.array([host[parent[k]] for k in keep], dtype=parent.dtype)
+    idx = np.array(keep, dtype=np.int64)
+    return (par, org, jtype[idx], axis[idx], src[idx], scale[idx], offset[idx], m, c,
+            inertia_c)
+
+
 class InverseDynamics:
     """Joint torques of a :class:`~description.model.Robot` from its URDF inertials.
 
@@ -177,7 +218,8 @@ class InverseDynamics:
             self._mass[i] = inertial.mass
             self._com[i] = inertial.origin.xyz
             self._inertia[i] = rot @ inertial.tensor() @ rot.T  # about the COM, link axes
-        self._model = (*self.kinematics._args(), self._mass, self._com, self._inertia)
+        self._model = _lump_fixed(self.kinematics._args(), self._mass, self._com,
+                                  self._inertia)
 
     @property
     def dof(self) -> int:
