@@ -113,9 +113,14 @@ class VerificationReport:
         return json.dumps(self.to_dict())
 
 
-def _ratio(values: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Worst |value| / limit per joint, shape (dof,); a zero limit with motion is inf."""
-    peak = np.max(np.abs(values), axis=0) if len(values) else np.zeros(len(limit))
+def _ratio(limit: np.ndarray, *values: np.ndarray) -> np.ndarray:
+    """Worst |value| / limit per joint over every array of ``values`` (each shape
+    (m, dof)), shape (dof,); a zero limit with motion is inf."""
+    limit = np.asarray(limit, float)
+    peak = np.zeros(len(limit))
+    for v in values:
+        if len(v):
+            np.maximum(peak, np.max(np.abs(v), axis=0), out=peak)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(limit > 0, peak / np.where(limit > 0, limit, 1.0),
                         np.where(peak > 0, np.inf, 0.0))
@@ -240,18 +245,19 @@ class Verifier:
         tf, qf, qdf, qddf, stride = (self.fine_states(traj) if certificate is None
                                      else self.limit_states(traj))
         tau = np.asarray(self.dynamics.torques_batch(q, qd, qdd), float)
-        pick = np.unique(np.append(np.arange(0, len(qf), stride), len(qf) - 1))
+        pick = np.arange(0, len(qf), stride)
+        if pick[-1] != len(qf) - 1:
+            pick = np.append(pick, len(qf) - 1)
         tau_dense = np.asarray(self.dynamics.torques_batch(qf[pick], qdf[pick], qddf[pick]),
                                float)
         jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
             else np.zeros((0, q.shape[1]))
         ratios = {
-            "position": np.maximum(_ratio(q - mid, half), _ratio(qf - mid, half)),
-            "velocity": np.maximum(_ratio(qd, lim.velocity), _ratio(qdf, lim.velocity)),
-            "acceleration": np.maximum(_ratio(qdd, lim.acceleration),
-                                       _ratio(qddf, lim.acceleration)),
-            "jerk": _ratio(jerk, lim.jerk),
-            "effort": np.maximum(_ratio(tau, lim.effort), _ratio(tau_dense, lim.effort)),
+            "position": _ratio(half, q - mid, qf - mid),
+            "velocity": _ratio(lim.velocity, qd, qdf),
+            "acceleration": _ratio(lim.acceleration, qdd, qddf),
+            "jerk": _ratio(lim.jerk, jerk),
+            "effort": _ratio(lim.effort, tau, tau_dense),
         }
         enforced = QUANTITIES if enforce_jerk else tuple(k for k in QUANTITIES if k != "jerk")
         worst = {k: float(np.max(v)) for k, v in ratios.items()}
