@@ -10,9 +10,10 @@ relative to another by at most ``speed = sum_k weight_k max(|u1_k|, |u2_k|)`` pe
 
 Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lower bound
 ``d`` on the pair's distance; no point of the next ``(d - covered) / speed`` of the piece
-comes closer than ``covered``. Where ``d`` is not above the clearance, FCL's exact
-distance stands in (it is a bound too); where even that is not above the clearance, the
-motion is refused at that point. Every point of every piece is covered, so a motion
+comes closer than ``covered`` (for a body moving by a static one, the step may come from
+how fast it moves where it is now instead, :mod:`.body_speed`, when that is longer).
+Where ``d`` is not above the clearance, FCL's exact distance stands in (it is a bound
+too); where even that is not above the clearance, the motion is refused at that point. Every point of every piece is covered, so a motion
 certified free is free over the whole continuum, not only where it was sampled.
 
 The walk runs in numba, one call for the whole motion and every pair; Python only
@@ -30,6 +31,7 @@ import numpy as np
 
 from ..kinematics.chain import _fk_into
 from .advance import tree_lower_bound
+from .body_speed import local_step, movable_above
 from .world import CollisionWorld
 
 _DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
@@ -95,8 +97,9 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
              static_pose: np.ndarray, pairs: np.ndarray, weight: np.ndarray,
              root: np.ndarray, center: np.ndarray, axes: np.ndarray, half: np.ndarray,
              left: np.ndarray, right: np.ndarray, clear: float, fraction: float,
-             poses: np.ndarray, stack: np.ndarray, gaps: np.ndarray, q: np.ndarray,
-             best: np.ndarray, request: np.ndarray, counts: np.ndarray) -> int:
+             local: bool, poses: np.ndarray, stack: np.ndarray, gaps: np.ndarray,
+             q: np.ndarray, best: np.ndarray, request: np.ndarray,
+             counts: np.ndarray) -> int:
     """Walk pairs ``p0..`` along every piece from (piece ``k0``, ``sigma`` ``s0``).
 
     ``injected`` >= 0 is an exact distance [m] for pair ``p0`` at that point (from the
@@ -155,6 +158,19 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
             covered = max(clear + GAP / 2, min(fraction * d, low))
             reach = (d - covered) / speed
             left_on_piece = length - s
+            if local and reach < left_on_piece:
+                # a body moving by a static one: how fast it moves where it is now
+                fa, fb = body_frame[a], body_frame[b]
+                ma = movable_above(fa, parent, jtype, src) if fa >= 0 else 0
+                mb = movable_above(fb, parent, jtype, src) if fb >= 0 else 0
+                if (ma == 0) != (mb == 0):
+                    mov, fm = (a, fa) if ma > 0 else (b, fb)
+                    _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+                    r = root[mov]
+                    radius = np.sqrt(half[r, 0] ** 2 + half[r, 1] ** 2 + half[r, 2] ** 2)
+                    reach = max(reach, local_step(poses, fm, center[r], radius, parent,
+                                                  jtype, axis, src, scale, u1[k], u2[k],
+                                                  speed, d - covered))
             carry = -1.0
             if reach >= left_on_piece:
                 # the rest of the piece is covered with room to spare
@@ -183,11 +199,15 @@ class Certifier:
         fraction: a step covers down to ``max(clearance, fraction * d)``: 0 proves
             freedom with the fewest bounds; 0.5 also certifies a useful clearance
             (every point at least half its nearest bound) for twice the bounds.
+        local: a body moving by a static one also steps by how fast it moves where it
+            is now (:mod:`.body_speed`), not only by the every-configuration bound.
     """
 
-    def __init__(self, world: CollisionWorld, *, fraction: float = 0.0) -> None:
+    def __init__(self, world: CollisionWorld, *, fraction: float = 0.0,
+                 local: bool = True) -> None:
         self.world = world
         self.fraction = fraction
+        self.local = local
         self._poses = np.empty((len(world.kin.link_names), 4, 4))
         self._stack = np.empty((4096, 2), dtype=np.int64)
         self._gaps = np.empty(4096)
@@ -232,8 +252,8 @@ class Certifier:
             status = _advance(starts, u1, u2, lengths, p, k, s, injected, *w.kin._args(),
                               w._frame, w._static_pose, w._pairs, w._weight, f.root,
                               f.center, f.axes, f.half, f.left, f.right, clear,
-                              self.fraction, self._poses, self._stack, self._gaps, self._q,
-                              best, request, counts)
+                              self.fraction, self.local, self._poses, self._stack,
+                              self._gaps, self._q, best, request, counts)
             if status == _DONE:
                 break
             p, k, s = int(request[0]), int(request[1]), float(request[2])
