@@ -9,9 +9,10 @@ A request goes through the same steps as in a worker: encoded and decoded by
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, get_args
 
 from description import Description
+from planner.errors import InvalidRequest
 
 from . import wire
 from .bodies import description_body
@@ -33,8 +34,12 @@ class LocalService:
         ``check``).
 
         Raises:
-            planner.errors.PlanningError: the coded error the service would answer with.
+            planner.errors.PlanningError: the coded error the service would answer with
+                (InvalidRequest naming ``kind`` for a kind the service has no key for).
         """
+        if kind not in get_args(wire.Kind):
+            raise InvalidRequest(f"{kind!r} is not a request kind "
+                                 f"({', '.join(get_args(wire.Kind))})", field="kind")
         data = wire.decode(kind, wire.encode(req))
         return {**self._handlers.handle(kind, data), "request_id": LOCAL_REQUEST_ID}
 

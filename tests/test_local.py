@@ -45,6 +45,9 @@ def test_bad_requests_raise_the_services_coded_errors(local: LocalService) -> No
     with pytest.raises(JointLimitViolation) as lim:  # the robot's check, as in a worker
         local.request("check", {"joints": {"joint_2": 99.0}})
     assert lim.value.details["field"] == "joints.joint_2"
+    with pytest.raises(InvalidRequest) as kind:  # no key of the service answers it
+        local.request("move", {})  # type: ignore[arg-type]
+    assert kind.value.details["field"] == "kind"
 
 
 def test_the_description_reply_limits_every_actuated_joint(local: LocalService) -> None:
