@@ -25,6 +25,7 @@ import numpy as np
 from description.model import Joint, Robot
 
 from ..kinematics.chain import _fk_into
+from .body_speed import local_rates, moving_by_static
 from .obbtree import box_in_frame, in_box_frame, relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
@@ -207,6 +208,7 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
 
 @numba.njit(cache=True, nogil=True)
 def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget: np.ndarray,
+          since: np.ndarray, rates: np.ndarray,
           parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray, axis: np.ndarray,
           src: np.ndarray, scale: np.ndarray, offset: np.ndarray, body_frame: np.ndarray,
           static_pose: np.ndarray, pairs: np.ndarray, weight: np.ndarray, root: np.ndarray,
@@ -218,9 +220,12 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
     Walks ``qs`` (m, dof) in order from state ``start``; with ``stop_early`` returns the
     first state given a mark (call again from the next state to resume), else walks to
     the end and returns m. ``cum`` (m, dof) gets the cumulative |joint motion| when
-    ``start`` is 0; ``budget`` (n_pairs,) is the distance [m] each pair has proven
-    (carried between resumed calls). The kinematics arrays are
-    :class:`~planner.kinematics.chain.Kinematics`'; ``weight`` (n_pairs, dof) [m/rad];
+    ``start`` is 0. Carried between resumed calls, per pair: ``budget`` (n_pairs,) the
+    distance [m] proven at state ``since`` (n_pairs,) int64, and ``rates`` (n_pairs, 2,
+    dof) a body moving by a static one's :func:`~.body_speed.local_rates` there (rate
+    [0, 0] < 0: none), so the proof lasts while the motion since, by the pair's
+    every-configuration ``weight`` (n_pairs, dof) [m/rad] or by those local rates, stays
+    below it. The kinematics arrays are :class:`~planner.kinematics.chain.Kinematics`';
     ``horizon`` [m] caps how far ahead one bound is asked to prove (deeper proofs cost
     more tree descent); ``poses`` (n_links, 4, 4) work buffer; ``out`` (m, n_pairs)
     int8, zeroed, gets 1 where the narrow phase must decide.
@@ -240,13 +245,22 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
         posed = False
         marked = False
         for p in range(npair):
-            if i > 0:
-                mv = 0.0
+            if budget[p] > 0.0:
+                i0 = since[p]
+                moved = 0.0
                 for j in range(dof):
-                    mv += weight[p, j] * (cum[i, j] - cum[i - 1, j])
-                budget[p] -= mv
-                if budget[p] > 0.0:
+                    moved += weight[p, j] * (cum[i, j] - cum[i0, j])
+                if moved < budget[p]:
                     continue
+                if rates[p, 0, 0] >= 0.0:
+                    # where it was proven, the body moved slower than anywhere: each
+                    # joint's reach there, grown by at most what it has moved since
+                    near = 0.0
+                    for j in range(dof):
+                        dj = cum[i, j] - cum[i0, j]
+                        near += (rates[p, 0, j] + moved * rates[p, 1, j]) * dj
+                    if near < budget[p]:
+                        continue
             if not posed:
                 _fk_into(qs[i], parent, origin, jtype, axis, src, scale, offset, poses)
                 posed = True
@@ -261,6 +275,15 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
                                   pad + MARGIN, cap, stack, gaps, scratch)
             if lb > pad + MARGIN:
                 budget[p] = lb - pad - MARGIN
+                since[p] = i
+                mov = moving_by_static(a, b, body_frame, parent, jtype, src)
+                if mov >= 0:
+                    r = root[mov]
+                    radius = np.sqrt(half[r, 0] ** 2 + half[r, 1] ** 2 + half[r, 2] ** 2)
+                    local_rates(poses, body_frame[mov], center[r], radius, parent, jtype,
+                                axis, src, scale, rates[p, 0], rates[p, 1])
+                else:
+                    rates[p, 0, 0] = -1.0
             else:
                 out[i, p] = 1
                 marked = True

@@ -39,39 +39,65 @@ def movable_above(link: int, parent: np.ndarray, jtype: np.ndarray, src: np.ndar
 
 
 @numba.njit(cache=True, nogil=True)
-def local_step(poses: np.ndarray, link: int, center: np.ndarray, radius: float,
-               parent: np.ndarray, jtype: np.ndarray, axis: np.ndarray, src: np.ndarray,
-               scale: np.ndarray, u1: np.ndarray, u2: np.ndarray, bound: float,
-               room: float) -> float:
-    """The step [unit of sigma] over which the body of ``link`` (``center`` [m] in its
-    frame, ``radius`` [m]; link poses ``poses`` now) moves at most ``room`` [m], on a
-    piece of tangents ``u1`` -> ``u2``; ``bound`` is the pair's every-configuration
-    bound ``V`` [m per unit of sigma]."""
+def local_rates(poses: np.ndarray, link: int, center: np.ndarray, radius: float,
+                parent: np.ndarray, jtype: np.ndarray, axis: np.ndarray, src: np.ndarray,
+                scale: np.ndarray, rate: np.ndarray, turn: np.ndarray) -> None:
+    """Per actuated joint ``j``: how fast the body of ``link`` (``center`` [m] in its
+    frame, ``radius`` [m]; link poses ``poses`` now) moves per unit of ``q_j`` where it
+    is now (``rate[j]`` [m/rad]), and how many of its revolute joints follow ``q_j``
+    (``turn[j]``, mimics by their multipliers: each lets ``r_k`` grow)."""
     t = poses[link]
     w0 = t[0, 0] * center[0] + t[0, 1] * center[1] + t[0, 2] * center[2] + t[0, 3]
     w1 = t[1, 0] * center[0] + t[1, 1] * center[1] + t[1, 2] * center[2] + t[1, 3]
     w2 = t[2, 0] * center[0] + t[2, 1] * center[1] + t[2, 2] * center[2] + t[2, 3]
-    rate = 0.0
-    turning = 0.0
-    k = link - 1
+    rate[:] = 0.0
+    turn[:] = 0.0
+    k = link - 1  # joint k carries link k + 1
     while k >= 0:
-        if jtype[k] != FIXED and src[k] >= 0:
-            v = abs(scale[k]) * max(abs(u1[src[k]]), abs(u2[src[k]]))
+        j = src[k]
+        if jtype[k] != FIXED and j >= 0:
             if jtype[k] == PRISMATIC:
-                rate += v
+                rate[j] += abs(scale[k])
             else:
                 # the axis passes through the carried link's origin, along axis[k] there
-                j = poses[k + 1]
-                e0 = j[0, 0] * axis[k, 0] + j[0, 1] * axis[k, 1] + j[0, 2] * axis[k, 2]
-                e1 = j[1, 0] * axis[k, 0] + j[1, 1] * axis[k, 1] + j[1, 2] * axis[k, 2]
-                e2 = j[2, 0] * axis[k, 0] + j[2, 1] * axis[k, 1] + j[2, 2] * axis[k, 2]
+                a = poses[k + 1]
+                e0 = a[0, 0] * axis[k, 0] + a[0, 1] * axis[k, 1] + a[0, 2] * axis[k, 2]
+                e1 = a[1, 0] * axis[k, 0] + a[1, 1] * axis[k, 1] + a[1, 2] * axis[k, 2]
+                e2 = a[2, 0] * axis[k, 0] + a[2, 1] * axis[k, 1] + a[2, 2] * axis[k, 2]
                 norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-                d0, d1, d2 = w0 - j[0, 3], w1 - j[1, 3], w2 - j[2, 3]
+                d0, d1, d2 = w0 - a[0, 3], w1 - a[1, 3], w2 - a[2, 3]
                 x0, x1, x2 = d1 * e2 - d2 * e1, d2 * e0 - d0 * e2, d0 * e1 - d1 * e0
                 off = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2) / norm if norm > 0.0 else 0.0
-                rate += v * (off + radius)
-                turning += v
+                rate[j] += abs(scale[k]) * (off + radius)
+                turn[j] += abs(scale[k])
         k = parent[k] - 1
-    spread = bound * turning
-    den = rate + np.sqrt(rate * rate + 2.0 * spread * room)
+
+
+@numba.njit(cache=True, nogil=True)
+def local_step(rate: np.ndarray, turn: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+               bound: float, room: float) -> float:
+    """The step [unit of sigma] over which a body of :func:`local_rates` ``rate`` and
+    ``turn`` moves at most ``room`` [m], on a piece of tangents ``u1`` -> ``u2``;
+    ``bound`` is the pair's every-configuration bound ``V`` [m per unit of sigma]."""
+    s = 0.0
+    spread = 0.0
+    for j in range(rate.shape[0]):
+        v = max(abs(u1[j]), abs(u2[j]))
+        s += rate[j] * v
+        spread += turn[j] * v
+    spread *= bound
+    den = s + np.sqrt(s * s + 2.0 * spread * room)
     return 2.0 * room / den if den > 0.0 else np.inf
+
+
+@numba.njit(cache=True, nogil=True)
+def moving_by_static(a: int, b: int, body_frame: np.ndarray, parent: np.ndarray,
+                     jtype: np.ndarray, src: np.ndarray) -> int:
+    """Of bodies ``a`` and ``b`` (indices into ``body_frame``), the one that moves when the
+    other does not; -1 if both move or neither does."""
+    fa, fb = body_frame[a], body_frame[b]
+    ma = movable_above(fa, parent, jtype, src) if fa >= 0 else 0
+    mb = movable_above(fb, parent, jtype, src) if fb >= 0 else 0
+    if (ma == 0) == (mb == 0):
+        return -1
+    return a if ma > 0 else b

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..kinematics.chain import _fk_into
 from .advance import tree_lower_bound
-from .body_speed import local_step, movable_above
+from .body_speed import local_rates, local_step, moving_by_static
 from .world import CollisionWorld
 
 _DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
@@ -110,6 +110,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
     end = np.empty(dof)
+    rate, turn = np.empty(dof), np.empty(dof)
     # the smallest clearance certified so far, any pair: no step need prove more (the
     # certified minimum is the same, the steps longer)
     low = np.inf
@@ -160,17 +161,15 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
             left_on_piece = length - s
             if local and reach < left_on_piece:
                 # a body moving by a static one: how fast it moves where it is now
-                fa, fb = body_frame[a], body_frame[b]
-                ma = movable_above(fa, parent, jtype, src) if fa >= 0 else 0
-                mb = movable_above(fb, parent, jtype, src) if fb >= 0 else 0
-                if (ma == 0) != (mb == 0):
-                    mov, fm = (a, fa) if ma > 0 else (b, fb)
+                mov = moving_by_static(a, b, body_frame, parent, jtype, src)
+                if mov >= 0:
                     _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
                     r = root[mov]
                     radius = np.sqrt(half[r, 0] ** 2 + half[r, 1] ** 2 + half[r, 2] ** 2)
-                    reach = max(reach, local_step(poses, fm, center[r], radius, parent,
-                                                  jtype, axis, src, scale, u1[k], u2[k],
-                                                  speed, d - covered))
+                    local_rates(poses, body_frame[mov], center[r], radius, parent, jtype,
+                                axis, src, scale, rate, turn)
+                    reach = max(reach, local_step(rate, turn, u1[k], u2[k], speed,
+                                                  d - covered))
             carry = -1.0
             if reach >= left_on_piece:
                 # the rest of the piece is covered with room to spare

@@ -372,12 +372,17 @@ class CollisionWorld:
         return float(best), closest
 
     def _sweep(self, qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray,
-               budget: np.ndarray, out: np.ndarray) -> int:
+               budget: tuple[np.ndarray, np.ndarray, np.ndarray], out: np.ndarray) -> int:
         f = self._forest
-        return sweep(qs, start, stop_early, cum, budget, *self.kin._args(), self._frame,
+        return sweep(qs, start, stop_early, cum, *budget, *self.kin._args(), self._frame,
                      self._static_pose, self._pairs, self._weight, f.root, f.center, f.axes,
                      f.half, f.left, f.right, self.padding, self.horizon, self._sweep_poses,
                      self._stack, self._gaps, out)
+
+    def _budget(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # the sweep's per-pair proof, carried between its resumed calls
+        n = len(self._pairs)
+        return np.empty(n), np.zeros(n, np.int64), np.empty((n, 2, self.dof))
 
     def sweep_candidates(self, qs: ArrayLike) -> np.ndarray:
         """(state, pair) flags, shape (m, n_pairs) int8, for states ``qs`` (m, dof) walked
@@ -385,7 +390,7 @@ class CollisionWorld:
         the padding), 1 where the narrow phase must decide."""
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
         out = np.zeros((len(qs), len(self._pairs)), dtype=np.int8)
-        self._sweep(qs, 0, False, np.empty_like(qs), np.empty(len(self._pairs)), out)
+        self._sweep(qs, 0, False, np.empty_like(qs), self._budget(), out)
         return out
 
     def first_invalid(self, qs: ArrayLike) -> int:
@@ -403,7 +408,7 @@ class CollisionWorld:
         if self._fixed_hits:
             return 0
         out = np.zeros((m, len(self._pairs)), dtype=np.int8)
-        cum, budget = np.empty_like(qs), np.empty(len(self._pairs))
+        cum, budget = np.empty_like(qs), self._budget()
         i = self._sweep(qs, 0, True, cum, budget, out)
         while i < m:
             poses = self.kin.link_poses(qs[i], out=self._poses)
