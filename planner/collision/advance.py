@@ -278,10 +278,11 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
                 since[p] = i
                 mov = moving_by_static(a, b, body_frame, parent, jtype, src)
                 if mov >= 0:
-                    r = root[mov]
-                    radius = np.sqrt(half[r, 0] ** 2 + half[r, 1] ** 2 + half[r, 2] ** 2)
-                    local_rates(poses, body_frame[mov], center[r], radius, parent, jtype,
-                                axis, src, scale, rates[p, 0], rates[p, 1])
+                    # the root's box alone: a sweep re-proves pairs too often to pay
+                    # for more
+                    local_rates(poses, body_frame[mov], root[mov], 0, center, half, left,
+                                right, parent, jtype, axis, src, scale, rates[p, 0],
+                                rates[p, 1])
                 else:
                     rates[p, 0, 0] = -1.0
             else:

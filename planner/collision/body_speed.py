@@ -11,8 +11,9 @@ move at most ``S h + Q h^2 / 2`` [m], where
 
 - ``S = sum_k v_k r_k`` over the movable joints ``k`` above the body: ``v_k`` the joint's
   speed bound on the piece [rad per unit of sigma], ``r_k`` the body's distance from the
-  joint's axis now (its bounding sphere's centre's distance plus its radius; 1 for a
-  prismatic joint, whose points all move at ``v_k``);
+  joint's axis now (the largest over a few of its OBB tree's nodes of a node's centre's
+  distance plus its half diagonal; 1 for a prismatic joint, whose points all move at
+  ``v_k``);
 - ``Q = V sum_k v_k`` over the revolute ones: ``r_k`` grows no faster than the body
   moves relative to joint ``k``'s axis, at most ``V`` [m per unit of sigma], the pair's
   every-configuration bound.
@@ -39,17 +40,39 @@ def movable_above(link: int, parent: np.ndarray, jtype: np.ndarray, src: np.ndar
 
 
 @numba.njit(cache=True, nogil=True)
-def local_rates(poses: np.ndarray, link: int, center: np.ndarray, radius: float,
-                parent: np.ndarray, jtype: np.ndarray, axis: np.ndarray, src: np.ndarray,
-                scale: np.ndarray, rate: np.ndarray, turn: np.ndarray) -> None:
-    """Per actuated joint ``j``: how fast the body of ``link`` (``center`` [m] in its
-    frame, ``radius`` [m]; link poses ``poses`` now) moves per unit of ``q_j`` where it
-    is now (``rate[j]`` [m/rad]), and how many of its revolute joints follow ``q_j``
-    (``turn[j]``, mimics by their multipliers: each lets ``r_k`` grow)."""
+def local_rates(poses: np.ndarray, link: int, root: int, depth: int, center: np.ndarray,
+                half: np.ndarray, left: np.ndarray, right: np.ndarray, parent: np.ndarray,
+                jtype: np.ndarray, axis: np.ndarray, src: np.ndarray, scale: np.ndarray,
+                rate: np.ndarray, turn: np.ndarray) -> None:
+    """Per actuated joint ``j``: how fast the body of ``link`` (its OBB tree from node
+    ``root``; link poses ``poses`` now) moves per unit of ``q_j`` where it is now
+    (``rate[j]`` [m/rad]), and how many of its revolute joints follow ``q_j``
+    (``turn[j]``, mimics by their multipliers: each lets ``r_k`` grow).
+
+    A joint's ``r_k`` is the largest, over the tree's nodes ``depth`` levels down (they
+    hold every triangle), of a node's centre's distance from the axis plus its box's half
+    diagonal: a long link is a few short pieces, each as far from the axis as it is
+    (``2**depth`` pieces at most, each a few flops per joint).
+    """
+    frontier = np.empty((2 ** depth, 4))  # world centre and radius of each piece
+    stack = np.empty((2 ** depth + depth + 1, 2), np.int64)
     t = poses[link]
-    w0 = t[0, 0] * center[0] + t[0, 1] * center[1] + t[0, 2] * center[2] + t[0, 3]
-    w1 = t[1, 0] * center[0] + t[1, 1] * center[1] + t[1, 2] * center[2] + t[1, 3]
-    w2 = t[2, 0] * center[0] + t[2, 1] * center[1] + t[2, 2] * center[2] + t[2, 3]
+    n, top = 0, 1
+    stack[0, 0], stack[0, 1] = root, 0
+    while top > 0:
+        top -= 1
+        node, level = stack[top, 0], stack[top, 1]
+        if level < depth and left[node] >= 0:
+            stack[top, 0], stack[top, 1] = left[node], level + 1
+            stack[top + 1, 0], stack[top + 1, 1] = right[node], level + 1
+            top += 2
+            continue
+        c = center[node]
+        for r in range(3):
+            frontier[n, r] = t[r, 0] * c[0] + t[r, 1] * c[1] + t[r, 2] * c[2] + t[r, 3]
+        h = half[node]
+        frontier[n, 3] = np.sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2])
+        n += 1
     rate[:] = 0.0
     turn[:] = 0.0
     k = link - 1  # joint k carries link k + 1
@@ -65,10 +88,15 @@ def local_rates(poses: np.ndarray, link: int, center: np.ndarray, radius: float,
                 e1 = a[1, 0] * axis[k, 0] + a[1, 1] * axis[k, 1] + a[1, 2] * axis[k, 2]
                 e2 = a[2, 0] * axis[k, 0] + a[2, 1] * axis[k, 1] + a[2, 2] * axis[k, 2]
                 norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-                d0, d1, d2 = w0 - a[0, 3], w1 - a[1, 3], w2 - a[2, 3]
-                x0, x1, x2 = d1 * e2 - d2 * e1, d2 * e0 - d0 * e2, d0 * e1 - d1 * e0
-                off = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2) / norm if norm > 0.0 else 0.0
-                rate[j] += abs(scale[k]) * (off + radius)
+                reach = 0.0
+                for i in range(n):
+                    d0 = frontier[i, 0] - a[0, 3]
+                    d1 = frontier[i, 1] - a[1, 3]
+                    d2 = frontier[i, 2] - a[2, 3]
+                    x0, x1, x2 = d1 * e2 - d2 * e1, d2 * e0 - d0 * e2, d0 * e1 - d1 * e0
+                    off = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2) / norm if norm > 0.0 else 0.0
+                    reach = max(reach, off + frontier[i, 3])
+                rate[j] += abs(scale[k]) * reach
                 turn[j] += abs(scale[k])
         k = parent[k] - 1
 

@@ -51,6 +51,9 @@ MAX_BOUNDS = 500_000
 # a bound carried over from the last piece is used while at least this fraction of
 # the last one measured (else a new one is measured: it may be larger)
 CARRY = 0.5
+# tree levels whose nodes stand in for a moving body in its local speed: a step near a
+# contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
+LOCAL_DEPTH = 3
 
 
 @dataclass(frozen=True)
@@ -164,10 +167,8 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 mov = moving_by_static(a, b, body_frame, parent, jtype, src)
                 if mov >= 0:
                     _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-                    r = root[mov]
-                    radius = np.sqrt(half[r, 0] ** 2 + half[r, 1] ** 2 + half[r, 2] ** 2)
-                    local_rates(poses, body_frame[mov], center[r], radius, parent, jtype,
-                                axis, src, scale, rate, turn)
+                    local_rates(poses, body_frame[mov], root[mov], LOCAL_DEPTH, center,
+                                half, left, right, parent, jtype, axis, src, scale, rate, turn)
                     reach = max(reach, local_step(rate, turn, u1[k], u2[k], speed,
                                                   d - covered))
             carry = -1.0
