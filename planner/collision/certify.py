@@ -13,8 +13,9 @@ Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lo
 comes closer than ``covered`` (for a body moving by a static one, the step may come from
 how fast it moves where it is now instead, :mod:`.body_speed`, when that is longer).
 Where ``d`` is not above the clearance, FCL's exact distance stands in (it is a bound
-too); where even that is not above the clearance, the motion is refused at that point. Every point of every piece is covered, so a motion
-certified free is free over the whole continuum, not only where it was sampled.
+too); where even that is not above the clearance, the motion is refused at that point.
+Every point of every piece is covered, so a motion certified free is free over the whole
+continuum, not only where it was sampled.
 
 The walk runs in numba, one call for the whole motion and every pair; Python only
 computes FCL distances near contact (FCL stays the reference for exact contact).
