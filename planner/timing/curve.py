@@ -115,11 +115,13 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
         (m,), sigma clamped to the piece), shape (m, dof): a piece's end stays its own."""
         if not 0 <= order <= 3:
             raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
-        return self.jet(k, sigma, order)[order]
+        return self.jet(k, sigma, (order,))[0]
 
-    def jet(self, k: np.ndarray, sigma: np.ndarray, upto: int = 3) -> tuple[np.ndarray, ...]:
-        """The derivatives of order 0..``upto`` at ``sigma`` [rad] into piece ``k``, as in
-        :meth:`in_piece` but sharing the piece lookups (what evaluating a timing needs)."""
+    def jet(self, k: np.ndarray, sigma: np.ndarray, orders: Sequence[int] = (0, 1, 2, 3)
+            ) -> tuple[np.ndarray, ...]:
+        """The derivatives of the given ``orders`` (each 0..3) at ``sigma`` [rad] into
+        piece ``k``, as in :meth:`in_piece` but sharing the piece lookups (what
+        evaluating a timing needs); only those orders are computed."""
         L = self.lengths[k]
         sigma = np.clip(sigma, 0.0, L)
         x = np.where(L > 0, sigma / np.where(L > 0, L, 1.0), 0.0)[:, None]
@@ -128,11 +130,16 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
         inv_l = np.where(Lc > 0, 1.0 / np.where(Lc > 0, Lc, 1.0), 0.0)
         u1 = self.u1[k]
         du = self.u2[k] - u1
-        out = [self.starts[k] + u1 * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4),
-               u1 + du * (3 * x**2 - 2 * x**3),
-               du * (6 * x - 6 * x**2) * inv_l,
-               du * (6 - 12 * x) * inv_l**2]
-        return tuple(out[:upto + 1])
+
+        def derivative(order: int) -> np.ndarray:
+            if order == 0:
+                return self.starts[k] + u1 * sigma[:, None] + du * Lc * (x**3 - 0.5 * x**4)
+            if order == 1:
+                return u1 + du * (3 * x**2 - 2 * x**3)
+            if order == 2:
+                return du * (6 * x - 6 * x**2) * inv_l
+            return du * (6 - 12 * x) * inv_l**2
+        return tuple(derivative(o) for o in orders)
 
     def dense(self, step: float, s_from: float = 0.0, s_to: float | None = None) -> np.ndarray:
         """States along [s_from, s_to] no more than ``step`` [rad] apart per joint, (m, dof)."""

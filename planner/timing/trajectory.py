@@ -79,7 +79,7 @@ class CurveTiming:
             if not m.any():
                 continue
             s, sd, sdd = prof.evaluate(ts[m] - self.t0[i])
-            q[m], d1, d2 = curve.jet(*curve.locate(s), 2)
+            q[m], d1, d2 = curve.jet(*curve.locate(s), (0, 1, 2))
             qd[m] = d1 * sd[:, None]
             qdd[m] = d1 * sdd[:, None] + d2 * (sd * sd)[:, None]
         # The final state is exact: the goal, at rest (not the curve formula's rounding).
