@@ -25,7 +25,7 @@ import numpy as np
 from description.model import Joint, Robot
 
 from ..kinematics.chain import _fk_into
-from .body_speed import local_rates, moving_by_static
+from .body_speed import local_rates
 from .obbtree import box_in_frame, in_box_frame, relative_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
@@ -211,10 +211,10 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
           since: np.ndarray, rates: np.ndarray,
           parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray, axis: np.ndarray,
           src: np.ndarray, scale: np.ndarray, offset: np.ndarray, body_frame: np.ndarray,
-          static_pose: np.ndarray, pairs: np.ndarray, weight: np.ndarray, root: np.ndarray,
-          center: np.ndarray, axes: np.ndarray, half: np.ndarray, left: np.ndarray,
-          right: np.ndarray, pad: float, horizon: float, poses: np.ndarray,
-          stack: np.ndarray, gaps: np.ndarray, out: np.ndarray) -> int:
+          static_pose: np.ndarray, pairs: np.ndarray, mover: np.ndarray, weight: np.ndarray,
+          root: np.ndarray, center: np.ndarray, axes: np.ndarray, half: np.ndarray,
+          left: np.ndarray, right: np.ndarray, pad: float, horizon: float,
+          poses: np.ndarray, stack: np.ndarray, gaps: np.ndarray, out: np.ndarray) -> int:
     """Mark (state, pair) where the pair may be closer than ``pad``; the rest is proven.
 
     Walks ``qs`` (m, dof) in order from state ``start``; with ``stop_early`` returns the
@@ -222,8 +222,9 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
     the end and returns m. ``cum`` (m, dof) gets the cumulative |joint motion| when
     ``start`` is 0. Carried between resumed calls, per pair: ``budget`` (n_pairs,) the
     distance [m] proven at state ``since`` (n_pairs,) int64, and ``rates`` (n_pairs, 2,
-    dof) a body moving by a static one's :func:`~.body_speed.local_rates` there (rate
-    [0, 0] < 0: none), so the proof lasts while the motion since, by the pair's
+    dof) the :func:`~.body_speed.local_rates` there of the pair's body ``mover``
+    (n_pairs,) that moves by a static one (-1: none), so the proof lasts while the
+    motion since, by the pair's
     every-configuration ``weight`` (n_pairs, dof) [m/rad] or by those local rates, stays
     below it. The kinematics arrays are :class:`~planner.kinematics.chain.Kinematics`';
     ``horizon`` [m] caps how far ahead one bound is asked to prove (deeper proofs cost
@@ -252,7 +253,7 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
                     moved += weight[p, j] * (cum[i, j] - cum[i0, j])
                 if moved < budget[p]:
                     continue
-                if rates[p, 0, 0] >= 0.0:
+                if mover[p] >= 0:
                     # where it was proven, the body moved slower than anywhere: each
                     # joint's reach there, grown by at most what it has moved since
                     near = 0.0
@@ -276,15 +277,13 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
             if lb > pad + MARGIN:
                 budget[p] = lb - pad - MARGIN
                 since[p] = i
-                mov = moving_by_static(a, b, body_frame, parent, jtype, src)
+                mov = mover[p]
                 if mov >= 0:
                     # the root's box alone: a sweep re-proves pairs too often to pay
                     # for more
                     local_rates(poses, body_frame[mov], root[mov], 0, center, half, left,
                                 right, parent, jtype, axis, src, scale, rates[p, 0],
                                 rates[p, 1])
-                else:
-                    rates[p, 0, 0] = -1.0
             else:
                 out[i, p] = 1
                 marked = True

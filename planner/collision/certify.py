@@ -32,7 +32,7 @@ import numpy as np
 
 from ..kinematics.chain import _fk_into
 from .advance import tree_lower_bound
-from .body_speed import local_rates, local_step, moving_by_static
+from .body_speed import local_rates, local_step
 from .world import CollisionWorld
 
 _DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
@@ -98,7 +98,8 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
              p0: int, k0: int, s0: float, injected: float, parent: np.ndarray,
              origin: np.ndarray, jtype: np.ndarray, axis: np.ndarray, src: np.ndarray,
              scale: np.ndarray, offset: np.ndarray, body_frame: np.ndarray,
-             static_pose: np.ndarray, pairs: np.ndarray, weight: np.ndarray,
+             static_pose: np.ndarray, pairs: np.ndarray, mover: np.ndarray,
+             weight: np.ndarray,
              root: np.ndarray, center: np.ndarray, axes: np.ndarray, half: np.ndarray,
              left: np.ndarray, right: np.ndarray, clear: float, fraction: float,
              local: bool, poses: np.ndarray, stack: np.ndarray, gaps: np.ndarray,
@@ -107,7 +108,9 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     """Walk pairs ``p0..`` along every piece from (piece ``k0``, ``sigma`` ``s0``).
 
     ``injected`` >= 0 is an exact distance [m] for pair ``p0`` at that point (from the
-    caller's FCL query). ``best`` (n_pairs,) gets each pair's certified clearance.
+    caller's FCL query). ``mover`` (n_pairs,): the body of each pair that moves by a
+    static one (its local speed may lengthen the steps), or -1. ``best`` (n_pairs,) gets
+    each pair's certified clearance.
     Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
     an exact distance, else ``_DONE``. ``counts[0]`` counts bounds evaluated.
     """
@@ -165,7 +168,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
             left_on_piece = length - s
             if local and reach < left_on_piece:
                 # a body moving by a static one: how fast it moves where it is now
-                mov = moving_by_static(a, b, body_frame, parent, jtype, src)
+                mov = mover[p]
                 if mov >= 0:
                     _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
                     local_rates(poses, body_frame[mov], root[mov], LOCAL_DEPTH, center,
@@ -251,8 +254,8 @@ class Certifier:
         p, k, s, injected, exact = 0, 0, 0.0, -1.0, 0
         while True:
             status = _advance(starts, u1, u2, lengths, p, k, s, injected, *w.kin._args(),
-                              w._frame, w._static_pose, w._pairs, w._weight, f.root,
-                              f.center, f.axes, f.half, f.left, f.right, clear,
+                              w._frame, w._static_pose, w._pairs, w._mover, w._weight,
+                              f.root, f.center, f.axes, f.half, f.left, f.right, clear,
                               self.fraction, self.local, self._poses, self._stack,
                               self._gaps, self._q, best, request, counts)
             if status == _DONE:

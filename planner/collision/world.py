@@ -27,6 +27,7 @@ from ..kinematics.chain import Kinematics
 from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
+from .body_speed import moving_by_static
 from .obbtree import (
     Forest,
     ObbTree,
@@ -207,6 +208,11 @@ class CollisionWorld:
             (names[a], names[b]) for a, b in self._pairs)
         # [m/rad] how fast each pair can close in per joint, for conservative advancement
         self._weight = pair_weights(robot, self.kin.joint_names, points, self._pairs)
+        # per pair, the body that moves by a static one (its local speed bounds the pair's
+        # steps too), or -1
+        parent, _, jtype, _, src, _, _ = self.kin._args()
+        self._mover = np.array([moving_by_static(int(a), int(b), self._frame, parent, jtype,
+                                                 src) for a, b in self._pairs], np.int64)
         self._placed = np.full(len(names), -1, dtype=np.int64)
         self._stamp = 0
         self._creq = fcl.CollisionRequest()
@@ -375,9 +381,9 @@ class CollisionWorld:
                budget: tuple[np.ndarray, np.ndarray, np.ndarray], out: np.ndarray) -> int:
         f = self._forest
         return sweep(qs, start, stop_early, cum, *budget, *self.kin._args(), self._frame,
-                     self._static_pose, self._pairs, self._weight, f.root, f.center, f.axes,
-                     f.half, f.left, f.right, self.padding, self.horizon, self._sweep_poses,
-                     self._stack, self._gaps, out)
+                     self._static_pose, self._pairs, self._mover, self._weight, f.root,
+                     f.center, f.axes, f.half, f.left, f.right, self.padding, self.horizon,
+                     self._sweep_poses, self._stack, self._gaps, out)
 
     def _budget(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         # the sweep's per-pair proof, carried between its resumed calls
