@@ -194,8 +194,6 @@ class CollisionWorld:
         self._static_pose = static_pose
         self._objs = objs
         self._forest = Forest.of(trees)
-        self._radius = np.array([t.radius for t in trees])
-        self._center = np.array([t.center[0] for t in trees])
         moving, fixed = [], []
         for a, b in combinations(range(len(names)), 2):
             if a >= len(self.link_bodies) and b >= len(self.link_bodies):
