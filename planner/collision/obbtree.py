@@ -35,11 +35,6 @@ class ObbTree:
     left: np.ndarray
     right: np.ndarray
 
-    @property
-    def radius(self) -> float:
-        """Radius [m] of a sphere about the root centre holding the body."""
-        return float(np.linalg.norm(self.half[0]))
-
 
 @numba.njit(cache=True, nogil=True)
 def _build(tri: np.ndarray, cent: np.ndarray, leaf_size: int, center: np.ndarray,
