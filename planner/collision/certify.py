@@ -141,6 +141,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 carry = -1.0
                 continue
             _eval_piece(starts[k], u1[k], u2[k], length, s, q)
+            posed = False  # poses are of q
             if inj >= 0.0:
                 d = inj
                 inj = -1.0
@@ -151,6 +152,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 d = carry
             else:
                 _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+                posed = True
                 ta = poses[body_frame[a]] if body_frame[a] >= 0 else static_pose[a]
                 tb = poses[body_frame[b]] if body_frame[b] >= 0 else static_pose[b]
                 d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
@@ -170,7 +172,8 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 # a body moving by a static one: how fast it moves where it is now
                 mov = mover[p]
                 if mov >= 0:
-                    _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+                    if not posed:
+                        _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
                     local_rates(poses, body_frame[mov], root[mov], LOCAL_DEPTH, center,
                                 half, left, right, parent, jtype, axis, src, scale, rate, turn)
                     reach = max(reach, local_step(rate, turn, u1[k], u2[k], speed,

@@ -262,8 +262,10 @@ class CollisionWorld:
             return self._distance(a, b) < self.padding
         return fcl.collide(self._objs[a], self._objs[b], self._creq, fcl.CollisionResult()) > 0
 
-    def _distance(self, a: int, b: int) -> float:
-        d = fcl.distance(self._objs[a], self._objs[b], self._dreq, fcl.DistanceResult())
+    def _distance(self, a: int, b: int, *, surface: bool = False) -> float:
+        # surface: a box obstacle b by its 12 triangles (only where b holds no body)
+        other = self._surfaces.get(b, self._objs[b]) if surface else self._objs[b]
+        d = fcl.distance(self._objs[a], other, self._dreq, fcl.DistanceResult())
         return max(float(d), 0.0)
 
     def _candidates(self, poses: np.ndarray, out: np.ndarray) -> int:
@@ -312,9 +314,7 @@ class CollisionWorld:
         a, b = self._pairs[pair]
         self._place(poses, a)
         self._place(poses, b)
-        d = fcl.distance(self._objs[a], self._surfaces.get(b, self._objs[b]), self._dreq,
-                         fcl.DistanceResult())
-        return max(float(d), 0.0)
+        return self._distance(a, b, surface=True)
 
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
