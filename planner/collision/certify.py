@@ -271,9 +271,10 @@ class Certifier:
             q = np.empty(w.dof)  # the very point the walk stopped at
             _eval_piece(starts[k], u1[k], u2[k], lengths[k], s, q)
             # free: the walk reached it from a checked sample, every point farther than
-            # the clearance, so neither body can be inside the other
-            d = w.pair_distance(q, p)
-            exact += 1
+            # the clearance, so neither body can be inside the other; the hulls' bound
+            # first (cheap), FCL's exact distance where the hulls touch
+            d, was_exact = w.pair_bound(q, p, above=clear + GAP)
+            exact += was_exact
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),

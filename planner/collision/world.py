@@ -28,6 +28,7 @@ from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
 from .body_speed import moving_by_static
+from .hulls import Hull, HullBounds, mesh_hull, obstacle_hull
 from .obbtree import (
     Forest,
     ObbTree,
@@ -94,6 +95,7 @@ class RobotBodies:
         geometries: each one's FCL BVH (link frame); shared, never moved.
         statics: whether the link never moves (no movable joint above it).
         points: (link, vertices) for the motion bounds.
+        hulls: each one's convex hull (link frame), for cheap distance bounds.
     """
 
     description: Description
@@ -103,13 +105,15 @@ class RobotBodies:
     geometries: tuple[fcl.BVHModel, ...]
     statics: tuple[bool, ...]
     points: tuple[tuple[str, np.ndarray], ...]
+    hulls: tuple[Hull, ...]
 
     @classmethod
     def build(cls, description: Description, kin: Kinematics, *,
               cache: ArtifactCache | None = None) -> RobotBodies:
-        """Build every link's geometry; trees come from ``cache`` when it has them."""
+        """Build every link's geometry; trees and hulls come from ``cache`` when it has
+        them."""
         robot = description.robot
-        names, frames, trees, geoms, statics, points = [], [], [], [], [], []
+        names, frames, trees, geoms, statics, points, hulls = [], [], [], [], [], [], []
         for link in kin.link_names:
             shapes = robot.links[link].collisions
             if not shapes:
@@ -122,8 +126,9 @@ class RobotBodies:
             geoms.append(_bvh(mesh))
             statics.append(not any(j.movable for j in robot.link_path(link)))
             points.append((link, np.asarray(mesh.vertices, float)))
+            hulls.append(mesh_hull(points[-1][1], cache))
         return cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
-                   tuple(statics), tuple(points))
+                   tuple(statics), tuple(points), tuple(hulls))
 
 
 class CollisionWorld:
@@ -173,6 +178,7 @@ class CollisionWorld:
         self._surfaces: dict[int, fcl.CollisionObject] = {}
         statics = list(bodies.statics)
         points = list(bodies.points)
+        hulls = list(bodies.hulls)
         self.link_bodies = tuple(names)
         static_pose = np.tile(np.eye(4), (len(names) + len(self.obstacles), 1, 1))
         for i, o in enumerate(self.obstacles):
@@ -188,12 +194,14 @@ class CollisionWorld:
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
+            hulls.append(obstacle_hull(o))
             static_pose[len(self.link_bodies) + i] = pose
         self.body_names = tuple(names)
         self._frame = np.array(frames, dtype=np.int64)
         self._static_pose = static_pose
         self._objs = objs
         self._forest = Forest.of(trees)
+        self._hulls = HullBounds(hulls, static_pose)
         moving, fixed = [], []
         for a, b in combinations(range(len(names)), 2):
             if a >= len(self.link_bodies) and b >= len(self.link_bodies):
@@ -252,6 +260,9 @@ class CollisionWorld:
         self._objs[b].setRotation(t[:3, :3])
         self._objs[b].setTranslation(t[:3, 3])
         self._placed[b] = self._stamp
+
+    def _pose(self, poses: np.ndarray, b: int) -> np.ndarray:
+        return poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
 
     def _narrow(self, poses: np.ndarray, a: int, b: int, *, exact: bool = False) -> bool:
         if not (exact or self.narrow_phase):
@@ -316,6 +327,21 @@ class CollisionWorld:
         self._place(poses, b)
         return self._distance(a, b, surface=True)
 
+    def pair_bound(self, q: ArrayLike, pair: int, *, above: float) -> tuple[float, bool]:
+        """A lower bound [m] on the distance of checked pair ``pair`` at a state ``q``
+        reached without contact (as for :meth:`pair_distance`): the bodies' convex
+        hulls' (:mod:`.hulls`, ~20 us) when that is above ``above``, else FCL's exact
+        distance (0.3-2 ms on CAD links). The flag says which (True: exact)."""
+        poses = self._poses_of(q)
+        a, b = self._pairs[pair]
+        d = self._hulls.bound(int(a), self._pose(poses, a), int(b), self._pose(poses, b))
+        if d > above:
+            return d, False
+        self._stamp += 1
+        self._place(poses, a)
+        self._place(poses, b)
+        return self._distance(a, b, surface=True), True
+
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
         (shape (dof,)), from the OBB trees alone (no FCL); at most 0.3 m."""
@@ -335,9 +361,8 @@ class CollisionWorld:
         scratch = np.empty((8, 3, 3))
         lb = np.empty(len(pairs))
         for k, (a, b) in enumerate(pairs):
-            ta = poses[self._frame[a]] if self._frame[a] >= 0 else self._static_pose[a]
-            tb = poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
-            lb[k] = min(tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes,
+            lb[k] = min(tree_lower_bound(self._pose(poses, a), f.root[a], self._pose(poses, b),
+                                         f.root[b], f.center, f.axes,
                                          f.half, f.left, f.right, 0.0, _CLEARANCE_CAP,
                                          self._stack, self._gaps, scratch), _CLEARANCE_CAP)
         return lb
