@@ -47,6 +47,15 @@ def test_a_graze_between_samples_is_refused(needle):
     assert sigma == pytest.approx(0.101, abs=2e-3)
 
 
+def test_without_samples_first_the_proof_alone_refuses_a_graze_and_a_crossing(needle):
+    # (what a planner's re-check does: it sampled the edges itself)
+    for path in ([[0.0], [0.2]], [[0.0], [0.101]], [[0.3], [-0.5]]):
+        cert = Certifier(needle).path(np.array(path), sample_step=None)
+        assert not cert.free and cert.failure[2] == ("needle", "plate")
+        assert cert.failure[1] == pytest.approx(abs(0.101 - path[0][0]), abs=2e-3)
+    assert Certifier(needle).path(np.array([[0.0], [0.09]]), sample_step=None).free
+
+
 def test_a_motion_short_of_the_plate_is_certified_with_its_clearance(needle):
     cert = Certifier(needle, fraction=0.5).path(np.array([[0.0], [0.09]]))
     assert cert.free and cert.closest == ("needle", "plate")

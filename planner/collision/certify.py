@@ -221,7 +221,8 @@ class Certifier:
         self._q = np.empty(world.dof)
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-               lengths: np.ndarray, *, sample_step: float = SAMPLE_STEP) -> Certificate:
+               lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
+               ) -> Certificate:
         """Certify pieces ``q(sigma) = start + u1 sigma + (u2 - u1) L H(sigma / L)``:
         ``starts``, ``u1``, ``u2`` shape (n, dof), ``lengths`` (n,) [rad].
 
@@ -229,14 +230,15 @@ class Certifier:
         geometrically towards a contact, so a motion that really collides is refused at
         its first colliding sample, and the proof runs on motions whose samples are free
         (a graze between samples is then what it settles, with at most ``MAX_EXACT``
-        exact queries)."""
+        exact queries). None skips that for motions whose states the caller has just
+        checked (a planner's edges): the proof alone decides, as soundly."""
         w = self.world
         clear = w.padding
         starts = np.ascontiguousarray(starts, float).reshape(-1, w.dof)
         u1 = np.ascontiguousarray(u1, float).reshape(-1, w.dof)
         u2 = np.ascontiguousarray(u2, float).reshape(-1, w.dof)
         lengths = np.ascontiguousarray(lengths, float).reshape(-1)
-        for k in range(len(starts)):
+        for k in range(len(starts) if sample_step is not None else 0):
             # (a pair no piece moves keeps its start distance: the start is a sample)
             n = max(1, int(np.ceil(lengths[k] / sample_step)))
             sig = np.linspace(0.0, lengths[k], n + 1)
@@ -285,7 +287,8 @@ class Certifier:
         return Certificate(True, clear, cert, w.pair_names[worst] if npair else None, None,
                            int(counts[0]), exact)
 
-    def path(self, path: np.ndarray, *, sample_step: float = SAMPLE_STEP) -> Certificate:
+    def path(self, path: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
+             ) -> Certificate:
         """Certify the polyline through ``path`` (shape (k, dof)) edge by edge."""
         path = np.asarray(path, float).reshape(-1, self.world.dof)
         if len(path) < 2:
