@@ -12,13 +12,15 @@ Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lo
 ``d`` on the pair's distance; no point of the next ``(d - covered) / speed`` of the piece
 comes closer than ``covered`` (for a body moving by a static one, the step may come from
 how fast it moves where it is now instead, :mod:`.body_speed`, when that is longer).
-Where ``d`` is not above the clearance, FCL's exact distance stands in (it is a bound
+Where ``d`` is not above the clearance, the bodies' convex hulls give a bound
+(:mod:`.hulls`), and where they touch, FCL's exact distance stands in (it is a bound
 too); where even that is not above the clearance, the motion is refused at that point.
 Every point of every piece is covered, so a motion certified free is free over the whole
 continuum, not only where it was sampled.
 
 The walk runs in numba, one call for the whole motion and every pair; Python only
-computes FCL distances near contact (FCL stays the reference for exact contact).
+computes the hull and FCL distances near contact (FCL stays the reference for exact
+contact).
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ _DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
 _CAP = 0.1
 # exact distance queries one certification may make before it gives up (refuses)
 MAX_EXACT = 4000
+# hull and exact queries together (a hull query costs ~1/20 of an exact one)
+MAX_NEAR = 40_000
 # [rad] states this far apart are checked before the proof (see Certifier.pieces)
 SAMPLE_STEP = 0.01
 # [m] the proof shows every point at least this much beyond the clearance: a step is
@@ -72,7 +76,8 @@ class Certificate:
         failure: when not free, (piece index, sigma [rad], pair, distance [m]) where the
             proof failed (a contact, a point closer than the clearance, or the exact
             query budget spent: distance NaN).
-        bounds: distance bounds evaluated; ``exact``: FCL distance queries made.
+        bounds: OBB-tree distance bounds evaluated; ``exact``: FCL distance queries made
+            (where the hulls could not prove the pair apart).
     """
 
     free: bool
@@ -256,7 +261,7 @@ class Certifier:
         request = np.zeros(3)
         counts = np.zeros(1, dtype=np.int64)
         f = w._forest
-        p, k, s, injected, exact = 0, 0, 0.0, -1.0, 0
+        p, k, s, injected, exact, near = 0, 0, 0.0, -1.0, 0, 0
         while True:
             status = _advance(starts, u1, u2, lengths, p, k, s, injected, *w.kin._args(),
                               w._frame, w._static_pose, w._pairs, w._mover, w._weight,
@@ -267,7 +272,7 @@ class Certifier:
                 break
             p, k, s = int(request[0]), int(request[1]), float(request[2])
             pair = w.pair_names[p]
-            if exact >= MAX_EXACT or status == _BUDGET:
+            if exact >= MAX_EXACT or near >= MAX_NEAR or status == _BUDGET:
                 return Certificate(False, clear, 0.0, pair, (k, s, pair, float("nan")),
                                    int(counts[0]), exact)
             q = np.empty(w.dof)  # the very point the walk stopped at
@@ -277,6 +282,7 @@ class Certifier:
             # first (cheap), FCL's exact distance where the hulls touch
             d, was_exact = w.pair_bound(q, p, above=clear + GAP)
             exact += was_exact
+            near += 1
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),

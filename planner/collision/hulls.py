@@ -11,7 +11,7 @@ on these hulls (measured), and that error can only make ``n`` less good, never t
 bound wrong.
 
 Near a concave body (a finger in the base's hollow) the hulls touch while the meshes do
-not: the bound is then 0 and the caller asks FCL for the exact distance.
+not: the bound is then 0 or less, and the caller asks FCL for the exact distance.
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ class Hull:
 
     Attributes:
         vertices: shape (m, 3) [m]; the body lies within ``radius`` of their convex hull.
-        radius: [m] (a sphere obstacle is its centre and radius; 0 otherwise).
+        radius: [m] (a sphere obstacle: its centre and radius; a mesh: qhull's
+            rounding; 0 for a box or cylinder).
         geometry: the same convex set for FCL's GJK (it only steers the bound).
     """
 
