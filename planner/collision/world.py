@@ -1,7 +1,8 @@
 """The collision world: the robot's link meshes and the scene's obstacles in python-fcl.
 
-Built once per (description, obstacles, padding) and reused for every check. A check is
-fast FK (numba), an OBB-tree broad phase over every checked pair (numba,
+Built once per (description, obstacles, padding) and reused for every check; the
+robot's geometry (:mod:`.bodies`) is shared by every world of it. A check is fast FK
+(numba), an OBB-tree broad phase over every checked pair (numba,
 :mod:`planner.collision.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
 separate; FCL objects are built once and only moved.
 """
@@ -19,7 +20,6 @@ import trimesh
 from numpy.typing import ArrayLike
 
 from description import Description
-from description.meshes import shape_mesh
 
 from ..cache import ArtifactCache
 from ..errors import InvalidRequest
@@ -27,14 +27,14 @@ from ..kinematics.chain import Kinematics
 from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
+from .bodies import RobotBodies, bvh
 from .body_speed import moving_by_static
-from .hulls import Hull, HullBounds, mesh_hull, obstacle_hull
+from .hulls import HullBounds, obstacle_hull
 from .obbtree import (
     Forest,
     ObbTree,
     box_tree,
     build_tree,
-    cached_tree,
     pair_candidates,
 )
 
@@ -62,14 +62,6 @@ class StateCheck:
     closest: tuple[str, str] | None = None
 
 
-def _bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
-    m = fcl.BVHModel()
-    m.beginModel(len(mesh.vertices), len(mesh.faces))
-    m.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
-    m.endModel()
-    return m
-
-
 def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree]:
     if o.shape == "box":
         return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2)
@@ -79,56 +71,7 @@ def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree]:
         return fcl.Cylinder(o.radius, o.length), box_tree(np.array([o.radius, o.radius,
                                                                      o.length / 2]))
     mesh = trimesh.load(o.mesh_path, force="mesh")
-    return _bvh(mesh), build_tree(mesh.vertices, mesh.faces)
-
-
-@dataclass(frozen=True, eq=False)
-class RobotBodies:
-    """The robot's collision geometry, built once per description and shared by every
-    world of it: a world per obstacle set would otherwise rebuild each link's OBB tree
-    and BVH (~1.5 s for the shipped meshes, ~13 s at 50k triangles a link).
-
-    Attributes:
-        names: the links that have collision geometry, in FK order.
-        frames: each one's index in ``Kinematics.link_names``.
-        trees: each one's OBB tree (link frame).
-        geometries: each one's FCL BVH (link frame); shared, never moved.
-        statics: whether the link never moves (no movable joint above it).
-        points: (link, vertices) for the motion bounds.
-        hulls: each one's convex hull (link frame), for cheap distance bounds.
-    """
-
-    description: Description
-    names: tuple[str, ...]
-    frames: tuple[int, ...]
-    trees: tuple[ObbTree, ...]
-    geometries: tuple[fcl.BVHModel, ...]
-    statics: tuple[bool, ...]
-    points: tuple[tuple[str, np.ndarray], ...]
-    hulls: tuple[Hull, ...]
-
-    @classmethod
-    def build(cls, description: Description, kin: Kinematics, *,
-              cache: ArtifactCache | None = None) -> RobotBodies:
-        """Build every link's geometry; trees and hulls come from ``cache`` when it has
-        them."""
-        robot = description.robot
-        names, frames, trees, geoms, statics, points, hulls = [], [], [], [], [], [], []
-        for link in kin.link_names:
-            shapes = robot.links[link].collisions
-            if not shapes:
-                continue
-            meshes = [shape_mesh(s, element=f"link '{link}' collision") for s in shapes]
-            mesh = meshes[0] if len(meshes) == 1 else trimesh.util.concatenate(meshes)
-            names.append(link)
-            frames.append(kin.link_index[link])
-            trees.append(cached_tree(mesh.vertices, mesh.faces, cache))
-            geoms.append(_bvh(mesh))
-            statics.append(not any(j.movable for j in robot.link_path(link)))
-            points.append((link, np.asarray(mesh.vertices, float)))
-            hulls.append(mesh_hull(points[-1][1], cache))
-        return cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
-                   tuple(statics), tuple(points), tuple(hulls))
+    return bvh(mesh), build_tree(mesh.vertices, mesh.faces)
 
 
 class CollisionWorld:
@@ -190,7 +133,7 @@ class CollisionWorld:
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
             if o.shape == "box":
                 self._surfaces[len(objs) - 1] = fcl.CollisionObject(
-                    _bvh(trimesh.creation.box(extents=o.size)),
+                    bvh(trimesh.creation.box(extents=o.size)),
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))

@@ -1,0 +1,77 @@
+"""The robot's collision geometry, built once per description: each link's mesh as an
+OBB tree (:mod:`.obbtree`), an FCL BVH and a convex hull (:mod:`.hulls`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import fcl
+import numpy as np
+import trimesh
+
+from description import Description
+from description.meshes import shape_mesh
+
+from ..cache import ArtifactCache
+from ..kinematics.chain import Kinematics
+from .hulls import Hull, mesh_hull
+from .obbtree import ObbTree, cached_tree
+
+
+def bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
+    """FCL's BVH of a triangle mesh, in the mesh's frame."""
+    m = fcl.BVHModel()
+    m.beginModel(len(mesh.vertices), len(mesh.faces))
+    m.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
+    m.endModel()
+    return m
+
+
+@dataclass(frozen=True, eq=False)
+class RobotBodies:
+    """The robot's collision geometry, built once per description and shared by every
+    world of it: a world per obstacle set would otherwise rebuild each link's OBB tree
+    and BVH (~1.5 s for the shipped meshes, ~13 s at 50k triangles a link).
+
+    Attributes:
+        names: the links that have collision geometry, in FK order.
+        frames: each one's index in ``Kinematics.link_names``.
+        trees: each one's OBB tree (link frame).
+        geometries: each one's FCL BVH (link frame); shared, never moved.
+        statics: whether the link never moves (no movable joint above it).
+        points: (link, vertices) for the motion bounds.
+        hulls: each one's convex hull (link frame), for cheap distance bounds.
+    """
+
+    description: Description
+    names: tuple[str, ...]
+    frames: tuple[int, ...]
+    trees: tuple[ObbTree, ...]
+    geometries: tuple[fcl.BVHModel, ...]
+    statics: tuple[bool, ...]
+    points: tuple[tuple[str, np.ndarray], ...]
+    hulls: tuple[Hull, ...]
+
+    @classmethod
+    def build(cls, description: Description, kin: Kinematics, *,
+              cache: ArtifactCache | None = None) -> RobotBodies:
+        """Build every link's geometry; trees and hulls come from ``cache`` when it has
+        them."""
+        robot = description.robot
+        names, frames, trees, geoms, statics, points, hulls = [], [], [], [], [], [], []
+        for link in kin.link_names:
+            shapes = robot.links[link].collisions
+            if not shapes:
+                continue
+            meshes = [shape_mesh(s, element=f"link '{link}' collision") for s in shapes]
+            mesh = meshes[0] if len(meshes) == 1 else trimesh.util.concatenate(meshes)
+            names.append(link)
+            frames.append(kin.link_index[link])
+            trees.append(cached_tree(mesh.vertices, mesh.faces, cache))
+            geoms.append(bvh(mesh))
+            statics.append(not any(j.movable for j in robot.link_path(link)))
+            points.append((link, np.asarray(mesh.vertices, float)))
+            hulls.append(mesh_hull(points[-1][1], cache))
+        return cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
+                   tuple(statics), tuple(points), tuple(hulls))
