@@ -50,8 +50,14 @@ def _bounds_never_exceed_exact(world: CollisionWorld, seed: int, n: int) -> int:
     return tight
 
 
-def test_hull_bounds_never_exceed_the_exact_distance_on_the_shipped_arm():
-    w = CollisionWorld(load_description(), obstacles=OBSTACLES)
+def test_hull_bounds_never_exceed_the_exact_distance_on_the_shipped_arm(tmp_path):
+    rock = trimesh.creation.icosphere(2, radius=0.12)
+    rock.vertices[:, 2] *= 0.5  # a flattened, open-topped rock: not a primitive
+    rock.update_faces(rock.face_normals[:, 2] < 0.9)
+    rock.export(tmp_path / "rock.stl")
+    mesh = Obstacle("rock", "mesh", mesh_path=str(tmp_path / "rock.stl"), xyz=(0.6, -0.6, 1.0))
+    w = CollisionWorld(load_description(), obstacles=[*OBSTACLES, mesh])
+    assert "rock" in {b for pair in w.pair_names for b in pair}
     # not vacuous: most bounds are within 10% of the distance
     assert _bounds_never_exceed_exact(w, 11, 60) > 100
 
@@ -92,12 +98,12 @@ def test_separation_along_any_direction_is_below_the_distance(seed):
 
 def test_convex_bodies_get_their_exact_distance():
     # a box obstacle and a sphere obstacle are convex: the bound is their distance
-    from planner.collision.hulls import HullBounds, obstacle_hull
+    from planner.collision.hulls import HullBounds, primitive_hull
     box = Obstacle("b", "box", size=(0.1, 0.2, 0.3))
     ball = Obstacle("s", "sphere", radius=0.05)
     tb = np.eye(4)
     tb[:3, 3] = (0.3, 0.02, -0.01)
-    hb = HullBounds([obstacle_hull(box), obstacle_hull(ball)], np.tile(np.eye(4), (2, 1, 1)))
+    hb = HullBounds([primitive_hull(box), primitive_hull(ball)], np.tile(np.eye(4), (2, 1, 1)))
     assert hb.bound(0, np.eye(4), 1, tb) == pytest.approx(0.3 - 0.05 - 0.05, abs=1e-9)
 
 

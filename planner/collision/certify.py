@@ -74,8 +74,8 @@ class Certificate:
             worst, and exact at the closest points FCL measured).
         closest: the pair that bound belongs to.
         failure: when not free, (piece index, sigma [rad], pair, distance [m]) where the
-            proof failed (a contact, a point closer than the clearance, or the exact
-            query budget spent: distance NaN).
+            proof failed (a contact, a point closer than the clearance, or a query
+            budget spent: distance NaN).
         bounds: OBB-tree distance bounds evaluated; ``exact``: FCL distance queries made
             (where the hulls could not prove the pair apart).
     """

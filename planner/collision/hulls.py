@@ -105,9 +105,9 @@ def mesh_hull(vertices: np.ndarray, cache: ArtifactCache | None = None) -> Hull:
     return Hull(hv, _SLACK + outside, _convex(hv, hf))
 
 
-def obstacle_hull(o: Obstacle) -> Hull:
-    """A primitive obstacle's exact convex set (a cylinder's circumscribed prism for the
-    support); a mesh obstacle's hull."""
+def primitive_hull(o: Obstacle) -> Hull:
+    """A box, sphere or cylinder obstacle as its own convex set (a cylinder's
+    circumscribed prism for the support)."""
     if o.shape == "box":
         half = np.asarray(o.size, float) / 2
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
@@ -121,7 +121,7 @@ def obstacle_hull(o: Obstacle) -> Hull:
         verts = np.vstack([np.column_stack([ring, np.full(_PRISM_SIDES, z)])
                            for z in (-o.length / 2, o.length / 2)])
         return Hull(verts, 0.0, fcl.Cylinder(o.radius, o.length))
-    return mesh_hull(np.asarray(trimesh.load(o.mesh_path, force="mesh").vertices))
+    raise ValueError(f"obstacle '{o.id}' is a {o.shape}, not a primitive: use mesh_hull")
 
 
 @numba.njit(cache=True, nogil=True)

@@ -29,7 +29,7 @@ from .acm import AllowedCollisionMatrix
 from .advance import pair_weights, sweep, tree_lower_bound
 from .bodies import RobotBodies, bvh
 from .body_speed import moving_by_static
-from .hulls import HullBounds, obstacle_hull
+from .hulls import Hull, HullBounds, mesh_hull, primitive_hull
 from .obbtree import (
     Forest,
     ObbTree,
@@ -62,16 +62,17 @@ class StateCheck:
     closest: tuple[str, str] | None = None
 
 
-def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree]:
+def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hull]:
     if o.shape == "box":
-        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2)
+        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
     if o.shape == "sphere":
-        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius))
+        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
     if o.shape == "cylinder":
-        return fcl.Cylinder(o.radius, o.length), box_tree(np.array([o.radius, o.radius,
-                                                                     o.length / 2]))
+        return (fcl.Cylinder(o.radius, o.length),
+                box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
     mesh = trimesh.load(o.mesh_path, force="mesh")
-    return bvh(mesh), build_tree(mesh.vertices, mesh.faces)
+    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
+            mesh_hull(np.asarray(mesh.vertices, float)))
 
 
 class CollisionWorld:
@@ -125,7 +126,7 @@ class CollisionWorld:
         self.link_bodies = tuple(names)
         static_pose = np.tile(np.eye(4), (len(names) + len(self.obstacles), 1, 1))
         for i, o in enumerate(self.obstacles):
-            geom, tree = _obstacle_geometry(o)
+            geom, tree, hull = _obstacle_geometry(o)
             pose = o.pose()
             names.append(o.id)
             frames.append(-1)
@@ -137,7 +138,7 @@ class CollisionWorld:
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
-            hulls.append(obstacle_hull(o))
+            hulls.append(hull)
             static_pose[len(self.link_bodies) + i] = pose
         self.body_names = tuple(names)
         self._frame = np.array(frames, dtype=np.int64)
