@@ -69,6 +69,19 @@ def _box(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(box.vertices, float), np.asarray(box.faces, np.int64)
 
 
+@numba.njit(cache=True, nogil=True)
+def _outside(points: np.ndarray, planes: np.ndarray) -> float:
+    # how far [m] the farthest point lies outside any facet's plane (n.x + d, n unit);
+    # every point against every facet, without a points x facets array (~1 GB at 50k)
+    worst = -np.inf
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        for f in range(planes.shape[0]):
+            worst = max(worst, planes[f, 0] * x + planes[f, 1] * y + planes[f, 2] * z
+                        + planes[f, 3])
+    return worst
+
+
 def _qhull(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     # hull vertices, triangles, and how far [m] any point lies outside a facet's plane;
     # the axis-aligned box (and 0) where qhull refuses the input (flat or too few
@@ -79,7 +92,7 @@ def _qhull(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     except QhullError:
         _log.info("no convex hull for a %d-vertex mesh (flat?): using its box", len(v))
         return (*_box(v), 0.0)
-    outside = float(np.max(v @ hull.equations[:, :3].T + hull.equations[:, 3]))
+    outside = _outside(v, np.ascontiguousarray(hull.equations))
     if outside > _MAX_OUTSIDE:
         _log.info("a convex hull leaves points %.1e m outside: using the box", outside)
         return (*_box(v), 0.0)
