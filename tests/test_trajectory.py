@@ -34,6 +34,17 @@ def test_blended_curve_is_c2_and_inside_corner_triangles():
     assert np.all(q >= WP.min(axis=0) - 1e-12) and np.all(q <= WP.max(axis=0) + 1e-12)
 
 
+def test_a_jet_is_its_orders_one_by_one_and_refuses_an_order_past_three():
+    sec = build_curve(WP, None).sections[0]
+    k, sigma = sec.locate(np.linspace(-0.1, sec.length + 0.1, 57))
+    for order, d in zip(range(4), sec.jet(k, sigma)):
+        np.testing.assert_array_equal(d, sec.in_piece(k, sigma, order))
+    for bad in ((0, 4), (-1,)):
+        with pytest.raises(InvalidRequest, match="not supported") as e:
+            sec.jet(k, sigma, bad)
+        assert e.value.details["field"] == "order"
+
+
 def test_colliding_blend_is_shrunk_then_becomes_a_stop():
     class Refuses:
         def first_invalid(self, qs):

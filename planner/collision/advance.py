@@ -225,7 +225,8 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
     dof) the :func:`~.body_speed.local_rates` there of the pair's body ``mover``
     (n_pairs,) that moves by a static one (-1: none), so the proof lasts while the motion
     since, by the pair's every-configuration ``weight`` (n_pairs, dof) [m/rad] or by
-    those local rates, stays below it. The kinematics arrays are :class:`~planner.kinematics.chain.Kinematics`';
+    those local rates, stays below it. The kinematics arrays are
+    :class:`~planner.kinematics.chain.Kinematics`';
     ``horizon`` [m] caps how far ahead one bound is asked to prove (deeper proofs cost
     more tree descent); ``poses`` (n_links, 4, 4) work buffer; ``out`` (m, n_pairs)
     int8, zeroed, gets 1 where the narrow phase must decide.

@@ -112,12 +112,12 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
              counts: np.ndarray) -> int:
     """Walk pairs ``p0..`` along every piece from (piece ``k0``, ``sigma`` ``s0``).
 
-    ``injected`` >= 0 is an exact distance [m] for pair ``p0`` at that point (from the
-    caller's FCL query). ``mover`` (n_pairs,): the body of each pair that moves by a
+    ``injected`` >= 0 is a distance bound [m] for pair ``p0`` at that point (from the
+    caller's hull or FCL query). ``mover`` (n_pairs,): the body of each pair that moves by a
     static one (its local speed may lengthen the steps), or -1. ``best`` (n_pairs,) gets
     each pair's certified clearance.
     Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
-    an exact distance, else ``_DONE``. ``counts[0]`` counts bounds evaluated.
+    a closer bound than the trees' (hull, else exact), else ``_DONE``. ``counts[0]`` counts bounds evaluated.
     """
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))

@@ -281,10 +281,7 @@ class CollisionWorld:
         d = self._hulls.bound(int(a), self._pose(poses, a), int(b), self._pose(poses, b))
         if d > above:
             return d, False
-        self._stamp += 1
-        self._place(poses, a)
-        self._place(poses, b)
-        return self._distance(a, b, surface=True), True
+        return self.pair_distance(q, pair), True  # (FK again: microseconds beside FCL)
 
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
@@ -305,8 +302,8 @@ class CollisionWorld:
         scratch = np.empty((8, 3, 3))
         lb = np.empty(len(pairs))
         for k, (a, b) in enumerate(pairs):
-            lb[k] = min(tree_lower_bound(self._pose(poses, a), f.root[a], self._pose(poses, b),
-                                         f.root[b], f.center, f.axes,
+            lb[k] = min(tree_lower_bound(self._pose(poses, a), f.root[a],
+                                         self._pose(poses, b), f.root[b], f.center, f.axes,
                                          f.half, f.left, f.right, 0.0, _CLEARANCE_CAP,
                                          self._stack, self._gaps, scratch), _CLEARANCE_CAP)
         return lb

@@ -113,8 +113,6 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
     def in_piece(self, k: np.ndarray, sigma: np.ndarray, order: int = 0) -> np.ndarray:
         """``order``-th derivative (0..3) at ``sigma`` [rad] into piece ``k`` (each shape
         (m,), sigma clamped to the piece), shape (m, dof): a piece's end stays its own."""
-        if not 0 <= order <= 3:
-            raise InvalidRequest(f"order {order} not supported (0..3)", field="order")
         return self.jet(k, sigma, (order,))[0]
 
     def jet(self, k: np.ndarray, sigma: np.ndarray, orders: Sequence[int] = (0, 1, 2, 3)
@@ -122,6 +120,9 @@ class PathCurve(toppra.interpolator.AbstractGeometricPath):
         """The derivatives of the given ``orders`` (each 0..3) at ``sigma`` [rad] into
         piece ``k``, as in :meth:`in_piece` but sharing the piece lookups (what
         evaluating a timing needs); only those orders are computed."""
+        bad = [o for o in orders if not 0 <= o <= 3]
+        if bad:
+            raise InvalidRequest(f"order {bad[0]} not supported (0..3)", field="order")
         L = self.lengths[k]
         sigma = np.clip(sigma, 0.0, L)
         x = np.where(L > 0, sigma / np.where(L > 0, L, 1.0), 0.0)[:, None]
