@@ -321,16 +321,16 @@ class PathPlanner:
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
                 roomy: CollisionWorld, rng: np.random.Generator) -> np.ndarray | None:
         # ``end`` if it has the room, else a state with room that a free straight edge
-        # reaches from it, at the shortest distance [rad] where one does: of the
-        # directions tried (towards ``toward``, then seeded random ones of the group's
-        # joints), the one leaving contact fastest (largest tree bound), so the edge's
-        # proof needs few exact distances
+        # reaches from it, at the shortest distance [rad] where one does: the first of
+        # the directions tried (towards ``toward``, then seeded random ones of the
+        # group's joints). Ranking the found ones by their tree bound (so the edge's
+        # proof needs fewer exact distances) measured no faster on the course model:
+        # the bounds cost what the proof saved.
         if roomy.is_valid(end):
             return end
         lim = self._limits[cols]
         dirs = [toward[cols] - end[cols]] + list(rng.normal(size=(8, len(cols))))
         for r in (0.05, 0.1, 0.2, 0.4):
-            found = []
             for d in dirs:
                 n = float(np.linalg.norm(d))
                 if n == 0:
@@ -338,9 +338,7 @@ class PathPlanner:
                 e = end.copy()
                 e[cols] = np.clip(end[cols] + r * d / n, lim[:, 0], lim[:, 1])
                 if roomy.is_valid(e) and self._edge_free(end, e):
-                    found.append(e)
-            if found:
-                return max(found, key=roomy.lower_bound)
+                    return e
         return None
 
     def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
