@@ -158,12 +158,15 @@ class JerkLimitedTiming:
                               details={"stage": "ruckig", "piece": int(np.argmin(done))})
 
     def section(self, curve: PathCurve, limits: ActiveLimits, *,
-                blend_speed: bool = True) -> RuckigProfile:
+                blend_speed: bool = True,
+                bounds: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                ) -> RuckigProfile:
         """The profile of one section, from rest to rest.
 
         ``blend_speed=False`` stops at every junction (the per-piece rest-to-rest baseline).
+        ``bounds``: the section's :meth:`piece_limits` when the caller has them.
         """
-        vs, as_, js = self.piece_limits(curve, limits)
+        vs, as_, js = self.piece_limits(curve, limits) if bounds is None else bounds
         n = len(vs)
         L = curve.lengths
         vb = np.zeros(n + 1)
@@ -210,11 +213,19 @@ class JerkLimitedTiming:
     def parameterise(self, curve: Curve, limits: ActiveLimits, *,
                      blend_speed: bool = True) -> CurveTiming:
         """Time every section of ``curve``; raises TrajectoryError if ruckig fails."""
+        moving = [c for c in curve.sections if c.length > _TINY]
         secs = []
-        for c in curve.sections:
-            if c.length <= _TINY:
-                continue
-            secs.append((c, self.section(c, limits, blend_speed=blend_speed)))
+        if moving:
+            # every section's piece limits in one batch (one dynamics call, one pass of
+            # numpy work): a curve that stops at each waypoint has a section per edge
+            whole = PathCurve(*(np.concatenate([getattr(c, f) for c in moving])
+                                for f in ("starts", "u1", "u2", "lengths")),
+                              [k for c in moving for k in c.kinds])
+            bounds = self.piece_limits(whole, limits)
+            ends = np.cumsum([len(c.lengths) for c in moving])[:-1]
+            for c, *own in zip(moving, *(np.split(b, ends) for b in bounds)):
+                secs.append((c, self.section(c, limits, blend_speed=blend_speed,
+                                             bounds=tuple(own))))
         if not secs:
             secs.append((curve.sections[0], RestProfile()))
         return CurveTiming(secs, goal=curve.goal)
