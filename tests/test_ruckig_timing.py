@@ -67,6 +67,19 @@ def test_blends_beat_rest_to_rest_and_stay_near_time_optimal():
     assert blended < 1.6 * optimal
 
 
+def test_sections_timed_in_one_batch_as_each_on_its_own():
+    # the piece limits of every section come from one batched call: each section's
+    # profile must be what timing it alone gives (a stop curve has one per edge)
+    stops = build_curve(WP, None, max_radius=0.0)
+    assert len(stops.sections) > 2
+    batched = TIMING.parameterise(stops, LIM)
+    for (c, prof) in batched.sections:
+        alone = TIMING.section(c, LIM)
+        assert prof.duration == alone.duration
+        ts = np.linspace(0.0, alone.duration, 101)
+        np.testing.assert_array_equal(np.array(prof.evaluate(ts)), np.array(alone.evaluate(ts)))
+
+
 def test_derating_slows_down():
     fast = TIMING.parameterise(CURVE, LIM).duration
     slow = TIMING.parameterise(CURVE, ActiveLimits.from_limits(
