@@ -302,7 +302,8 @@ class CollisionWorld:
         # OBB-tree lower bounds [m] of body pairs at link poses ``poses``, capped.
         # ``running``: only their minimum is wanted, so each pair is asked to prove no
         # more than the smallest bound so far (its own is then only >= that: the far
-        # pairs' descents stop at once; the minimum is the same)
+        # pairs' descents stop at once; the minimum is the same where the trees
+        # separate every pair, and <= 0 either way where boxes overlap)
         f = self._forest
         scratch = np.empty((8, 3, 3))
         lb = np.empty(len(pairs))

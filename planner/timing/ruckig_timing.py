@@ -212,7 +212,8 @@ class JerkLimitedTiming:
 
     def parameterise(self, curve: Curve, limits: ActiveLimits, *,
                      blend_speed: bool = True) -> CurveTiming:
-        """Time every section of ``curve``; raises TrajectoryError if ruckig fails."""
+        """Time every section of ``curve``; raises TrajectoryError if ruckig fails (a
+        piece named in its details counts the pieces of every moving section)."""
         moving = [c for c in curve.sections if c.length > _TINY]
         secs = []
         if moving:
