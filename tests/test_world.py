@@ -125,24 +125,6 @@ def test_pair_distance_to_a_box_is_fcl_distance_to_the_solid_box_at_free_states(
     assert compared > 5
 
 
-def test_lower_bound_is_the_least_pair_bound(world, d):
-    # each pair is asked to prove no more than the smallest bound so far: where the
-    # trees separate every pair, the minimum must be the one every pair's own capped
-    # bound gives; where boxes overlap, the descent stops at the first overlap found
-    # (any value <= 0 says "may touch"), so only the verdict must agree
-    lim = d.robot.position_limits()
-    pairs = list(map(tuple, world._pairs))
-    free = 0
-    for q in np.random.default_rng(9).uniform(lim[:, 0], lim[:, 1], size=(60, 4)):
-        each = world._tree_bounds(world.kin.link_poses(q), pairs).min()
-        if each > 0:
-            assert world.lower_bound(q) == each
-            free += 1
-        else:
-            assert world.lower_bound(q) <= 0
-    assert free > 10
-
-
 def test_lower_bound_never_exceeds_the_exact_distance(world, d):
     lim = d.robot.position_limits()
     qs = np.random.default_rng(8).uniform(lim[:, 0], lim[:, 1], size=(100, 4))

@@ -117,7 +117,8 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     static one (its local speed may lengthen the steps), or -1. ``best`` (n_pairs,) gets
     each pair's certified clearance.
     Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
-    a closer bound than the trees' (hull, else exact), else ``_DONE``. ``counts[0]`` counts bounds evaluated.
+    a closer bound than the trees' (hull, else exact), else ``_DONE``. ``counts[0]``
+    counts bounds evaluated.
     """
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))

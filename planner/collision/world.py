@@ -286,8 +286,7 @@ class CollisionWorld:
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
         (shape (dof,)), from the OBB trees alone (no FCL); at most 0.3 m."""
-        lb = self._tree_bounds(self._poses_of(q), list(map(tuple, self._pairs)),
-                               running=True)
+        lb = self._tree_bounds(self._poses_of(q), list(map(tuple, self._pairs)))
         return float(lb.min()) if len(lb) else _CLEARANCE_CAP
 
     def rigid_pairs(self, joints: Sequence[str]) -> tuple[tuple[str, str], ...]:
@@ -297,24 +296,16 @@ class CollisionWorld:
         return tuple(self.pair_names[p] for p in range(len(self.pair_names))
                      if self._weight[p, cols].max() < 1e-9)
 
-    def _tree_bounds(self, poses: np.ndarray, pairs: list[tuple[int, int]], *,
-                     running: bool = False) -> np.ndarray:
-        # OBB-tree lower bounds [m] of body pairs at link poses ``poses``, capped.
-        # ``running``: only their minimum is wanted, so each pair is asked to prove no
-        # more than the smallest bound so far (its own is then only >= that: the far
-        # pairs' descents stop at once; the minimum is the same where the trees
-        # separate every pair, and <= 0 either way where boxes overlap)
+    def _tree_bounds(self, poses: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
+        # OBB-tree lower bounds [m] of body pairs at link poses ``poses``, capped
         f = self._forest
         scratch = np.empty((8, 3, 3))
         lb = np.empty(len(pairs))
-        cap = _CLEARANCE_CAP
         for k, (a, b) in enumerate(pairs):
             lb[k] = min(tree_lower_bound(self._pose(poses, a), f.root[a],
                                          self._pose(poses, b), f.root[b], f.center, f.axes,
-                                         f.half, f.left, f.right, 0.0, cap,
-                                         self._stack, self._gaps, scratch), cap)
-            if running:
-                cap = min(cap, lb[k])
+                                         f.half, f.left, f.right, 0.0, _CLEARANCE_CAP,
+                                         self._stack, self._gaps, scratch), _CLEARANCE_CAP)
         return lb
 
     def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
