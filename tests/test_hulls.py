@@ -1,6 +1,7 @@
 """Convex-hull distance bounds (planner/collision/hulls.py): never above FCL's exact
 distance, on the shipped arm and on the course workspace's CAD links (millimetre meshes
-with open edges), against every obstacle shape; equal to it for convex bodies."""
+with open edges), against every obstacle shape, nor warm-started from a stale or any
+direction; equal to it for convex bodies."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import pytest
 import trimesh
 
 from description import load_description
-from planner.collision.hulls import mesh_hull, separation
+from planner.collision.hulls import mesh_hull, separation, warm_bound
 from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle
 
@@ -33,20 +34,41 @@ OBSTACLES = [Obstacle("slab", "box", size=(0.4, 0.4, 0.04), xyz=(0.0, 0.9, 0.9))
              Obstacle("post", "cylinder", radius=0.06, length=1.5, xyz=(-0.8, 0.3, 0.75))]
 
 
+def _warm(world: CollisionWorld, q: np.ndarray, p: int, n: np.ndarray) -> float:
+    h = world._hulls
+    poses = world._poses_of(q)
+    a, b = (int(x) for x in world._pairs[p])
+    return warm_bound(h.vertices, h.offsets, h.radii, a, world._pose(poses, a), b,
+                      world._pose(poses, b), n)
+
+
 def _bounds_never_exceed_exact(world: CollisionWorld, seed: int, n: int) -> int:
-    # at free states, every checked pair: the hull bound against FCL's exact distance
+    # at free states, every checked pair: the hull bound against FCL's exact distance;
+    # the warm bound from its direction a step away, and from any direction
     lim = world.description.robot.position_limits()
     rng = np.random.default_rng(seed)
     tight = 0
     for q in rng.uniform(lim[:, 0], lim[:, 1], size=(n, world.dof)):
         if not world.is_valid(q):
             continue
+        moved = np.clip(q + rng.normal(0.0, 0.02, world.dof), lim[:, 0], lim[:, 1])
         for p in range(len(world.pair_names)):
             exact = world.pair_distance(q, p)
-            bound, was_exact = world.pair_bound(q, p, above=-np.inf)
+            direction = np.full(3, np.nan)
+            bound, was_exact = world.pair_bound(q, p, above=-np.inf, direction=direction)
             assert not was_exact
             assert bound <= exact + 1e-12, (world.pair_names[p], bound, exact)
             tight += bound >= 0.9 * exact > 0
+            if not np.isfinite(direction[0]):
+                continue  # the hulls touch: no direction
+            assert abs(np.linalg.norm(direction) - 1.0) < 1e-12
+            # from GJK's own direction the warm bound is at least as good
+            assert _warm(world, q, p, direction.copy()) >= bound - 1e-12
+            if world.is_valid(moved):
+                assert _warm(world, moved, p, direction) <= world.pair_distance(moved, p) + 1e-12
+                any_n = rng.normal(size=3)
+                assert (_warm(world, moved, p, any_n / np.linalg.norm(any_n))
+                        <= world.pair_distance(moved, p) + 1e-12)
     return tight
 
 

@@ -13,8 +13,10 @@ Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lo
 comes closer than ``covered`` (for a body moving by a static one, the step may come from
 how fast it moves where it is now instead, :mod:`.body_speed`, when that is longer).
 Where ``d`` is not above the clearance, the bodies' convex hulls give a bound
-(:mod:`.hulls`), and where they touch, FCL's exact distance stands in (it is a bound
-too); where even that is not above the clearance, the motion is refused at that point.
+(:mod:`.hulls`): along the pair's last GJK direction inside the walk while that proves
+it (near contact the trees keep failing and the steps are short), else from a new GJK
+query; where the hulls touch, FCL's exact distance stands in (it is a bound too); where
+even that is not above the clearance, the motion is refused at that point.
 Every point of every piece is covered, so a motion certified free is free over the whole
 continuum, not only where it was sampled.
 
@@ -35,6 +37,7 @@ import numpy as np
 from ..kinematics.chain import _fk_into
 from .advance import tree_lower_bound
 from .body_speed import local_rates, local_step
+from .hulls import warm_bound
 from .world import CollisionWorld
 
 _DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
@@ -106,16 +109,19 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
              static_pose: np.ndarray, pairs: np.ndarray, mover: np.ndarray,
              weight: np.ndarray,
              root: np.ndarray, center: np.ndarray, axes: np.ndarray, half: np.ndarray,
-             left: np.ndarray, right: np.ndarray, clear: float, fraction: float,
-             local: bool, poses: np.ndarray, stack: np.ndarray, gaps: np.ndarray,
-             q: np.ndarray, best: np.ndarray, request: np.ndarray,
-             counts: np.ndarray) -> int:
+             left: np.ndarray, right: np.ndarray, hull_vertices: np.ndarray,
+             hull_offsets: np.ndarray, hull_radii: np.ndarray, clear: float,
+             fraction: float, local: bool, poses: np.ndarray, stack: np.ndarray,
+             gaps: np.ndarray, q: np.ndarray, best: np.ndarray, directions: np.ndarray,
+             warm: np.ndarray, request: np.ndarray, counts: np.ndarray) -> int:
     """Walk pairs ``p0..`` along every piece from (piece ``k0``, ``sigma`` ``s0``).
 
     ``injected`` >= 0 is a distance bound [m] for pair ``p0`` at that point (from the
     caller's hull or FCL query). ``mover`` (n_pairs,): the body of each pair that moves by a
     static one (its local speed may lengthen the steps), or -1. ``best`` (n_pairs,) gets
-    each pair's certified clearance.
+    each pair's certified clearance. Where the trees give no bound, a pair with a
+    ``warm`` direction (``directions`` (n_pairs, 3), the caller's last hull query) tries
+    the hulls along it before asking the caller.
     Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
     a closer bound than the trees' (hull, else exact), else ``_DONE``. ``counts[0]``
     counts bounds evaluated.
@@ -136,6 +142,9 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
         a, b = pairs[p, 0], pairs[p, 1]
         carry = -1.0  # a bound [m] proven at the start of piece k, if any
         measured = np.inf  # the last bound measured (trees or FCL)
+        # the trees failed here (their leaf boxes overlap though the meshes do not, as
+        # they do well before contact on CAD links): the hulls first while they prove it
+        near = False
         while k < npiece:
             length = lengths[k]
             speed = 0.0
@@ -152,6 +161,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 d = inj
                 inj = -1.0
                 measured = d
+                near = True
             elif s == 0.0 and carry > clear + GAP and carry >= CARRY * measured:
                 # what the last piece left proven holds here: no new bound needed (a
                 # pair the motion hardly moves keeps one bound for the whole motion)
@@ -161,8 +171,17 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 posed = True
                 ta = poses[body_frame[a]] if body_frame[a] >= 0 else static_pose[a]
                 tb = poses[body_frame[b]] if body_frame[b] >= 0 else static_pose[b]
-                d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
-                                     right, clear + GAP, _CAP, stack, gaps, scratch)
+                d = -1.0
+                if near and warm[p]:
+                    # near contact the steps are short and the hulls barely turn: the
+                    # last direction still separates them, without a round trip
+                    d = warm_bound(hull_vertices, hull_offsets, hull_radii, a, ta, b, tb,
+                                   directions[p])
+                if d <= clear + GAP:
+                    d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half,
+                                         left, right, clear + GAP, _CAP, stack, gaps,
+                                         scratch)
+                    near = d <= clear + GAP
                 counts[0] += 1
                 if d <= clear + GAP:
                     request[0], request[1], request[2] = p, k, s
@@ -261,14 +280,19 @@ class Certifier:
         best = np.full(npair, np.inf)
         request = np.zeros(3)
         counts = np.zeros(1, dtype=np.int64)
-        f = w._forest
+        # per motion, so a certificate never depends on what was certified before
+        directions = np.zeros((npair, 3))
+        warm = np.zeros(npair, dtype=np.bool_)
+        direction = np.empty(3)
+        f, h = w._forest, w._hulls
         p, k, s, injected, exact, near = 0, 0, 0.0, -1.0, 0, 0
         while True:
             status = _advance(starts, u1, u2, lengths, p, k, s, injected, *w.kin._args(),
                               w._frame, w._static_pose, w._pairs, w._mover, w._weight,
-                              f.root, f.center, f.axes, f.half, f.left, f.right, clear,
-                              self.fraction, self.local, self._poses, self._stack,
-                              self._gaps, self._q, best, request, counts)
+                              f.root, f.center, f.axes, f.half, f.left, f.right,
+                              h.vertices, h.offsets, h.radii, clear, self.fraction,
+                              self.local, self._poses, self._stack, self._gaps, self._q,
+                              best, directions, warm, request, counts)
             if status == _DONE:
                 break
             p, k, s = int(request[0]), int(request[1]), float(request[2])
@@ -281,7 +305,11 @@ class Certifier:
             # free: the walk reached it from a checked sample, every point farther than
             # the clearance, so neither body can be inside the other; the hulls' bound
             # first (cheap), FCL's exact distance where the hulls touch
-            d, was_exact = w.pair_bound(q, p, above=clear + GAP)
+            direction[:] = np.nan
+            d, was_exact = w.pair_bound(q, p, above=clear + GAP, direction=direction)
+            if np.isfinite(direction[0]):
+                directions[p] = direction
+                warm[p] = True
             exact += was_exact
             near += 1
             if d <= clear + GAP:

@@ -158,12 +158,68 @@ def separation(va: np.ndarray, ta: np.ndarray, vb: np.ndarray, tb: np.ndarray,
             - hi - n[0] * tb[0, 3] - n[1] * tb[1, 3] - n[2] * tb[2, 3])
 
 
+@numba.njit(cache=True, nogil=True)
+def _along(va: np.ndarray, ta: np.ndarray, vb: np.ndarray, tb: np.ndarray, n: np.ndarray,
+           xa: np.ndarray, yb: np.ndarray) -> float:
+    # separation() along n, with the extreme points (world frame) in xa, yb
+    ia, ib = 0, 0
+    lo, hi = np.inf, -np.inf
+    for i in range(va.shape[0]):
+        x = va[i, 0] * (ta[0, 0] * n[0] + ta[1, 0] * n[1] + ta[2, 0] * n[2]) \
+            + va[i, 1] * (ta[0, 1] * n[0] + ta[1, 1] * n[1] + ta[2, 1] * n[2]) \
+            + va[i, 2] * (ta[0, 2] * n[0] + ta[1, 2] * n[1] + ta[2, 2] * n[2])
+        if x < lo:
+            lo, ia = x, i
+    for i in range(vb.shape[0]):
+        y = vb[i, 0] * (tb[0, 0] * n[0] + tb[1, 0] * n[1] + tb[2, 0] * n[2]) \
+            + vb[i, 1] * (tb[0, 1] * n[0] + tb[1, 1] * n[1] + tb[2, 1] * n[2]) \
+            + vb[i, 2] * (tb[0, 2] * n[0] + tb[1, 2] * n[1] + tb[2, 2] * n[2])
+        if y > hi:
+            hi, ib = y, i
+    for r in range(3):
+        xa[r] = ta[r, 0] * va[ia, 0] + ta[r, 1] * va[ia, 1] + ta[r, 2] * va[ia, 2] + ta[r, 3]
+        yb[r] = tb[r, 0] * vb[ib, 0] + tb[r, 1] * vb[ib, 1] + tb[r, 2] * vb[ib, 2] + tb[r, 3]
+    return (lo + n[0] * ta[0, 3] + n[1] * ta[1, 3] + n[2] * ta[2, 3]
+            - hi - n[0] * tb[0, 3] - n[1] * tb[1, 3] - n[2] * tb[2, 3])
+
+
+@numba.njit(cache=True, nogil=True)
+def warm_bound(vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int,
+               ta: np.ndarray, b: int, tb: np.ndarray, n: np.ndarray) -> float:
+    """The hull bound [m] of bodies ``a`` and ``b`` (poses ``ta``, ``tb``) from a given
+    unit world direction ``n`` (e.g. the last one GJK found for the pair): the better of
+    the separation along ``n`` and along the line between the extreme points it picks
+    (which ``n`` then becomes). Sound for any ``n``, close to GJK's while the bodies have
+    hardly moved, in a few microseconds and without leaving compiled code.
+    ``vertices``, ``offsets``, ``radii``: as :class:`HullBounds` packs them."""
+    va = vertices[offsets[a]:offsets[a + 1]]
+    vb = vertices[offsets[b]:offsets[b + 1]]
+    xa, yb, m = np.empty(3), np.empty(3), np.empty(3)
+    d = _along(va, ta, vb, tb, n, xa, yb)
+    for r in range(3):
+        m[r] = xa[r] - yb[r]
+    norm = np.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+    if norm > 0.0:
+        for r in range(3):
+            m[r] /= norm
+        e = _along(va, ta, vb, tb, m, xa, yb)
+        if e > d:
+            d = e
+            n[:] = m
+    return d - radii[a] - radii[b]
+
+
 class HullBounds:
     """Hull distance bounds between the bodies of one world (index order of its bodies).
 
     Args:
         hulls: one per body.
         static_poses: shape (n_bodies, 4, 4), the pose of each body that never moves.
+
+    Attributes:
+        vertices, offsets, radii: every hull packed for compiled code: body ``i``'s
+            vertices are ``vertices[offsets[i]:offsets[i + 1]]`` (shape (v, 3), its
+            frame), within ``radii[i]`` [m] of which it lies.
     """
 
     def __init__(self, hulls: list[Hull], static_poses: np.ndarray) -> None:
@@ -171,10 +227,17 @@ class HullBounds:
         self._objs = [fcl.CollisionObject(h.geometry, fcl.Transform(p[:3, :3], p[:3, 3]))
                       for h, p in zip(hulls, static_poses)]
         self._request = fcl.DistanceRequest(enable_nearest_points=True)
+        self.vertices = np.ascontiguousarray(np.concatenate([h.vertices for h in hulls])
+                                             if hulls else np.zeros((0, 3)))
+        self.offsets = np.cumsum([0] + [len(h.vertices) for h in hulls]).astype(np.int64)
+        self.radii = np.array([h.radius for h in hulls], float)
 
-    def bound(self, a: int, ta: np.ndarray, b: int, tb: np.ndarray) -> float:
+    def bound(self, a: int, ta: np.ndarray, b: int, tb: np.ndarray, *,
+              direction: np.ndarray | None = None) -> float:
         """A lower bound [m] on the distance between bodies ``a`` and ``b`` at poses
-        ``ta``, ``tb`` (shape (4, 4)); 0 or less where their hulls touch."""
+        ``ta``, ``tb`` (shape (4, 4)); 0 or less where their hulls touch. ``direction``
+        (shape (3,)), if given, gets the unit direction the bound was taken along (for
+        :func:`warm_bound`), where the hulls are apart."""
         oa, ob = self._objs[a], self._objs[b]
         for o, t in ((oa, ta), (ob, tb)):
             o.setRotation(t[:3, :3])
@@ -185,6 +248,8 @@ class HullBounds:
         norm = float(np.sqrt(n @ n))
         if not norm > 0.0:
             return 0.0  # touching (or penetrating): no direction, no bound
+        if direction is not None:
+            direction[:] = n / norm
         ha, hb = self._hulls[a], self._hulls[b]
         return float(separation(ha.vertices, np.ascontiguousarray(ta), hb.vertices,
                                 np.ascontiguousarray(tb), n / norm)) - ha.radius - hb.radius

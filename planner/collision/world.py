@@ -271,14 +271,17 @@ class CollisionWorld:
         self._place(poses, b)
         return self._distance(a, b, surface=True)
 
-    def pair_bound(self, q: ArrayLike, pair: int, *, above: float) -> tuple[float, bool]:
+    def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
+                   direction: np.ndarray | None = None) -> tuple[float, bool]:
         """A lower bound [m] on the distance of checked pair ``pair`` at a state ``q``
         reached without contact (as for :meth:`pair_distance`): the bodies' convex
         hulls' (:mod:`.hulls`, ~20 us) when that is above ``above``, else FCL's exact
-        distance (0.3-2 ms on CAD links). The flag says which (True: exact)."""
+        distance (0.3-2 ms on CAD links). The flag says which (True: exact).
+        ``direction``: as for :meth:`.HullBounds.bound`."""
         poses = self._poses_of(q)
         a, b = self._pairs[pair]
-        d = self._hulls.bound(int(a), self._pose(poses, a), int(b), self._pose(poses, b))
+        d = self._hulls.bound(int(a), self._pose(poses, a), int(b), self._pose(poses, b),
+                              direction=direction)
         if d > above:
             return d, False
         return self.pair_distance(q, pair), True  # (FK again: microseconds beside FCL)
