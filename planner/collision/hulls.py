@@ -143,37 +143,26 @@ def separation(va: np.ndarray, ta: np.ndarray, vb: np.ndarray, tb: np.ndarray,
     """``min n.x`` over ``va`` placed by ``ta`` less ``max n.y`` over ``vb`` placed by
     ``tb`` (vertices shape (m, 3), poses (4, 4), ``n`` a unit world direction): a lower
     bound [m] on the distance between any sets held by the two vertex hulls."""
-    ma = np.empty(3)
-    mb = np.empty(3)
-    for i in range(3):  # n in each body's frame
-        ma[i] = ta[0, i] * n[0] + ta[1, i] * n[1] + ta[2, i] * n[2]
-        mb[i] = tb[0, i] * n[0] + tb[1, i] * n[1] + tb[2, i] * n[2]
-    lo = np.inf
-    for i in range(va.shape[0]):
-        lo = min(lo, va[i, 0] * ma[0] + va[i, 1] * ma[1] + va[i, 2] * ma[2])
-    hi = -np.inf
-    for i in range(vb.shape[0]):
-        hi = max(hi, vb[i, 0] * mb[0] + vb[i, 1] * mb[1] + vb[i, 2] * mb[2])
-    return (lo + n[0] * ta[0, 3] + n[1] * ta[1, 3] + n[2] * ta[2, 3]
-            - hi - n[0] * tb[0, 3] - n[1] * tb[1, 3] - n[2] * tb[2, 3])
+    return _along(va, ta, vb, tb, n, np.empty(3), np.empty(3))
 
 
 @numba.njit(cache=True, nogil=True)
 def _along(va: np.ndarray, ta: np.ndarray, vb: np.ndarray, tb: np.ndarray, n: np.ndarray,
            xa: np.ndarray, yb: np.ndarray) -> float:
-    # separation() along n, with the extreme points (world frame) in xa, yb
+    # separation(), with the extreme points that make it (world frame) in xa, yb
+    ma = np.empty(3)
+    mb = np.empty(3)
+    for i in range(3):  # n in each body's frame
+        ma[i] = ta[0, i] * n[0] + ta[1, i] * n[1] + ta[2, i] * n[2]
+        mb[i] = tb[0, i] * n[0] + tb[1, i] * n[1] + tb[2, i] * n[2]
     ia, ib = 0, 0
     lo, hi = np.inf, -np.inf
     for i in range(va.shape[0]):
-        x = va[i, 0] * (ta[0, 0] * n[0] + ta[1, 0] * n[1] + ta[2, 0] * n[2]) \
-            + va[i, 1] * (ta[0, 1] * n[0] + ta[1, 1] * n[1] + ta[2, 1] * n[2]) \
-            + va[i, 2] * (ta[0, 2] * n[0] + ta[1, 2] * n[1] + ta[2, 2] * n[2])
+        x = va[i, 0] * ma[0] + va[i, 1] * ma[1] + va[i, 2] * ma[2]
         if x < lo:
             lo, ia = x, i
     for i in range(vb.shape[0]):
-        y = vb[i, 0] * (tb[0, 0] * n[0] + tb[1, 0] * n[1] + tb[2, 0] * n[2]) \
-            + vb[i, 1] * (tb[0, 1] * n[0] + tb[1, 1] * n[1] + tb[2, 1] * n[2]) \
-            + vb[i, 2] * (tb[0, 2] * n[0] + tb[1, 2] * n[1] + tb[2, 2] * n[2])
+        y = vb[i, 0] * mb[0] + vb[i, 1] * mb[1] + vb[i, 2] * mb[2]
         if y > hi:
             hi, ib = y, i
     for r in range(3):
