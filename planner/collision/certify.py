@@ -119,11 +119,13 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     ``injected`` >= 0 is a distance bound [m] for pair ``p0`` at that point (from the
     caller's hull or FCL query). ``mover`` (n_pairs,): the body of each pair that moves by a
     static one (its local speed may lengthen the steps), or -1. ``best`` (n_pairs,) gets
-    each pair's certified clearance. Where the trees give no bound, a pair with a
-    ``warm`` direction (``directions`` (n_pairs, 3), the caller's last hull query) tries
-    the hulls along it before asking the caller.
+    each pair's certified clearance. A pair whose trees failed at its last bound (near
+    contact) with a ``warm`` direction (``directions`` (n_pairs, 3), from the caller's
+    last hull query; refined in place) tries the hulls along it first, the trees only
+    where that does not prove the step.
     Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
-    a closer bound than the trees' (hull, else exact), else ``_DONE``. ``counts[0]``
+    a closer bound than the trees' and the warm hulls' (a new hull query, else exact),
+    else ``_DONE``. ``counts[0]``
     counts bounds evaluated.
     """
     npiece, dof = starts.shape
