@@ -125,8 +125,7 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
     where that does not prove the step.
     Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
     a closer bound than the trees' and the warm hulls' (a new hull query, else exact),
-    else ``_DONE``. ``counts[0]``
-    counts bounds evaluated.
+    else ``_DONE``. ``counts[0]`` counts bounds evaluated.
     """
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
@@ -287,7 +286,7 @@ class Certifier:
         warm = np.zeros(npair, dtype=np.bool_)
         direction = np.empty(3)
         f, h = w._forest, w._hulls
-        p, k, s, injected, exact, near = 0, 0, 0.0, -1.0, 0, 0
+        p, k, s, injected, exact, queries = 0, 0, 0.0, -1.0, 0, 0
         while True:
             status = _advance(starts, u1, u2, lengths, p, k, s, injected, *w.kin._args(),
                               w._frame, w._static_pose, w._pairs, w._mover, w._weight,
@@ -299,7 +298,7 @@ class Certifier:
                 break
             p, k, s = int(request[0]), int(request[1]), float(request[2])
             pair = w.pair_names[p]
-            if exact >= MAX_EXACT or near >= MAX_NEAR or status == _BUDGET:
+            if exact >= MAX_EXACT or queries >= MAX_NEAR or status == _BUDGET:
                 return Certificate(False, clear, 0.0, pair, (k, s, pair, float("nan")),
                                    int(counts[0]), exact)
             q = np.empty(w.dof)  # the very point the walk stopped at
@@ -313,7 +312,7 @@ class Certifier:
                 directions[p] = direction
                 warm[p] = True
             exact += was_exact
-            near += 1
+            queries += 1
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
