@@ -36,7 +36,9 @@ class Job:
     respond: Callable[[Outcome], None] | None
     deadline: float = field(init=False)
     waiting: bool = False  # in the queue, counted against queue_size
-    retried: bool = False  # handed back once after a worker died before taking it
+    # times handed back after a worker died before taking it (at most once per worker:
+    # all of them may have been killed while idle, their reports not yet in)
+    redispatched: int = 0
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def __post_init__(self) -> None:

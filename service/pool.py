@@ -11,7 +11,8 @@ One parent thread per slot feeds its worker over a socket and watches it
 - past the memory cap (its resident set, polled while it works) it is killed and the job
   gets RESOURCE_LIMIT;
 - if it dies on its own, the job gets INTERNAL (``details.worker_exit`` says how), unless
-  it died before taking the job: then the job goes back to the head of the queue, once;
+  it died before taking the job: then the job goes back to the head of the queue (at
+  most once per worker);
 - an idle worker's death is reported by the zygote at once and the slot re-forks.
 
 This module keeps the jobs: the queue, the waiting jobs' deadlines, the counters. A

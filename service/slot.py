@@ -43,6 +43,7 @@ class JobQueue(Protocol):
     the pool imports its slots and not the other way round."""
 
     stopping: bool
+    workers: int
     grace_end: float  # when running jobs stop getting time after close [monotonic s]
     memory_cap: int | None
 
@@ -244,13 +245,15 @@ class Slot:
             q.finish(job, shutting_down(job))
             return
         q.count("worker_crashes")
-        if not taken and not job.retried:
+        if not taken and job.redispatched < q.workers:
             # it died before receiving this job (killed while idle, the report not yet
-            # in): the job is not the cause, so it goes first to the next worker
+            # in): the job is not the cause, so it goes first to the next worker (which
+            # may have died the same way: once per worker, so a job that kills workers
+            # before they can say they took it still ends)
             _log.error("%s died (%s) before taking request %s; re-dispatching it",
                        self.name, how, job.request_id)
             q.count("redispatched")
-            job.retried = True
+            job.redispatched += 1
             q.requeue(job)
             return
         _log.error("%s died (%s) on request %s; replacing it", self.name, how,
