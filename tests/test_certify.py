@@ -232,3 +232,27 @@ def test_local_speed_is_sound_and_takes_longer_steps_by_the_arm():
             refused += 1
     assert free >= 10 and refused >= 2
     assert work[0] < work[1]
+
+
+def test_a_pair_the_motion_does_not_move_is_certified_at_its_exact_distance():
+    # an arm motion with the gripper closed: the fingers (6 mm apart, closer than
+    # anything else here) keep their distance; with a clearance to report, the
+    # certificate gives their exact distance (less the motion's rounding floor), not half
+    # a loose OBB-tree bound, and stays below what FCL measures anywhere on the motion
+    d = load_description()
+    world = CollisionWorld(d)
+    fingers = world.pair_names.index(("gripper_right", "gripper_left"))
+    edge = np.array([[0.0, 0.0, 0.0, 0.0], [1.2, 0.5, 0.9, 0.0]])
+    exact = world.pair_distance(edge[0], fingers)
+    cert = Certifier(world, fraction=0.5).path(edge)
+    assert cert.free and cert.closest == ("gripper_right", "gripper_left")
+    assert exact - 1e-9 < cert.certified_clearance <= exact
+    dense = interpolate(edge, 0.01)
+    assert cert.certified_clearance <= world.min_clearance(dense)[0]
+    # without a clearance to report (fraction 0), the proof asks for no exact distance
+    assert Certifier(world).path(edge).certified_clearance < 0.5 * exact
+    # a motion that moves the fingers is walked as before: its figure stays a bound
+    moving = np.array([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, -0.4]])
+    walked = Certifier(world, fraction=0.5).path(moving)
+    assert walked.free
+    assert walked.certified_clearance <= world.min_clearance(interpolate(moving, 0.01))[0]

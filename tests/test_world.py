@@ -135,3 +135,18 @@ def test_lower_bound_never_exceeds_the_exact_distance(world, d):
         assert lb <= exact + 1e-12
         positive += lb > 0
     assert positive > 0
+
+
+def test_the_remembered_still_distance_is_exact_bar_rounding_and_order_free(d):
+    world = CollisionWorld(d)
+    fingers = world.pair_names.index(("gripper_right", "gripper_left"))
+    a = np.array([0.3, 0.2, 0.1, -0.3])
+    b = np.array([-1.0, 0.6, 0.4, -0.3])  # the arm joints do not move the fingers
+    c = np.array([0.3, 0.2, 0.1, -0.6])  # the finger joint does
+    got = [world.still_distance(q, fingers) for q in (a, b, c)]
+    for q, g in zip((a, b, c), got):
+        assert world.pair_distance(q, fingers) - 1e-9 < g <= world.pair_distance(q, fingers)
+    assert abs(got[2] - got[0]) > 1e-4  # measured anew, not remembered
+    # the same figures in another order, in a world that has answered nothing yet
+    fresh = CollisionWorld(d)
+    assert [fresh.still_distance(q, fingers) for q in (c, b, a)] == got[::-1]

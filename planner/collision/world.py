@@ -42,6 +42,11 @@ _log = logging.getLogger(__name__)
 _STACK = 4096
 # [m] distance bounds for the clearance stop here: pairs farther apart sort last
 _CLEARANCE_CAP = 0.3
+# [m/rad] a joint moving a pair less than this per radian does not key its remembered
+# distance (pair_weights' rounding floor is 1e-12; any such joint's motion is subtracted)
+_MOVES = 1e-9
+# remembered exact distances (see still_distance) before they are dropped
+_STILL_KEPT = 1024
 
 
 @dataclass(frozen=True)
@@ -173,6 +178,8 @@ class CollisionWorld:
                                  if self._narrow(poses0, a, b, exact=True))
         self._fixed_pairs = tuple(fixed)
         self._poses = np.empty((len(self.kin.link_names), 4, 4))
+        # (pair, the state it was measured at) -> FCL's exact distance (still_distance)
+        self._still: dict[tuple[int, bytes], float] = {}
         self._cand = np.zeros(len(self._pairs), dtype=np.int64)
         self._stack = np.empty((_STACK, 2), dtype=np.int64)
         self._gaps = np.empty(_STACK)
@@ -270,6 +277,24 @@ class CollisionWorld:
         self._place(poses, a)
         self._place(poses, b)
         return self._distance(a, b, surface=True)
+
+    def still_distance(self, q: ArrayLike, pair: int) -> float:
+        """A lower bound [m] on the distance of checked pair ``pair`` at a free state
+        ``q``: FCL's exact distance where the joints that move the pair relative to itself
+        (weight above ``_MOVES`` [m/rad]) are as in ``q`` and the others 0, less how far
+        those others' values in ``q`` can move it. Remembered by the moving joints' values,
+        so a pair no joint of a motion moves (the fingers in an arm motion) is measured
+        once, and the same whatever was asked before (the others only ever add their
+        rounding floor)."""
+        q = np.asarray(q, float)
+        at = np.where(self._weight[pair] > _MOVES, q, 0.0)
+        key = (pair, at.tobytes())
+        d = self._still.get(key)
+        if d is None:
+            if len(self._still) >= _STILL_KEPT:
+                self._still.clear()
+            d = self._still[key] = self.pair_distance(at, pair)
+        return d - float(self._weight[pair] @ np.abs(q - at))
 
     def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
                    direction: np.ndarray | None = None) -> tuple[float, bool]:
