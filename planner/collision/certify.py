@@ -60,7 +60,8 @@ MAX_BOUNDS = 500_000
 # the last one measured (else a new one is measured: it may be larger)
 CARRY = 0.5
 # [m] with a clearance to report, a pair the whole motion moves relative to itself by
-# less than this is certified by its exact distance at the start less that motion
+# less than this is certified by its distance at the start (CollisionWorld.still_distance:
+# the hulls', else FCL's) less that motion
 STILL = 1e-4
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
@@ -79,7 +80,7 @@ class Certificate:
             every checked pair (``>= clearance`` when free; half the tightest bound at
             worst, exact at the closest points FCL measured, and with a clearance to
             report (``fraction`` > 0) a pair the motion barely moves, such as the fingers
-            in an arm motion, at its exact distance less that motion).
+            in an arm motion, at its distance at the start less that motion).
         closest: the pair that bound belongs to.
         failure: when not free, (piece index, sigma [rad], pair, distance [m]) where the
             proof failed (a contact, a point closer than the clearance, or a query
@@ -342,7 +343,8 @@ class Certifier:
     def _still_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                      lengths: np.ndarray, clear: float) -> dict[int, float]:
         # The pairs the motion barely moves (the fingers in an arm motion), each with its
-        # exact distance at the start less the most the motion moves it: as sound as a
+        # distance bound at the start (the hulls', tight on convex links, else FCL's)
+        # less the most the motion moves it: as sound as a
         # walk (a piece's joint speeds stay within max(|u1|, |u2|); the gaps between
         # pieces count too), and, remembered by the world, free after the first motion.
         # The walk would give half an OBB-tree bound instead (a few tenths of the true

@@ -178,7 +178,7 @@ class CollisionWorld:
                                  if self._narrow(poses0, a, b, exact=True))
         self._fixed_pairs = tuple(fixed)
         self._poses = np.empty((len(self.kin.link_names), 4, 4))
-        # (pair, the state it was measured at) -> FCL's exact distance (still_distance)
+        # (pair, the state it was measured at) -> its distance bound (still_distance)
         self._still: dict[tuple[int, bytes], float] = {}
         self._cand = np.zeros(len(self._pairs), dtype=np.int64)
         self._stack = np.empty((_STACK, 2), dtype=np.int64)
@@ -280,8 +280,9 @@ class CollisionWorld:
 
     def still_distance(self, q: ArrayLike, pair: int) -> float:
         """A lower bound [m] on the distance of checked pair ``pair`` at a free state
-        ``q``: FCL's exact distance where the joints that move the pair relative to itself
-        (weight above ``_MOVES`` [m/rad]) are as in ``q`` and the others 0, less how far
+        ``q``: :meth:`pair_bound`'s (the convex hulls' where they are apart, else FCL's
+        exact distance) where the joints that move the pair relative to itself (weight
+        above ``_MOVES`` [m/rad]) are as in ``q`` and the others 0, less how far
         those others' values in ``q`` can move it. Remembered by the moving joints' values,
         so a pair no joint of a motion moves (the fingers in an arm motion) is measured
         once, and the same whatever was asked before (the others only ever add their
@@ -293,7 +294,7 @@ class CollisionWorld:
         if d is None:
             if len(self._still) >= _STILL_KEPT:
                 self._still.clear()
-            d = self._still[key] = self.pair_distance(at, pair)
+            d = self._still[key] = self.pair_bound(at, pair, above=0.0)[0]
         return d - float(self._weight[pair] @ np.abs(q - at))
 
     def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
