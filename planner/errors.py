@@ -99,12 +99,6 @@ class LimitsError(PlanningError):
         super().__init__(f"{joint} {limit}: {message}", details=d)
 
 
-class ResourceLimit(PlanningError):
-    """A request needed more than a service worker may use (its memory cap)."""
-
-    code: Code = Code.RESOURCE_LIMIT
-
-
 class ShuttingDown(PlanningError):
     """The service instance is stopping and did not take (or finish) the request."""
 
