@@ -2,8 +2,8 @@
 from its JSON body in one place (``PlanReply.parse(body)``, ``FkReply.parse``, ...).
 
 A body is first checked against the schema the service publishes for it
-(``service/schema/<kind>_response.json``, with jsonschema-rs as the service checks
-requests: ~5 ms for a 20000-point plan), then against what a schema cannot say (each
+(``service/schema/<kind>_response.json``, by the validator the service checks requests
+with, :func:`service.wire.validator`: ~5 ms for a 20000-point plan), then against what a schema cannot say (each
 sample row holds one value per joint). Anything else is refused with
 :class:`~clients.errors.MalformedReply` naming the field (``trajectory.points[3].effort``):
 a service that breaks the contract fails here, not somewhere downstream. What the schema
@@ -14,22 +14,16 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import cache
 from typing import Any, Literal
 
 import jsonschema_rs
 import numpy as np
 
-from service.wire import field_path, schema
+from service.wire import field_path, validator
 
 from .errors import MalformedReply
 
 Reply = Literal["plan", "fk", "ik", "check"]
-
-
-@cache
-def _validator(reply: Reply) -> jsonschema_rs.Draft202012Validator:
-    return jsonschema_rs.Draft202012Validator(schema(f"{reply}_response"))
 
 
 def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
@@ -39,7 +33,7 @@ def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
         MalformedReply: naming the first field that breaks it.
     """
     try:
-        _validator(reply).validate(body)
+        validator(f"{reply}_response").validate(body)
     except jsonschema_rs.ValidationError as e:
         path = list(e.instance_path)
         if isinstance(e.kind, jsonschema_rs.ValidationErrorKind.Required):
