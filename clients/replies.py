@@ -19,6 +19,7 @@ from typing import Any, Literal
 import jsonschema_rs
 import numpy as np
 
+from planner.timing.trajectory import samples_csv
 from service.wire import field_path, validator
 
 from .errors import MalformedReply
@@ -129,15 +130,10 @@ class PlanReply:
                    b.get("planner", ""), b["request_id"], b)
 
     def to_csv(self) -> str:
-        """One row per sample: time_from_start, then each joint's position, velocity,
-        acceleration and effort (``<joint>.position``, ...)."""
-        header = ["time_from_start"] + [f"{n}.{kind}" for kind in
-                                        ("position", "velocity", "acceleration", "effort")
-                                        for n in self.joint_names]
-        table = np.column_stack([self.times, self.positions, self.velocities,
-                                 self.accelerations, self.efforts])
-        return "\n".join([",".join(header), *(",".join(map(repr, row))
-                                              for row in table.tolist())]) + "\n"
+        """One row per sample, as the planner writes a trajectory
+        (:func:`planner.timing.trajectory.samples_csv`)."""
+        return samples_csv(self.joint_names, self.times, self.positions, self.velocities,
+                           self.accelerations, self.efforts)
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,12 +20,14 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 from ..errors import InvalidRequest
-from .curve import PathCurve
+
+if TYPE_CHECKING:  # toppra, ~1 s to import: not for the client's CSV (samples_csv)
+    from .curve import PathCurve
 
 # Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
 TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
@@ -223,12 +225,18 @@ class JointTrajectory:
         return json.dumps(self.to_dict())
 
     def to_csv(self) -> str:
-        """One row per sample: time, then position/velocity/acceleration/effort per joint."""
-        buf = io.StringIO()
-        w = csv.writer(buf, lineterminator="\n")
-        kinds = ("position", "velocity", "acceleration", "effort")
-        w.writerow(["time_from_start", *(f"{n}.{k}" for k in kinds for n in self.joint_names)])
-        rows = np.column_stack([self.times, self.positions, self.velocities,
-                                self.accelerations, self.efforts])
-        w.writerows([repr(float(x)) for x in row] for row in rows)
-        return buf.getvalue()
+        """One row per sample (:func:`samples_csv`)."""
+        return samples_csv(self.joint_names, self.times, self.positions, self.velocities,
+                           self.accelerations, self.efforts)
+
+
+def samples_csv(joint_names: Sequence[str], times: np.ndarray, *columns: np.ndarray) -> str:
+    """Samples as CSV, one row each: time_from_start, then each joint's position, velocity,
+    acceleration and effort (``<joint>.position``, ...), from ``columns`` (m, dof) in that
+    order. A :class:`JointTrajectory`'s, and the client's plan reply's."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    kinds = ("position", "velocity", "acceleration", "effort")
+    w.writerow(["time_from_start", *(f"{n}.{k}" for k in kinds for n in joint_names)])
+    w.writerows([repr(float(x)) for x in row] for row in np.column_stack([times, *columns]))
+    return buf.getvalue()
