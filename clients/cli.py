@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from functools import partial
 
 from . import cmd_execute, cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
@@ -26,7 +27,9 @@ def build_parser() -> argparse.ArgumentParser:
         "AMENT_PREFIX_PATH. 'arduinobot COMMAND --help' explains each command.")
     p.add_argument("-v", "--verbose", action="count", default=0,
                    help="log more (-v info, -vv debug) to stderr")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    # every command's description and examples keep their line breaks
+    raw = partial(argparse.ArgumentParser, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=raw)
     for mod in _COMMANDS:
         mod.register(sub)
     for sp in sub.choices.values():  # a usage error names its command, as argparse's do

@@ -38,8 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot execute traj.json --serial /dev/ttyACM0\n"
         "  arduinobot execute traj.json --sim --fast --no-publish\n"
         "  arduinobot execute --named home --sim --local\n"
-        "  arduinobot execute --named reach_left --remote    # on `serve`'s robot",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "  arduinobot execute --named reach_left --remote    # on `serve`'s robot")
     p.add_argument("trajectory", nargs="?", metavar="TRAJ.json",
                    help="a plan reply (plan --json) or a {joint_names, points} trajectory")
     src = p.add_mutually_exclusive_group()

@@ -20,8 +20,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "mimic targets; non-zero axes), then for plausibility (inertia against the "
         "mesh). Prints PASS/WARN/FAIL lines; exits 1 on any FAIL.",
         epilog="examples:\n  arduinobot check\n  arduinobot check my_robot.urdf.xacro "
-        "--package-dir ~/ws/src/my_robot_description\n  arduinobot check --json",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "--package-dir ~/ws/src/my_robot_description\n  arduinobot check --json")
     add_model_args(p)
     p.add_argument("--json", action="store_true", help="print the report as JSON")
     p.set_defaults(func=cmd_check)
@@ -29,15 +28,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("urdf", help="print the expanded URDF",
                        description="Expand a xacro file in-process (no ROS needed) and print "
                        "the URDF; a plain URDF is printed as is.",
-                       epilog="example:\n  arduinobot urdf --arg prefix=left_ > robot.urdf",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog="example:\n  arduinobot urdf --arg prefix=left_ > robot.urdf")
     add_model_args(p)
     p.set_defaults(func=cmd_urdf)
 
     p = sub.add_parser("info", help="print the kinematic tree with joint types, axes and limits",
                        description="Print the kinematic tree of a model: each link under its "
                        "parent, with the joint's type, axis, limits and mimic; then the "
-                       "actuated joints and the SRDF's groups and named states.")
+                       "actuated joints and the SRDF's groups and named states.",
+                       formatter_class=argparse.HelpFormatter)  # no examples: wrapped
     add_model_args(p)
     p.set_defaults(func=cmd_info)
 

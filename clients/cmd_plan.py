@@ -30,8 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n  arduinobot plan --goal 0.5,0.3,-0.4\n"
         "  arduinobot plan --named reach_left --start 0.2,0,0 --json traj.json\n"
         "  arduinobot plan --position 0,1.0,1.2 --obstacle box:table:1,1,0.1@0,1,0.5\n"
-        "  arduinobot plan --request req.json --local --plot traj.png",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "  arduinobot plan --request req.json --local --plot traj.png")
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", metavar="Q", type=joint_values, help="joint goal: values of "
                       "the group's joints in the model's order (`arduinobot model` lists "

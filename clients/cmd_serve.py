@@ -28,8 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot serve --config zenoh.json5   # TLS, user/password, access control\n"
         "  arduinobot serve my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description\n"
         "  arduinobot serve ~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro "
-        "--package-dir ~/ws/src --moveit-config ~/ws/src/arduinobot_moveit",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "--package-dir ~/ws/src --moveit-config ~/ws/src/arduinobot_moveit")
     add_model_args(p)
     p.add_argument("--description", metavar="PATH", dest="description_path",
                    help="the robot's URDF/xacro (same as FILE)")

@@ -20,8 +20,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "service still checks them). Prints the pairs; --write updates the SRDF in "
         "place, --output writes elsewhere (for a model without an SRDF, a new one).",
         epilog="example:\n  arduinobot srdf ~/ws/src/arduinobot_description/urdf/"
-        "arduinobot.urdf.xacro --package-dir ~/ws/src --output arduinobot.srdf",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "arduinobot.urdf.xacro --package-dir ~/ws/src --output arduinobot.srdf")
     add_model_args(p)
     p.add_argument("--samples", type=int, default=2000, metavar="N",
                    help="random states to sample (default 2000)")

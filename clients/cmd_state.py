@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Print the world pose of each link (or --link ones) and "
                        "the tcp position for a joint state (missing joints are 0).",
                        epilog="example:\n  arduinobot fk --joints 0.5,0.3,-0.4 --link "
-                       "claw_support", formatter_class=argparse.RawDescriptionHelpFormatter)
+                       "claw_support")
     p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
     p.add_argument("--link", action="append", metavar="LINK", help="a link to report, "
                    "repeatable (default all)")
@@ -31,8 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Print every joint solution (branch) within the joint "
                        "limits that puts the tcp at a position [m]; exits 1 with "
                        "GOAL_OUT_OF_REACH when there is none.",
-                       epilog="example:\n  arduinobot ik --position 0,1.0,1.2",
-                       formatter_class=argparse.RawDescriptionHelpFormatter)
+                       epilog="example:\n  arduinobot ik --position 0,1.0,1.2")
     p.add_argument("--position", required=True, metavar="X,Y,Z", type=numbers(3))
     _add_common(p, cmd_ik)
 
@@ -43,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "be confused with `arduinobot check`, which checks a MODEL file (URDF/xacro) for "
         "errors and simulation readiness.",
         epilog="example:\n  arduinobot check-state --joints 0,0.8,0.6 --obstacle "
-        "box:table:1,1,0.1@0,1,0.5", formatter_class=argparse.RawDescriptionHelpFormatter)
+        "box:table:1,1,0.1@0,1,0.5")
     p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
     add_obstacle_arg(p)
     p.add_argument("--padding", type=float, metavar="M", help="safety margin [m]")

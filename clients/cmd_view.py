@@ -30,8 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "http://127.0.0.1:8080\n  arduinobot view --scene table.json --trajectory plan.json\n"
         "  arduinobot view --connect tcp/127.0.0.1:7447\n"
         "  arduinobot view --trajectory plan.json --plot-png plan.png   # no server\n"
-        "  arduinobot view my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description",
-        formatter_class=argparse.RawDescriptionHelpFormatter)
+        "  arduinobot view my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description")
     add_model_args(p)
     p.add_argument("--port", type=int, default=8080, metavar="P",
                    help="the page's port (default 8080; the next free one if taken)")
