@@ -3,8 +3,8 @@ from its JSON body in one place (``PlanReply.parse(body)``, ``FkReply.parse``, .
 
 A body is first checked against the schema the service publishes for it
 (``service/schema/<kind>_response.json``, by the validator the service checks requests
-with, :func:`service.wire.validator`: ~5 ms for a 20000-point plan), then against what a schema cannot say (each
-sample row holds one value per joint). Anything else is refused with
+with, :func:`service.wire.validator`: ~5 ms for a 20000-point plan), then against what a
+schema cannot say (each sample row holds one value per joint). Anything else is refused with
 :class:`~clients.errors.MalformedReply` naming the field (``trajectory.points[3].effort``):
 a service that breaks the contract fails here, not somewhere downstream. What the schema
 leaves open (the verification's other figures) stays in :attr:`PlanReply.raw`.
