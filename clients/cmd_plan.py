@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot plan --request req.json --local --plot traj.png")
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", metavar="Q", type=joint_values, help="joint goal: values of "
-                      "the group's joints in the model's order (`arduinobot model` lists "
+                      "the group's joints in the model's order (`arduinobot info` lists "
                       "them), or name=value,...")
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", type=numbers(3),

@@ -12,7 +12,7 @@ from .argtypes import add_obstacle_arg, joint_map, joint_values, numbers
 from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joint_order
 from .replies import CheckReply, FkReply, IkReply
 
-_JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot model` "
+_JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot info` "
                 "lists them), or name=value,... [rad]")
 
 

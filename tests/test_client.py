@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import threading
@@ -13,7 +14,7 @@ import zenoh
 
 from clients import errors
 from clients.argtypes import UsageError, joint_map, joint_values, obstacle
-from clients.cli import main
+from clients.cli import build_parser, main
 from clients.client import PlannerClient
 from clients.replies import PlanReply
 from service.zconfig import zenoh_config
@@ -128,6 +129,17 @@ def test_check_state_help_tells_it_apart_from_the_model_checker(capsys):
         main(["check-state", "--help"])
     text = capsys.readouterr().out
     assert "arduinobot check" in text and "MODEL" in text
+
+
+def test_every_command_a_help_text_names_exists():
+    # the help of plan --goal and of check-state once sent users to `arduinobot model`,
+    # which is not a command
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    texts = [parser.format_help(), *(p.format_help() for p in sub.choices.values())]
+    # a command quoted as one (`arduinobot info`, 'arduinobot COMMAND --help'), not prose
+    named = {m for t in texts for m in re.findall(r"[`']arduinobot ([a-z][a-z-]+)", t)}
+    assert named and named <= set(sub.choices), named - set(sub.choices)
 
 
 def test_obstacle_and_joint_options_parse():

@@ -25,7 +25,7 @@ NOT_CODES = frozenset({
     # environment and sysconf names, __all__ entries
     "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME", "SC_PAGE_SIZE", "MAX_PAYLOAD", "SCHEMA_NAMES",
     "INSTALL_HINT",
-    # `arduinobot model` check outcomes (printed, never on the wire)
+    # `arduinobot check` outcomes (printed, never on the wire)
     "PASS", "WARN", "FAIL", "FAILED",
 })
 _CODE_LIKE = re.compile(r"^[A-Z][A-Z0-9_]{2,}$")
