@@ -119,7 +119,7 @@ def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.nda
     k = max(1, min(parts, len(f)))
     start = cen[np.random.default_rng(0).choice(len(cen), size=k, replace=False)]
     with warnings.catch_warnings():  # a group left empty keeps its centre: not news
-        warnings.simplefilter("ignore")
+        warnings.filterwarnings("ignore", "One of the clusters is empty")
         # its labels are those of the centres before its last update: 13 steps, 12 updates
         _, lab = kmeans2(cen, start, iter=13, minit="matrix")
     groups = (np.unique(f[lab == i]) for i in range(k))
