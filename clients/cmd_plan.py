@@ -135,6 +135,8 @@ def summary(res: PlanReply, limits: Limits) -> str:
                      f"{peaks['efforts'][i]:10.3f}{lim(j, 'effort')}")
     v = res.verification
     gap = "not measured" if v.min_clearance is None else f"{1000 * v.min_clearance:.1f} mm"
+    if v.min_clearance is not None and v.closest_pair:
+        gap += f" ({v.closest_pair[0]} to {v.closest_pair[1]})"
     lines.append(f"verification: {'ok' if v.ok else 'FAILED'}; closest to its limit: "
                  f"{v.worst_quantity} at {100 * v.worst_ratio:.1f}% (of the scaled limits); "
                  f"min clearance {gap}")

@@ -64,6 +64,10 @@ def _number(v: float | None) -> float | None:
     return None if v is None else float(v)
 
 
+def _pair(v: Sequence[str] | None) -> tuple[str, str] | None:
+    return (v[0], v[1]) if v and all(v) else None
+
+
 @dataclass(frozen=True)
 class Verification:
     """The service's check of the motion it returns (``verification`` in the reply).
@@ -74,6 +78,8 @@ class Verification:
         min_clearance: [m] the certified lower bound on the clearance; None if not measured.
         worst_quantity, worst_ratio: the quantity closest to its (scaled) limit, and its
             peak over that limit.
+        closest_pair: the two bodies (links or obstacle ids) at ``min_clearance``; None
+            if not measured (or from a service that does not say).
     """
 
     ok: bool
@@ -82,6 +88,7 @@ class Verification:
     min_clearance: float | None
     worst_quantity: str
     worst_ratio: float
+    closest_pair: tuple[str, str] | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +133,7 @@ class PlanReply:
                    {k: float(t) for k, t in b["timing"].items()},
                    Verification(v["ok"], v["certified"], v["collision_free"],
                                 _number(v["min_clearance"]), v["worst_overall"]["quantity"],
-                                float(v["worst_overall"]["ratio"])),
+                                float(v["worst_overall"]["ratio"]), _pair(v.get("closest_pair"))),
                    b.get("planner", ""), b["request_id"], b)
 
     def to_csv(self) -> str:

@@ -61,6 +61,8 @@ def test_service_replies_validate_and_parse(replies):
     assert plan.path.tolist() == replies["plan"]["path"]
     assert plan.verification.ok and plan.verification.certified
     assert plan.verification.min_clearance == replies["plan"]["verification"]["min_clearance"]
+    assert plan.verification.closest_pair == tuple(
+        replies["plan"]["verification"]["closest_pair"]) and all(plan.verification.closest_pair)
     assert plan.raw is replies["plan"] and plan.request_id == "local"
     fk = FkReply.parse(replies["fk"])
     assert fk.joints["joint_1"] == 0.5 and fk.links["claw_support"].matrix.shape == (4, 4)
