@@ -60,8 +60,8 @@ MAX_BOUNDS = 500_000
 # the last one measured (else a new one is measured: it may be larger)
 CARRY = 0.5
 # [m] with a clearance to report, a pair the whole motion moves relative to itself by
-# less than this is certified by its distance at the start (CollisionWorld.still_distance:
-# the hulls', else FCL's) less that motion
+# less than this is certified by its distance bound at the start less that motion
+# (CollisionWorld.still_distance: the hulls', FCL's where they touch)
 STILL = 1e-4
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
@@ -343,12 +343,12 @@ class Certifier:
     def _still_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                      lengths: np.ndarray, clear: float) -> dict[int, float]:
         # The pairs the motion barely moves (the fingers in an arm motion), each with its
-        # distance bound at the start (the hulls', tight on convex links, else FCL's)
-        # less the most the motion moves it: as sound as a
-        # walk (a piece's joint speeds stay within max(|u1|, |u2|); the gaps between
-        # pieces count too), and, remembered by the world, free after the first motion.
-        # The walk would give half an OBB-tree bound instead (a few tenths of the true
-        # distance on CAD meshes) and, as the smallest so far, cap every other pair's.
+        # distance bound at the start (the hulls', tight on convex links; FCL's where they
+        # touch) less the most the motion moves it: as sound as a walk (a piece's joint
+        # speeds stay within max(|u1|, |u2|); the gaps between pieces count too) and,
+        # remembered by the world, free after the first motion. The walk would give half
+        # an OBB-tree bound instead (a few tenths of the true distance on CAD meshes)
+        # and, as the smallest so far, cap every other pair's.
         w = self.world
         travel = (lengths[:, None] * np.maximum(np.abs(u1), np.abs(u2))).sum(axis=0)
         ends = starts + lengths[:, None] * (u1 + u2) / 2  # H(1) = 1/2

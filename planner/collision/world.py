@@ -280,13 +280,13 @@ class CollisionWorld:
 
     def still_distance(self, q: ArrayLike, pair: int) -> float:
         """A lower bound [m] on the distance of checked pair ``pair`` at a free state
-        ``q``: :meth:`pair_bound`'s (the convex hulls' where they are apart, else FCL's
-        exact distance) where the joints that move the pair relative to itself (weight
-        above ``_MOVES`` [m/rad]) are as in ``q`` and the others 0, less how far
-        those others' values in ``q`` can move it. Remembered by the moving joints' values,
-        so a pair no joint of a motion moves (the fingers in an arm motion) is measured
-        once, and the same whatever was asked before (the others only ever add their
-        rounding floor)."""
+        ``q``: :meth:`pair_bound`'s (the convex hulls', exact but for rounding on convex
+        links; FCL's exact distance where the hulls touch, as the shipped fingers' do)
+        where the joints that move the pair relative to itself (weight above ``_MOVES``
+        [m/rad]) are as in ``q`` and the others 0, less how far those others' values in
+        ``q`` can move it. Remembered by the moving joints' values, so a pair no joint of
+        a motion moves (the fingers in an arm motion) is measured once, and the same
+        whatever was asked before (the others only ever add their rounding floor)."""
         q = np.asarray(q, float)
         at = np.where(self._weight[pair] > _MOVES, q, 0.0)
         key = (pair, at.tobytes())
