@@ -293,7 +293,7 @@ class Certifier:
         direction = np.empty(3)
         weight = w._weight
         still: dict[int, float] = {}
-        if self.fraction > 0:  # a clearance to report: still pairs at their exact distance
+        if self.fraction > 0:  # a clearance to report: still pairs at their own bound
             still = self._still_pairs(starts, u1, u2, lengths, clear)
             if still:
                 idx = np.fromiter(still, np.int64)
@@ -334,7 +334,7 @@ class Certifier:
                                    int(counts[0]), exact)
             injected = d
         # other pairs' figures stop at the smallest so far (the walk proves no more): on a
-        # tie, the pair whose figure is its own (a still pair's exact one) is the closest
+        # tie, the pair whose figure is its own (a still pair's) is the closest
         worst = min(range(npair), key=lambda p: (best[p], p not in still), default=-1)
         cert = float(best[worst]) if npair and np.isfinite(best[worst]) else float("inf")
         return Certificate(True, clear, cert, w.pair_names[worst] if npair else None, None,

@@ -45,7 +45,7 @@ _CLEARANCE_CAP = 0.3
 # [m/rad] a joint moving a pair less than this per radian does not key its remembered
 # distance (pair_weights' rounding floor is 1e-12; any such joint's motion is subtracted)
 _MOVES = 1e-9
-# remembered exact distances (see still_distance) before they are dropped
+# remembered distance bounds (see still_distance) before they are dropped
 _STILL_KEPT = 1024
 
 
