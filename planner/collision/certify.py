@@ -358,7 +358,7 @@ class Certifier:
         moved = w._weight @ travel
         out = {}
         for p in np.flatnonzero(moved < STILL):
-            d = w.still_distance(starts[0], int(p)) - moved[p]
+            d = w.still_distance(starts[0], int(p), above=clear + GAP) - moved[p]
             if d > clear + GAP:  # else the walk decides (and refuses where it must)
                 out[int(p)] = d
         return out

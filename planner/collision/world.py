@@ -178,8 +178,8 @@ class CollisionWorld:
                                  if self._narrow(poses0, a, b, exact=True))
         self._fixed_pairs = tuple(fixed)
         self._poses = np.empty((len(self.kin.link_names), 4, 4))
-        # (pair, the state it was measured at) -> its distance bound (still_distance)
-        self._still: dict[tuple[int, bytes], float] = {}
+        # (pair, above, the state it was measured at) -> its distance bound (still_distance)
+        self._still: dict[tuple[int, float, bytes], float] = {}
         self._cand = np.zeros(len(self._pairs), dtype=np.int64)
         self._stack = np.empty((_STACK, 2), dtype=np.int64)
         self._gaps = np.empty(_STACK)
@@ -281,23 +281,24 @@ class CollisionWorld:
         self._place(poses, b)
         return self._distance(a, b, surface=True)
 
-    def still_distance(self, q: ArrayLike, pair: int) -> float:
+    def still_distance(self, q: ArrayLike, pair: int, *, above: float) -> float:
         """A lower bound [m] on the distance of checked pair ``pair`` at a free state
-        ``q``: :meth:`pair_bound`'s (the convex hulls', exact but for rounding on convex
-        links; FCL's exact distance where the hulls touch, as the shipped fingers' do)
-        where the joints that move the pair relative to itself (weight above ``_MOVES``
-        [m/rad]) are as in ``q`` and the others 0, less how far those others' values in
-        ``q`` can move it. Remembered by the moving joints' values, so a pair no joint of
-        a motion moves (the fingers in an arm motion) is measured once, and the same
-        whatever was asked before (the others only ever add their rounding floor)."""
+        ``q``: :meth:`pair_bound`'s with ``above`` (the convex hulls', exact but for
+        rounding on convex links; FCL's exact distance where they are not above it, as
+        for the shipped fingers, whose hulls touch) where the joints that move the pair
+        relative to itself (weight above ``_MOVES`` [m/rad]) are as in ``q`` and the
+        others 0, less how far those others' values in ``q`` can move it. Remembered by
+        the moving joints' values, so a pair no joint of a motion moves (the fingers in
+        an arm motion) is measured once, and the same whatever was asked before (the
+        others only ever add their rounding floor)."""
         q = np.asarray(q, float)
         at = np.where(self._weight[pair] > _MOVES, q, 0.0)
-        key = (pair, at.tobytes())
+        key = (pair, above, at.tobytes())
         d = self._still.get(key)
         if d is None:
             if len(self._still) >= _STILL_KEPT:
                 self._still.clear()
-            d = self._still[key] = self.pair_bound(at, pair, above=0.0)[0]
+            d = self._still[key] = self.pair_bound(at, pair, above=above)[0]
         return d - float(self._weight[pair] @ np.abs(q - at))
 
     def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
