@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from .argtypes import UsageError, add_obstacle_arg, joint_map, joint_values, json_object, numbers
-from .common import EXIT_OK, add_service_args, connect, joint_order
+from .argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
+from .common import EXIT_OK, add_service_args, connect, joints_by_name
 from .replies import PlanReply
 
 #: per joint: lower, upper [rad], velocity, acceleration, jerk, effort (None: unlimited)
@@ -73,8 +73,7 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
     req: dict[str, Any] = dict(ns.request or {})
     group = ns.group or req.get("group")
     if ns.goal is not None:
-        order = () if isinstance(ns.goal, dict) else joint_order(robot, group)
-        req["goal"] = {"joints": joint_map(ns.goal, order, "--goal")}
+        req["goal"] = {"joints": joints_by_name(robot, ns.goal, group=group, flag="--goal")}
     elif ns.named:
         req["goal"] = {"named": ns.named}
     elif ns.position:
@@ -82,8 +81,7 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
     elif "goal" not in req:
         raise UsageError("give a goal: --goal, --named, --position or --request")
     if ns.start is not None:
-        order = () if isinstance(ns.start, dict) else joint_order(robot, "all")
-        req["start"] = joint_map(ns.start, order, "--start")
+        req["start"] = joints_by_name(robot, ns.start, group="all", flag="--start")
     if ns.obstacle:
         req["obstacles"] = [*req.get("obstacles", []), *ns.obstacle]
     for key in ("group", "planner", "planning_time", "velocity_scaling",

@@ -14,7 +14,7 @@ from description import Description, DescriptionError, load_description
 from planner.errors import PlanningError
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX
 
-from .argtypes import UsageError, xacro_arg
+from .argtypes import JointValues, Mimic, UsageError, joint_map, xacro_arg
 from .errors import ServiceError, ServiceUnavailable
 from .robots.base import RobotError
 
@@ -140,6 +140,24 @@ def joint_order(robot: Mapping[str, Any], group: str | None) -> tuple[str, ...]:
         raise UsageError(f"--group '{name}' is not a group of this robot "
                          f"({', '.join(groups)})")
     return tuple(groups[name])
+
+
+def joints_by_name(robot: Mapping[str, Any], values: JointValues, *, group: str | None,
+                   flag: str) -> dict[str, float]:
+    """``values`` as typed after ``flag`` (positional in ``group``'s order, see
+    :func:`joint_order`, or by name) by joint name, a mimic's value checked against its
+    leader's and dropped (:func:`clients.argtypes.joint_map`); ``robot`` is the
+    ``<prefix>/description`` reply.
+
+    Raises:
+        UsageError: an unknown group, too many values, a mimic that disagrees.
+    """
+    mimics = {n: Mimic(m["leader"], m["multiplier"], m["offset"])
+              for n, m in robot.get("mimic_joints", {}).items()}
+    if isinstance(values, dict):
+        return joint_map(values, (), flag, mimics=mimics)
+    return joint_map(values, joint_order(robot, group), flag, mimics=mimics,
+                     all_joints=joint_order(robot, "all"))
 
 
 def run_guarded(ns: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
