@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from .argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
-from .common import EXIT_OK, add_service_args, connect, joints_by_name
+from .common import EXIT_OK, add_service_args, connect, joints_by_name, planned_by, wrote
 from .replies import PlanReply
 
 #: per joint: lower, upper [rad], velocity, acceleration, jerk, effort (None: unlimited)
@@ -100,14 +100,23 @@ def cmd_plan(ns: argparse.Namespace) -> int:
         req = build_request(ns, robot)
         res = PlanReply.parse(service.request("plan", req))
     limits = robot["limits"]
+    data_out = ns.json == "-"  # stdout is the reply: what is said goes to stderr
+    samples = f"{len(res.times)} samples"
     if ns.json:
         text = json.dumps(res.raw, indent=1)
-        sys.stdout.write(text + "\n") if ns.json == "-" else Path(ns.json).write_text(text)
+        if data_out:
+            sys.stdout.write(text + "\n")
+        else:
+            Path(ns.json).write_text(text)
+            wrote(ns.json, samples)
     if ns.csv:
         Path(ns.csv).write_text(res.to_csv())
+        wrote(ns.csv, samples, stderr=data_out)
     if ns.plot and not ns.simulate:
         plot_trajectory(res, limits, ns.plot)
-    if ns.json != "-":
+        wrote(ns.plot, f"plot of {samples}", stderr=data_out)
+    if not data_out:
+        print(f"robot '{robot['robot']}', planned {planned_by(ns)}")
         print(summary(res, limits))
     if ns.simulate:
         from .simulate import simulate_command

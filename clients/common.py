@@ -8,6 +8,7 @@ import json
 import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from description import Description, DescriptionError, load_description
@@ -92,6 +93,21 @@ def client(ns: argparse.Namespace) -> PlannerClient:
     from .client import PlannerClient  # zenoh: not for --local
     return PlannerClient(ns.connect or [DEFAULT_ENDPOINT], prefix=ns.prefix, timeout=ns.timeout,
                          config_file=ns.config)
+
+
+def planned_by(ns: argparse.Namespace) -> str:
+    """Who answers a command's requests: ``by the service at ENDPOINT`` or ``in this
+    process (--local)``."""
+    if ns.local:
+        return "in this process (--local)"
+    prefix = "" if ns.prefix == DEFAULT_PREFIX else f" (prefix {ns.prefix})"
+    return f"by the service at {', '.join(ns.connect or [DEFAULT_ENDPOINT])}{prefix}"
+
+
+def wrote(path: str | Path, what: str = "", *, stderr: bool = False) -> None:
+    """Say that a file was written: ``wrote traj.json (123 samples)``, on stdout (on
+    stderr when stdout carries data, e.g. ``--json -``)."""
+    print(f"wrote {path}{f' ({what})' if what else ''}", file=sys.stderr if stderr else sys.stdout)
 
 
 class Service(Protocol):
