@@ -157,3 +157,68 @@ def test_a_mistyped_flag_shows_its_commands_usage_and_the_closest_flag(capsys):
     assert "maybe you meant --joints (not --jionts)?" in err
     err = _usage_error(["check", "--pacakge-dir", "ws/src"], capsys)
     assert err.startswith("usage: arduinobot check") and "--package-dir" in err
+
+
+# -- what the command says (issue 27.10) ---------------------------------------------------
+
+def _run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "clients.cli", *args], cwd=REPO,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_a_second_serve_on_a_busy_port_says_so_before_loading_the_robot(server):
+    r = _run("-v", "serve", "--listen", server.endpoint, "--workers", "1")
+    assert r.returncode == 1
+    port = int(server.endpoint.rsplit(":", 1)[1])
+    assert f"arduinobot: serve: {server.endpoint} is in use" in r.stderr
+    suggested = r.stderr.split("use --listen tcp/127.0.0.1:", 1)[1].split()[0]
+    assert int(suggested) > port
+    # refused before any work: no robot loaded, no Zenoh error
+    assert "loaded robot" not in r.stderr and "ZError" not in r.stderr, r.stderr
+
+
+def test_the_ready_line_names_where_to_connect(server):
+    assert f"listening on {server.endpoint};" in server.ready_line
+
+
+def test_the_plan_summary_names_the_robot_and_the_service(server, capsys):
+    assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--connect",
+                 server.endpoint]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"robot 'arduinobot', planned by the service at {server.endpoint}\n")
+    assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--local"]) == 0
+    assert "robot 'arduinobot', planned in this process (--local)" in capsys.readouterr().out
+
+
+def test_written_files_are_announced(tmp_path, capsys):
+    traj, csv = tmp_path / "traj.json", tmp_path / "traj.csv"
+    assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--local",
+                 "--json", str(traj), "--csv", str(csv)]) == 0
+    out = capsys.readouterr().out
+    n = len(json.loads(traj.read_text())["trajectory"]["points"])
+    assert f"wrote {traj} ({n} samples)\n" in out and f"wrote {csv} ({n} samples)\n" in out
+    # with the reply on stdout, stdout stays JSON and the news goes to stderr
+    assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--local",
+                 "--json", "-", "--csv", str(csv)]) == 0
+    cap = capsys.readouterr()
+    assert json.loads(cap.out)["trajectory"]["points"]
+    assert f"wrote {csv} ({n} samples)" in cap.err
+
+
+def test_info_prints_each_warning_once(course_ws):
+    r = _run("info", str(course_ws.xacro), "--package-dir", str(course_ws.src))
+    assert r.returncode == 0, r.stderr
+    warning = "link 'rgb_camera_link' <visual> #1: <material> inside <geometry> is ignored"
+    assert (r.stdout + r.stderr).count(warning) == 1
+    assert f"warning: {course_ws.xacro}: {warning}" in r.stdout
+    # the rest of the loader's log still shows with -v
+    r = _run("-v", "info", str(course_ws.xacro), "--package-dir", str(course_ws.src))
+    assert "loaded robot 'arduinobot'" in r.stderr and warning not in r.stderr
+
+
+def test_dev_help_lists_its_commands_and_nothing_else():
+    r = subprocess.run(["bash", str(REPO / "dev"), "help"], capture_output=True, text=True,
+                       timeout=30)
+    assert r.returncode == 0
+    assert r.stdout.splitlines()[-1].strip().startswith("./dev setup")
+    assert "set -euo pipefail" not in r.stdout and "./dev test" in r.stdout
