@@ -27,14 +27,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "velocity, acceleration and effort against their limits, and the time each stage "
         "took. Sends a v1 request to `arduinobot serve` (start one first), or plans "
         "in-process with --local exactly as the service would.",
-        epilog="examples:\n  arduinobot plan --goal 0.5,0.3,-0.4\n"
+        epilog="examples:\n  arduinobot plan --goal -1.14,-0.6,-0.07\n"
+        "  arduinobot plan --group gripper --goal -0.7,0.7\n"
         "  arduinobot plan --named reach_left --start 0.2,0,0 --json traj.json\n"
         "  arduinobot plan --position 0,1.0,1.2 --obstacle box:table:1,1,0.1@0,1,0.5\n"
         "  arduinobot plan --request req.json --local --plot traj.png")
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", metavar="Q", type=joint_values, help="joint goal: values of "
                       "the group's joints in the model's order (`arduinobot info` lists "
-                      "them), or name=value,...")
+                      "them; a mimic's value may follow its leader's and must agree with "
+                      "it: --group gripper --goal -0.7,0.7), or name=value,...")
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", type=numbers(3),
                       help="a tcp position [m]")
