@@ -9,7 +9,6 @@ import logging
 import re
 import sys
 from collections.abc import Sequence
-from functools import partial
 from typing import Any, NoReturn
 
 from . import cmd_execute, cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
@@ -21,9 +20,9 @@ _OMPL_ALWAYS, _OMPL_LOCAL = {"serve", "srdf", "view"}, {"plan", "ik", "execute"}
 _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_execute]
 
 #: what a value that starts with '-' but is no option looks like: a number, or a list of
-#: them ('-1.14,-0.6,-0.07', '-.5'). argparse's own pattern (before Python 3.13) is one
+#: them ('-1.14,-0.6,-0.07', '-.5'). The pattern of our Python's argparse (3.11) is one
 #: number only, so `--goal -1.14,-0.6,-0.07` read the list as an unknown option and
-#: failed with "expected one argument"; Python 3.13 widened it to this same prefix.
+#: failed with "expected one argument"; later CPython widened it to this same prefix.
 NEGATIVE_VALUE = re.compile(r"-\.?\d")
 #: argparse's own "maybe you meant" for a mistyped choice (a command, --profile's value)
 _HAS_SUGGEST = "suggest_on_error" in inspect.signature(argparse.ArgumentParser).parameters
@@ -73,6 +72,14 @@ class CommandParser(argparse.ArgumentParser):
                                      f"(choose from {choices})")
 
 
+class _RawCommandParser(CommandParser):
+    """A command's parser: its description and examples keep their line breaks."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        super().__init__(*args, **kwargs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = CommandParser(
         prog="arduinobot",
@@ -84,9 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
         "AMENT_PREFIX_PATH. 'arduinobot COMMAND --help' explains each command.")
     p.add_argument("-v", "--verbose", action="count", default=0,
                    help="log more (-v info, -vv debug) to stderr")
-    # every command's description and examples keep their line breaks
-    raw = partial(CommandParser, formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=raw)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                           parser_class=_RawCommandParser)
     for mod in _COMMANDS:
         mod.register(sub)
     for sp in sub.choices.values():  # a usage error names its command, as argparse's do
