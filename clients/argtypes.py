@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -54,18 +55,87 @@ def joint_values(text: str) -> JointValues:
     return out
 
 
-def joint_map(values: JointValues, names: Sequence[str], flag: str) -> dict[str, float]:
-    """``values`` by joint name; positional ones follow ``names``.
+@dataclass(frozen=True)
+class Mimic:
+    """A mimic joint's rule: its value is ``multiplier * leader + offset`` [rad]."""
+
+    leader: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+    def follows(self, leader_value: float) -> float:
+        return self.multiplier * leader_value + self.offset
+
+    def rule(self, name: str) -> str:
+        return f"{name} = {self.multiplier:g} * {self.leader} + {self.offset:g}"
+
+
+#: how far a mimic's typed value may be from what its leader gives [rad] (what a user
+#: types, '-0.7,0.7', is exact; a value copied with 6 decimals is within this)
+MIMIC_TOLERANCE = 1e-6
+
+
+def joint_map(values: JointValues, names: Sequence[str], flag: str, *,
+              mimics: Mapping[str, Mimic] | None = None,
+              all_joints: Sequence[str] = ()) -> dict[str, float]:
+    """``values`` by joint name; positional ones follow ``names``, or, when there are more
+    of them than ``names``, ``names`` with each joint's mimics right after it (as the
+    SRDF and MoveIt list a gripper: ``joint_4, joint_5``). A mimic's value must agree
+    with its leader's (``mimics``) and is then dropped: the service takes leaders only.
+
+    Args:
+        mimics: the robot's mimic joints by name (``<prefix>/description``'s
+            ``mimic_joints``).
+        all_joints: every actuated joint: named in the error when the values would fit
+            them (``--group all``) and not ``names``.
 
     Raises:
-        UsageError: more positional values than ``names``.
+        UsageError: more positional values than ``names`` and their mimics; a mimic's
+            value that disagrees with its leader's (naming both).
     """
+    mimics = mimics or {}
     if isinstance(values, dict):
-        return dict(values)
-    if len(values) > len(names):
-        raise UsageError(f"{flag}: {len(values)} values for {len(names)} joints "
-                         f"({', '.join(names)})")
-    return dict(zip(names, values))
+        pairs = list(values.items())
+    else:
+        order = list(names)
+        if len(values) > len(names):
+            order = with_mimics(names, mimics)
+        if len(values) > len(order):
+            raise UsageError(_too_many(values, names, order, flag, mimics, all_joints))
+        pairs = list(zip(order, values))
+    given = dict(pairs)
+    out = {}
+    for name, v in pairs:
+        m = mimics.get(name)
+        if m is None or m.leader not in given:
+            out[name] = v  # a mimic alone: the service names its leader
+            continue
+        expected = m.follows(given[m.leader])
+        if abs(v - expected) > MIMIC_TOLERANCE:
+            raise UsageError(f"{flag}: {name} is a mimic of {m.leader} ({m.rule(name)}): "
+                             f"{m.leader}={given[m.leader]:g} gives {name}={expected:g}, "
+                             f"not {v:g}; give {m.leader}'s value alone (or one that "
+                             f"agrees)")
+    return out
+
+
+def with_mimics(names: Sequence[str], mimics: Mapping[str, Mimic]) -> list[str]:
+    """``names`` with each joint's mimics right after it."""
+    return [x for n in names for x in (n, *(k for k, m in mimics.items() if m.leader == n))]
+
+
+def _too_many(values: Sequence[float], names: Sequence[str], order: Sequence[str], flag: str,
+              mimics: Mapping[str, Mimic], all_joints: Sequence[str]) -> str:
+    listed = ", ".join(names)
+    extra = [n for n in order if n not in names]
+    if extra:
+        listed += f"; or with their mimics: {', '.join(order)}"
+    msg = f"{flag}: {len(values)} values for {len(names)} joints ({listed})"
+    every = list(all_joints)
+    if every and list(names) != every and len(values) in (len(every),
+                                                          len(with_mimics(every, mimics))):
+        msg += f"; for every joint ({', '.join(every)}), add --group all"
+    return msg
 
 
 def obstacle(text: str) -> dict[str, Any]:

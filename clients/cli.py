@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import difflib
+import inspect
 import logging
+import re
 import sys
-from functools import partial
+from collections.abc import Sequence
+from typing import Any, NoReturn
 
 from . import cmd_execute, cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
@@ -15,9 +19,69 @@ from .common import run_guarded
 _OMPL_ALWAYS, _OMPL_LOCAL = {"serve", "srdf", "view"}, {"plan", "ik", "execute"}
 _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_execute]
 
+#: what a value that starts with '-' but is no option looks like: a number, or a list of
+#: them ('-1.14,-0.6,-0.07', '-.5'). The pattern of our Python's argparse (3.11) is one
+#: number only, so `--goal -1.14,-0.6,-0.07` read the list as an unknown option and
+#: failed with "expected one argument"; later CPython widened it to this same prefix.
+NEGATIVE_VALUE = re.compile(r"-\.?\d")
+#: argparse's own "maybe you meant" for a mistyped choice (a command, --profile's value)
+_HAS_SUGGEST = "suggest_on_error" in inspect.signature(argparse.ArgumentParser).parameters
+
+
+class CommandParser(argparse.ArgumentParser):
+    """argparse for what users type: a value flag takes a negative first value
+    (``--start -0.4,0.3,0``) in every command, and a mistyped command, choice or flag
+    is answered with its closest match (``maybe you meant 'plan'?``), under the usage
+    of the command it was typed for."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        if _HAS_SUGGEST:
+            kwargs.setdefault("suggest_on_error", True)
+        super().__init__(*args, **kwargs)
+        # no option of ours looks like a number, so every such token is a value
+        self._negative_number_matcher = NEGATIVE_VALUE
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        ns, extras = self.parse_known_args(args, namespace)
+        if extras:  # argparse would blame the top-level parser; blame the command's
+            parser: CommandParser = getattr(ns, "command_parser", self)
+            parser.unrecognized(extras)
+        return ns
+
+    def unrecognized(self, extras: Sequence[str]) -> NoReturn:
+        """Exit 2 naming ``extras``, with the closest option for a mistyped flag."""
+        options = [o for a in self._actions for o in a.option_strings]
+        hints = []
+        for arg in extras:
+            flag = arg.split("=", 1)[0]
+            if flag.startswith("-") and not NEGATIVE_VALUE.match(flag):
+                close = difflib.get_close_matches(flag, options, n=1, cutoff=0.6)
+                if close:
+                    hints.append(f"maybe you meant {close[0]} (not {flag})?")
+        self.error("; ".join([f"unrecognized arguments: {' '.join(extras)}", *hints]))
+
+    def _check_value(self, action: argparse.Action, value: Any) -> None:
+        if _HAS_SUGGEST or action.choices is None or value in action.choices:
+            return super()._check_value(action, value)
+        # the wording of Python 3.14's suggest_on_error
+        close = difflib.get_close_matches(str(value), [str(c) for c in action.choices], n=1)
+        choices = ", ".join(map(repr, action.choices))
+        maybe = f", maybe you meant {close[0]!r}?" if close else ""
+        raise argparse.ArgumentError(action, f"invalid choice: {value!r}{maybe} "
+                                     f"(choose from {choices})")
+
+
+class _RawCommandParser(CommandParser):
+    """A command's parser: its description and examples keep their line breaks."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        super().__init__(*args, **kwargs)
+
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="arduinobot",
         description="Motion planning for the arduinobot arm (and your own URDF): load and "
         "check models without ROS, plan collision-free paths, time them within the "
@@ -27,9 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
         "AMENT_PREFIX_PATH. 'arduinobot COMMAND --help' explains each command.")
     p.add_argument("-v", "--verbose", action="count", default=0,
                    help="log more (-v info, -vv debug) to stderr")
-    # every command's description and examples keep their line breaks
-    raw = partial(argparse.ArgumentParser, formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=raw)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                           parser_class=_RawCommandParser)
     for mod in _COMMANDS:
         mod.register(sub)
     for sp in sub.choices.values():  # a usage error names its command, as argparse's do

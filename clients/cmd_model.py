@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 
-from description import build_package_index, read_model_text
+from description import Description, build_package_index, read_model_text
 
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
 
@@ -67,8 +68,36 @@ def _fmt(v: float | None) -> str:
     return "-inf" if v is None else f"{v:+.4f}"
 
 
+class _Hold(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__()
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+
+def _load_printing_warnings_once(ns: argparse.Namespace) -> Description:
+    """The model, with the loader's log replayed except the warnings ``info`` prints
+    itself (the log showed each of them a second time, on stderr)."""
+    log, hold = logging.getLogger("description"), _Hold()
+    log.addHandler(hold)
+    propagate, log.propagate = log.propagate, False
+    d = None
+    try:
+        d = load_from_args(ns)
+        return d
+    finally:
+        log.removeHandler(hold)
+        log.propagate = propagate
+        printed = set(d.warnings) if d is not None else set()
+        for rec in hold.records:
+            if rec.getMessage() not in printed:
+                logging.getLogger(rec.name).handle(rec)
+
+
 def cmd_info(ns: argparse.Namespace) -> int:
-    d = load_from_args(ns)
+    d = _load_printing_warnings_once(ns)
     r = d.robot
     print(f"robot '{r.name}' from {r.source}")
     print(f"links {len(r.links)}, joints {len(r.joints)}, actuated {', '.join(r.actuated_joints)}")

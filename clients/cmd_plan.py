@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from .argtypes import UsageError, add_obstacle_arg, joint_map, joint_values, json_object, numbers
-from .common import EXIT_OK, add_service_args, connect, joint_order
+from .argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
+from .common import EXIT_OK, add_service_args, connect, joints_by_name, planned_by, wrote
 from .replies import PlanReply
 
 #: per joint: lower, upper [rad], velocity, acceleration, jerk, effort (None: unlimited)
@@ -27,14 +27,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "velocity, acceleration and effort against their limits, and the time each stage "
         "took. Sends a v1 request to `arduinobot serve` (start one first), or plans "
         "in-process with --local exactly as the service would.",
-        epilog="examples:\n  arduinobot plan --goal 0.5,0.3,-0.4\n"
+        epilog="examples:\n  arduinobot plan --goal -1.14,-0.6,-0.07\n"
+        "  arduinobot plan --group gripper --goal -0.7,0.7\n"
         "  arduinobot plan --named reach_left --start 0.2,0,0 --json traj.json\n"
         "  arduinobot plan --position 0,1.0,1.2 --obstacle box:table:1,1,0.1@0,1,0.5\n"
         "  arduinobot plan --request req.json --local --plot traj.png")
     goal = p.add_mutually_exclusive_group()
     goal.add_argument("--goal", metavar="Q", type=joint_values, help="joint goal: values of "
                       "the group's joints in the model's order (`arduinobot info` lists "
-                      "them), or name=value,...")
+                      "them; a mimic's value may follow its leader's and must agree with "
+                      "it: --group gripper --goal -0.7,0.7), or name=value,...")
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", type=numbers(3),
                       help="a tcp position [m]")
@@ -73,8 +75,7 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
     req: dict[str, Any] = dict(ns.request or {})
     group = ns.group or req.get("group")
     if ns.goal is not None:
-        order = () if isinstance(ns.goal, dict) else joint_order(robot, group)
-        req["goal"] = {"joints": joint_map(ns.goal, order, "--goal")}
+        req["goal"] = {"joints": joints_by_name(robot, ns.goal, group=group, flag="--goal")}
     elif ns.named:
         req["goal"] = {"named": ns.named}
     elif ns.position:
@@ -82,8 +83,7 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
     elif "goal" not in req:
         raise UsageError("give a goal: --goal, --named, --position or --request")
     if ns.start is not None:
-        order = () if isinstance(ns.start, dict) else joint_order(robot, "all")
-        req["start"] = joint_map(ns.start, order, "--start")
+        req["start"] = joints_by_name(robot, ns.start, group="all", flag="--start")
     if ns.obstacle:
         req["obstacles"] = [*req.get("obstacles", []), *ns.obstacle]
     for key in ("group", "planner", "planning_time", "velocity_scaling",
@@ -102,14 +102,23 @@ def cmd_plan(ns: argparse.Namespace) -> int:
         req = build_request(ns, robot)
         res = PlanReply.parse(service.request("plan", req))
     limits = robot["limits"]
+    data_out = ns.json == "-"  # stdout is the reply: what is said goes to stderr
+    samples = f"{len(res.times)} samples"
     if ns.json:
         text = json.dumps(res.raw, indent=1)
-        sys.stdout.write(text + "\n") if ns.json == "-" else Path(ns.json).write_text(text)
+        if data_out:
+            sys.stdout.write(text + "\n")
+        else:
+            Path(ns.json).write_text(text)
+            wrote(ns.json, samples)
     if ns.csv:
         Path(ns.csv).write_text(res.to_csv())
+        wrote(ns.csv, samples, stderr=data_out)
     if ns.plot and not ns.simulate:
         plot_trajectory(res, limits, ns.plot)
-    if ns.json != "-":
+        wrote(ns.plot, f"plot of {samples}", stderr=data_out)
+    if not data_out:
+        print(f"robot '{robot['robot']}', planned {planned_by(ns)}")
         print(summary(res, limits))
     if ns.simulate:
         from .simulate import simulate_command

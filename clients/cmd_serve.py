@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import logging
 import os
+import re
 import signal
+import socket
 import sys
 import threading
 
@@ -94,6 +97,12 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     # would be a way around the router's TLS, passwords and access control
     listen = ns.listen if ns.listen or ns.config else \
         ([] if ns.mode == "client" else [DEFAULT_ENDPOINT])
+    for endpoint in listen or ():
+        # before the robot loads (seconds), not after it with Zenoh's raw bind error
+        if endpoint_in_use(endpoint):
+            print(f"arduinobot: serve: {endpoint} is in use (another `arduinobot serve`?); "
+                  f"use --listen {_elsewhere(endpoint)}", file=sys.stderr)
+            return EXIT_FAIL
     opts = ServeOptions(prefix=ns.prefix, mode=ns.mode or ("peer" if not ns.config else None),
                         listen=listen, connect=ns.connect, config_file=ns.config,
                         multicast_scouting=ns.multicast_scouting, description=spec,
@@ -116,3 +125,44 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         logging.getLogger("service.server").info("shutting down")
         svc.close()
     return EXIT_OK
+
+
+def _tcp_address(endpoint: str) -> tuple[str, int] | None:
+    """(host, port) of a ``tcp/HOST:PORT`` or ``tls/HOST:PORT`` endpoint (``[::1]`` for
+    IPv6; Zenoh's ``?``/``#`` metadata ignored); None for other transports."""
+    proto, _, rest = endpoint.partition("/")
+    host, _, port = re.split(r"[?#]", rest, maxsplit=1)[0].rpartition(":")
+    if proto not in ("tcp", "tls") or not host or not port.isdigit():
+        return None
+    return host.strip("[]"), int(port)
+
+
+def endpoint_in_use(endpoint: str) -> bool:
+    """Whether something already listens on ``endpoint``'s TCP address: a bind there
+    fails (with SO_REUSEADDR, as Zenoh binds, so a port merely in TIME_WAIT is free).
+    A name that does not resolve is left to Zenoh to refuse."""
+    addr = _tcp_address(endpoint)
+    if addr is None or addr[1] == 0:
+        return False
+    try:
+        infos = socket.getaddrinfo(addr[0], addr[1], type=socket.SOCK_STREAM)
+    except socket.gaierror:
+        return False
+    family, _, _, _, sockaddr = infos[0]
+    with socket.socket(family, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(sockaddr)
+        except OSError as e:
+            return e.errno == errno.EADDRINUSE
+    return False
+
+
+def _elsewhere(endpoint: str) -> str:
+    """``endpoint`` on the next free port (the suggestion for a busy one)."""
+    host, port = _tcp_address(endpoint)  # type: ignore[misc]
+    proto, shown = endpoint.partition("/")[0], f"[{host}]" if ":" in host else host
+    for p in range(port + 1, min(port + 100, 65536)):
+        if not endpoint_in_use(f"{proto}/{shown}:{p}"):
+            return f"{proto}/{shown}:{p}"
+    return f"{proto}/{shown}:PORT"

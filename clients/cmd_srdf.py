@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -60,5 +60,5 @@ def cmd_srdf(ns: argparse.Namespace) -> int:
         text = replace_disabled_collisions(base, r.disabled)
         dest = Path(src) if ns.write and src is not None else Path(ns.output)
         dest.write_text(text, encoding="utf-8")
-        print(f"wrote {dest}")
+        wrote(dest, f"{len(r.disabled)} disabled pairs")
     return EXIT_OK

@@ -8,8 +8,8 @@ import json
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .argtypes import add_obstacle_arg, joint_map, joint_values, numbers
-from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joint_order
+from .argtypes import add_obstacle_arg, joint_values, numbers
+from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joints_by_name
 from .replies import CheckReply, FkReply, IkReply
 
 _JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot info` "
@@ -71,8 +71,7 @@ def _ask(ns: argparse.Namespace, kind: str, req: dict[str, Any], *,
 def _joints(ns: argparse.Namespace, service: Service) -> dict[str, float]:
     if not ns.joints:
         return {}
-    order = () if isinstance(ns.joints, dict) else joint_order(service.description(), "all")
-    return joint_map(ns.joints, order, "--joints")
+    return joints_by_name(service.description(), ns.joints, group="all", flag="--joints")
 
 
 def _values(joints: Mapping[str, float]) -> str:

@@ -13,7 +13,7 @@ from pathlib import Path
 from planner.scene import Obstacle
 
 from .argtypes import UsageError
-from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args
+from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -112,7 +112,7 @@ def _write_png(ns: argparse.Namespace, d: object, traj: object) -> int:
         raise UsageError("--plot-png needs --trajectory FILE.json")
     panels = plot_panels(traj, joint_limits(d, traj.joint_names))  # type: ignore[arg-type]
     Path(ns.plot_png).write_bytes(plot_png(panels, title=str(ns.trajectory)))
-    print(f"wrote {ns.plot_png}")
+    wrote(ns.plot_png, f"plots of {len(traj.times)} samples")  # type: ignore[attr-defined]
     return EXIT_OK
 
 

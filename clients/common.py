@@ -8,13 +8,14 @@ import json
 import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from description import Description, DescriptionError, load_description
 from planner.errors import PlanningError
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX
 
-from .argtypes import UsageError, xacro_arg
+from .argtypes import JointValues, Mimic, UsageError, joint_map, xacro_arg
 from .errors import ServiceError, ServiceUnavailable
 from .robots.base import RobotError
 
@@ -94,6 +95,21 @@ def client(ns: argparse.Namespace) -> PlannerClient:
                          config_file=ns.config)
 
 
+def planned_by(ns: argparse.Namespace) -> str:
+    """Who answers a command's requests: ``by the service at ENDPOINT`` or ``in this
+    process (--local)``."""
+    if ns.local:
+        return "in this process (--local)"
+    prefix = "" if ns.prefix == DEFAULT_PREFIX else f" (prefix {ns.prefix})"
+    return f"by the service at {', '.join(ns.connect or [DEFAULT_ENDPOINT])}{prefix}"
+
+
+def wrote(path: str | Path, what: str = "", *, stderr: bool = False) -> None:
+    """Say that a file was written: ``wrote traj.json (123 samples)``, on stdout (on
+    stderr when stdout carries data, e.g. ``--json -``)."""
+    print(f"wrote {path}{f' ({what})' if what else ''}", file=sys.stderr if stderr else sys.stdout)
+
+
 class Service(Protocol):
     """What a command asks of the service, or of :class:`service.local.LocalService`."""
 
@@ -140,6 +156,24 @@ def joint_order(robot: Mapping[str, Any], group: str | None) -> tuple[str, ...]:
         raise UsageError(f"--group '{name}' is not a group of this robot "
                          f"({', '.join(groups)})")
     return tuple(groups[name])
+
+
+def joints_by_name(robot: Mapping[str, Any], values: JointValues, *, group: str | None,
+                   flag: str) -> dict[str, float]:
+    """``values`` as typed after ``flag`` (positional in ``group``'s order, see
+    :func:`joint_order`, or by name) by joint name, a mimic's value checked against its
+    leader's and dropped (:func:`clients.argtypes.joint_map`); ``robot`` is the
+    ``<prefix>/description`` reply.
+
+    Raises:
+        UsageError: an unknown group, too many values, a mimic that disagrees.
+    """
+    mimics = {n: Mimic(m["leader"], m["multiplier"], m["offset"])
+              for n, m in robot.get("mimic_joints", {}).items()}
+    if isinstance(values, dict):
+        return joint_map(values, (), flag, mimics=mimics)
+    return joint_map(values, joint_order(robot, group), flag, mimics=mimics,
+                     all_joints=joint_order(robot, "all"))
 
 
 def run_guarded(ns: argparse.Namespace, parser: argparse.ArgumentParser) -> int:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import json
 import logging
 import os
 import time
@@ -143,9 +144,14 @@ class PlannerService:
             self.close()
             raise
         self._started = time.monotonic()
-        _log.info("arduinobot service ready: instance %s, %d workers, robot '%s', serving %s "
-                  "(and %s/instance/%s/*), liveliness %s/alive/%s", self.instance,
-                  o.workers, desc.robot.name,
+        # where clients reach it: what a user must pass as --connect
+        listen, connect = _endpoints(cfg, "listen"), _endpoints(cfg, "connect")
+        where = f"listening on {', '.join(listen)}" if listen else "no listener"
+        if connect:
+            where += f", connected to {', '.join(connect)}"
+        _log.info("arduinobot service ready: instance %s, %d workers, robot '%s', %s; "
+                  "serving %s (and %s/instance/%s/*), liveliness %s/alive/%s", self.instance,
+                  o.workers, desc.robot.name, where,
                   ", ".join(f"{p}/{k}" for k in (*WORK_KINDS, *INFO_KINDS)), p, self.instance,
                   p, self.instance)
 
@@ -245,6 +251,15 @@ class PlannerService:
         """Live jobs and what the pool holds (the memory probe's numbers)."""
         pool = self.pool
         return {**(pool.held() if pool is not None else {}), **count_live((Job,))}
+
+
+def _endpoints(cfg: zenoh.Config, what: str) -> list[str]:
+    """The ``listen`` or ``connect`` endpoints of ``cfg`` for its mode (a config may give
+    one list, or one per mode)."""
+    eps = json.loads(cfg.get_json(f"{what}/endpoints"))
+    if isinstance(eps, dict):
+        eps = eps.get(json.loads(cfg.get_json("mode")) or "peer", [])
+    return [str(e) for e in eps or ()]
 
 
 def _reply_error(query: zenoh.Query, failure: Failure) -> None:
