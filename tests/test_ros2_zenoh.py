@@ -288,7 +288,7 @@ def test_a_client_with_no_server_and_a_wrong_layout(session: zenoh.Session) -> N
                                          sum=r.a * 10 + r.b))
         assert old.create_client("same", "example_interfaces/srv/AddTwoInts").call(
             req, timeout=5).sum == 12
-        assert server2.served == 1
+        assert wait_for(lambda: server2.served == 1)
     finally:
         old.close()
         node.close()
