@@ -59,11 +59,21 @@ class Publisher:
         reliable = qos.reliability == "reliable"
         # As PublisherData::make: BLOCK only for reliable keep_all, else DROP.
         block = reliable and qos.history == "keep_all"
-        self._pub = session.declare_publisher(
-            self.key,
+        options = dict(
             reliability=z.Reliability.RELIABLE if reliable else z.Reliability.BEST_EFFORT,
             congestion_control=(z.CongestionControl.BLOCK if block
                                 else z.CongestionControl.DROP))
+        if qos.durability == "transient_local":
+            # As PublisherData::make: an advanced publisher caching `depth` samples for
+            # late joiners, detectable, with sporadic heartbeats when reliable (500 ms).
+            import zenoh.ext as ze
+            miss = (ze.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=0.5)
+                    if reliable else None)
+            self._pub = ze.declare_advanced_publisher(
+                session, self.key, cache=ze.CacheConfig(qos.depth), publisher_detection=True,
+                sample_miss_detection=miss, **options)
+        else:
+            self._pub = session.declare_publisher(self.key, **options)
         self._token = session.liveliness().declare_token(self.token_key)
         self._lock = threading.Lock()
         self._seq = 1
@@ -118,7 +128,16 @@ class Subscription:
         self.rejected = 0
         self.callback_errors = 0
         self.last_error: Ros2Error | None = None
-        self._sub = session.declare_subscriber(self.key, self._on_sample)
+        if endpoint.qos.durability == "transient_local":
+            # design.md "Subscriptions": an advanced subscriber querying the cached history
+            # of (late-detected) transient_local publishers.
+            import zenoh.ext as ze
+            self._sub = ze.declare_advanced_subscriber(
+                session, self.key, self._on_sample,
+                history=ze.HistoryConfig(detect_late_publishers=True,
+                                         max_samples=endpoint.qos.depth))
+        else:
+            self._sub = session.declare_subscriber(self.key, self._on_sample)
         self._token = session.liveliness().declare_token(self.token_key)
         self._closed = False
 

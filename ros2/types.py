@@ -43,6 +43,11 @@ _UUID = "unique_identifier_msgs/msg/UUID"
 _TIME = "builtin_interfaces/msg/Time"
 
 
+_DTYPES = {"bool": "bool", "byte": "uint8", "char": "uint8", "int8": "int8", "uint8": "uint8",
+           "int16": "int16", "uint16": "uint16", "int32": "int32", "uint32": "uint32",
+           "int64": "int64", "uint64": "uint64", "float32": "float32", "float64": "float64"}
+
+
 def _fix_name(name: str) -> str:
     # rosbags files 'pkg/srv/X' as 'pkg/srv/msg/X'; ROS names (and hashes) have no '/msg'.
     return name.replace("/srv/msg/", "/srv/").replace("/action/msg/", "/action/")
@@ -169,6 +174,32 @@ class TypeStore:
             return self._store.types[type_name](**fields)
         except TypeError as e:
             raise MessageMismatch(type_name, str(e)) from e
+
+    def default(self, type_name: str) -> Any:
+        """A ``type_name`` message with every field zero, false, empty or default-built
+        (default values a .msg declares are not applied)."""
+        import numpy as np
+
+        self._require(type_name)
+
+        def base(typ: str) -> Any:
+            return "" if typ in ("string", "wstring") else False if typ == "bool" else 0
+
+        def value(desc: Any) -> Any:
+            kind, rest = desc
+            if kind == Nodetype.BASE:
+                return base(rest[0])
+            if kind == Nodetype.NAME:
+                return self.default(rest)
+            (sub_kind, sub), count = rest
+            numeric = sub_kind == Nodetype.BASE and sub[0] not in ("string", "wstring")
+            n = count if kind == Nodetype.ARRAY else 0
+            if numeric:
+                return np.zeros(n, dtype=_DTYPES.get(sub[0], np.uint8))
+            return [value((sub_kind, sub)) for _ in range(n)]
+
+        fields = {name: value(desc) for name, desc in self._store.fielddefs[type_name][1]}
+        return self.message(type_name, **fields)
 
     # -- CDR ------------------------------------------------------------------------
     def serialize(self, msg: Any, name: str) -> bytes:
