@@ -23,11 +23,13 @@ import zenoh_ros2_sdk as sdk
 from rosbags.typesys import Stores, get_typestore
 from zenoh_ros2_sdk import message_registry
 
+from clients.robots.base import JointState as RobotJointState
 from description.loader import load_description
 from ros2 import (
     Attachment,
     MalformedAttachment,
     MalformedCdr,
+    MessageMismatch,
     Node,
     ServiceFailed,
     TypeStore,
@@ -291,4 +293,31 @@ def test_a_client_with_no_server_and_a_wrong_layout(session: zenoh.Session) -> N
         assert wait_for(lambda: server2.served == 1)
     finally:
         old.close()
+        node.close()
+
+
+def test_publish_state_reorders_the_robots_state_and_checks_shapes(
+        session: zenoh.Session) -> None:
+    node = Node(session, "motion", domain_id=8)
+    js = JointStates(node, ("joint_1", "joint_2", "joint_5"))
+    seen: list = []
+    local = session.declare_subscriber(js.publisher.key, seen.append)
+    try:
+        state = RobotJointState(names=("joint_5", "joint_1", "joint_2"), positions=(0.5, 0.1, 0.2),
+                           velocities=(5.0, 1.0, 2.0), efforts=None, stamp=3.0)
+        js.publish_state(state, stamp_ns=2_000_000_001)
+        assert wait_for(lambda: bool(seen))
+        msg = node.types.deserialize(seen[0].payload.to_bytes(), "sensor_msgs/msg/JointState")
+        assert msg.name == ["joint_1", "joint_2", "joint_5"]
+        assert list(msg.position) == [0.1, 0.2, 0.5] and list(msg.velocity) == [1.0, 2.0, 5.0]
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (2, 1)
+        with pytest.raises(MessageMismatch, match="lacks joints"):
+            js.publish_state(RobotJointState(("joint_1",), (0.0,), (0.0,), None, 0.0))
+        with pytest.raises(MessageMismatch, match="shape"):
+            js.publish([0.0, 1.0])
+        with pytest.raises(MessageMismatch, match="non-finite"):
+            js.publish([0.0, float("nan"), 1.0])
+        assert js.publisher.published == 1
+    finally:
+        local.undeclare()
         node.close()
