@@ -1,8 +1,9 @@
 """``/joint_states``: ``sensor_msgs/msg/JointState`` for robot_state_publisher and RViz.
 
 :func:`open_joint_states` is what ``serve --ros2`` wires in: a node on the service's
-Zenoh session with one publisher; call :meth:`JointStates.publish` (or
-:meth:`JointStates.publish_state` with the robot's state) at the execution rate.
+Zenoh session with one publisher; call it with each execution tick (or call
+:meth:`JointStates.publish` / :meth:`JointStates.publish_state`) at the execution rate. One
+publish costs about 0.1 ms (rosbags' serialiser), well inside a control tick.
 """
 
 from __future__ import annotations
@@ -81,6 +82,11 @@ class JointStates:
         efforts = None if state.efforts is None else [state.efforts[i] for i in order]
         self.publish([state.positions[i] for i in order],
                      [state.velocities[i] for i in order], efforts, stamp_ns=stamp_ns)
+
+    def __call__(self, tick: Any) -> None:
+        """An executor's per-tick callback (as clients/joint_states.py's
+        ``JointStatePublisher``): publishes ``tick.state``, stamped now."""
+        self.publish_state(tick.state)
 
     def close(self) -> None:
         self.publisher.close()

@@ -17,12 +17,14 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 import zenoh
 import zenoh_ros2_sdk as sdk
 from rosbags.typesys import Stores, get_typestore
 from zenoh_ros2_sdk import message_registry
 
+from clients.execution_report import Tick
 from clients.robots.base import JointState as RobotJointState
 from description.loader import load_description
 from ros2 import (
@@ -318,6 +320,11 @@ def test_publish_state_reorders_the_robots_state_and_checks_shapes(
         with pytest.raises(MessageMismatch, match="non-finite"):
             js.publish([0.0, float("nan"), 1.0])
         assert js.publisher.published == 1
+        # as an executor's per-tick callback: a tick carries the robot's state
+        z = np.zeros(2)
+        js(Tick(index=0, time=0.0, phase="trajectory", trajectory_time=0.0, progress=0.0,
+                q=z, qd=z, qdd=z, state=state))
+        assert wait_for(lambda: len(seen) == 2) and js.publisher.published == 2
     finally:
         local.undeclare()
         node.close()
