@@ -115,19 +115,20 @@ class ActionServer:
 
     ``on_goal(goal) -> bool`` accepts or rejects (default: accept); ``on_cancel(handle)
     -> bool`` grants a cancel request (default: grant); ``execute(handle)`` runs the goal.
+    ``max_active`` goals may run at once (None: no limit); one more is rejected.
     """
 
     def __init__(self, node: Node, name: str, action_type: str,
                  execute: Callable[[GoalHandle], None], *,
                  on_goal: Callable[[Any], bool] | None = None,
                  on_cancel: Callable[[GoalHandle], bool] | None = None,
-                 keep_results: int = 64) -> None:
+                 max_active: int | None = None, keep_results: int = 64) -> None:
         ensure_action_msgs(node)
         if node.types.kind(action_type) != "action":
             raise ValueError(f"{action_type} is not an action type")
         self.node, self.name, self.action_type = node, node.resolve(name), action_type
         self._execute, self._on_goal, self._on_cancel = execute, on_goal, on_cancel
-        self._keep = keep_results
+        self._keep, self._max_active = keep_results, max_active
         self._goals: OrderedDict[bytes, GoalHandle] = OrderedDict()
         self._lock = threading.RLock()
         self._threads: list[threading.Thread] = []
@@ -153,6 +154,10 @@ class ActionServer:
             elif self._closed:
                 log.warning("%s rejects goal %s: the server is closing", self.name,
                             uuidlib.UUID(bytes=goal_id))
+            elif self._max_active is not None and sum(
+                    h.status not in TERMINAL for h in self._goals.values()) >= self._max_active:
+                log.warning("ROS2_GOAL_BUSY: %s rejects goal %s: %d goal(s) already running",
+                            self.name, uuidlib.UUID(bytes=goal_id), self._max_active)
             else:
                 try:
                     accepted = bool(self._on_goal(request.goal)) if self._on_goal else True

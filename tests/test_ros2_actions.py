@@ -164,3 +164,26 @@ def test_a_late_client_gets_the_latched_status(pair, session: zenoh.Session) -> 
         assert wait_for(lambda: late.statuses.get(gid) == STATUS_SUCCEEDED)
     finally:
         late_node.close()
+
+
+def test_a_second_goal_while_one_runs_is_rejected(session: zenoh.Session) -> None:  # noqa: F811
+    types = TypeStore()
+    types.register_action(TASK, TASK_ACTION)
+    node = Node(session, "busy", domain_id=10, types=types)
+
+    def execute(handle: GoalHandle) -> None:
+        handle.cancel_requested.wait(10)
+        handle.canceled(types.message(f"{TASK}_Result", success=False))
+
+    server = ActionServer(node, "task_server", TASK, execute, max_active=1)
+    client = ActionClient(node, "task_server", TASK)
+    try:
+        first, ok = client.send_goal(goal(client, 1))
+        assert ok
+        assert client.send_goal(goal(client, 1))[1] is False  # busy: coded and logged
+        assert client.cancel(first)[0] == ERROR_NONE
+        assert client.get_result(first, timeout=10).status == STATUS_CANCELED
+        assert client.send_goal(goal(client, 1))[1] is True  # free again
+    finally:
+        server.close()
+        node.close()
