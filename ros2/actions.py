@@ -348,6 +348,13 @@ class ActionClient:
         for s in msg.status_list:
             self.statuses[bytes(s.goal_info.goal_id.uuid)] = int(s.status)
 
+    def wait_for_server(self, timeout: float) -> bool:
+        """Whether the action's three services announce themselves within ``timeout`` [s]
+        (as ``rclcpp_action::Client::wait_for_action_server``)."""
+        end = time.monotonic() + timeout
+        return all(c.wait_for_server(max(0.0, end - time.monotonic()))
+                   for c in (self._send, self._cancel, self._result))
+
     def send_goal(self, goal: Any, *, goal_id: bytes | None = None,
                   timeout: float = 5.0) -> tuple[bytes, bool]:
         """Send ``goal`` (a ``<Action>_Goal``); returns (goal id, accepted)."""

@@ -17,14 +17,20 @@ Service name mapping", "Graph Cache") and rmw_zenoh_cpp/src/detail/liveliness_ut
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import xxhash
 
 from .errors import MalformedToken
 from .names import demangle, mangle
 from .qos import QoS
+
+if TYPE_CHECKING:
+    import zenoh
+
+log = logging.getLogger(__name__)
 
 ADMIN_SPACE = "@ros2_lv"
 EntityKind = Literal["NN", "MP", "MS", "SS", "SC"]
@@ -115,3 +121,27 @@ class Token:
                                     demangle(parts[9]), demangle(parts[10]),
                                     demangle(parts[11]), QoS.decode(parts[12]))
         return cls(node, kind, int(parts[4]), endpoint)  # type: ignore[arg-type]
+
+
+def endpoint_selector(domain_id: int, kind: EntityKind, name: str, dds_type: str,
+                      type_hash: str) -> str:
+    """A liveliness selector matching every ``kind`` endpoint on fully qualified ``name``
+    with that type, whatever its session, node or QoS."""
+    return "/".join([ADMIN_SPACE, str(domain_id), "*", "*", "*", kind, "*", "*", "*",
+                     mangle(name), mangle(dds_type), mangle(type_hash), "*"])
+
+
+def query_graph(session: zenoh.Session, selector: str, *, timeout: float = 2.0) -> list[Token]:
+    """The graph tokens alive now under ``selector`` (``@ros2_lv/<domain>/**`` for a whole
+    domain). A token that does not parse is logged with its code and skipped."""
+    found: list[Token] = []
+    replies: Any = session.liveliness().get(selector, timeout=timeout)
+    for reply in replies:
+        if reply.ok is None:
+            continue
+        key = str(reply.ok.key_expr)
+        try:
+            found.append(Token.parse(key))
+        except MalformedToken as e:
+            log.warning("%s: skipped a graph token: %s", e.code, e)
+    return found

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from .attachment import LAYOUTS, AttachmentLayout
 from .errors import EntityClosed
-from .graph import EndpointInfo, EntityKind, NodeInfo, node_token
+from .graph import EndpointInfo, EntityKind, NodeInfo, Token, node_token, query_graph
 from .names import fully_qualified, validate_namespace, validate_node_name
 from .qos import DEFAULT, SERVICES_DEFAULT, QoS
 from .services import ServiceClient, ServiceServer
@@ -114,6 +114,12 @@ class Node:
         ep = self._endpoint("SC", name, type_name, qos)
         return self._keep(ServiceClient(self.session, ep, self.types, type_name,
                                         attachment=self.attachment))
+
+    def graph(self, *, timeout: float = 2.0) -> list[Token]:
+        """Every node and endpoint alive on this node's domain (ours included), from their
+        liveliness tokens, as ``ros2 node list`` / ``ros2 topic list`` see them."""
+        return query_graph(self.session, f"@ros2_lv/{self.info.domain_id}/**",
+                           timeout=timeout)
 
     def close(self) -> None:
         """Close every endpoint, then withdraw the node's token. The session stays open."""

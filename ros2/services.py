@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from .attachment import Attachment, AttachmentLayout
 from .errors import EntityClosed, Ros2Error, ServiceFailed
-from .graph import EndpointInfo, endpoint_token, gid_of, topic_key
+from .graph import EndpointInfo, endpoint_selector, endpoint_token, gid_of, query_graph, topic_key
 from .topics import MessageInfo
 from .types import TypeStore
 
@@ -181,6 +181,24 @@ class ServiceClient:
                 errors.append(str(e))
         raise ServiceFailed(self.endpoint.name, "; ".join(errors) if errors else
                             f"no reply within {timeout:g} s (no server, or it is busy)")
+
+    def server_ready(self, *, timeout: float = 2.0) -> bool:
+        """Whether a server of this service and type announces itself now (its ``SS``
+        liveliness token), as ``rclcpp::Client::service_is_ready``."""
+        ep = self.endpoint
+        selector = endpoint_selector(ep.node.domain_id, "SS", ep.name, ep.dds_type,
+                                     ep.type_hash)
+        return bool(query_graph(self._session, selector, timeout=timeout))
+
+    def wait_for_server(self, timeout: float) -> bool:
+        """Poll :meth:`server_ready` for up to ``timeout`` [s]."""
+        end = time.monotonic() + timeout
+        while True:
+            if self.server_ready(timeout=min(1.0, max(0.1, end - time.monotonic()))):
+                return True
+            if time.monotonic() >= end:
+                return False
+            time.sleep(0.05)
 
     def close(self) -> None:
         with self._lock:

@@ -79,6 +79,7 @@ def goal(client: ActionClient, n: int):
 
 def test_a_whole_goal_with_feedback_and_result(pair) -> None:
     server, client, feedback = pair
+    assert client.wait_for_server(5)
     gid, accepted = client.send_goal(goal(client, 1))
     assert accepted
     res = client.get_result(gid, timeout=10)

@@ -186,6 +186,11 @@ def test_liveliness_tokens_appear_and_go(session: zenoh.Session, port: int) -> N
         assert mp.node.zid == str(session.info.zid())
         assert mp.qos.depth == 10 and mp.qos.reliability == "reliable"
         assert pub.token_key in tokens()
+        # a token that is not rmw_zenoh's: logged and skipped by the graph query
+        junk = other.liveliness().declare_token("@ros2_lv/3/not/a/graph/token")
+        assert wait_for(lambda: len(tokens()) == 3)
+        assert sorted(t.kind for t in node.graph()) == ["MP", "NN"]
+        junk.undeclare()
         node.close()
         assert wait_for(lambda: tokens() == [])
     finally:
@@ -254,6 +259,7 @@ def test_services_with_the_sdk_client_bad_requests_and_handler_errors(
         assert server.rejected == 2 and isinstance(server.last_error, MalformedCdr)
         # our own client: a handler's exception is an error reply, and the server goes on
         ours = node.create_client("add_two_ints", "example_interfaces/srv/AddTwoInts")
+        assert ours.wait_for_server(5)
         req = types.message("example_interfaces/srv/AddTwoInts_Request", a=-1, b=1)
         with pytest.raises(ServiceFailed, match="negative"):
             ours.call(req, timeout=5)
@@ -274,6 +280,8 @@ def test_a_client_with_no_server_and_a_wrong_layout(session: zenoh.Session) -> N
     old = Node(session, "old_jazzy", domain_id=6, types=types, attachment="jazzy-0.2.3")
     try:
         client = node.create_client("nobody", "example_interfaces/srv/AddTwoInts")
+        assert not client.server_ready(timeout=0.5)
+        assert not client.wait_for_server(0.3)
         req = types.message("example_interfaces/srv/AddTwoInts_Request", a=1, b=2)
         with pytest.raises(ServiceFailed, match="no reply"):
             client.call(req, timeout=0.5)
