@@ -4,14 +4,17 @@ No ROS install: keys, liveliness tokens and attachments are built here from rmw_
 design document and source (each module cites the file and commit); CDR and RIHS01 type
 hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attachment`,
 :mod:`.qos`, :mod:`.names`, :mod:`.graph` (keys, tokens, GIDs), then :mod:`.topics` and
-:mod:`.services` (endpoints), :mod:`.node`, and :mod:`.joint_states`. Nothing here
+:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions` and :mod:`.joint_states`. Nothing here
 imports ``clients/`` or ``service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """
 
+from .actions import ActionClient, ActionServer, GoalHandle
 from .attachment import Attachment, AttachmentLayout
 from .errors import (
     EntityClosed,
+    GoalAlreadyEnded,
     InvalidName,
+    InvalidOption,
     InvalidTypeDefinition,
     MalformedAttachment,
     MalformedCdr,
@@ -27,7 +30,8 @@ from .qos import QoS
 from .types import TypeStore
 
 __all__ = [
-    "Attachment", "AttachmentLayout", "EntityClosed", "InvalidName", "InvalidTypeDefinition",
+    "ActionClient", "ActionServer", "Attachment", "AttachmentLayout", "EntityClosed",
+    "GoalAlreadyEnded", "GoalHandle", "InvalidName", "InvalidOption", "InvalidTypeDefinition",
     "JointStates", "MalformedAttachment", "MalformedCdr", "MalformedToken", "MessageMismatch",
     "Node", "QoS", "Ros2Error", "ServiceFailed", "TypeStore", "UnknownType",
     "open_joint_states",

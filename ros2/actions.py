@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import EntityClosed
+from .errors import EntityClosed, GoalAlreadyEnded, InvalidOption
 from .node import Node
 from .qos import ACTION_STATUS
 from .services import PendingRequest
@@ -125,7 +125,7 @@ class ActionServer:
                  max_active: int | None = None, keep_results: int = 64) -> None:
         ensure_action_msgs(node)
         if node.types.kind(action_type) != "action":
-            raise ValueError(f"{action_type} is not an action type")
+            raise InvalidOption("action_type", action_type, "not an action type")
         self.node, self.name, self.action_type = node, node.resolve(name), action_type
         self._execute, self._on_goal, self._on_cancel = execute, on_goal, on_cancel
         self._keep, self._max_active = keep_results, max_active
@@ -258,7 +258,7 @@ class ActionServer:
     def _finish(self, handle: GoalHandle, status: int, result: Any | None) -> None:
         with self._lock:
             if handle.status in TERMINAL:
-                raise ValueError(f"goal {uuidlib.UUID(bytes=handle.goal_id)} already ended")
+                raise GoalAlreadyEnded(str(uuidlib.UUID(bytes=handle.goal_id)), handle.status)
             handle.status, handle.result = status, result
             waiters, handle._waiters = handle._waiters, []
         self._publish_status()

@@ -30,7 +30,7 @@ import struct
 from dataclasses import dataclass
 from typing import Literal
 
-from .errors import MalformedAttachment
+from .errors import InvalidOption, MalformedAttachment
 
 AttachmentLayout = Literal["current", "jazzy-0.2.3"]
 LAYOUTS: tuple[str, ...] = ("current", "jazzy-0.2.3")
@@ -72,7 +72,7 @@ class Attachment:
             def key(k: str) -> bytes:
                 return _leb128(len(k)) + k.encode()
             return key(_KEYS[0]) + seq + key(_KEYS[1]) + ts + key(_KEYS[2]) + gid
-        raise ValueError(f"layout must be one of {LAYOUTS}, not {layout!r}")
+        raise InvalidOption("attachment layout", layout, f"one of {LAYOUTS}")
 
     @classmethod
     def decode(cls, raw: bytes | None, layout: AttachmentLayout = "current") -> Attachment:
@@ -90,7 +90,7 @@ class Attachment:
             ts = reader.int64()
             reader.key(_KEYS[2])
         else:
-            raise ValueError(f"layout must be one of {LAYOUTS}, not {layout!r}")
+            raise InvalidOption("attachment layout", layout, f"one of {LAYOUTS}")
         gid = reader.slice()
         if len(gid) != GID_SIZE:
             reader.fail(f"the GID has {len(gid)} bytes, not {GID_SIZE}")

@@ -31,6 +31,17 @@ class InvalidName(Ros2Error):
                          details={"name": name, "kind": kind, "reason": reason})
 
 
+class InvalidOption(Ros2Error):
+    """An option out of its range: a domain id, an attachment layout, joint names."""
+
+    code = "ROS2_INVALID_OPTION"
+
+    def __init__(self, option: str, value: object, reason: str) -> None:
+        self.option, self.value, self.reason = option, value, reason
+        super().__init__(f"{option} = {value!r}: {reason}",
+                         details={"option": option, "value": repr(value), "reason": reason})
+
+
 class UnknownType(Ros2Error):
     """A message, service or action type that the type store does not hold."""
 
@@ -106,6 +117,17 @@ class ServiceFailed(Ros2Error):
         self.service, self.reason = service, reason
         super().__init__(f"{service}: {reason}", details={"service": service,
                                                          "reason": reason})
+
+
+class GoalAlreadyEnded(Ros2Error):
+    """An action goal ended twice (an ``execute`` that calls succeed/abort/canceled again)."""
+
+    code = "ROS2_GOAL_ENDED"
+
+    def __init__(self, goal_id: str, status: int) -> None:
+        self.goal_id, self.status = goal_id, status
+        super().__init__(f"goal {goal_id} already ended (status {status})",
+                         details={"goal_id": goal_id, "status": status})
 
 
 class EntityClosed(Ros2Error):

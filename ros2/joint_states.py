@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from .attachment import AttachmentLayout
-from .errors import MessageMismatch
+from .errors import InvalidOption, MessageMismatch
 from .node import Node
 from .qos import QoS
 
@@ -34,7 +34,7 @@ class JointStates:
     def __init__(self, node: Node, names: Sequence[str], *, topic: str = "joint_states",
                  frame_id: str = "", owns_node: bool = False) -> None:
         if not names or len(set(names)) != len(names):
-            raise ValueError(f"joint names must be unique and non-empty: {list(names)}")
+            raise InvalidOption("joint names", list(names), "unique and at least one")
         self.node, self.names, self.frame_id = node, tuple(names), frame_id
         self.publisher = node.create_publisher(topic, JOINT_STATE, qos=JOINT_STATES_QOS)
         self._types = node.types

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .attachment import LAYOUTS, AttachmentLayout
-from .errors import EntityClosed
+from .errors import EntityClosed, InvalidOption
 from .graph import EndpointInfo, EntityKind, NodeInfo, Token, node_token, query_graph
 from .names import fully_qualified, validate_namespace, validate_node_name
 from .qos import DEFAULT, SERVICES_DEFAULT, QoS
@@ -50,9 +50,9 @@ class Node:
                  domain_id: int = 0, types: TypeStore | None = None,
                  attachment: AttachmentLayout = "current", enclave: str = "/") -> None:
         if not 0 <= domain_id <= 232:
-            raise ValueError(f"ROS_DOMAIN_ID must be in 0..232, not {domain_id}")
+            raise InvalidOption("ROS_DOMAIN_ID", domain_id, "ROS 2 domains are 0..232")
         if attachment not in LAYOUTS:
-            raise ValueError(f"attachment must be one of {LAYOUTS}, not {attachment!r}")
+            raise InvalidOption("attachment", attachment, f"one of {LAYOUTS}")
         self.session = session
         self.types = types if types is not None else TypeStore()
         self.attachment: AttachmentLayout = attachment

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 import pytest
 import zenoh
 
-from ros2 import Attachment, Node, TypeStore
+from ros2 import Attachment, GoalAlreadyEnded, Node, TypeStore
 from ros2.actions import (
     ERROR_GOAL_TERMINATED,
     ERROR_NONE,
@@ -185,6 +185,36 @@ def test_a_second_goal_while_one_runs_is_rejected(session: zenoh.Session) -> Non
         assert client.cancel(first)[0] == ERROR_NONE
         assert client.get_result(first, timeout=10).status == STATUS_CANCELED
         assert client.send_goal(goal(client, 1))[1] is True  # free again
+    finally:
+        server.close()
+        node.close()
+
+
+def test_ending_a_goal_twice_is_coded_and_the_first_end_stands(
+        session: zenoh.Session, caplog: pytest.LogCaptureFixture) -> None:  # noqa: F811
+    types = TypeStore()
+    types.register_action(TASK, TASK_ACTION)
+    node = Node(session, "twice", domain_id=11, types=types)
+    errors: list = []
+
+    def execute(handle: GoalHandle) -> None:
+        handle.succeed(types.message(f"{TASK}_Result", success=True))
+        try:
+            handle.abort()
+        except GoalAlreadyEnded as e:
+            errors.append(e)
+            raise
+
+    server = ActionServer(node, "t", TASK, execute)
+    client = ActionClient(node, "t", TASK)
+    try:
+        gid, ok = client.send_goal(goal(client, 1))
+        res = client.get_result(gid, timeout=10)
+        assert ok and res.status == STATUS_SUCCEEDED and res.result.success is True
+        assert wait_for(lambda: len(errors) == 1) and errors[0].code == "ROS2_GOAL_ENDED"
+        assert wait_for(lambda: "failed" in caplog.text)  # the server logged it, and lives on
+        gid2, ok2 = client.send_goal(goal(client, 1))
+        assert ok2 and client.get_result(gid2, timeout=10).status == STATUS_SUCCEEDED
     finally:
         server.close()
         node.close()

@@ -26,6 +26,7 @@ from zenoh_ros2_sdk.utils import compute_service_type_hash, compute_type_hash_fr
 from ros2 import (
     Attachment,
     InvalidName,
+    InvalidOption,
     InvalidTypeDefinition,
     MalformedAttachment,
     MalformedCdr,
@@ -247,6 +248,13 @@ def test_attachment_jazzy_023_layout_has_the_key_names() -> None:
         Attachment.decode(raw)  # a current-layout reader rejects it, as rmw_zenoh does
     with pytest.raises(MalformedAttachment, match="key"):
         Attachment.decode(a.encode(), "jazzy-0.2.3")
+
+
+def test_an_unknown_attachment_layout_is_coded() -> None:
+    with pytest.raises(InvalidOption):
+        Attachment(1, 2, GID).encode("humble")  # type: ignore[arg-type]
+    with pytest.raises(InvalidOption):
+        Attachment.decode(Attachment(1, 2, GID).encode(), "humble")  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("raw", [None, b"", bytes(16), Attachment(1, 2, GID).encode()[:-1],

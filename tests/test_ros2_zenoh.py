@@ -29,12 +29,16 @@ from clients.robots.base import JointState as RobotJointState
 from description.loader import load_description
 from ros2 import (
     Attachment,
+    EntityClosed,
+    InvalidName,
+    InvalidOption,
     MalformedAttachment,
     MalformedCdr,
     MessageMismatch,
     Node,
     ServiceFailed,
     TypeStore,
+    UnknownType,
     open_joint_states,
 )
 from ros2.graph import Token, gid_of
@@ -336,3 +340,22 @@ def test_publish_state_reorders_the_robots_state_and_checks_shapes(
     finally:
         local.undeclare()
         node.close()
+
+
+def test_bad_options_are_coded(session: zenoh.Session) -> None:
+    with pytest.raises(InvalidOption, match="ROS_DOMAIN_ID"):
+        Node(session, "n", domain_id=300)
+    with pytest.raises(InvalidOption, match="attachment"):
+        Node(session, "n", attachment="humble")  # type: ignore[arg-type]
+    with pytest.raises(InvalidName):
+        Node(session, "bad name")
+    node = Node(session, "n")
+    try:
+        with pytest.raises(InvalidOption, match="joint names"):
+            JointStates(node, ("a", "a"))
+        with pytest.raises(UnknownType):
+            node.create_publisher("x", "control_msgs/msg/JointJog")
+    finally:
+        node.close()
+    with pytest.raises(EntityClosed):
+        node.create_publisher("x", "std_msgs/msg/String")
