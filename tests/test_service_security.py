@@ -16,6 +16,7 @@ from clients.client import PlannerClient
 
 from .conftest import free_port
 from .helpers.zrouter import SECURITY, derive_config, launch_serves, make_test_pki, start_router
+pytestmark = pytest.mark.slow
 
 PASSWORDS = {"service": "svc-6f1c", "planner": "plan-93ad", "viewer": "view-4b7e",
              "operator": "op-d20a"}
