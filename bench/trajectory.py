@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from bench._lib.args import problems_per_scene
-from bench._lib.mplib import MplibTiming, mplib_python, run_mplib
+from bench._lib.mplib_venv import MplibTiming, mplib_python, run_mplib
 from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems, write_model

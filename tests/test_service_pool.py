@@ -136,8 +136,8 @@ def test_ctrl_c_answers_the_request_in_flight_and_exits_cleanly(small_server):
     with PlannerClient(small_server.endpoint, timeout=60) as c:
         t, out = _in_thread(lambda: c.plan(LONG_PLAN))
         wait_for(lambda: c.health()["workers"][0]["busy"])
-        # a shutdown that waited for the 20 s plan would be killed by stop() (exit code
-        # not 0), and the request would get its plan rather than SHUTTING_DOWN
+        # the request gets SHUTTING_DOWN below, not its plan: the shutdown did not wait
+        # for the 20 s of planning (and stop() kills a server still up after 20 s: not 0)
         assert small_server.stop(signal.SIGINT) == 0
         t.join(10)
         err = out.get("error")

@@ -1,7 +1,7 @@
 """MPlib's side of the peer benchmark (bench/peer.py): its plans and a check of its model.
 
 MPlib 0.2.1 runs in its own venv (numpy 1.x) through bench/_lib/mplib_runner.py
-(bench/_lib/mplib.py creates the venv on demand); its trajectories are rebuilt from its
+(bench/_lib/mplib_venv.py creates the venv on demand); its trajectories are rebuilt from its
 toppra data by ``MplibTiming`` for the re-check.
 """
 
@@ -17,7 +17,7 @@ import numpy as np
 from planner.kinematics.limits import JointLimits
 from planner.planning.pipeline import MotionPlanner
 
-from .mplib import MplibTiming, run_mplib
+from .mplib_venv import MplibTiming, run_mplib
 from .peer_models import PeerModel
 from .recheck import Limits
 from .scenes import SCENES, obstacle_dicts

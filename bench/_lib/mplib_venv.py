@@ -2,7 +2,8 @@
 
 MPlib pins numpy 1.x, so it runs in ``.bench-venvs/mplib`` (created on first use) through
 bench/_lib/mplib_runner.py, JSON in and out; its trajectories are rebuilt here from its
-toppra data for our verifier and the independent re-check.
+toppra data for our verifier and the independent re-check. (Not named ``mplib.py``: the
+runner, started as a script from this folder, would import it instead of MPlib.)
 """
 
 from __future__ import annotations
