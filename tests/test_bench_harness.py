@@ -58,6 +58,14 @@ def test_library_modules_are_not_entry_scripts():
         assert not _has_main_block(_tree(f)), f"{f.name} is a script: move it up to bench/"
 
 
+def test_no_library_module_shadows_what_the_other_venvs_script_imports():
+    # started as a script, mplib_runner.py has bench/_lib first on its path: a module
+    # there named like one it imports (mplib.py) is imported instead
+    for name in OTHER_VENV_SCRIPTS:
+        tops = {m.split(".")[0] for m in _imports(_tree(BENCH / "_lib" / name))}
+        assert not tops & {f.stem for f in LIB}, tops & {f.stem for f in LIB}
+
+
 def test_no_sys_path_tricks_and_no_conftest_imports_in_bench():
     for f in [*ENTRY, *LIB]:
         text = f.read_text()
