@@ -36,7 +36,7 @@ from bench._lib.scenes import SCENES, obstacle_dicts, problems
 from clients import errors
 from clients.client import PlannerClient
 from service.pool import rss_bytes
-from tests.helpers.procs import process_tree
+from tests.helpers.procs import process_tree, wait_for, wait_for_cpu
 from tests.helpers.serve import start_server
 
 #: bad inputs and the code each must get
@@ -181,9 +181,11 @@ def recovery(kills: int) -> list[float]:
                 t = threading.Thread(target=lambda b=box: b.update(
                     r=_try(lambda: c.plan(long_plan))))
                 t.start()
-                while not (w := c.health()["workers"][0])["busy"]:
-                    time.sleep(0.02)
-                time.sleep(0.3)  # well into its 10 s of planning
+                w = wait_for(lambda: (x := c.health()["workers"][0])["busy"] and x,
+                             every=0.02, what="the worker busy")
+                # well into its 10 s of planning: it has spent CPU on the job (an idle
+                # worker spends none), so the kill costs that request
+                wait_for_cpu(w["pid"], 0.2)
                 t_kill = time.monotonic()
                 os.kill(w["pid"], signal.SIGKILL)
                 while isinstance(_try(lambda: c.plan(short)), Exception):

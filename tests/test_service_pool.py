@@ -17,7 +17,7 @@ import pytest
 from clients import errors
 from clients.client import PlannerClient
 
-from .helpers.procs import cpu_seconds, wait_for
+from .helpers.procs import wait_for, wait_for_cpu
 from .helpers.serve import start_server
 
 # RRTstar uses its whole planning time; the sphere blocks the straight line, so the
@@ -60,8 +60,7 @@ def _planning(pid: int, cpu: float = 0.2) -> None:
     """Wait until worker ``pid``, just given a job, has spent ``cpu`` [s] of CPU on it: it
     has taken the job (an idle worker waits for its next job without using any), so a
     SIGKILL now costs that request, not a job the pool would hand to another worker."""
-    start = cpu_seconds(pid)
-    wait_for(lambda: cpu_seconds(pid) - start >= cpu, what=f"worker {pid} planning")
+    wait_for_cpu(pid, cpu)
 
 
 @pytest.mark.slow

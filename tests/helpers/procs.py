@@ -153,6 +153,14 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
+def wait_for_cpu(pid: int, seconds: float, *, timeout: float = 30.0) -> None:
+    """Wait until process ``pid`` has used ``seconds`` [s] more CPU than it had now: it is
+    working (e.g. a worker that has taken a job; an idle one waits without using any)."""
+    start = cpu_seconds(pid)
+    wait_for(lambda: cpu_seconds(pid) - start >= seconds, timeout=timeout,
+             what=f"process {pid} using {seconds:g} s of CPU")
+
+
 def is_alive(pid: int) -> bool:
     """Process ``pid`` exists and is not a zombie."""
     try:
