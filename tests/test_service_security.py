@@ -16,13 +16,13 @@ from clients.client import PlannerClient
 
 from .conftest import free_port
 from .helpers.zrouter import SECURITY, derive_config, launch_serves, make_test_pki, start_router
-pytestmark = pytest.mark.slow
 
 PASSWORDS = {"service": "svc-6f1c", "planner": "plan-93ad", "viewer": "view-4b7e",
              "operator": "op-d20a"}
 PLAN = {"goal": {"named": "reach_left"}, "seed": 3}
 WORK_AND_ROBOT = ("plan", "fk", "ik", "check", "execute", "cancel", "robot_state")
 REPLY_WAIT = 3.0  # [s] a reply through the router on loopback comes in well under this
+pytestmark = pytest.mark.slow
 
 
 def _router_config(tmp: Path, pki, endpoint: str, **extra: object) -> dict[str, object]:
