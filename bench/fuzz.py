@@ -19,26 +19,21 @@ from __future__ import annotations
 import argparse
 import collections
 import json
-import os
 import random
 import signal
-import socket
-import subprocess
 import sys
 import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+import zenoh
 
-import zenoh  # noqa: E402 -- after the sys.path line
-
-from service import caps  # noqa: E402 -- after the sys.path line
-from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path line
-from tests.helpers.json_paths import json_get, json_paths  # noqa: E402 -- after the sys.path line
+from bench._lib.report import emit
+from service import caps
+from service.zconfig import zenoh_config
+from tests.helpers.json_paths import json_get, json_paths
+from tests.helpers.serve import start_server
 
 KINDS = ("plan", "fk", "ik", "check")
 CODES = {"INVALID_REQUEST", "START_IN_COLLISION", "GOAL_IN_COLLISION", "GOAL_OUT_OF_REACH",
@@ -277,33 +272,6 @@ def _set(value: Any, path: tuple[Any, ...], new: Any) -> Any:
 
 # -- the run ---------------------------------------------------------------------------
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def serve(workers: int, queue: int) -> tuple[subprocess.Popen, str, list[str]]:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--listen", endpoint,
-                             "--workers", str(workers), "--queue", str(queue)], cwd=REPO,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"},
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    lines: list[str] = []
-    for line in proc.stderr:  # type: ignore[union-attr]
-        lines.append(line.rstrip("\n"))
-        if "service ready" in line:
-            break
-    else:
-        raise SystemExit("arduinobot serve did not start:\n" + "\n".join(lines[-30:]))
-
-    def pump() -> None:
-        for ln in proc.stderr:  # type: ignore[union-attr]
-            lines.append(ln.rstrip("\n"))
-    threading.Thread(target=pump, daemon=True).start()
-    return proc, endpoint, lines
-
-
 class Tally:
     """Counts shared by the client threads."""
 
@@ -391,7 +359,8 @@ def main() -> None:
     ap.add_argument("--show", type=int, default=5, help="failing cases printed per kind")
     args = ap.parse_args()
 
-    proc, endpoint, lines = serve(args.workers, args.queue)
+    srv = start_server(["--workers", str(args.workers), "--queue", str(args.queue)])
+    proc, endpoint, lines = srv.proc, srv.endpoint, srv.stderr_lines
     tally = Tally()
     stop = threading.Event()
     per = [args.cases // args.threads + (1 if i < args.cases % args.threads else 0)
@@ -418,12 +387,7 @@ def main() -> None:
     crashes = 0 if crashed_at is None else 1
     exit_code = proc.poll()
     if exit_code is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            exit_code = proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            exit_code = proc.wait(5)
+        exit_code = srv.stop(signal.SIGINT, timeout=30)
     worker_deaths = sum(1 for ln in lines if "died" in ln or "replac" in ln.lower())
     tracebacks = sum(1 for ln in lines if ln.startswith("Traceback"))
 
@@ -457,7 +421,7 @@ def main() -> None:
                "crashes": crashes, "valid_sent": tally.valid_sent,
                "valid_failed": len(tally.valid_failed), "server_exit": exit_code,
                "categories": dict(tally.categories)}
-    print(json.dumps(summary))
+    emit("fuzz", summary)
     ok = (not tally.internal and not tally.uncoded and not tally.missing and not crashes
           and not tally.valid_failed and replies == tally.done)
     sys.exit(0 if ok else 1)

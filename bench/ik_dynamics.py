@@ -1,15 +1,16 @@
 """Speed of position IK (closed form and numeric fallback) and batched inverse dynamics.
 
-Prints figures, then one line of JSON.
+Prints figures, then one line of JSON.  Usage: ./dev bench ik_dynamics
 """
 
 from __future__ import annotations
 
-import json
+import argparse
 import time
 
 import numpy as np
 
+from bench._lib.report import emit
 from description import load_description
 from planner.kinematics.chain import Kinematics
 from planner.kinematics.dynamics import InverseDynamics
@@ -51,8 +52,9 @@ def main() -> None:
     print(f"RNEA batched:                  {batch * 1e6:8.3f} us/sample ({m} samples)")
     print(f"RNEA single call:              {single * 1e6:8.1f} us")
     print(f"mass matrix single call:       {mass * 1e6:8.1f} us")
-    print(json.dumps(figures))
+    emit("ik_dynamics", figures)
 
 
 if __name__ == "__main__":
+    argparse.ArgumentParser(description=__doc__).parse_args()  # --help, and no arguments
     main()

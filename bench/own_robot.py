@@ -11,41 +11,36 @@ scaling 0.1. Prints, then one JSON line:
 2. with no SRDF at all (the MoveIt package removed), 3 scenes x N seeded problems
    in-process through the whole pipeline (plan, time, verify): success on feasible
    problems, median / p95 ms, and an independent re-check of every trajectory
-   (bench/recheck.py: yourdfpy + FCL at 0.0005 rad, finite differences, MuJoCo) with
-   only joint-connected link pairs allowed.
+   (bench/_lib/recheck.py: yourdfpy + FCL at 0.0005 rad, finite differences, MuJoCo)
+   with only joint-connected link pairs allowed.
 
 Usage: ./dev bench own_robot [N]   (default 40 problems per scene)
 """
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import shutil
-import subprocess
-import sys
+import signal
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from recheck import IndependentModel, Limits, recheck  # noqa: E402
-from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
-
-from clients import errors  # noqa: E402
-from clients.client import PlannerClient  # noqa: E402
-from description import Description, load_description  # noqa: E402
-from description.loader import read_model_text  # noqa: E402
-from planner.errors import PlanningError  # noqa: E402
-from planner.planning.goals import JointGoal  # noqa: E402
-from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
-from tests.conftest import free_port  # noqa: E402
-from tests.helpers.course_workspace import make_course_workspace  # noqa: E402
+from bench._lib.args import problems_per_scene
+from bench._lib.recheck import IndependentModel, Limits, recheck
+from bench._lib.report import emit
+from bench._lib.scenes import SCENES, obstacle_dicts, problems
+from clients.client import PlannerClient
+from description import Description, load_description
+from description.loader import read_model_text
+from planner.errors import PlanningError
+from planner.planning.goals import JointGoal
+from planner.planning.pipeline import MotionPlanner, MotionRequest
+from tests.helpers.course_workspace import make_course_workspace
+from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
 
@@ -53,27 +48,15 @@ ARM = ("joint_1", "joint_2", "joint_3")
 def time_to_first_plan(args: list[str], env: dict[str, str], *, limit: float = 300.0
                        ) -> float:
     """Seconds from launching ``arduinobot serve ARGS`` to its first plan answered."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--listen",
-                             endpoint, "--workers", "2", *args], cwd=REPO, env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    srv = start_server(["--workers", "2", *args], env=env, timeout=limit)
     try:
-        while time.perf_counter() - t0 < limit:
-            if proc.poll() is not None:
-                raise RuntimeError(f"serve exited with {proc.returncode}")
-            try:
-                # the service opens its session once its workers are ready: connect anew
-                with PlannerClient(endpoint, timeout=5) as c:
-                    c.plan(goal={"named": "home"}, group="arm",
-                           start={"joint_1": 0.3, "joint_2": 0.2, "joint_3": 0.1})
-                return time.perf_counter() - t0
-            except errors.ServiceUnavailable:
-                time.sleep(0.1)
-        raise RuntimeError(f"no plan within {limit} s")
+        with PlannerClient(srv.endpoint, timeout=limit) as c:
+            c.plan(goal={"named": "home"}, group="arm",
+                   start={"joint_1": 0.3, "joint_2": 0.2, "joint_3": 0.1})
+        return time.perf_counter() - t0
     finally:
-        proc.terminate()
-        proc.wait(30)
+        srv.stop(signal.SIGTERM, timeout=30)
 
 
 def independent_files(d: Description, folder: Path) -> tuple[Path, Path]:
@@ -153,10 +136,10 @@ def main(n: int = 40) -> None:
     if d.srdf is not None:
         raise RuntimeError("the bare workspace still has an SRDF")
     suite = no_srdf_suite(d, n, tmp / "independent")
-    print(json.dumps({"startup_s": {"fresh": cold, "next": warm, "no_compiled_kernels": no_jit},
-                      "no_srdf": suite}))
+    emit("own_robot", {"startup_s": {"fresh": cold, "next": warm,
+                                     "no_compiled_kernels": no_jit}, "no_srdf": suite})
     shutil.rmtree(tmp, ignore_errors=True)
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 40)
+    main(problems_per_scene(__doc__, 40))

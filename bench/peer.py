@@ -1,8 +1,8 @@
 """The peer benchmark: ours through the real service against MPlib 0.2.1, same problems.
 
-Two robots (bench/peer_models.py): the course workspace (millimetre CAD meshes of 2k-54k
+Two robots (bench/_lib/peer_models.py): the course workspace (millimetre CAD meshes of 2k-54k
 triangles, a camera on a fixed joint, a separate MoveIt package) and the shipped
-arduinobot. Three scenes each (bench/scenes.py: self, table, pillars) with seeded
+arduinobot. Three scenes each (bench/_lib/scenes.py: self, table, pillars) with seeded
 problems (at least half needing a detour). Per robot:
 
 - ours: a real ``arduinobot serve`` (2 workers, 127.0.0.1 on a free port, multicast
@@ -10,7 +10,7 @@ problems (at least half needing a detour). Per robot:
   Zenoh by the Python client, with its own seed; wall clock at the client. Per scene two
   concurrent warm-up requests (one per worker, each builds its scene world) not counted.
 - MPlib 0.2.1 (OMPL RRTConnect, FCL, TOPP-RA) in its own venv through
-  bench/mplib_runner.py, on the same problems with the same planning budget and the
+  bench/_lib/mplib_runner.py, on the same problems with the same planning budget and the
   velocity/acceleration limits the service reports at ``/description`` times the
   scaling both sides use (``--scaling``, default 1.0, sent explicitly in every request:
   the course's joint_limits.yaml would default to 0.1); one warm-up per scene.
@@ -26,7 +26,7 @@ problems (at least half needing a detour). Per robot:
   floor (:func:`jerk_floor`), a lower bound on any jerk-limited motion of the path: where
   it is itself over 1.2x toppra, no jerk-limited timing can meet the target;
 - every returned trajectory, ours and MPlib's, re-checked independently
-  (bench/recheck.py) at 0.002 rad: ours from the reply's samples (bench/sampled.py),
+  (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
 
 Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0]
@@ -37,11 +37,9 @@ Prints a block per robot and scene, then one JSON line of all figures.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing as mp_
 import shutil
 import statistics
-import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -50,26 +48,21 @@ from typing import Any
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-# the project's packages first: bench/service.py would shadow the service package
-sys.path.insert(0, str(REPO))
-
-from clients import errors  # noqa: E402, I001
-from clients.client import PlannerClient  # noqa: E402
-from clients.replies import PlanReply  # noqa: E402
-from planner.collision.certify import Certifier  # noqa: E402
-from planner.timing.curve import build_curve  # noqa: E402
-from planner.errors import PlanningError  # noqa: E402
-from planner.planning.pipeline import MotionPlanner  # noqa: E402
-from service.disk_cache import DiskCache  # noqa: E402
-from tests.conftest import start_server  # noqa: E402
-
-sys.path.insert(1, str(Path(__file__).resolve().parent))
-from peer_models import PeerModel, make_model  # noqa: E402
-from peer_mplib import mplib_rows, scale_check  # noqa: E402
-from recheck import IndependentModel, Limits, recheck  # noqa: E402
-from sampled import SampledPositions  # noqa: E402
-from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
+from bench._lib.peer_models import PeerModel, make_model
+from bench._lib.peer_mplib import mplib_rows, scale_check
+from bench._lib.recheck import IndependentModel, Limits, recheck
+from bench._lib.report import emit
+from bench._lib.sampled import SampledPositions
+from bench._lib.scenes import SCENES, obstacle_dicts, problems
+from clients import errors
+from clients.client import PlannerClient
+from clients.replies import PlanReply
+from planner.collision.certify import Certifier
+from planner.errors import PlanningError
+from planner.planning.pipeline import MotionPlanner
+from planner.timing.curve import build_curve
+from service.disk_cache import DiskCache
+from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
 STAGES = ("validate", "plan", "simplify", "recheck", "parameterise", "verify", "total")
@@ -376,7 +369,7 @@ def main(argv: list[str] | None = None) -> None:
             report(name, out[name])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    print(json.dumps(out, default=float))
+    emit("peer", out)
 
 
 if __name__ == "__main__":

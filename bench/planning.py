@@ -3,21 +3,23 @@
 The suite runs on the shipped meshes and on a variant whose large links (every link but
 the fingers) are subdivided to at least 50k triangles each (same surfaces, finer
 triangles): a temporary copy of the package loaded through ``package_dirs``.
+
+Usage: ./dev bench planning [problems per scene]   (default 30)
 """
 
 from __future__ import annotations
 
-import json
 import shutil
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 import trimesh
-from scenes import SCENES, problems
 
+from bench._lib.args import problems_per_scene
+from bench._lib.report import emit
+from bench._lib.scenes import SCENES, problems
 from description import Description, load_description
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
@@ -93,8 +95,8 @@ def main(n: int = 30) -> None:
         fine, faces = fine_variant(Path(tmp))
         print("fine variant triangles:", faces)
         summary["fine_50k"] = {"triangles": faces, "scenes": suite(fine, n)}
-    print(json.dumps(summary))
+    emit("planning", summary)
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 30)
+    main(problems_per_scene(__doc__, 30))

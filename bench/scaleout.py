@@ -14,21 +14,16 @@ workers, the instances share the cores: the table says what this machine allows.
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import signal
-import socket
-import subprocess
-import sys
 import threading
 import time
 from collections import Counter
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
+from bench._lib.report import emit
+from clients.client import PlannerClient
+from tests.helpers.procs import stop_processes
+from tests.helpers.serve import Server, free_port, launch_serves
+from tests.helpers.zrouter import start_router
 
 # about 2 s of motion at 100 Hz (base swing from reach_right to reach_left); seeds vary
 REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
@@ -36,46 +31,11 @@ REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
            "acceleration_scaling": 0.13, "sample_rate": 100}
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _start(argv: list[str], marker: str) -> subprocess.Popen:
-    proc = subprocess.Popen(argv, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    for line in proc.stderr:  # type: ignore[union-attr]
-        if marker in line:
-            break
-    else:
-        raise SystemExit(f"{' '.join(argv[2:4])} did not start")
-    threading.Thread(target=lambda: [None for _ in proc.stderr], daemon=True).start()
-    return proc
-
-
-def _stop(procs: list[subprocess.Popen]) -> None:
-    for p in procs:
-        p.send_signal(signal.SIGINT)
-    for p in procs:
-        p.wait(60)
-
-
-def start_instances(router: str, n: int, workers: int) -> list[subprocess.Popen]:
+def start_instances(router: str, n: int, workers: int) -> list[Server]:
     """``n`` instances started at once (they load in parallel), ready when returned."""
-    argv = [sys.executable, "-m", "clients.cli", "serve", "--mode", "client", "--connect",
-            router, "--workers", str(workers), "--queue", "64", "--no-robot"]
-    procs = [subprocess.Popen(argv, cwd=REPO, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE, text=True) for _ in range(n)]
-    for p in procs:
-        for line in p.stderr:  # type: ignore[union-attr]
-            if "service ready" in line:
-                break
-        else:
-            _stop(procs)
-            raise SystemExit("arduinobot serve did not start")
-        threading.Thread(target=lambda p=p: [None for _ in p.stderr], daemon=True).start()
-    return procs
+    args = ["--mode", "client", "--connect", router, "--workers", str(workers), "--queue",
+            "64", "--no-robot"]
+    return launch_serves([args] * n, timeout=300)
 
 
 def run(router: str, clients: int, requests: int, *, spread: bool) -> dict[str, object]:
@@ -134,12 +94,12 @@ def main() -> None:
                     "picks one instance)")
     a = ap.parse_args()
     router = f"tcp/127.0.0.1:{free_port()}"
-    rproc = _start([sys.executable, "-m", "service.router", "--listen", router], " ready")
+    zrouter = start_router(router)
     rows = []
     try:
         for n in a.instances:
             t = time.perf_counter()
-            procs = start_instances(router, n, a.workers)
+            servers = start_instances(router, n, a.workers)
             started = time.perf_counter() - t
             try:
                 modes = [True, False] if a.plain else [True]
@@ -155,9 +115,9 @@ def main() -> None:
                                  "rates": [round(r["plans_per_s"], 2) for r in results],
                                  **best})
             finally:
-                _stop(procs)
+                stop_processes((s.proc for s in servers), timeout=60)
     finally:
-        _stop([rproc])
+        zrouter.stop(timeout=60)
     base = next(r["plans_per_s"] for r in rows if r["spread"])
     print(f"{os.cpu_count()} cores; {a.clients} clients x {a.requests} plans x "
           f"{a.rounds} round(s); load average now {os.getloadavg()[0]:.1f}")
@@ -168,10 +128,10 @@ def main() -> None:
               f"  {r['plans_per_s']:>8.2f}  x{r['plans_per_s'] / base:.2f}  "
               f"{r['p50_ms']:>7.0f}  {r['p95_ms']:>7.0f}  {str(r['share']):<18}  "
               f"{r['errors'] or 0}")
-    print(json.dumps({"bench": "scaleout", "cores": os.cpu_count(), "clients": a.clients,
+    emit("scaleout", {"cores": os.cpu_count(), "clients": a.clients,
                       "requests": a.requests, "rounds": a.rounds,
                       "rows": [{k: (round(v, 2) if isinstance(v, float) else v)
-                                for k, v in r.items()} for r in rows]}))
+                                for k, v in r.items()} for r in rows]})
 
 
 if __name__ == "__main__":

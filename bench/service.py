@@ -12,22 +12,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
-import socket
 import statistics
-import subprocess
-import sys
 import threading
 import time
-from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
-from description import load_description  # noqa: E402 -- after the sys.path line
-from service import wire  # noqa: E402 -- after the sys.path line
-from service.handlers import Handlers  # noqa: E402 -- after the sys.path line
+from bench._lib.report import emit
+from clients.client import PlannerClient
+from description import load_description
+from service import wire
+from service.handlers import Handlers
+from tests.helpers.serve import Server, start_server
 
 # A 100 Hz trajectory of about 2 s (base swing from reach_right to reach_left).
 REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
@@ -35,29 +29,8 @@ REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
            "acceleration_scaling": 0.13, "sample_rate": 100}
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def serve(workers: int) -> tuple[subprocess.Popen, str]:
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--listen", endpoint,
-                             "--workers", str(workers), "--queue", "64"], cwd=REPO,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    for line in proc.stderr:  # type: ignore[union-attr]
-        if "service ready" in line:
-            break
-    else:
-        raise SystemExit("arduinobot serve did not start")
-    threading.Thread(target=lambda: [None for _ in proc.stderr], daemon=True).start()
-    return proc, endpoint
-
-
-def stop(proc: subprocess.Popen) -> None:
-    proc.send_signal(signal.SIGINT)
-    proc.wait(30)
+def serve(workers: int) -> Server:
+    return start_server(["--workers", str(workers), "--queue", "64"], timeout=300)
 
 
 def latency(repeats: int) -> dict[str, float]:
@@ -68,9 +41,9 @@ def latency(repeats: int) -> dict[str, float]:
     handlers.warm_up()
     payload = json.dumps(REQUEST)
     local, remote, paired = [], [], []
-    proc, endpoint = serve(1)
+    srv = serve(1)
     try:
-        with PlannerClient(endpoint) as c:
+        with PlannerClient(srv.endpoint) as c:
             for i in range(repeats + 3):
                 t = time.perf_counter()
                 body = handlers.plan(wire.decode("plan", payload))
@@ -83,7 +56,7 @@ def latency(repeats: int) -> dict[str, float]:
                     remote.append(t_remote)
                     paired.append(t_remote - res.timing["total"])
     finally:
-        stop(proc)
+        srv.stop(timeout=30)
     if res.positions[-1].tolist() != body["trajectory"]["points"][-1]["positions"]:
         raise SystemExit("the service and the in-process plan differ")
     ml, mr = statistics.median(local), statistics.median(remote)
@@ -114,15 +87,15 @@ def rate(endpoint: str, clients: int, requests: int) -> float:
 def throughput(workers: int, clients: int, requests: int, rounds: int) -> tuple[float, float]:
     """Median rates of a 1-worker and a ``workers``-worker server, measured in
     alternation so that drifting machine load hits both alike."""
-    (p1, e1), (pn, en) = serve(1), serve(workers)
+    one, many = serve(1), serve(workers)
     try:
         ones, manys = [], []
         for _ in range(rounds):
-            ones.append(rate(e1, clients, requests))
-            manys.append(rate(en, clients, requests))
+            ones.append(rate(one.endpoint, clients, requests))
+            manys.append(rate(many.endpoint, clients, requests))
     finally:
-        stop(p1)
-        stop(pn)
+        one.stop(timeout=30)
+        many.stop(timeout=30)
     return statistics.median(ones), statistics.median(manys)
 
 
@@ -148,11 +121,11 @@ def main() -> None:
     print(f"throughput with {a.clients} concurrent clients: 1 worker {one:.2f} plans/s, "
           f"{a.workers} workers {many:.2f} plans/s, x{many / one:.2f} (target >= 1.8 on 2 "
           f"cores; load average {os.getloadavg()[0]:.1f})")
-    print(json.dumps({"bench": "service", **{k: round(v, 4) for k, v in lat.items()},
-                      "throughput_1_worker": round(one, 3),
-                      f"throughput_{a.workers}_workers": round(many, 3),
-                      "speedup": round(many / one, 3), "clients": a.clients,
-                      "load_average": round(os.getloadavg()[0], 2)}))
+    emit("service", {**{k: round(v, 4) for k, v in lat.items()},
+                     "throughput_1_worker": round(one, 3),
+                     f"throughput_{a.workers}_workers": round(many, 3),
+                     "speedup": round(many / one, 3), "clients": a.clients,
+                     "load_average": round(os.getloadavg()[0], 2)})
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """The MuJoCo twin replays every trajectory of the bench scenes; figures, then a JSON line.
 
-Per scene (bench/scenes.py: the planning benchmark's scenes and seeded problems), each
+Per scene (bench/_lib/scenes.py: the planning benchmark's scenes and seeded problems), each
 problem is planned with ``MotionPlanner.solve`` (jerk-limited, and time-optimal with
 toppra) and replayed on the twin (clients/robots/sim_arduinobot.py: effort-capped
 position servos with computed-torque feed-forward, contacts on, the scene's obstacles
@@ -10,31 +10,26 @@ trajectory needs (MuJoCo's inverse dynamics of the commanded motion: the planner
 effort check, re-done independently) and the servos' peak force (feedback on top) over
 the effort limit, physics steps at the limit, contacts.
 
-Usage: ``python bench/simulate.py [problems per scene]`` (default 8).
+Usage: ``./dev bench simulate [problems per scene]`` (default 8).
 """
 
 from __future__ import annotations
 
 import json
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-# the repository first: bench/service.py must not shadow the service package
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.append(str(Path(__file__).resolve().parent))
-
-from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
-
-from clients.robots.sim_arduinobot import SimArduinobot  # noqa: E402
-from clients.segments import SampledTrajectory  # noqa: E402
-from clients.simulate import simulate  # noqa: E402
-from description import load_description  # noqa: E402
-from planner.errors import PlanningError  # noqa: E402
-from planner.planning.goals import JointGoal  # noqa: E402
-from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from bench._lib.args import problems_per_scene
+from bench._lib.report import emit
+from bench._lib.scenes import SCENES, obstacle_dicts, problems
+from clients.robots.sim_arduinobot import SimArduinobot
+from clients.segments import SampledTrajectory
+from clients.simulate import simulate
+from description import load_description
+from planner.errors import PlanningError
+from planner.planning.goals import JointGoal
+from planner.planning.pipeline import MotionPlanner, MotionRequest
 
 ARM = ("joint_1", "joint_2", "joint_3")
 PROFILES = ("jerk_limited", "time_optimal")
@@ -108,8 +103,8 @@ def main(n: int = 8) -> None:
              "force_ratio_max": max(f["force_ratio"] for f in rows),
              "sim_speed_x_realtime": sum(f["duration"] for f in rows)
              / sum(f["wall_s"] for f in rows)}
-    print(json.dumps({"scenes": out, "total": total}))
+    emit("simulate", {"scenes": out, "total": total})
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 8)
+    main(problems_per_scene(__doc__, 8))

@@ -1,7 +1,7 @@
 """Soak benchmark: a real `arduinobot serve` under mixed load for minutes, then a crash.
 
 Client threads (each its own Zenoh session) send, in a seeded mix: plans on the benchmark
-scenes (bench/scenes.py), fk and state checks, and bad inputs (malformed JSON, unknown
+scenes (bench/_lib/scenes.py), fk and state checks, and bad inputs (malformed JSON, unknown
 fields, out-of-limit joints, oversized payloads) that must come back as coded errors.
 Prints throughput, latency percentiles, lost replies (no reply at all, or an unexpected
 code: target 0), the resident memory of every serve process (server, forkserver, zygote,
@@ -11,9 +11,9 @@ to the next successful plan on a one-worker server (median of ``--kills``). Then
 line of JSON. Valid plans that time out (coded TIMEOUT) are counted apart: a few of the
 scenes' detours take seconds each, and a shared 2-core machine stretches them.
 
-    .venv/bin/python bench/soak.py                # 10 minutes, 4 clients
-    .venv/bin/python bench/soak.py --minutes 1 --clients 4 --kills 5
-    .venv/bin/python bench/soak.py --minutes 2 --kills 0 --memtrace 20  # where memory goes
+    ./dev bench soak                      # 10 minutes, 4 clients
+    ./dev bench soak --minutes 1 --clients 4 --kills 5
+    ./dev bench soak --minutes 2 --kills 0 --memtrace 20  # where memory goes
 
 ``--memtrace`` runs the server with its memory probe (service/memtrace.py: resident set by
 kind, Python's traced memory, glibc's heap, live jobs, tracemalloc diffs) and prints it.
@@ -22,27 +22,22 @@ kind, Python's traced memory, glibc's heap, live jobs, tracemalloc diffs) and pr
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import signal
 import statistics
-import sys
 import threading
 import time
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from bench.scenes import SCENES, obstacle_dicts, problems  # noqa: E402 -- after sys.path
-from clients import errors  # noqa: E402 -- after the sys.path line
-from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
-from service.pool import rss_bytes  # noqa: E402 -- after the sys.path line
-from tests.conftest import start_server  # noqa: E402 -- after the sys.path line
-from tests.helpers.procs import process_tree  # noqa: E402 -- after the sys.path line
+from bench._lib.report import emit
+from bench._lib.scenes import SCENES, obstacle_dicts, problems
+from clients import errors
+from clients.client import PlannerClient
+from service.pool import rss_bytes
+from tests.helpers.procs import process_tree, wait_for, wait_for_cpu
+from tests.helpers.serve import start_server
 
 #: bad inputs and the code each must get
 BAD = [("plan", b"{not json", "INVALID_REQUEST"),
@@ -186,9 +181,11 @@ def recovery(kills: int) -> list[float]:
                 t = threading.Thread(target=lambda b=box: b.update(
                     r=_try(lambda: c.plan(long_plan))))
                 t.start()
-                while not (w := c.health()["workers"][0])["busy"]:
-                    time.sleep(0.02)
-                time.sleep(0.3)  # well into its 10 s of planning
+                w = wait_for(lambda: (x := c.health()["workers"][0])["busy"] and x,
+                             every=0.02, what="the worker busy")
+                # well into its 10 s of planning: it has spent CPU on the job (an idle
+                # worker spends none), so the kill costs that request
+                wait_for_cpu(w["pid"], 0.2)
                 t_kill = time.monotonic()
                 os.kill(w["pid"], signal.SIGKILL)
                 while isinstance(_try(lambda: c.plan(short)), Exception):
@@ -280,16 +277,16 @@ def main() -> None:
     if rec:
         print(f"recovery after a worker SIGKILL (1 worker, next plan ok): median "
               f"{1000 * statistics.median(rec):.0f} ms, all {[round(1000 * r) for r in rec]} ms")
-    print(json.dumps({"bench": "soak", "minutes": a.minutes, "clients": a.clients,
-                      "requests": n, "per_s": round(n / res["elapsed"], 2),
-                      **{f"p{q}_ms": round(v, 1) for q, v in pct.items()},
-                      "lost": lost, "unexpected": len(res["unexpected"]),
-                      "timeouts": timeouts,
-                      "rss_start_mib": round(total0 / 2**20), "rss_end_mib": round(total1 / 2**20),
-                      "rss_growth_pct": round(growth, 2),
-                      "rss_server_series_mib": [round(m) for _, m in sampler.role("server")],
-                      "recovery_median_ms": round(1000 * statistics.median(rec)) if rec else None,
-                      "load_average": round(os.getloadavg()[0], 2)}))
+    emit("soak", {"minutes": a.minutes, "clients": a.clients,
+                  "requests": n, "per_s": round(n / res["elapsed"], 2),
+                  **{f"p{q}_ms": round(v, 1) for q, v in pct.items()},
+                  "lost": lost, "unexpected": len(res["unexpected"]),
+                  "timeouts": timeouts,
+                  "rss_start_mib": round(total0 / 2**20), "rss_end_mib": round(total1 / 2**20),
+                  "rss_growth_pct": round(growth, 2),
+                  "rss_server_series_mib": [round(m) for _, m in sampler.role("server")],
+                  "recovery_median_ms": round(1000 * statistics.median(rec)) if rec else None,
+                  "load_average": round(os.getloadavg()[0], 2)})
 
 
 if __name__ == "__main__":

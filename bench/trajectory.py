@@ -1,6 +1,6 @@
 """Trajectory benchmark, ours vs MPlib on the same problems; figures, then one JSON line.
 
-Per scene (bench/scenes.py, the planning benchmark's scenes and seeded problems):
+Per scene (bench/_lib/scenes.py, the planning benchmark's scenes and seeded problems):
 
 - ours end to end: ``MotionPlanner.solve`` (validate, plan, blend, jerk-limited timing,
   verification), wall clock, RRTConnect with a 1 s budget;
@@ -8,80 +8,41 @@ Per scene (bench/scenes.py, the planning benchmark's scenes and seeded problems)
   toppra (time-optimal), each verified, timed; and the jerk-limited duration over the
   time-optimal one;
 - MPlib 0.2.1 (OMPL RRTConnect, FCL, TOPP-RA: the peer with our stack) in its own venv
-  (.bench-venvs/mplib, created on demand) through bench/mplib_runner.py, on the same
+  (.bench-venvs/mplib, created on demand) through bench/_lib/mplib_runner.py, on the same
   problems with the same budget and our velocity/acceleration limits: plan + TOPP time;
 - violations in every returned trajectory, both ours and MPlib's, by our verifier
-  (planner.timing.verify.Verifier) and by the independent re-check (bench/recheck.py).
+  (planner.timing.verify.Verifier) and by the independent re-check (bench/_lib/recheck.py).
   MPlib's trajectories are rebuilt from its toppra data (checked against its samples).
 
 Both sides get one warm-up problem per scene that is not counted. Usage:
-``python bench/trajectory.py [problems per scene]`` (default 8).
+``./dev bench trajectory [problems per scene]`` (default 8).
 """
 
 from __future__ import annotations
 
-import json
 import multiprocessing as mp_
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench._lib.args import problems_per_scene
+from bench._lib.mplib_venv import MplibTiming, mplib_python, run_mplib
+from bench._lib.recheck import IndependentModel, Limits, recheck
+from bench._lib.report import emit
+from bench._lib.scenes import SCENES, obstacle_dicts, problems, write_model
+from description import load_description
+from planner.errors import PlanningError
+from planner.planning.goals import JointGoal
+from planner.planning.pipeline import MotionPlanner, MotionRequest
+from planner.timing.curve import build_curve
+from planner.timing.trajectory import JointTrajectory
+from planner.timing.verify import Verifier
 
-from recheck import IndependentModel, Limits, recheck  # noqa: E402
-from scenes import SCENES, obstacle_dicts, problems, write_model  # noqa: E402
-
-from description import load_description  # noqa: E402
-from planner.errors import PlanningError  # noqa: E402
-from planner.planning.goals import JointGoal  # noqa: E402
-from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
-from planner.timing.curve import build_curve  # noqa: E402
-from planner.timing.trajectory import JointTrajectory  # noqa: E402
-from planner.timing.verify import Verifier  # noqa: E402
-
-ROOT = Path(__file__).resolve().parent.parent
-VENV = ROOT / ".bench-venvs" / "mplib"
 PLANNING_TIME = 1.0
 ARM = ("joint_1", "joint_2", "joint_3")
-
-
-def mplib_python() -> Path:
-    """The MPlib venv's python, creating the venv and installing mplib on first use."""
-    py = VENV / "bin" / "python"
-    if not py.exists():
-        subprocess.run([sys.executable, "-m", "venv", str(VENV)], check=True)
-    if subprocess.run([str(py), "-c", "import mplib"], capture_output=True).returncode:
-        subprocess.run([str(py), "-m", "pip", "install", "-q", "mplib==0.2.1"], check=True)
-    return py
-
-
-class MplibTiming:
-    """MPlib's trajectory, continuous: toppra's const-accel profile on its spline, j4 fixed."""
-
-    def __init__(self, res: dict, dof: int, rest: np.ndarray) -> None:
-        import toppra as ta
-        from toppra.parametrizer import ParametrizeConstAccel
-        path = np.array(res["path"])
-        spline = ta.SplineInterpolator(np.linspace(0, 1, len(path)), path)
-        self.traj = ParametrizeConstAccel(spline, np.array(res["gridpoints"]),
-                                          np.array(res["sd"]))
-        self.duration = float(self.traj.duration)
-        self.dof, self.rest, self.n = dof, rest, path.shape[1]
-        self.goal = self.evaluate(np.array([self.duration]))[0][0]
-
-    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        ts = np.clip(np.atleast_1d(np.asarray(ts, float)), 0.0, self.duration)
-        out = []
-        for order in range(3):
-            x = np.zeros((len(ts), self.dof)) if order else np.tile(self.rest, (len(ts), 1))
-            x[:, :self.n] = self.traj(ts, order)
-            out.append(x)
-        return out[0], out[1], out[2]
 
 
 def stats(xs: list[float]) -> dict:
@@ -190,14 +151,11 @@ def main(n: int = 8) -> None:
             "at_vs_evaluate_max_diff": at_mismatch,
         }
 
-    # MPlib, same problems, same machine, same run
+    # MPlib, same problems, same machine, same run (its venv is checked before the clock)
     py = mplib_python()
     t0 = time.perf_counter()
-    subprocess.run([str(py), str(Path(__file__).with_name("mplib_runner.py"))],
-                   input=json.dumps(spec), text=True, check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.DEVNULL)
+    out = run_mplib(spec, py=py)
     mplib_wall = time.perf_counter() - t0
-    out = json.loads((tmp / "mplib.json").read_text())
     for scene, results in out["scenes"].items():
         obs = tuple(SCENES[scene])
         world = mp.world(obs)
@@ -265,8 +223,8 @@ def main(n: int = 8) -> None:
               f"{o['verifier_violations']} mplib {m['verifier_violations']} {m['verifier_kinds']}"
               f" | re-check " + ", ".join(f"{k} {v['violating']}/{v['checked']} {v['kinds']}"
                                            for k, v in rc.items()))
-    print(json.dumps(rows))
+    emit("trajectory", rows)
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 8)
+    main(problems_per_scene(__doc__, 8))

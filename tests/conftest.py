@@ -1,101 +1,25 @@
-"""Shared fixtures: free loopback ports and `arduinobot serve` as a real subprocess."""
+"""Shared fixtures (`arduinobot serve` as a real subprocess, a course workspace) and the
+``slow`` marker.
+
+The launcher itself is tests/helpers/serve.py (the benches use it too); its names are
+imported here as well, for the test modules that import them from ``.conftest``.
+"""
 
 from __future__ import annotations
 
-import inspect
-import os
-import re
-import signal
-import socket
-import subprocess
-import sys
-import threading
-import time
-from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
-from pathlib import Path
+from collections.abc import Iterator
 
 import pytest
 
-from .helpers.procs import stop_process
-
-REPO = Path(__file__).resolve().parents[1]
-
-
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@dataclass
-class Server:
-    """A running `arduinobot serve` subprocess."""
-
-    proc: subprocess.Popen
-    endpoint: str
-    ready_line: str
-    stderr_lines: list[str] = field(default_factory=list)
-
-    def stop(self, sig: int = signal.SIGINT, timeout: float = 20.0) -> int:
-        """Send ``sig`` and wait; returns the exit code."""
-        return stop_process(self.proc, sig, timeout)
-
-    @property
-    def instance(self) -> str:
-        return self.ready_line.split("instance ", 1)[1].split(",", 1)[0]
-
-
-def start_server(args: Sequence[str] = (), *, port: int | None = None,
-                 timeout: float = 90.0) -> Server:
-    """Start `arduinobot serve` listening on 127.0.0.1 (multicast scouting off, its
-    default) and wait for its ready line."""
-    return start_servers([args], timeout=timeout, ports=[port])[0]
-
-
-def start_servers(arg_lists: Sequence[Sequence[str]], *, timeout: float = 90.0,
-                  ports: Sequence[int | None] | None = None) -> list[Server]:
-    """Start several servers at once (their workers load in parallel), wait for all."""
-    endpoints = [f"tcp/127.0.0.1:{port or free_port()}"
-                 for port in (ports or [None] * len(arg_lists))]
-    return launch_serves([["--listen", e, *args] for e, args in zip(endpoints, arg_lists)],
-                         endpoints=endpoints, timeout=timeout)
-
-
-def launch_serves(arg_lists: Sequence[Sequence[str]], *, endpoints: Sequence[str] | None = None,
-                  timeout: float = 90.0) -> list[Server]:
-    """`arduinobot serve` with exactly these arguments (``endpoints``: where each
-    listens, for :class:`Server`; "" if none), all at once; waits for every ready line."""
-    launched = []
-    for args, endpoint in zip(arg_lists, endpoints or [""] * len(arg_lists)):
-        argv = [sys.executable, "-m", "clients.cli", "serve", *args]
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-        proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.PIPE, text=True)
-        lines: list[str] = []
-        ready = threading.Event()
-        threading.Thread(target=_pump, args=(proc, lines, ready), daemon=True).start()
-        launched.append((proc, endpoint, lines, ready))
-    deadline = time.monotonic() + timeout
-    servers = []
-    for proc, endpoint, lines, ready in launched:
-        while not ready.wait(0.2):
-            if proc.poll() is not None or time.monotonic() > deadline:
-                for p, *_ in launched:
-                    p.kill()
-                    p.wait(5)
-                raise RuntimeError("arduinobot serve did not start:\n" + "\n".join(lines[-30:]))
-        line = next(ln for ln in lines if "service ready" in ln)
-        servers.append(Server(proc, endpoint, line, lines))
-    return servers
-
-
-def _pump(proc: subprocess.Popen, lines: list[str], ready: threading.Event) -> None:
-    for line in proc.stderr:  # type: ignore[union-attr]
-        lines.append(line.rstrip("\n"))
-        if "service ready" in line:
-            ready.set()
+from .helpers import procs
+from .helpers.serve import (  # noqa: F401 -- re-exported for `from .conftest import ...`
+    REPO,
+    Server,
+    free_port,
+    launch_serves,
+    start_server,
+    start_servers,
+)
 
 
 @pytest.fixture(scope="session")
@@ -109,7 +33,7 @@ def server() -> Iterator[Server]:
 @pytest.fixture(scope="session")
 def client(server: Server):
     from clients.client import PlannerClient
-    with PlannerClient(server.endpoint, timeout=30.0) as c:
+    with PlannerClient(server.endpoint, timeout=30) as c:
         yield c
 
 
@@ -120,28 +44,39 @@ def course_ws(tmp_path_factory):
     return make_course_workspace(tmp_path_factory.mktemp("course_ws"))
 
 
-# -- the `slow` marker: tests that start `arduinobot serve` (or router) processes or a browser
-# (`./dev test -m "not slow"` is the quick loop; the default run, and CI, run everything)
-_STARTS_PROCESSES = re.compile(
-    r"\b(start_servers?|launch_serves|start_router|Browser|_chromium)\(|\"serve\"")
-_PROCESS_FIXTURES = frozenset({"server", "client"})
+# -- the `slow` marker: tests that start `arduinobot serve` or router processes or a browser
+# (`./dev test -m "not slow"` is the quick loop; the default run, and CI, run everything).
+# It is set explicitly: `@pytest.mark.slow` on a test (or `pytestmark` on a module) that
+# starts one itself or through a fixture of its module, and here for every test that uses
+# the shared server (the fixtures below, or any fixture built on them).
+SERVER_FIXTURES = frozenset({"server"})
 
-
-def _starts_processes(fn: object) -> bool:
-    try:
-        return bool(_STARTS_PROCESSES.search(inspect.getsource(fn)))  # type: ignore[arg-type]
-    except (OSError, TypeError):  # no source (a builtin fixture): it starts nothing of ours
-        return False
+_LAUNCHES_BEFORE = pytest.StashKey[int]()
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Mark ``slow`` every test that uses the shared server, or whose own code or any
-    fixture it uses starts a server or the browser."""
+    """Mark ``slow`` every test whose fixtures include the shared server."""
     for item in items:
-        fixturedefs = getattr(item, "_fixtureinfo", None)
-        funcs = [getattr(item, "function", None)]
-        if fixturedefs is not None:
-            funcs += [d.func for defs in fixturedefs.name2fixturedefs.values() for d in defs]
-        if _PROCESS_FIXTURES & set(getattr(item, "fixturenames", ())) or any(
-                _starts_processes(f) for f in funcs if f is not None):
+        if SERVER_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.slow)
+
+
+# A net under the explicit marker: a test that is not marked but starts a serve or router
+# through the launcher (tests/helpers/procs.py counts them) fails, so `-m "not slow"`
+# cannot silently start processes. (A browser is not launched there: its one test is
+# marked by hand.)
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item: pytest.Item):
+    item.stash[_LAUNCHES_BEFORE] = procs.launch_count()
+    return (yield)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item):
+    result = yield
+    started = procs.launch_count() - item.stash.get(_LAUNCHES_BEFORE, procs.launch_count())
+    if started and item.get_closest_marker("slow") is None:
+        pytest.fail(f"{item.nodeid} started {started} serve/router process(es) but is not "
+                    "marked slow: add @pytest.mark.slow (or pytestmark) to it",
+                    pytrace=False)
+    return result

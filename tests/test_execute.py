@@ -192,6 +192,7 @@ def _stop_to_rest(msgs, after: float) -> float:
     return rest - first
 
 
+@pytest.mark.slow
 def test_cancel_through_serve_and_execute(served, tmp_path):
     lis = StateListener(served.endpoint)
     try:
@@ -220,6 +221,7 @@ def test_cancel_through_serve_and_execute(served, tmp_path):
         lis.close()
 
 
+@pytest.mark.slow
 def test_a_lost_client_stops_the_arm(served):
     lis = StateListener(served.endpoint)
     try:
@@ -249,6 +251,7 @@ def test_a_lost_client_stops_the_arm(served):
         lis.close()
 
 
+@pytest.mark.slow
 def test_a_new_goal_blends_in_through_serve(served, tmp_path):
     lis = StateListener(served.endpoint)
     try:
@@ -335,6 +338,7 @@ def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
     assert st.saturated_steps <= 0.02 * st.steps
 
 
+@pytest.mark.slow
 def test_the_viewer_follows_a_running_execute(served, desc):
     pytest.importorskip("viser")  # the `view` extra
     from clients.viewer.app import RobotViewer

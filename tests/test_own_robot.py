@@ -88,6 +88,7 @@ def test_the_loader_reads_moveit_semantics(local):
     assert not acm.allowed("rgb_camera_link", "horizontal_arm")
 
 
+@pytest.mark.slow
 def test_service_reports_the_config_and_the_robot(published):
     _, c = published
     h = c.health()
@@ -102,6 +103,7 @@ def test_service_reports_the_config_and_the_robot(published):
     assert c.schema()["robot"]["groups"]["arm"] == list(ARM)
 
 
+@pytest.mark.slow
 def test_named_home_for_the_arm_plans_from_a_bent_start_to_zero(published):
     _, c = published
     start = {"joint_1": 0.6, "joint_2": 0.4, "joint_3": -0.5}
@@ -114,6 +116,7 @@ def test_named_home_for_the_arm_plans_from_a_bent_start_to_zero(published):
     assert "ambiguous" in e.value.message and "arm, gripper" in e.value.message
 
 
+@pytest.mark.slow
 def test_position_goal_without_a_tcp_file_reaches_the_tip_link(published, local):
     _, c = published
     kin = Kinematics(local.robot)
@@ -125,6 +128,7 @@ def test_position_goal_without_a_tcp_file_reaches_the_tip_link(published, local)
     assert np.linalg.norm(reached - target) < 1e-3
 
 
+@pytest.mark.slow
 def test_default_scaling_applies_and_a_request_scaling_replaces_it(published):
     _, c = published
     full = c.description()["limits"]
@@ -141,6 +145,7 @@ def test_default_scaling_applies_and_a_request_scaling_replaces_it(published):
     assert slow.duration > 2 * fast.duration
 
 
+@pytest.mark.slow
 def test_random_arm_goals_are_free_or_really_in_collision(published, local):
     _, c = published
     # the independent check: the same meshes, only joint-connected and SRDF pairs allowed
@@ -163,6 +168,7 @@ def test_random_arm_goals_are_free_or_really_in_collision(published, local):
     assert planned >= 1
 
 
+@pytest.mark.slow
 def test_without_any_srdf_the_camera_and_adjacent_links_are_not_collisions(
         course_ws, tmp_path_factory):
     # the same workspace with the MoveIt package removed: no SRDF anywhere
@@ -184,6 +190,7 @@ def test_without_any_srdf_the_camera_and_adjacent_links_are_not_collisions(
         srv.stop()
 
 
+@pytest.mark.slow
 def test_fk_and_ik_use_the_default_tcp(published, local):
     _, c = published
     kin = Kinematics(local.robot)

@@ -237,6 +237,7 @@ def test_execute_cli_streams_to_the_port(planned, tmp_path):
     assert r.returncode == 1 and "PORT_NOT_FOUND" in r.stderr and "does not exist" in r.stderr
 
 
+@pytest.mark.slow
 def test_serve_drives_the_real_arm_on_its_port(tmp_path):
     import subprocess
     import sys

@@ -8,7 +8,6 @@ import json
 import os
 import signal
 import threading
-import time
 
 import pytest
 import zenoh
@@ -16,7 +15,10 @@ import zenoh
 from clients.client import PlannerClient
 from service.zconfig import zenoh_config
 
-from .conftest import free_port, start_servers
+from .helpers.procs import stop_processes, wait_for
+from .helpers.serve import free_port, start_servers
+
+pytestmark = pytest.mark.slow  # two serves behind a router in every test
 
 
 @pytest.fixture(scope="module")
@@ -29,19 +31,15 @@ def cluster():
         servers = start_servers([["--workers", "1", "--connect", endpoint]] * 2)
         yield endpoint, servers
     finally:
-        for s in servers:
-            s.stop()
+        stop_processes(s.proc for s in servers)
         router.close()
 
 
 def _wait_instances(c: PlannerClient, n: int, timeout: float = 20.0) -> tuple[str, ...]:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        live = c.instances(refresh=True)
-        if len(live) == n:
-            return live
-        time.sleep(0.1)
-    raise AssertionError(f"expected {n} live instances, saw {c.instances(refresh=True)}")
+    def live() -> tuple[str, ...]:
+        found = c.instances(refresh=True)
+        return found if len(found) == n else ()
+    return wait_for(live, timeout=timeout, what=f"{n} live instances")
 
 
 def test_spread_requests_reach_both_instances(cluster):
@@ -81,10 +79,8 @@ def test_spread_avoids_a_loaded_instance_and_retries_elsewhere_when_busy(cluster
         try:
             for t in fill:
                 t.start()
-            deadline = time.monotonic() + 20
-            while stale.health(instance=a.instance)["queue_depth"] < h["queue_size"]:
-                assert time.monotonic() < deadline, "a's queue did not fill"
-                time.sleep(0.05)
+            wait_for(lambda: stale.health(instance=a.instance)["queue_depth"]
+                     >= h["queue_size"], timeout=20, what="a's queue full")
             ids = [stale.fk({"joint_1": 0.01 * i}).request_id for i in range(6)]
             assert {rid.split("-")[0] for rid in ids} == {b.instance[:8]}
             assert stale.health(instance=a.instance)["counters"]["BUSY"] > busy_before
@@ -121,11 +117,9 @@ def test_a_plain_get_fails_over_when_an_instance_dies(cluster):
         victim = next(s for s in servers if s.instance.startswith(first))
         survivor = next(s for s in servers if s is not victim)
         victim.stop(signal.SIGKILL)
-        deadline = time.monotonic() + 10
-        answered = None
-        while time.monotonic() < deadline and answered is None:
-            answered = plain_fk()
-        assert answered == survivor.instance[:8]
+        # the router learns of the death: gets find the survivor alone
+        assert wait_for(plain_fk, timeout=10, what="a get answered after the kill",
+                        every=0.0) == survivor.instance[:8]
         assert all(plain_fk() == survivor.instance[:8] for _ in range(5))
         # it still tries the dead one when its turn comes, finds no one, goes elsewhere
         served = {spread.fk({"joint_1": 0.01 * i}).request_id.split("-")[0]
@@ -170,6 +164,5 @@ def test_a_plain_get_fails_over_when_an_instance_is_stopped_cleanly():
     finally:
         if session is not None:
             session.close()
-        for s in servers:
-            s.stop()
+        stop_processes(s.proc for s in servers)
         router.close()

@@ -7,24 +7,17 @@ from __future__ import annotations
 import os
 import signal
 import threading
-from pathlib import Path
 
 import pytest
 
 from clients import errors
 from clients.client import PlannerClient
 
-from .conftest import start_server
-from .helpers.procs import process_tree
-from .test_service_pool import LONG_PLAN, _wait_for
+from .helpers.procs import is_alive, process_tree, wait_for
+from .helpers.serve import start_server
+from .test_service_pool import LONG_PLAN
 
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return False
-    return state != "Z"
+pytestmark = pytest.mark.slow  # every test starts its own serve
 
 
 def _collect(fn, out: list) -> threading.Thread:
@@ -49,7 +42,7 @@ def test_a_stopped_worker_times_out_then_the_service_recovers():
             assert "worker" in e.value.message
             assert c.fk({"joint_1": 0.2}).joints["joint_1"] == pytest.approx(0.2)
             assert c.health()["workers"][0]["pid"] not in (None, pid)
-            _wait_for(lambda: not _alive(pid))  # killed and reaped, not left stopped
+            wait_for(lambda: not is_alive(pid))  # killed and reaped, not left stopped
             assert c.health()["counters"]["timeouts_in_worker"] == 1
     finally:
         assert srv.stop(signal.SIGINT) == 0, "\n".join(srv.stderr_lines[-20:])
@@ -60,9 +53,9 @@ def test_sigterm_answers_every_request_in_flight_exits_0_and_leaves_no_process()
     with PlannerClient(srv.endpoint, timeout=60) as c:
         outs: list = []
         threads = [_collect(lambda: c.plan(LONG_PLAN), outs) for _ in range(2)]
-        _wait_for(lambda: all(w["busy"] for w in c.health()["workers"]))
+        wait_for(lambda: all(w["busy"] for w in c.health()["workers"]))
         threads += [_collect(lambda i=i: c.fk({"joint_1": 0.1 * i}), outs) for i in range(3)]
-        _wait_for(lambda: c.health()["queue_depth"] == 3)
+        wait_for(lambda: c.health()["queue_depth"] == 3)
         procs = set(process_tree(srv.proc.pid))
         assert len(procs) >= 4  # server, zygote, two workers (and the forkserver)
         assert srv.stop(signal.SIGTERM) == 0, "\n".join(srv.stderr_lines[-20:])
@@ -73,4 +66,4 @@ def test_sigterm_answers_every_request_in_flight_exits_0_and_leaves_no_process()
     assert all(isinstance(o, errors.ShuttingDown) or not isinstance(o, Exception)
                for o in outs), outs
     assert sum(isinstance(o, errors.ShuttingDown) for o in outs) >= 2  # the 20 s plans
-    _wait_for(lambda: not any(_alive(p) for p in procs), timeout=10)
+    wait_for(lambda: not any(is_alive(p) for p in procs), timeout=10)

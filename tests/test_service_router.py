@@ -15,8 +15,11 @@ import pytest
 from clients import errors
 from clients.client import PlannerClient
 
-from .conftest import free_port, start_server, start_servers
+from .helpers.procs import wait_for
+from .helpers.serve import free_port, start_server, start_servers
 from .helpers.zrouter import start_router
+
+pytestmark = pytest.mark.slow  # every test starts serves (and a router)
 
 PLAN = {"goal": {"named": "reach_left"}, "seed": 2}
 
@@ -38,16 +41,8 @@ def _load(client: PlannerClient, stop: threading.Event, out: list[Outcome]) -> N
             out.append(Outcome(t0, time.monotonic(), None))
         except errors.ServiceError as e:
             out.append(Outcome(t0, time.monotonic(), e))
-            time.sleep(0.05)  # a client's own back-off while the router is away
+            stop.wait(0.05)  # a client's own back-off while the router is away
         seed += 1
-
-
-def _wait(pred, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not pred():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"not within {timeout:g} s: {what}")
-        time.sleep(0.05)
 
 
 def test_a_router_restart_mid_load_loses_no_reply_unannounced():
@@ -69,13 +64,14 @@ def test_a_router_restart_mid_load_loses_no_reply_unannounced():
                    for c, o in zip(clients, outs)]
         for t in threads:
             t.start()
-        _wait(lambda: all(sum(o.error is None for o in out) >= 3 for out in outs), 60,
-              "each client planned 3 times before the restart")
+        wait_for(lambda: all(sum(o.error is None for o in out) >= 3 for out in outs),
+                 timeout=60, what="each client planned 3 times before the restart")
         issued_before = [len(o) for o in outs]
         killed_at = time.monotonic()
         router = router.restart()
-        _wait(lambda: all(any(o.error is None and o.started > killed_at for o in out)
-                          for out in outs), 60, "each client planned again after the restart")
+        wait_for(lambda: all(any(o.error is None and o.started > killed_at for o in out)
+                             for out in outs),
+                 timeout=60, what="each client planned again after the restart")
         stop.set()
         for t in threads:
             t.join(30)

@@ -22,6 +22,7 @@ PASSWORDS = {"service": "svc-6f1c", "planner": "plan-93ad", "viewer": "view-4b7e
 PLAN = {"goal": {"named": "reach_left"}, "seed": 3}
 WORK_AND_ROBOT = ("plan", "fk", "ik", "check", "execute", "cancel", "robot_state")
 REPLY_WAIT = 3.0  # [s] a reply through the router on loopback comes in well under this
+pytestmark = pytest.mark.slow
 
 
 def _router_config(tmp: Path, pki, endpoint: str, **extra: object) -> dict[str, object]:

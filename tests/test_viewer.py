@@ -274,6 +274,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_page_shows_robot_and_collision_in_chromium(description, tmp_path):
     from clients.viewer.app import RobotViewer
     from clients.viewer.playback import PlaybackPanel

@@ -6,21 +6,21 @@ from __future__ import annotations
 import datetime
 import ipaddress
 import json
-import os
 import signal
 import subprocess
 import sys
-import threading
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..conftest import REPO, Server
-from ..conftest import launch_serves as _launch
-from .procs import stop_process
+from .procs import REPO, launch_all, stop_process
+from .serve import Server
+from .serve import launch_serves as _launch
 
 SECURITY = REPO / "service" / "security"
+
+#: what ``python -m service.router`` logs once it listens ("router <zid> ready, ...")
+READY = " ready"
 
 
 @dataclass
@@ -35,7 +35,7 @@ class Router:
 
     @property
     def zid(self) -> str:
-        line = next(ln for ln in self.lines if " ready" in ln)
+        line = next(ln for ln in self.lines if READY in ln)
         return line.split("router ", 1)[1].split(" ", 1)[0]
 
     def stop(self, sig: int = signal.SIGINT, timeout: float = 10.0) -> int:
@@ -55,31 +55,12 @@ def start_router(endpoint: str, *, config: Path | None = None) -> Router:
 
 
 def _launch_router(argv: list[str], endpoint: str, timeout: float = 20.0) -> Router:
-    proc = subprocess.Popen(argv, cwd=REPO, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    lines: list[str] = []
-    ready = threading.Event()
-    threading.Thread(target=_pump_until, args=(proc, lines, ready, " ready"),
-                     daemon=True).start()
-    deadline = time.monotonic() + timeout
-    while not ready.wait(0.1):
-        if proc.poll() is not None or time.monotonic() > deadline:
-            proc.kill()
-            proc.wait(5)
-            raise RuntimeError("the router did not start:\n" + "\n".join(lines[-20:]))
-    return Router(proc, endpoint, argv, lines)
-
-
-def _pump_until(proc: subprocess.Popen, lines: list[str], ready: threading.Event,
-                marker: str) -> None:
-    for line in proc.stderr:  # type: ignore[union-attr]
-        lines.append(line.rstrip("\n"))
-        if marker in line:
-            ready.set()
+    (p,) = launch_all([argv], ready=READY, what="the router", timeout=timeout)
+    return Router(p.proc, endpoint, p.argv, p.lines)
 
 
 def launch_serves(arg_lists: Sequence[Sequence[str]], *, timeout: float = 120.0) -> list[Server]:
-    """`arduinobot serve` with exactly these arguments (conftest's start_servers adds a
+    """`arduinobot serve` with exactly these arguments (serve.start_servers adds a
     loopback listener; a service behind a secured router must have none)."""
     return _launch(arg_lists, timeout=timeout)
 

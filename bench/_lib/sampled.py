@@ -6,7 +6,7 @@ the quintic Hermite polynomial matching position, velocity and acceleration at b
 ends. It reproduces any polynomial of degree <= 5 exactly, so on the jerk-limited
 trajectories (piecewise cubic in time along their path) it differs from the motion only
 in the few intervals holding a switch, by O(jerk * dt^3) -- well under the 0.002 rad
-collision step of the re-check. Limits re-derived from it by finite differences (bench/
+collision step of the re-check. Limits re-derived from it by finite differences (bench/_lib/
 recheck.py) are indicative only: its jerk is not the trajectory's at those switches.
 """
 

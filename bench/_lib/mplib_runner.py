@@ -1,6 +1,6 @@
 """Runs MPlib 0.2 on the trajectory benchmark's problems; JSON in (stdin), JSON out (stdout).
 
-Runs inside .bench-venvs/mplib (MPlib pins numpy 1.x), started by bench/trajectory.py.
+Runs inside .bench-venvs/mplib (MPlib pins numpy 1.x), started by bench/_lib/mplib_venv.py.
 Uses only MPlib's own stack: ``mplib.Planner`` on our expanded URDF and SRDF, its OMPL
 RRTConnect (``planner.planner.plan``, default range and simplification) with the given
 time budget, and its TOPP-RA parameterisation (``Planner.TOPP``, velocity and

@@ -1,40 +1,28 @@
 """MPlib's side of the peer benchmark (bench/peer.py): its plans and a check of its model.
 
-MPlib 0.2.1 runs in its own venv (numpy 1.x) through bench/mplib_runner.py, created on
-demand by bench/trajectory.py's ``mplib_python``; its trajectories are rebuilt from its
-toppra data by bench/trajectory.py's ``MplibTiming`` for the re-check.
+MPlib 0.2.1 runs in its own venv (numpy 1.x) through bench/_lib/mplib_runner.py
+(bench/_lib/mplib_venv.py creates the venv on demand); its trajectories are rebuilt from its
+toppra data by ``MplibTiming`` for the re-check.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
-import subprocess
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from peer_models import PeerModel
-from recheck import Limits
-from scenes import SCENES, obstacle_dicts
-from trajectory import MplibTiming, mplib_python
 
 from planner.kinematics.limits import JointLimits
 from planner.planning.pipeline import MotionPlanner
 
+from .mplib_venv import MplibTiming, run_mplib
+from .peer_models import PeerModel
+from .recheck import Limits
+from .scenes import SCENES, obstacle_dicts
+
 ARM = ("joint_1", "joint_2", "joint_3")
-RUNNER = Path(__file__).with_name("mplib_runner.py")
-
-
-def run_mplib(spec: dict[str, Any]) -> dict[str, Any]:
-    """Run bench/mplib_runner.py on ``spec``; its output."""
-    py = mplib_python()
-    done = subprocess.run([str(py), str(RUNNER)], input=json.dumps(spec), text=True,
-                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    if done.returncode:
-        raise RuntimeError(f"mplib_runner failed ({done.returncode}):\n{done.stderr[-3000:]}")
-    return json.loads(Path(spec["output"]).read_text())
 
 
 def base_spec(model: PeerModel, output: Path) -> dict[str, Any]:

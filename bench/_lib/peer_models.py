@@ -6,7 +6,7 @@
 - ``shipped``: the arduinobot shipped in description/ (``arduinobot serve``'s default).
 
 For each: the arguments of ``arduinobot serve``, the description as the service loads
-it, and the plain URDF + SRDF MPlib and the independent re-check (bench/recheck.py)
+it, and the plain URDF + SRDF MPlib and the independent re-check (bench/_lib/recheck.py)
 read. The URDF is the expanded xacro with every ``package://`` mesh made a path relative
 to the URDF's folder, ``scale`` kept: MPlib 0.2.1 prefixes the URDF's folder to every
 mesh path, absolute ones too, so an absolute path cannot be used with it; yourdfpy
