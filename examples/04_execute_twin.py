@@ -2,7 +2,7 @@
 physics model of the arm (meshes, inertias, servos capped at the motors' effort) and
 read what happened, as `arduinobot execute traj.json --sim` does.
 
-Needs mujoco (`pip install -e '.[sim]'`, part of ./dev's install). The first run on a
+Needs the twin's extra (`pip install -e '.[sim]'`). The first run on a
 model decomposes its meshes for MuJoCo (seconds); the cache keeps them for the next.
 
     .venv/bin/python examples/04_execute_twin.py [ENDPOINT]   # with `arduinobot serve` running
