@@ -136,11 +136,13 @@ def _serve(ns: argparse.Namespace, d: object, obstacles: tuple[Obstacle, ...],
         from .viewer.follow import JointStateFollower
         follower = JointStateFollower(viewer, ns.connect or "tcp/127.0.0.1:7447",
                                       prefix=ns.prefix)
-    print(f"arduinobot view: {d.robot.name} at {viewer.url} (Ctrl-C stops)",  # type: ignore[attr-defined]
-          flush=True)
+    # the handlers before the ready line: a Ctrl-C right after it must stop the page's
+    # threads too, not raise past them (they would keep the process alive)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
+    print(f"arduinobot view: {d.robot.name} at {viewer.url} (Ctrl-C stops)",  # type: ignore[attr-defined]
+          flush=True)
     stop.wait()
     if follower is not None:
         follower.close()

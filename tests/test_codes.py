@@ -1,8 +1,8 @@
 """One registry of error codes (planner/codes.py): every layer's codes come from it.
 
 Fails if the planner's exceptions, the service's replies (any code-like string in
-service/ or clients/), service/schema/error.json, README's error table or the client's
-exception classes drift from :class:`planner.codes.Code`.
+service/ or clients/), service/schema/error.json, the error table of docs/service.md or
+the client's exception classes drift from :class:`planner.codes.Code`.
 """
 
 from __future__ import annotations
@@ -73,8 +73,8 @@ def test_error_schema_enum_is_the_registry() -> None:
     assert enum == [c.value for c in PLAN_SERVICE_CODES]
 
 
-def test_readme_error_table_is_the_registry() -> None:
-    text = (ROOT / "README.md").read_text("utf-8")
+def test_documented_error_table_is_the_registry() -> None:
+    text = (ROOT / "docs" / "service.md").read_text("utf-8")
     rows = re.findall(r"^\| (`[A-Z_]+`(?: / `[A-Z_]+`)*) \|", text, flags=re.M)
     listed = [c for row in rows for c in re.findall(r"`([A-Z_]+)`", row)]
     assert sorted(listed) == sorted(c.value for c in PLAN_SERVICE_CODES)
