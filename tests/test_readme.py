@@ -285,6 +285,7 @@ def test_the_extraction_sees_every_kind_of_command() -> None:
         "arduinobot plan --request full.json"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("doc", list(DOCUMENTS))
 def test_every_command_runs_as_written(doc: str, readme_service: Server, home: Path,
                                        tmp_path: Path) -> None:
