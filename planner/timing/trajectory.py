@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from ..errors import InvalidRequest
+from ..ranges import check_range
 
 if TYPE_CHECKING:  # toppra, ~1 s to import: not for the client's CSV (samples_csv)
     from .curve import PathCurve
@@ -142,11 +143,11 @@ def sample_times(duration: float, rate: float, *, max_samples: int | None = None
     """Times [s] at ``rate`` [Hz] from 0, always ending with exactly ``duration``.
 
     Raises:
-        InvalidRequest: (field ``sample_rate``) a rate outside [1, 1000] Hz, or more than
-            ``max_samples`` samples, decided before any is made (:func:`check_sample_count`).
+        InvalidRequest: (field ``sample_rate``) a rate outside ``RANGES["sample_rate"]``
+            ([1, 1000] Hz), or more than ``max_samples`` samples, decided before any is
+            made (:func:`check_sample_count`).
     """
-    if not (math.isfinite(rate) and 1.0 <= rate <= 1000.0):
-        raise InvalidRequest(f"{rate!r} must be within [1, 1000] Hz", field="sample_rate")
+    rate = check_range(rate, "sample_rate")
     n = int(math.floor(duration * rate + 1e-9))
     if max_samples is not None:
         check_sample_count(n + 2, duration=duration, sample_rate=rate, limit=max_samples)
@@ -188,7 +189,7 @@ class JointTrajectory:
                joint_names: Sequence[str], sample_rate: float = 100.0,
                profile: str = "jerk_limited", max_samples: int | None = None
                ) -> JointTrajectory:
-        """Sample ``timing`` at ``sample_rate`` [Hz] (1..1000) plus its exact final state;
+        """Sample ``timing`` at ``sample_rate`` [Hz] (in ``RANGES``) plus its exact final state;
         more than ``max_samples`` samples is refused first (see :func:`sample_times`)."""
         ts = sample_times(timing.duration, sample_rate, max_samples=max_samples)
         q, qd, qdd = timing.evaluate(ts)
