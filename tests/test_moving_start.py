@@ -7,8 +7,8 @@ import pytest
 
 from description import load_description
 from planner.errors import InvalidRequest
-from planner.planning.goals import NamedGoal
 from planner.planning.from_rest import FromRest
+from planner.planning.goals import NamedGoal
 from planner.planning.moving_start import BlendTiming
 from planner.planning.pipeline import MotionPlanner, MotionRequest
 

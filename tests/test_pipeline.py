@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import planner
-from planner.errors import InvalidRequest, JointLimitViolation, StartInCollision
+from planner.errors import InvalidRequest, JointLimitViolation, NoPathFound, StartInCollision
 from planner.planning.from_rest import FromRest
 from planner.planning.goals import JointGoal, NamedGoal
 from planner.planning.motion import Profile
@@ -21,6 +21,7 @@ from planner.planning.pipeline import MotionPlanner, MotionRequest
 from planner.scene import Obstacle
 from planner.timing.profiles import PROFILES
 
+from .planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
 from .timing_helpers import DESC
 
 GOAL = JointGoal({"joint_1": 1.0, "joint_2": 0.5, "joint_3": -0.4})
@@ -104,6 +105,17 @@ def test_start_in_collision(mp):
     box = (Obstacle("box", "box", size=(0.3, 0.3, 0.3), xyz=(0.0, 0.0, 1.3)),)
     with pytest.raises(StartInCollision):
         mp.solve(MotionRequest(goal=GOAL, obstacles=box))
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_a_free_goal_behind_a_wall_is_no_path_found(mp, moving):
+    # start and goal free, no motion between them (tests/planning_scenes.py); from a
+    # moving start too (the brake stays clear of the wall, the plan from rest does not)
+    req = MotionRequest(goal=JointGoal(SPLIT_GOAL), start=SPLIT_START, obstacles=SPLIT,
+                        planning_time=0.2, seed=1,
+                        start_velocity={"joint_2": 0.2} if moving else None)
+    with pytest.raises(NoPathFound):
+        mp.solve(req)
 
 
 # -- the door ---------------------------------------------------------------------------
