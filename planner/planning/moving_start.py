@@ -34,7 +34,7 @@ from ruckig import Trajectory
 from ..errors import InvalidRequest, TrajectoryError
 from ..kinematics.limits import JointLimits
 from ..timing.braking import EFFORT_MARGIN, brake_to_rest, effort_safe
-from ..timing.trajectory import CurveTiming, JointTrajectory
+from ..timing.trajectory import JointTrajectory, Timing
 from ..timing.verify import Verifier
 from .context import PlanningContext
 from .motion import MotionRequest, MotionResult
@@ -75,7 +75,7 @@ class BlendTiming:
     """``q(t) = B(t) + N(t - shift) - q_r`` (see the module doc): ``evaluate(ts)`` gives
     (q, qd, qdd), each shape (m, dof); times clamped to [0, duration]."""
 
-    def __init__(self, brake: Trajectory, rest: np.ndarray, new: CurveTiming,
+    def __init__(self, brake: Trajectory, rest: np.ndarray, new: Timing,
                  shift: float) -> None:
         self.brake, self.rest, self.new, self.shift = brake, rest, new, float(shift)
         self.brake_duration = float(brake.duration)

@@ -43,6 +43,23 @@ class ScalarProfile(Protocol):
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
+class Timing(Protocol):
+    """What a :class:`JointTrajectory` samples: joint states on [0, duration] [s].
+
+    ``evaluate(ts)`` gives (q, qd, qdd), each shape (m, dof), times clamped to [0,
+    duration]; ``goal`` [rad], shape (dof,), is the exact final position. A
+    :class:`CurveTiming` is one; so is any strategy's own timing (a moving start's blend).
+    """
+
+    @property
+    def duration(self) -> float: ...
+
+    @property
+    def goal(self) -> np.ndarray: ...
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
 class RestProfile:
     """The profile of a path that does not move: zero duration."""
 
@@ -108,7 +125,8 @@ class TrajectoryPoint:
     def of(cls, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray,
            t: float) -> TrajectoryPoint:
         """From one state's arrays, each shape (dof,)."""
-        return cls(*(tuple(map(float, a)) for a in (q, qd, qdd, tau)), float(t))
+        return cls(tuple(map(float, q)), tuple(map(float, qd)), tuple(map(float, qdd)),
+                   tuple(map(float, tau)), float(t))
 
     def to_dict(self) -> dict[str, object]:
         return {"positions": list(self.positions), "velocities": list(self.velocities),
@@ -181,11 +199,11 @@ class JointTrajectory:
     duration: float
     sample_rate: float
     profile: str
-    timing: CurveTiming = field(repr=False, compare=False)
+    timing: Timing = field(repr=False, compare=False)
     effort_fn: TorqueFn = field(repr=False, compare=False)
 
     @classmethod
-    def sample(cls, timing: CurveTiming, effort_fn: TorqueFn, *,
+    def sample(cls, timing: Timing, effort_fn: TorqueFn, *,
                joint_names: Sequence[str], sample_rate: float = 100.0,
                profile: str = "jerk_limited", max_samples: int | None = None
                ) -> JointTrajectory:
