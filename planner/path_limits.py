@@ -24,14 +24,20 @@ class BatchDynamics(Protocol):
 
 class LimitsLike(Protocol):
     """Per-joint limits as :class:`planner.kinematics.limits.JointLimits` has them, shape
-    (dof,) each."""
+    (dof,) each (read-only: a frozen dataclass's fields are)."""
 
-    lower: np.ndarray
-    upper: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    jerk: np.ndarray
-    effort: np.ndarray
+    @property
+    def lower(self) -> np.ndarray: ...
+    @property
+    def upper(self) -> np.ndarray: ...
+    @property
+    def velocity(self) -> np.ndarray: ...
+    @property
+    def acceleration(self) -> np.ndarray: ...
+    @property
+    def jerk(self) -> np.ndarray: ...
+    @property
+    def effort(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)

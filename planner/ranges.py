@@ -43,8 +43,9 @@ class Range:
 
 RANGES: dict[str, Range] = {
     "planning_time": Range(0.0, 60.0, "s", open_lo=True),
-    "velocity_scaling": Range(0.0, 1.0, "", open_lo=True),
-    "acceleration_scaling": Range(0.0, 1.0, "", open_lo=True),
+    # floored at 0.01, not open at 0: a scaling of 1e-300 failed inside ruckig
+    "velocity_scaling": Range(0.01, 1.0, ""),
+    "acceleration_scaling": Range(0.01, 1.0, ""),
     "sample_rate": Range(1.0, 1000.0, "Hz"),
 }
 

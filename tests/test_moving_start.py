@@ -7,6 +7,7 @@ import pytest
 
 from description import load_description
 from planner.errors import InvalidRequest
+from planner.planning.from_rest import FromRest
 from planner.planning.goals import NamedGoal
 from planner.planning.moving_start import BlendTiming
 from planner.planning.pipeline import MotionPlanner, MotionRequest
@@ -45,6 +46,35 @@ def test_the_new_trajectory_starts_in_the_moving_state(mp, moving, goal):
                                          "effort")
     assert 0.0 <= tr.timing.shift <= tr.timing.brake_duration
     assert "blend" in res.timing
+
+
+def test_a_moving_start_never_calls_back_into_the_planner(mp, moving, monkeypatch):
+    # the moving start calls the plan from rest below it once; MotionPlanner.solve is
+    # entered once, never again from inside (it once was, through a Protocol)
+    depth, entered, inner = [0], [], []
+    solve, from_rest = MotionPlanner.solve, FromRest.solve
+
+    def outer_spy(self, request):
+        depth[0] += 1
+        entered.append(depth[0])
+        try:
+            return solve(self, request)
+        finally:
+            depth[0] -= 1
+
+    def inner_spy(self, context, request):
+        inner.append(request)
+        return from_rest(self, context, request)
+
+    monkeypatch.setattr(MotionPlanner, "solve", outer_spy)
+    monkeypatch.setattr(FromRest, "solve", inner_spy)
+    names, p = moving
+    res = mp.solve(MotionRequest(goal=NamedGoal("home"), start=dict(zip(names, p.positions)),
+                                 start_velocity=dict(zip(names, p.velocities)), seed=2))
+    assert isinstance(res.trajectory.timing, BlendTiming) and res.verification.ok
+    assert entered == [1]
+    assert len(inner) == 1 and inner[0].start_velocity is None \
+        and inner[0].start_acceleration is None
 
 
 def test_zero_rates_are_the_ordinary_plan(mp):

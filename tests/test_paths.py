@@ -9,6 +9,8 @@ from planner.planning.goals import JointGoal, NamedGoal
 from planner.planning.paths import PathPlanner, PathRequest
 from planner.scene import Obstacle
 
+from .planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
+
 PILLAR = Obstacle("pillar", "box", size=(0.15, 0.15, 3.0), xyz=(0.0, 0.9, 0.6))
 
 
@@ -72,14 +74,24 @@ def test_errors(env):
 
 
 def test_no_path_found(env):
+    # a free start and a free goal on either side of a wall the arm cannot pass (see
+    # tests/planning_scenes.py): the planner says NoPathFound, nothing else
     d, _, _ = env
-    wall = Obstacle("wall", "box", size=(3.0, 0.1, 3.0), xyz=(0, 0.9, 1.0), rpy=(0, 0, 0))
-    w = CollisionWorld(d, obstacles=[Obstacle("cage", "box", size=(0.1, 3, 3), xyz=(0.3, 0, 1)),
-                                     Obstacle("cage2", "box", size=(0.1, 3, 3), xyz=(-0.3, 0, 1))])
-    pp = PathPlanner(w, d)
-    del wall
-    with pytest.raises((NoPathFound, StartInCollision)):
-        pp.solve(PathRequest(start=START, goal=GOAL, planning_time=0.2, seed=1))
+    w = CollisionWorld(d, obstacles=list(SPLIT))
+    start = np.array([SPLIT_START[n] for n in w.kin.joint_names])
+    goal = start.copy()
+    goal[:3] = [SPLIT_GOAL[n] for n in ("joint_1", "joint_2", "joint_3")]
+    assert w.check(start).valid and w.check(goal).valid
+    # the premise: every state with joint_1 = 0 (which any motion between them passes)
+    # collides, so no planner could find a path
+    lim = d.robot.position_limits(w.kin.joint_names)
+    qs = np.random.default_rng(0).uniform(lim[:, 0], lim[:, 1], (2000, 4))
+    qs[:, 0] = 0.0
+    assert not any(w.is_valid(q) for q in qs)
+    with pytest.raises(NoPathFound) as e:
+        PathPlanner(w, d).solve(PathRequest(start=start, goal=JointGoal(SPLIT_GOAL),
+                                            planning_time=0.2, seed=1))
+    assert e.value.code == "NO_PATH_FOUND"
 
 
 def test_detours_keep_room_where_the_ends_allow(env):

@@ -1,15 +1,27 @@
-"""MotionPlanner end to end: validation by field, verified trajectories, world cache."""
+"""MotionPlanner end to end: validation by field, verified trajectories, world cache; the
+door itself: strategies, the timing profiles' registry, the package's re-exports."""
 
+import ast
+import json
 import math
+import subprocess
+import sys
+from pathlib import Path
+from typing import get_args
 
 import numpy as np
 import pytest
 
-from planner.errors import InvalidRequest, JointLimitViolation, StartInCollision
-from planner.planning.goals import JointGoal
+import planner
+from planner.errors import InvalidRequest, JointLimitViolation, NoPathFound, StartInCollision
+from planner.planning.from_rest import FromRest
+from planner.planning.goals import JointGoal, NamedGoal
+from planner.planning.motion import Profile
 from planner.planning.pipeline import MotionPlanner, MotionRequest
 from planner.scene import Obstacle
+from planner.timing.profiles import PROFILES
 
+from .planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
 from .timing_helpers import DESC
 
 GOAL = JointGoal({"joint_1": 1.0, "joint_2": 0.5, "joint_3": -0.4})
@@ -63,6 +75,7 @@ def test_obstacle_path_goes_around_and_world_is_cached(mp):
 @pytest.mark.parametrize("field,kwargs", [
     ("planning_time", {"planning_time": 0.0}), ("planning_time", {"planning_time": 61.0}),
     ("velocity_scaling", {"velocity_scaling": 0.0}),
+    ("velocity_scaling", {"velocity_scaling": 0.005}),  # below the wire's floor too
     ("acceleration_scaling", {"acceleration_scaling": 1.5}),
     ("sample_rate", {"sample_rate": 0.5}), ("sample_rate", {"sample_rate": 1001.0}),
     ("profile", {"profile": "fast"}), ("group", {"group": "legs"}),
@@ -92,3 +105,101 @@ def test_start_in_collision(mp):
     box = (Obstacle("box", "box", size=(0.3, 0.3, 0.3), xyz=(0.0, 0.0, 1.3)),)
     with pytest.raises(StartInCollision):
         mp.solve(MotionRequest(goal=GOAL, obstacles=box))
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_a_free_goal_behind_a_wall_is_no_path_found(mp, moving):
+    # start and goal free, no motion between them (tests/planning_scenes.py); from a
+    # moving start too (the brake stays clear of the wall, the plan from rest does not)
+    req = MotionRequest(goal=JointGoal(SPLIT_GOAL), start=SPLIT_START, obstacles=SPLIT,
+                        planning_time=0.2, seed=1,
+                        start_velocity={"joint_2": 0.2} if moving else None)
+    with pytest.raises(NoPathFound):
+        mp.solve(req)
+
+
+# -- the door ---------------------------------------------------------------------------
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_the_timing_profiles_are_one_registry():
+    # the request's vocabulary, the registry and the wire's enum are the same names
+    schema = json.loads((ROOT / "service/schema/plan_request.json").read_text())
+    assert set(PROFILES) == set(get_args(Profile)) == \
+        set(schema["properties"]["profile"]["enum"])
+    for name, make in PROFILES.items():
+        assert make.name == name  # type: ignore[attr-defined]
+    # the verifier holds a profile to jerk exactly when the registry says it limits it
+    assert {n: p.enforce_jerk for n, p in MotionPlanner(DESC).context.profiles.items()} \
+        == {"jerk_limited": True, "time_optimal": False}
+
+
+def test_the_first_strategy_that_accepts_solves(mp):
+    class JointsOnly:
+        """Joint goals only, from rest: FromRest's plan under its own name."""
+
+        name = "joints only"
+
+        def __init__(self):
+            self.seen = []
+
+        def accepts(self, request):
+            return isinstance(request.goal, JointGoal) and request.start_velocity is None
+
+        def solve(self, context, request):
+            self.seen.append(request)
+            return FromRest().solve(context, request)
+
+    joints = JointsOnly()
+    door = MotionPlanner(DESC, strategies=(joints, FromRest()))
+    r = door.solve(MotionRequest(goal=GOAL, seed=3))
+    assert r.verification.ok and len(joints.seen) == 1
+    door.solve(MotionRequest(goal=NamedGoal("home"), seed=3))  # not a joint goal
+    assert len(joints.seen) == 1
+    # a request no strategy accepts is refused, naming the strategies there are
+    only_rest = MotionPlanner(DESC, strategies=(FromRest(),))
+    with pytest.raises(InvalidRequest, match="from a moving start .*from rest") as e:
+        only_rest.solve(MotionRequest(goal=GOAL, start_velocity={"joint_1": 0.1}))
+    assert e.value.field == "goal"
+
+
+def _imports(module: Path) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(module.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            found.add("." * node.level + (node.module or ""))
+        elif isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+    return found
+
+
+def test_nothing_below_the_door_imports_it():
+    # MotionPlanner.solve lives in pipeline.py; a strategy gets the context, never the
+    # planner, and no planner module imports pipeline: solve cannot be reached from
+    # below it (test_moving_start checks the same at run time)
+    for module in sorted((ROOT / "planner").rglob("*.py")):
+        if module.name in ("pipeline.py", "__init__.py"):
+            continue
+        assert not any(i.endswith("pipeline") for i in _imports(module)), module
+        assert "MotionPlanner" not in {n.id for n in ast.walk(ast.parse(module.read_text()))
+                                       if isinstance(n, ast.Name)}, module
+
+
+def test_the_package_is_one_light_place_to_import_from():
+    # importing planner (as the client does for its errors and ranges) loads none of the
+    # planning stack; each re-exported name is the defining module's own object
+    heavy = ("numba", "ompl", "fcl", "toppra", "ruckig", "planner.planning")
+    out = subprocess.run(
+        [sys.executable, "-c", "import sys, planner; "
+         f"print([m for m in {heavy!r} if m in sys.modules])"],
+        cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    from planner.planning import motion, pipeline
+    assert planner.MotionPlanner is pipeline.MotionPlanner
+    assert planner.MotionRequest is motion.MotionRequest is pipeline.MotionRequest
+    assert planner.PlanningError is planner.errors.PlanningError
+    for name in planner.__all__:
+        assert getattr(planner, name) is not None, name
+    assert set(planner.__all__) <= set(dir(planner))
+    with pytest.raises(AttributeError):
+        planner.NoSuchThing  # noqa: B018

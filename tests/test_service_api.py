@@ -14,6 +14,8 @@ from clients.client import PlannerClient
 from service import wire
 from service.zconfig import zenoh_config
 
+from .planning_scenes import SPLIT_GOAL, SPLIT_START, split_dicts
+
 
 @pytest.fixture(scope="module")
 def raw(server):
@@ -84,7 +86,7 @@ def test_plan_to_a_position_reaches_it(client):
     target = [0.0, 1.0, 1.2]
     res = client.plan(goal={"position": target}, seed=2)
     fk = client.fk(dict(zip(res.joint_names, res.positions[-1])))
-    assert fk.tcp == pytest.approx(target, abs=1e-4)
+    assert np.linalg.norm(np.subtract(fk.tcp, target)) < 1e-6  # the IK tests' tolerance
 
 
 def _box(id_="box", size=(1, 1, 1), xyz=(0, 0.5, 1.5)):
@@ -112,6 +114,9 @@ def _box(id_="box", size=(1, 1, 1), xyz=(0, 0.5, 1.5)):
                  "obstacles": [_box("goalbox", (0.3, 0.3, 0.3), (-0.15, -0.18, 2.57))]}).encode(),
      "GOAL_IN_COLLISION", None),
     (b'{"goal": {"position": [0, 5, 0]}}', "GOAL_OUT_OF_REACH", None),
+    (json.dumps({"goal": {"joints": SPLIT_GOAL}, "start": SPLIT_START,  # free, unreachable
+                 "obstacles": split_dicts(), "planning_time": 0.2, "seed": 1}).encode(),
+     "NO_PATH_FOUND", None),
     (b'{"goal": {"named": "home"}, "planner": "' + b"x" * (300 * 1024) + b'"}',
      "INVALID_REQUEST", None),
 ])
@@ -142,6 +147,10 @@ def test_client_raises_one_class_per_code(client):
     assert ["forward_drive_arm", "box"] in e.value.details["pairs"]
     with pytest.raises(errors.GoalOutOfReach):
         client.plan(goal={"position": [0, 5, 0]})
+    with pytest.raises(errors.NoPathFound) as e:
+        client.plan(goal={"joints": SPLIT_GOAL}, start=SPLIT_START, obstacles=split_dicts(),
+                    planning_time=0.2, seed=1)
+    assert e.value.code == "NO_PATH_FOUND" and "found no path" in e.value.message
     with pytest.raises(errors.InvalidRequest):
         client.plan(goal={"named": "home"}, velocity_scaling=0)
 
@@ -154,7 +163,7 @@ def test_fk_ik_and_check(client):
     sols = client.ik([0.0, 1.0, 1.2]).solutions
     assert sols
     for s in sols:
-        assert client.fk(s.joints).tcp == pytest.approx([0.0, 1.0, 1.2], abs=1e-5)
+        assert np.linalg.norm(np.subtract(client.fk(s.joints).tcp, [0.0, 1.0, 1.2])) < 1e-6
     free = client.check_state({"joint_2": 0.3})
     assert free.valid and free.pairs == () and free.clearance > 0
     hit = client.check_state({"joint_2": 0.3}, obstacles=[_box()])

@@ -7,8 +7,12 @@ import json
 import numpy as np
 import pytest
 
+from description import load_description
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest
 from planner.path_limits import ActiveLimits
+from planner.scene import Obstacle
 from planner.timing.curve import build_curve
 from planner.timing.ruckig_timing import JerkLimitedTiming
 from planner.timing.trajectory import JointTrajectory, sample_times
@@ -45,16 +49,47 @@ def test_a_jet_is_its_orders_one_by_one_and_refuses_an_order_past_three():
         assert e.value.details["field"] == "order"
 
 
-def test_colliding_blend_is_shrunk_then_becomes_a_stop():
-    class Refuses:
-        def first_invalid(self, qs):
-            return 0  # every blend collides
+# a gantry: two prismatic joints carry a 2 cm ball in the plane, so joint space is the
+# plane [m] and a blend cuts its corner in both
+GANTRY = """<robot name="gantry">
+  <link name="base"/>
+  <link name="carriage"/>
+  <link name="tip"><collision><geometry><sphere radius="0.02"/></geometry></collision></link>
+  <joint name="x" type="prismatic"><parent link="base"/><child link="carriage"/>
+    <axis xyz="1 0 0"/><limit lower="-0.5" upper="1.5" effort="10" velocity="1"/></joint>
+  <joint name="y" type="prismatic"><parent link="carriage"/><child link="tip"/>
+    <axis xyz="0 1 0"/><limit lower="-0.5" upper="1.5" effort="10" velocity="1"/></joint>
+</robot>"""
+SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 
-    curve = build_curve(WP, Refuses(), max_shrinks=2)
-    assert [c.kind for c in curve.corners] == ["stop", "stop"]
+
+@pytest.fixture(scope="module")
+def gantry(tmp_path_factory):
+    f = tmp_path_factory.mktemp("gantry") / "gantry.urdf"
+    f.write_text(GANTRY)
+    return load_description(f, env={})
+
+
+def test_colliding_blend_is_shrunk_then_becomes_a_stop(gantry):
+    # a 12.5 cm block inside each corner, 5 mm off both edges (beyond the ball's 2 cm):
+    # the straight edges are free, every blend the corner can take in two halvings
+    # (radius 0.25, 0.125, 0.0625 m) crosses the block
+    block = (0.125, 0.125, 0.1)
+    world = CollisionWorld(gantry, obstacles=(
+        Obstacle("in_1", "box", size=block, xyz=(0.9125, 0.0875, 0.0)),
+        Obstacle("in_2", "box", size=block, xyz=(0.9125, 0.9125, 0.0))))
+    assert world.first_invalid(interpolate(SQUARE, 0.001)) == -1
+    curve = build_curve(SQUARE, world, max_shrinks=2)
+    assert [(c.kind, c.shrinks) for c in curve.corners] == [("stop", 3), ("stop", 3)]
     assert len(curve.sections) == 3  # rest at each waypoint, straight edges only
     for sec in curve.sections:
         assert sec.kinds == ("line",)
+    # the blocks decide it: a third halving (0.03125 m) clears them, and without them
+    # each corner keeps its full blend
+    assert [(c.kind, c.radius) for c in build_curve(SQUARE, world, max_shrinks=3).corners] \
+        == [("blend", 0.03125)] * 2
+    assert [(c.kind, c.radius) for c in build_curve(SQUARE, CollisionWorld(gantry)).corners] \
+        == [("blend", 0.25)] * 2
 
 
 def test_blends_are_checked_against_the_real_world():

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from description import Description
+from description import Description, Tcp
 from description.errors import SrdfError
 
 from ..checks import check_joint_names, check_positions
@@ -108,15 +108,19 @@ def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
     check_positions(names, q, world.description.robot.position_limits(names), field=field)
 
 
+def _tcp(description: Description) -> Tcp:
+    if description.tcp is None:
+        raise InvalidRequest("the model has no tcp", field="goal.position")
+    return description.tcp
+
+
 def tcp_joints(description: Description, group_joints: Sequence[str]) -> tuple[str, ...]:
     """The joints of ``group_joints`` that move the tool point (those IK solves for).
 
     Raises:
         InvalidRequest: the model has no tcp, or no joint of the group moves it.
     """
-    tcp = description.tcp
-    if tcp is None:
-        raise InvalidRequest("the model has no tcp", field="goal.position")
+    tcp = _tcp(description)
     above = {j.name for j in description.robot.link_path(tcp.parent_link) if j.movable}
     joints = tuple(j for j in group_joints if j in above)
     if not joints:
@@ -190,7 +194,7 @@ def _position_candidates(goal: PositionGoal, *, world: CollisionWorld,
     )
 
     ik_joints = tcp_joints(description, group_joints)
-    sols = position_ik(world.kin, description.tcp, goal.position, joints=ik_joints,
+    sols = position_ik(world.kin, _tcp(description), goal.position, joints=ik_joints,
                        q_fixed=start)
     if not sols:
         raise GoalOutOfReach(f"no joint state reaches {goal.position}",

@@ -1,7 +1,7 @@
 """What a motion request asks and what a solved motion is: the planner's value types.
 
-Kept apart from :mod:`planner.planning.pipeline` so the ways of solving (the pipeline, and
-:mod:`planner.planning.moving_start` above it) share them without importing each other.
+Kept apart from :mod:`planner.planning.pipeline` so the strategies (from_rest,
+moving_start) and the door over them share them without importing each other.
 """
 
 from __future__ import annotations
@@ -26,8 +26,10 @@ class MotionRequest:
 
     ``group``: any SRDF group or ``all``; None plans for a named goal's own group, else
     the description's default group. ``velocity_scaling``/``acceleration_scaling`` in
-    (0, 1] multiply the full limits (MoveIt's semantics); None takes the MoveIt config's
-    ``default_*_scaling_factor`` (1 without one).
+    [0.01, 1] multiply the full limits (MoveIt's semantics); None takes the MoveIt
+    config's ``default_*_scaling_factor`` (1 without one). Every number's range is in
+    :data:`planner.ranges.RANGES`; ``profile`` names an entry of
+    :data:`planner.timing.profiles.PROFILES`.
     """
 
     goal: JointGoal | NamedGoal | PositionGoal
@@ -36,8 +38,8 @@ class MotionRequest:
     obstacles: tuple[Obstacle, ...] = ()
     planner: str = "RRTConnect"
     planning_time: float = 1.0          # [s], (0, 60]
-    velocity_scaling: float | None = None       # (0, 1]
-    acceleration_scaling: float | None = None   # (0, 1]
+    velocity_scaling: float | None = None       # [0.01, 1]
+    acceleration_scaling: float | None = None   # [0.01, 1]
     profile: Profile = "jerk_limited"
     sample_rate: float = 100.0          # [Hz], [1, 1000]
     seed: int | None = None

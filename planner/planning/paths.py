@@ -422,12 +422,12 @@ class PathPlanner:
 
     def _reduce(self, path: np.ndarray, world: CollisionWorld | None) -> np.ndarray:
         # greedy: from each kept waypoint, straight to the farthest one a free edge reaches
-        path = [p for p in path]
+        kept = list(path)
         i = 0
-        while i < len(path) - 2:
-            j = len(path) - 1
-            while j > i + 1 and not self._edge_free(path[i], path[j], world):
+        while i < len(kept) - 2:
+            j = len(kept) - 1
+            while j > i + 1 and not self._edge_free(kept[i], kept[j], world):
                 j -= 1
-            del path[i + 1:j]
+            del kept[i + 1:j]
             i += 1
-        return np.array(path)
+        return np.array(kept)

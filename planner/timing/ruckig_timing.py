@@ -28,7 +28,7 @@ from ruckig import InputParameter, Result, Ruckig, Trajectory
 from ..errors import TrajectoryError
 from ..path_limits import ActiveLimits, BatchDynamics, torque_coefficients
 from .curve import Curve, PathCurve
-from .trajectory import CurveTiming, RestProfile
+from .trajectory import CurveTiming, RestProfile, ScalarProfile
 
 log = logging.getLogger(__name__)
 
@@ -215,12 +215,14 @@ class JerkLimitedTiming:
         """Time every section of ``curve``; raises TrajectoryError if ruckig fails (a
         piece named in its details counts the pieces of every moving section)."""
         moving = [c for c in curve.sections if c.length > _TINY]
-        secs = []
+        secs: list[tuple[PathCurve, ScalarProfile]] = []
         if moving:
             # every section's piece limits in one batch (one dynamics call, one pass of
             # numpy work): a curve that stops at each waypoint has a section per edge
-            whole = PathCurve(*(np.concatenate([getattr(c, f) for c in moving])
-                                for f in ("starts", "u1", "u2", "lengths")),
+            def joined(f: str) -> np.ndarray:
+                return np.concatenate([getattr(c, f) for c in moving])
+
+            whole = PathCurve(joined("starts"), joined("u1"), joined("u2"), joined("lengths"),
                               [k for c in moving for k in c.kinds])
             bounds = self.piece_limits(whole, limits)
             ends = np.cumsum([len(c.lengths) for c in moving])[:-1]

@@ -22,7 +22,7 @@ from toppra.constraint.linear_constraint import canlinear_colloc_to_interpolate
 from ..errors import TrajectoryError
 from ..path_limits import ActiveLimits, BatchDynamics, torque_coefficients
 from .curve import Curve, PathCurve
-from .trajectory import CurveTiming, RestProfile
+from .trajectory import CurveTiming, RestProfile, ScalarProfile
 
 log = logging.getLogger(__name__)
 
@@ -141,7 +141,8 @@ class TimeOptimalTiming:
         return ConstAccelProfile(grid, algo.problem_data.sd_vec)
 
     def parameterise(self, curve: Curve, limits: ActiveLimits) -> CurveTiming:
-        secs = [(c, self.section(c, limits)) for c in curve.sections if c.length > 1e-12]
+        secs: list[tuple[PathCurve, ScalarProfile]] = [
+            (c, self.section(c, limits)) for c in curve.sections if c.length > 1e-12]
         if not secs:
             secs = [(curve.sections[0], RestProfile())]
         return CurveTiming(secs, goal=curve.goal)

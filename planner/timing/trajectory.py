@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from ..errors import InvalidRequest
+from ..ranges import check_range
 
 if TYPE_CHECKING:  # toppra, ~1 s to import: not for the client's CSV (samples_csv)
     from .curve import PathCurve
@@ -38,6 +39,23 @@ class ScalarProfile(Protocol):
 
     @property
     def duration(self) -> float: ...
+
+    def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+
+class Timing(Protocol):
+    """What a :class:`JointTrajectory` samples: joint states on [0, duration] [s].
+
+    ``evaluate(ts)`` gives (q, qd, qdd), each shape (m, dof), times clamped to [0,
+    duration]; ``goal`` [rad], shape (dof,), is the exact final position. A
+    :class:`CurveTiming` is one; so is any strategy's own timing (a moving start's blend).
+    """
+
+    @property
+    def duration(self) -> float: ...
+
+    @property
+    def goal(self) -> np.ndarray: ...
 
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
@@ -107,7 +125,8 @@ class TrajectoryPoint:
     def of(cls, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, tau: np.ndarray,
            t: float) -> TrajectoryPoint:
         """From one state's arrays, each shape (dof,)."""
-        return cls(*(tuple(map(float, a)) for a in (q, qd, qdd, tau)), float(t))
+        return cls(tuple(map(float, q)), tuple(map(float, qd)), tuple(map(float, qdd)),
+                   tuple(map(float, tau)), float(t))
 
     def to_dict(self) -> dict[str, object]:
         return {"positions": list(self.positions), "velocities": list(self.velocities),
@@ -142,11 +161,11 @@ def sample_times(duration: float, rate: float, *, max_samples: int | None = None
     """Times [s] at ``rate`` [Hz] from 0, always ending with exactly ``duration``.
 
     Raises:
-        InvalidRequest: (field ``sample_rate``) a rate outside [1, 1000] Hz, or more than
-            ``max_samples`` samples, decided before any is made (:func:`check_sample_count`).
+        InvalidRequest: (field ``sample_rate``) a rate outside ``RANGES["sample_rate"]``
+            ([1, 1000] Hz), or more than ``max_samples`` samples, decided before any is
+            made (:func:`check_sample_count`).
     """
-    if not (math.isfinite(rate) and 1.0 <= rate <= 1000.0):
-        raise InvalidRequest(f"{rate!r} must be within [1, 1000] Hz", field="sample_rate")
+    rate = check_range(rate, "sample_rate")
     n = int(math.floor(duration * rate + 1e-9))
     if max_samples is not None:
         check_sample_count(n + 2, duration=duration, sample_rate=rate, limit=max_samples)
@@ -180,15 +199,15 @@ class JointTrajectory:
     duration: float
     sample_rate: float
     profile: str
-    timing: CurveTiming = field(repr=False, compare=False)
+    timing: Timing = field(repr=False, compare=False)
     effort_fn: TorqueFn = field(repr=False, compare=False)
 
     @classmethod
-    def sample(cls, timing: CurveTiming, effort_fn: TorqueFn, *,
+    def sample(cls, timing: Timing, effort_fn: TorqueFn, *,
                joint_names: Sequence[str], sample_rate: float = 100.0,
                profile: str = "jerk_limited", max_samples: int | None = None
                ) -> JointTrajectory:
-        """Sample ``timing`` at ``sample_rate`` [Hz] (1..1000) plus its exact final state;
+        """Sample ``timing`` at ``sample_rate`` [Hz] (in ``RANGES``) plus its exact final state;
         more than ``max_samples`` samples is refused first (see :func:`sample_times`)."""
         ts = sample_times(timing.duration, sample_rate, max_samples=max_samples)
         q, qd, qdd = timing.evaluate(ts)

@@ -224,8 +224,8 @@ class Verifier:
                 acc = 0.0
             acc += d
         keep.append(len(t) - 1)
-        keep = np.unique(keep)
-        return t[keep], q[keep]
+        idx = np.unique(keep)
+        return t[idx], q[idx]
 
     def verify(self, traj: JointTrajectory, *, enforce_jerk: bool = True,
                derating: Derating | None = None, attempts: int = 1,
@@ -294,7 +294,7 @@ class Verifier:
             worst=worst, enforced=tuple(enforced), violations=violations,
             collision_free=free, colliding_time=when, colliding_pairs=pairs,
             checked_states=checked, max_step=max_step, min_clearance=float(clearance),
-            closest_pair=tuple(closest), clearance_states=n_clear, derating=derating,
+            closest_pair=(closest[0], closest[1]), clearance_states=n_clear, derating=derating,
             attempts=attempts, certified=certificate is not None)
 
 

@@ -1,0 +1,30 @@
+"""Scenes the planner tests share: a goal that is free but that no motion reaches.
+
+The arduinobot's base joint (joint_1) turns only within [-pi/2, pi/2], so an arm going
+from joint_1 = 1.2 to joint_1 = -1.2 must pass joint_1 = 0, where the whole arm lies in
+the vertical plane x = -0.02 (the upper arm's offset). :data:`SPLIT` is a thin wall in
+that plane with a window round the shoulder (|y| < 0.62 m, z < 1.12 m) too small for the
+0.8 m upper arm in any of its poses, and the base fits through it. Start and goal lean
+away from the wall (nothing touches it), yet every state with joint_1 = 0 collides: a
+real NO_PATH_FOUND, not a start or goal in collision.
+"""
+
+from __future__ import annotations
+
+from planner.scene import Obstacle
+
+_X, _T, _Y, _Z = -0.02, 0.04, 0.62, 1.12  # the plane, the wall's thickness, the window
+
+SPLIT: tuple[Obstacle, ...] = (
+    Obstacle("roof", "box", size=(_T, 4.0, 2.0), xyz=(_X, 0.0, _Z + 1.0)),
+    Obstacle("front", "box", size=(_T, 2.0 - _Y, _Z), xyz=(_X, (2.0 + _Y) / 2, _Z / 2)),
+    Obstacle("back", "box", size=(_T, 2.0 - _Y, _Z), xyz=(_X, -(2.0 + _Y) / 2, _Z / 2)),
+)
+SPLIT_START = {"joint_1": 1.2, "joint_2": -0.6, "joint_3": -0.6, "joint_4": 0.0}
+SPLIT_GOAL = {"joint_1": -1.2, "joint_2": -0.6, "joint_3": -0.6}
+
+
+def split_dicts() -> list[dict]:
+    """:data:`SPLIT` as a plan request's ``obstacles``."""
+    return [{"id": o.id, "shape": "box", "size": list(o.size), "xyz": list(o.xyz)}
+            for o in SPLIT]
