@@ -7,6 +7,7 @@ import json
 import sys
 
 from description import build_package_index, read_model_text
+from description.loader import model_path
 
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
 
@@ -57,8 +58,10 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 
 def cmd_urdf(ns: argparse.Namespace) -> int:
-    text, _ = read_model_text(ns.file, args=dict(ns.arg),
-                              packages=build_package_index(ns.package_dir))
+    packages = build_package_index(ns.package_dir, model=model_path(ns.file))
+    for w in packages.warnings:  # stdout is the URDF
+        print(f"warning: {w}", file=sys.stderr)
+    text, _ = read_model_text(ns.file, args=dict(ns.arg), packages=packages)
     sys.stdout.write(text)
     return EXIT_OK
 

@@ -17,7 +17,12 @@ import yaml
 from .errors import DescriptionError, InvalidModel
 from .model import Origin, Robot
 from .moveit_config import ConfigFiles, resolve_config
-from .packages import SHIPPED_PACKAGE_DIR, PackageIndex, build_package_index
+from .packages import (
+    SHIPPED_PACKAGE_DIR,
+    PackageIndex,
+    build_package_index,
+    find_package_root,
+)
 from .srdf import Srdf, parse_srdf
 from .urdf import parse_urdf
 from .xacro_expand import expand_xacro, is_xacro
@@ -97,12 +102,9 @@ class Description:
         return g or "all"
 
 
-def find_package_root(path: Path) -> Path | None:
-    """The nearest folder at or above ``path`` holding a ``package.xml``."""
-    for d in [path, *path.parents]:
-        if (d / "package.xml").is_file():
-            return d
-    return None
+def model_path(path: str | Path | None) -> Path:
+    """The model file ``path`` names, resolved (the shipped arduinobot's for None)."""
+    return Path(path).expanduser().resolve() if path is not None else DEFAULT_MODEL
 
 
 def read_model_text(
@@ -112,7 +114,7 @@ def read_model_text(
     packages: PackageIndex,
 ) -> tuple[str, Path]:
     """The URDF text of ``path`` (xacro expanded), and the resolved path."""
-    p = Path(path).expanduser().resolve() if path is not None else DEFAULT_MODEL
+    p = model_path(path)
     if not p.is_file():
         raise DescriptionError("file does not exist", file=p,
                                hint="give a .urdf or .xacro file, or omit FILE for the "
@@ -141,7 +143,9 @@ def load_description(
     Args:
         path: a ``.urdf`` or ``.xacro`` file; None for the shipped arduinobot.
         package_dirs: extra package folders for ``package://`` and ``$(find)``, searched
-            before ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH``.
+            after the model's own package and before ``ROS_PACKAGE_PATH``,
+            ``AMENT_PREFIX_PATH`` and the model's workspace (the order:
+            :mod:`description.packages`).
         args: xacro arguments.
         moveit_config: a MoveIt config package folder. By default: the model package's
             own ``config/`` if it has an SRDF, else a ``<robot>_moveit_config`` or
@@ -155,7 +159,7 @@ def load_description(
     Raises:
         DescriptionError: (a subclass naming file, element and fix) for any problem.
     """
-    packages = build_package_index(package_dirs, env=env)
+    packages = build_package_index(package_dirs, env=env, model=model_path(path))
     text, p = read_model_text(path, args=args, packages=packages)
     report = parse_urdf(text, packages=packages, source=p)
     robot = report.robot
@@ -164,7 +168,7 @@ def load_description(
     root = find_package_root(p.parent)
     files = resolve_config(robot.name, description_root=root, packages=packages,
                            moveit_config=moveit_config, srdf=srdf, joint_limits=joint_limits)
-    warnings = [str(w) for w in report.warnings]
+    warnings = [*packages.warnings, *(str(w) for w in report.warnings)]
     srdf_obj = None
     if files.srdf is not None:
         srdf_obj = parse_srdf(files.srdf.read_text(encoding="utf-8"), robot, source=files.srdf)
