@@ -6,8 +6,8 @@ import argparse
 import json
 import sys
 
-from description import build_package_index, read_model_text
-from description.loader import model_path
+from description import build_package_index
+from description.loader import model_path, read_model
 
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
 
@@ -59,9 +59,9 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 def cmd_urdf(ns: argparse.Namespace) -> int:
     packages = build_package_index(ns.package_dir, model=model_path(ns.file))
-    for w in packages.warnings:  # stdout is the URDF
+    text, _, warnings = read_model(ns.file, args=dict(ns.arg), packages=packages)
+    for w in (*packages.warnings, *warnings):  # stdout is the URDF
         print(f"warning: {w}", file=sys.stderr)
-    text, _ = read_model_text(ns.file, args=dict(ns.arg), packages=packages)
     sys.stdout.write(text)
     return EXIT_OK
 

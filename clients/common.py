@@ -34,7 +34,8 @@ def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None
                    "package:// and $(find); repeatable; searched before ROS_PACKAGE_PATH "
                    "and AMENT_PREFIX_PATH")
     p.add_argument("--arg", action="append", default=[], metavar="NAME=VALUE",
-                   type=xacro_arg, help="a xacro argument; repeatable")
+                   type=xacro_arg, help="a xacro argument, NAME=VALUE or NAME:=VALUE; "
+                   "repeatable (a name the xacro does not declare is warned about)")
     p.add_argument("--moveit-config", metavar="DIR",
                    help="the MoveIt config package (config/<robot>.srdf, joint_limits.yaml); "
                    "default: the model package's config/ if it has an SRDF, else a "

@@ -15,7 +15,7 @@ from typing import Literal
 import numpy as np
 
 from .errors import DescriptionError
-from .loader import model_path, read_model_text
+from .loader import model_path, read_model
 from .meshes import load_mesh
 from .model import Inertial, Link, Robot
 from .moveit_config import resolve_config
@@ -92,12 +92,12 @@ def check_model(
     MoveIt Setup Assistant normally leave (open meshes, a stale SRDF) WARNs."""
     packages = build_package_index(package_dirs, env=env, model=model_path(path))
     try:
-        text, p = read_model_text(path, args=args, packages=packages)
+        text, p, expansion_warnings = read_model(path, args=args, packages=packages)
         report = parse_urdf(text, packages=packages, source=p, strict=False)
     except DescriptionError as e:
         return CheckReport(str(path or "shipped model"), (_fail_from(e, "load"),))
-    findings: list[Finding] = [Finding("WARN", "packages", p.name, w)
-                               for w in packages.warnings]
+    findings = [Finding("WARN", "packages", p.name, w) for w in packages.warnings]
+    findings.extend(Finding("WARN", "xacro.args", p.name, w) for w in expansion_warnings)
     findings.extend(_fail_from(e, "parse") for e in report.problems)
     findings.extend(Finding("WARN", "parse", e.element or "model",
                             e.message + (f" (fix: {e.hint})" if e.hint else ""))

@@ -25,7 +25,7 @@ from .packages import (
 )
 from .srdf import Srdf, parse_srdf
 from .urdf import parse_urdf
-from .xacro_expand import expand_xacro, is_xacro
+from .xacro_expand import expand_xacro_report, is_xacro
 
 _log = logging.getLogger(__name__)
 
@@ -114,6 +114,18 @@ def read_model_text(
     packages: PackageIndex,
 ) -> tuple[str, Path]:
     """The URDF text of ``path`` (xacro expanded), and the resolved path."""
+    text, p, _ = read_model(path, args=args, packages=packages)
+    return text, p
+
+
+def read_model(
+    path: str | Path | None = None,
+    *,
+    args: Mapping[str, str] | None = None,
+    packages: PackageIndex,
+) -> tuple[str, Path, tuple[str, ...]]:
+    """The URDF text of ``path`` (xacro expanded), the resolved path, and what the
+    expansion tolerated (an ``--arg`` the xacro does not declare)."""
     p = model_path(path)
     if not p.is_file():
         raise DescriptionError("file does not exist", file=p,
@@ -121,11 +133,12 @@ def read_model_text(
                                "shipped arduinobot")
     text = p.read_text(encoding="utf-8", errors="replace")
     if is_xacro(p, text):
-        text = expand_xacro(p, args=args, packages=packages)
-    elif args:
+        expansion = expand_xacro_report(p, args=args, packages=packages)
+        return expansion.text, p, expansion.warnings
+    if args:
         raise DescriptionError(f"--arg given ({', '.join(args)}) but the file is plain URDF",
                                file=p, hint="drop --arg, or pass the .xacro file")
-    return text, p
+    return text, p, ()
 
 
 def load_description(
@@ -160,7 +173,7 @@ def load_description(
         DescriptionError: (a subclass naming file, element and fix) for any problem.
     """
     packages = build_package_index(package_dirs, env=env, model=model_path(path))
-    text, p = read_model_text(path, args=args, packages=packages)
+    text, p, expansion_warnings = read_model(path, args=args, packages=packages)
     report = parse_urdf(text, packages=packages, source=p)
     robot = report.robot
     if robot is None:  # strict parsing raises first; this guards a future lenient path
@@ -168,7 +181,7 @@ def load_description(
     root = find_package_root(p.parent)
     files = resolve_config(robot.name, description_root=root, packages=packages,
                            moveit_config=moveit_config, srdf=srdf, joint_limits=joint_limits)
-    warnings = [*packages.warnings, *(str(w) for w in report.warnings)]
+    warnings = [*packages.warnings, *expansion_warnings, *(str(w) for w in report.warnings)]
     srdf_obj = None
     if files.srdf is not None:
         srdf_obj = parse_srdf(files.srdf.read_text(encoding="utf-8"), robot, source=files.srdf)

@@ -87,3 +87,25 @@ def test_a_single_file_model_named_like_ours_gets_its_own_meshes(tmp_path):
     g = d.robot.links["b"].collisions[0].geometry
     assert g.path == (pkg / "meshes" / "basement.STL").resolve()
     assert Path(g.path).read_bytes() != (SHIPPED_PACKAGE_DIR / "meshes" / "basement.STL").read_bytes()
+
+
+# -- xacro arguments as ROS users type them (issue 27 item 5) -----------------------------------
+
+def test_arg_takes_the_ros_syntax(course_ws):
+    r = _cli("urdf", str(course_ws.xacro), "--arg", "is_sim:=false")
+    assert r.returncode == 0, r.stderr
+    assert "arduinobot_controller/ArduinobotInterface" in r.stdout
+    assert "GazeboSimSystem" not in r.stdout
+    assert "warning" not in r.stderr
+
+
+def test_an_undeclared_arg_warns_and_lists_the_declared_ones(course_ws):
+    r = _cli("urdf", str(course_ws.xacro), "--arg", "is_sm=false")
+    assert r.returncode == 0, r.stderr
+    assert "GazeboSimSystem" in r.stdout  # is_sim kept its default
+    assert "--arg is_sm" in r.stderr and "declared: is_sim" in r.stderr
+    report = check_model(course_ws.xacro, args={"is_sm": "false"}, env={})
+    warns = [f for f in report.findings if f.check == "xacro.args"]
+    assert len(warns) == 1 and warns[0].level == "WARN" and "is_sim" in warns[0].message
+    d = load_description(course_ws.xacro, args={"is_sm": "false"}, env={})
+    assert [w for w in d.warnings if "is_sm" in w] == [warns[0].message]
