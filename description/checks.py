@@ -15,7 +15,7 @@ from typing import Literal
 import numpy as np
 
 from .errors import DescriptionError
-from .loader import model_path, read_model
+from .loader import _read_joint_limits, apply_position_limits, model_path, read_model
 from .meshes import load_mesh
 from .model import Inertial, Link, Robot
 from .moveit_config import resolve_config
@@ -321,6 +321,15 @@ def _check_config(robot: Robot, path: Path, packages: PackageIndex, *,
         return
     yield Finding("PASS" if files.srdf else "WARN", "config", "files",
                   "; ".join(x.strip() for x in files.lines()), files.to_json())
+    if files.joint_limits is not None:
+        try:
+            limits, _ = _read_joint_limits(files.joint_limits, robot)
+            _, ignored = apply_position_limits(robot, limits, files.joint_limits)
+        except DescriptionError as e:
+            yield _fail_from(e, "joint_limits")
+        else:
+            for w in ignored:
+                yield Finding("WARN", "joint_limits", files.joint_limits.name, w)
     if files.srdf is None:
         return
     try:

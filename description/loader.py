@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -191,6 +191,8 @@ def load_description(
     scaling = (1.0, 1.0)
     if files.joint_limits is not None:
         limits, scaling = _read_joint_limits(files.joint_limits, robot)
+        robot, narrowed = apply_position_limits(robot, limits, files.joint_limits)
+        warnings.extend(narrowed)
     initial = _read_initial_positions(files.initial_positions, robot) \
         if files.initial_positions is not None else {}
     for w in warnings:
@@ -290,6 +292,67 @@ def _read_joint_limits(path: Path, robot: Robot
             raise InvalidModel(f"{raw!r} must be a number in (0, 1]", file=path, element=key)
         scaling.append(float(raw))
     return limits, (scaling[0], scaling[1])
+
+
+def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object]],
+                          path: Path) -> tuple[Robot, list[str]]:
+    """The robot with joint_limits.yaml's ``min_position``/``max_position`` applied, and
+    what was not applied.
+
+    MoveIt reads these keys (no ``has_position_limits`` flag) and replaces the URDF's
+    bounds with them, except on continuous joints. We apply them where they narrow the
+    URDF's range, as ``max_velocity`` may only tighten: a figure outside the URDF's range
+    would let the planner send the arm past what its model declares, so it is warned
+    about and the URDF's bound kept. Everything downstream (request checks, IK,
+    sampling, time parameterisation) reads the narrowed robot.
+
+    Raises:
+        InvalidModel: a figure that is not a finite number, or a range left empty.
+    """
+    joints = dict(robot.joints)
+    warnings: list[str] = []
+    for name, entry in limits.items():
+        given = {k: entry[k] for k in ("min_position", "max_position") if k in entry}
+        if not given:
+            continue
+        for key, raw in given.items():
+            if isinstance(raw, bool) or not isinstance(raw, (int, float)) \
+                    or not np.isfinite(raw):
+                raise InvalidModel(f"{raw!r} must be a finite number [rad or m]", file=path,
+                                   element=f"joint_limits.{name}.{key}")
+        j = joints[name]
+        lim = j.limit
+        if j.type not in ("revolute", "prismatic") or lim is None or lim.lower is None \
+                or lim.upper is None:
+            warnings.append(f"{path.name}: joint_limits.{name}: {', '.join(given)} ignored: "
+                            f"a {j.type} joint has no position range to narrow (MoveIt "
+                            "refuses them too)")
+            continue
+        lo, hi = lim.lower, lim.upper
+        if "min_position" in given:
+            v = float(given["min_position"])  # type: ignore[arg-type]
+            if v >= lo:
+                lo = v
+            else:
+                warnings.append(f"{path.name}: joint_limits.{name}.min_position {v:g} is "
+                                f"below the URDF's lower {lim.lower:g}; using the URDF's "
+                                "(it may only narrow the range)")
+        if "max_position" in given:
+            v = float(given["max_position"])  # type: ignore[arg-type]
+            if v <= hi:
+                hi = v
+            else:
+                warnings.append(f"{path.name}: joint_limits.{name}.max_position {v:g} is "
+                                f"above the URDF's upper {lim.upper:g}; using the URDF's "
+                                "(it may only narrow the range)")
+        if not lo < hi:
+            raise InvalidModel(f"min_position/max_position leave [{lo:g}, {hi:g}], an empty "
+                               "range", file=path, element=f"joint_limits.{name}")
+        if (lo, hi) != (lim.lower, lim.upper):
+            joints[name] = replace(j, limit=replace(lim, lower=lo, upper=hi))
+    if joints == robot.joints:
+        return robot, warnings
+    return replace(robot, joints=joints), warnings
 
 
 def _read_initial_positions(path: Path, robot: Robot) -> dict[str, float]:
