@@ -6,7 +6,9 @@ import argparse
 import json
 import sys
 
-from description import build_package_index
+import numpy as np
+
+from description import Description, build_package_index
 from description.loader import model_path, read_model
 
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
@@ -67,7 +69,31 @@ def cmd_urdf(ns: argparse.Namespace) -> int:
 
 
 def _fmt(v: float | None) -> str:
-    return "-inf" if v is None else f"{v:+.4f}"
+    if v is None or not np.isfinite(v):
+        return "-inf" if v is None or v < 0 else "inf"
+    return f"{v:+.4f}"
+
+
+def limits_lines(d: Description) -> list[str]:
+    """The planner's limits per actuated joint, full and as applied at the default
+    scaling (what a request without scaling gets), and where each came from."""
+    from .viewer.plots import applied_limits  # numpy only; matplotlib is imported lazily
+    lim = applied_limits(d, d.robot.actuated_joints)
+    scaled = lim.velocity_scaling != 1.0 or lim.acceleration_scaling != 1.0
+    out = ["limits" + (" (full -> applied at the default scaling):" if scaled else ":"),
+           f"  {'joint':<12}{'position [rad]':<22}{'velocity':<18}{'acceleration':<20}"
+           f"{'jerk':<20}effort"]
+
+    def fig(kind: str, i: int) -> str:
+        full, applied = lim.full[kind][i], lim.applied(kind)[i]
+        return f"{full:.4g}" if full == applied else f"{full:.4g} -> {applied:.4g}"
+    for i, j in enumerate(lim.joints):
+        pos = f"[{_fmt(lim.full['lower'][i])}, {_fmt(lim.full['upper'][i])}]"
+        out.append(f"  {j:<12}{pos:<22}{fig('velocity', i):<18}{fig('acceleration', i):<20}"
+                   f"{fig('jerk', i):<20}{fig('effort', i)}")
+    out.append("limits from:")
+    out.extend(lim.lines())
+    return out
 
 
 def cmd_info(ns: argparse.Namespace) -> int:
@@ -105,6 +131,10 @@ def cmd_info(ns: argparse.Namespace) -> int:
         print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link} [{d.tcp.source}]")
     print(f"default scaling: velocity x{d.default_velocity_scaling:g}, acceleration "
           f"x{d.default_acceleration_scaling:g}")
+    for line in limits_lines(d):
+        print(line)
+    if d.size_note is not None:
+        print(f"size: {d.size_note}")
     for w in d.warnings:
         print(f"warning: {w}")
     return EXIT_OK

@@ -31,6 +31,16 @@ _log = logging.getLogger(__name__)
 
 DEFAULT_MODEL = SHIPPED_PACKAGE_DIR / "urdf" / "arduinobot.urdf.xacro"
 
+#: What the shipped model's size means for an owner of the printed arm (``info`` and the
+#: ``size_note`` of ``<prefix>/description``); the figures are robot-model.md's.
+SHIPPED_SIZE_NOTE = (
+    "the shipped arduinobot follows the course video's figures (shoulder joint 0.307 m "
+    "above the base, centimetre meshes at scale 0.01): ten times the printed arm of the "
+    "course's published packages (0.0307 m, millimetre meshes at scale 0.001). Joint "
+    "goals are the same on both; for tcp positions and obstacles, plan with your own "
+    "workspace's model (e.g. arduinobot serve "
+    "~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro)")
+
 
 @dataclass(frozen=True)
 class Tcp:
@@ -94,6 +104,11 @@ class Description:
                     {"name": s.name, "group": s.group, "values": dict(s.values)}
                     for s in srdf.states],
                 "actuated_joints": list(actuated)}
+
+    @property
+    def size_note(self) -> str | None:
+        """For the shipped model, :data:`SHIPPED_SIZE_NOTE`; None for a user's own."""
+        return SHIPPED_SIZE_NOTE if self.package_root == SHIPPED_PACKAGE_DIR else None
 
     def default_group(self) -> str:
         """The planning group of a request that names none (see
