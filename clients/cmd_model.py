@@ -38,7 +38,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="print the kinematic tree with joint types, axes and limits",
                        description="Print the kinematic tree of a model: each link under its "
                        "parent, with the joint's type, axis, limits and mimic; then the "
-                       "actuated joints and the SRDF's groups and named states.",
+                       "actuated joints and the SRDF's groups and named states; then the "
+                       "limits the planner applies (full -> at the default scaling) and where "
+                       "each came from (URDF, joint_limits.yaml, default rule, scaling); for "
+                       "the shipped model, what its size means for the printed arm.",
                        formatter_class=argparse.HelpFormatter)  # no examples: wrapped
     add_model_args(p)
     p.set_defaults(func=cmd_info)
