@@ -12,11 +12,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from planner.kinematics.limits import JointLimits, summarise_sources
+if TYPE_CHECKING:  # the plan command's client path must not import the planner (numba)
+    from planner.kinematics.limits import JointLimits
 
 Kind = Literal["lower", "upper", "velocity", "acceleration", "jerk", "effort"]
 KINDS: tuple[Kind, ...] = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
@@ -113,6 +114,33 @@ class AppliedLimits:
                    float(vs if vs is not None else default.get("velocity", 1.0)),
                    float(as_ if as_ is not None else default.get("acceleration", 1.0)),
                    ", ".join(parts), sources)
+
+
+def short_source(source: str) -> str:
+    """Where a figure came from, in a word or three, from a
+    :attr:`~planner.kinematics.limits.JointLimits.sources` entry: ``URDF``,
+    ``joint_limits.yaml``, or ``default (<rule>)`` for one the planner derived."""
+    if source.startswith("derived: acceleration /"):  # "derived: acceleration / 0.1 s ramp"
+        return f"default ({source.removeprefix('derived: ').split(' ramp')[0]})"
+    if source.startswith("derived"):
+        return "default (from effort, gravity and inertia)"
+    if source.startswith("config/joint_limits.yaml"):
+        return "joint_limits.yaml"
+    if source.startswith("urdf"):
+        return "URDF"
+    return source
+
+
+def summarise_sources(sources: Mapping[str, str], joints: Sequence[str], kind: str) -> str:
+    """One phrase for where ``kind`` of every joint came from (``sources``:
+    ``"<joint>.<kind>"`` -> source): the source alone when all agree, else each with its
+    joints (``URDF (joint_1), joint_limits.yaml (joint_2, joint_3)``)."""
+    by: dict[str, list[str]] = {}
+    for j in joints:
+        by.setdefault(short_source(sources.get(f"{j}.{kind}", "unknown")), []).append(j)
+    if len(by) == 1:
+        return next(iter(by))
+    return ", ".join(f"{src} ({', '.join(js)})" for src, js in by.items())
 
 
 def _num(v: object) -> float:

@@ -180,32 +180,6 @@ class JointLimits:
         return cls(names, *(np.array(vals[k], dtype=float) for k in _KINDS), sources=sources)
 
 
-def short_source(source: str) -> str:
-    """Where a figure came from, in a word or three, from a :attr:`JointLimits.sources`
-    entry: ``URDF``, ``joint_limits.yaml``, or ``default (<rule>)`` for a derived one."""
-    if source.startswith("derived: acceleration /"):
-        return f"default (acceleration / {JERK_RAMP_TIME:g} s)"
-    if source.startswith("derived"):
-        return "default (from effort, gravity and inertia)"
-    if source.startswith("config/joint_limits.yaml"):
-        return "joint_limits.yaml"
-    if source.startswith("urdf"):
-        return "URDF"
-    return source
-
-
-def summarise_sources(sources: Mapping[str, str], joints: Sequence[str], kind: str) -> str:
-    """One phrase for where ``kind`` of every joint came from: the source alone when all
-    agree, else each source with its joints (``URDF (joint_1), joint_limits.yaml
-    (joint_2, joint_3)``)."""
-    by: dict[str, list[str]] = {}
-    for j in joints:
-        by.setdefault(short_source(sources.get(f"{j}.{kind}", "unknown")), []).append(j)
-    if len(by) == 1:
-        return next(iter(by))
-    return ", ".join(f"{src} ({', '.join(js)})" for src, js in by.items())
-
-
 def _check_scaling(value: float, name: str) -> None:
     if not (isinstance(value, (int, float)) and not isinstance(value, bool)
             and math.isfinite(value) and 0.0 < value <= 1.0):
