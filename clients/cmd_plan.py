@@ -17,9 +17,6 @@ from .argtypes import UsageError, add_obstacle_arg, joint_map, joint_values, jso
 from .common import EXIT_OK, add_service_args, connect, joint_order
 from .replies import PlanReply
 
-#: per joint: lower, upper [rad], velocity, acceleration, jerk, effort (None: unlimited)
-Limits = Mapping[str, Mapping[str, float | None]]
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -118,14 +115,9 @@ def cmd_plan(ns: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def summary(res: PlanReply, limits: Limits | AppliedLimits) -> str:
+def summary(res: PlanReply, limits: AppliedLimits) -> str:
     """Duration, per-joint peaks against the limits the plan was held to (scaled), where
-    those came from, stage timings. ``limits``: :class:`AppliedLimits`, or full-scale
-    figures per joint (then unscaled, origins unknown)."""
-    if not isinstance(limits, AppliedLimits):
-        limits = AppliedLimits.from_description_reply({"limits": limits}, res.joint_names,
-                                                      request={"velocity_scaling": 1.0,
-                                                               "acceleration_scaling": 1.0})
+    those came from, stage timings."""
     lines = [(f"trajectory: {len(res.times)} points, duration {res.duration:.3f} s, "
               f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}")]
     lines.append(f"{'joint':<10}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
