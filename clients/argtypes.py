@@ -176,10 +176,11 @@ def add_obstacle_arg(p: argparse.ArgumentParser) -> None:
 
 
 def xacro_arg(text: str) -> tuple[str, str]:
-    """``NAME=VALUE`` (``--arg``)."""
+    """``NAME=VALUE`` or ``NAME:=VALUE`` (``--arg``; the second is how ROS users type it)."""
     name, sep, value = text.partition("=")
+    name = name.removesuffix(":")
     if not sep or not name:
-        raise argparse.ArgumentTypeError(f"'{text}' must be NAME=VALUE")
+        raise argparse.ArgumentTypeError(f"'{text}' must be NAME=VALUE or NAME:=VALUE")
     return name, value
 
 

@@ -7,7 +7,10 @@ import json
 import logging
 import sys
 
-from description import Description, build_package_index, read_model_text
+import numpy as np
+
+from description import Description, build_package_index
+from description.loader import model_path, read_model
 
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
 
@@ -36,7 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="print the kinematic tree with joint types, axes and limits",
                        description="Print the kinematic tree of a model: each link under its "
                        "parent, with the joint's type, axis, limits and mimic; then the "
-                       "actuated joints and the SRDF's groups and named states.",
+                       "actuated joints and the SRDF's groups and named states; then the "
+                       "limits the planner applies (full -> at the default scaling) and where "
+                       "each came from (URDF, joint_limits.yaml, default rule, scaling); for "
+                       "the shipped model, what its size means for the printed arm.",
                        formatter_class=argparse.HelpFormatter)  # no examples: wrapped
     add_model_args(p)
     p.set_defaults(func=cmd_info)
@@ -58,14 +64,40 @@ def cmd_check(ns: argparse.Namespace) -> int:
 
 
 def cmd_urdf(ns: argparse.Namespace) -> int:
-    text, _ = read_model_text(ns.file, args=dict(ns.arg),
-                              packages=build_package_index(ns.package_dir))
+    packages = build_package_index(ns.package_dir, model=model_path(ns.file))
+    text, _, warnings = read_model(ns.file, args=dict(ns.arg), packages=packages)
+    for w in (*packages.warnings, *warnings):  # stdout is the URDF
+        print(f"warning: {w}", file=sys.stderr)
     sys.stdout.write(text)
     return EXIT_OK
 
 
 def _fmt(v: float | None) -> str:
-    return "-inf" if v is None else f"{v:+.4f}"
+    if v is None or not np.isfinite(v):
+        return "-inf" if v is None or v < 0 else "inf"
+    return f"{v:+.4f}"
+
+
+def limits_lines(d: Description) -> list[str]:
+    """The planner's limits per actuated joint, full and as applied at the default
+    scaling (what a request without scaling gets), and where each came from."""
+    from .viewer.plots import applied_limits  # numpy only; matplotlib is imported lazily
+    lim = applied_limits(d, d.robot.actuated_joints)
+    scaled = lim.velocity_scaling != 1.0 or lim.acceleration_scaling != 1.0
+    out = ["limits" + (" (full -> applied at the default scaling):" if scaled else ":"),
+           f"  {'joint':<12}{'position [rad]':<22}{'velocity':<18}{'acceleration':<20}"
+           f"{'jerk':<20}effort"]
+
+    def fig(kind: str, i: int) -> str:
+        full, applied = lim.full[kind][i], lim.applied(kind)[i]
+        return f"{full:.4g}" if full == applied else f"{full:.4g} -> {applied:.4g}"
+    for i, j in enumerate(lim.joints):
+        pos = f"[{_fmt(lim.full['lower'][i])}, {_fmt(lim.full['upper'][i])}]"
+        out.append(f"  {j:<12}{pos:<22}{fig('velocity', i):<18}{fig('acceleration', i):<20}"
+                   f"{fig('jerk', i):<20}{fig('effort', i)}")
+    out.append("limits from:")
+    out.extend(lim.lines())
+    return out
 
 
 class _Hold(logging.Handler):
@@ -131,6 +163,10 @@ def cmd_info(ns: argparse.Namespace) -> int:
         print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link} [{d.tcp.source}]")
     print(f"default scaling: velocity x{d.default_velocity_scaling:g}, acceleration "
           f"x{d.default_acceleration_scaling:g}")
+    for line in limits_lines(d):
+        print(line)
+    if d.size_note is not None:
+        print(f"size: {d.size_note}")
     for w in d.warnings:
         print(f"warning: {w}")
     return EXIT_OK

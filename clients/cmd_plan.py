@@ -12,12 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from .applied_limits import AppliedLimits
 from .argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
 from .common import EXIT_OK, add_service_args, connect, joints_by_name, planned_by, wrote
 from .replies import PlanReply
-
-#: per joint: lower, upper [rad], velocity, acceleration, jerk, effort (None: unlimited)
-Limits = Mapping[str, Mapping[str, float | None]]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -101,7 +99,7 @@ def cmd_plan(ns: argparse.Namespace) -> int:
         robot = service.description()
         req = build_request(ns, robot)
         res = PlanReply.parse(service.request("plan", req))
-    limits = robot["limits"]
+    limits = AppliedLimits.from_description_reply(robot, res.joint_names, request=req)
     data_out = ns.json == "-"  # stdout is the reply: what is said goes to stderr
     samples = f"{len(res.times)} samples"
     if ns.json:
@@ -126,22 +124,32 @@ def cmd_plan(ns: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def summary(res: PlanReply, limits: Limits) -> str:
-    """Duration, per-joint peaks against limits, stage timings."""
+def summary(res: PlanReply, limits: AppliedLimits) -> str:
+    """Duration, per-joint peaks against the limits the plan was held to (scaled), where
+    those came from, stage timings."""
     lines = [(f"trajectory: {len(res.times)} points, duration {res.duration:.3f} s, "
               f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}")]
     lines.append(f"{'joint':<10}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
-                 f"{'|effort|':>10}{'limit':>8}")
-    peaks = {k: np.abs(getattr(res, k)).max(axis=0) if len(res.times) else
-             np.zeros(len(res.joint_names)) for k in ("velocities", "accelerations", "efforts")}
+                 f"{'|j| peak':>10}{'limit':>9}{'|effort|':>10}{'limit':>8}")
+    n = len(res.joint_names)
+    peaks = {k: np.abs(getattr(res, k)).max(axis=0) if len(res.times) else np.zeros(n)
+             for k in ("velocities", "accelerations", "efforts")}
+    # jerk as the verifier measures it: finite differences of the sampled accelerations
+    dt = np.diff(res.times)[:, None]
+    jerk = np.abs(np.diff(res.accelerations, axis=0) / np.where(dt > 0, dt, np.inf))
+    peaks["jerk"] = jerk.max(axis=0) if len(jerk) else np.zeros(n)
+    applied = {k: limits.applied(k) for k in ("velocity", "acceleration", "jerk", "effort")}
 
-    def lim(j: str, kind: str) -> str:
-        v = limits.get(j, {}).get(kind)
-        return f"{v:8.2f}" if v is not None else f"{'-':>8}"
+    def lim(kind: str, i: int, width: int = 8) -> str:
+        v = applied[kind][i]
+        return f"{v:{width}.2f}" if np.isfinite(v) else f"{'-':>{width}}"
     for i, j in enumerate(res.joint_names):
-        lines.append(f"{j:<10}{peaks['velocities'][i]:10.3f}{lim(j, 'velocity')}"
-                     f"{peaks['accelerations'][i]:10.3f}{lim(j, 'acceleration')}"
-                     f"{peaks['efforts'][i]:10.3f}{lim(j, 'effort')}")
+        lines.append(f"{j:<10}{peaks['velocities'][i]:10.3f}{lim('velocity', i)}"
+                     f"{peaks['accelerations'][i]:10.3f}{lim('acceleration', i)}"
+                     f"{peaks['jerk'][i]:10.2f}{lim('jerk', i, 9)}"
+                     f"{peaks['efforts'][i]:10.3f}{lim('effort', i)}")
+    lines.append("limits applied (full figure from, x scaling):")
+    lines.extend(limits.lines())
     v = res.verification
     gap = "not measured" if v.min_clearance is None else f"{1000 * v.min_clearance:.1f} mm"
     if v.min_clearance is not None and v.closest_pair:
@@ -153,16 +161,15 @@ def summary(res: PlanReply, limits: Limits) -> str:
     return "\n".join(lines)
 
 
-def plot_trajectory(res: PlanReply, limits: Limits, out: str) -> None:
+def plot_trajectory(res: PlanReply, limits: AppliedLimits, out: str) -> None:
     """Positions, velocities, accelerations and efforts over time with their limits
     (dashed), one panel each (:mod:`clients.viewer.plots`), saved to ``out``. Needs
     matplotlib (optional)."""
-    from .viewer.plots import plot_figure, plot_panels
+    from .viewer.plots import limit_notes, limits_of, plot_figure, plot_panels
     from .viewer.trajectory import PlaybackTrajectory
     traj = PlaybackTrajectory(res.joint_names, res.times, res.positions, res.velocities,
                               res.accelerations, res.efforts)
-    lim = {k: np.array([limits.get(j, {}).get(k) for j in res.joint_names], float)
-           for k in ("lower", "upper", "velocity", "acceleration", "effort")}
-    fig = plot_figure(plot_panels(traj, lim), title=f"{res.duration:.3f} s, "
-                      f"{len(res.times)} samples (dashed: limits)", dpi=100)
+    panels = plot_panels(traj, limits_of(limits), notes=limit_notes(limits))
+    fig = plot_figure(panels, title=f"{res.duration:.3f} s, {len(res.times)} samples "
+                      "(dashed: the limits applied)", dpi=100)
     fig.savefig(out)

@@ -32,10 +32,13 @@ def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None
                        help="a .urdf or .xacro file (default: the shipped arduinobot)")
     p.add_argument("--package-dir", action="append", default=[], metavar="DIR",
                    help="a package folder (with package.xml) or a folder of packages, for "
-                   "package:// and $(find); repeatable; searched before ROS_PACKAGE_PATH "
-                   "and AMENT_PREFIX_PATH")
+                   "package:// and $(find); repeatable; searched after the package holding "
+                   "FILE (which wins for its own name) and before ROS_PACKAGE_PATH, "
+                   "AMENT_PREFIX_PATH and FILE's workspace src/ (searched without this "
+                   "option)")
     p.add_argument("--arg", action="append", default=[], metavar="NAME=VALUE",
-                   type=xacro_arg, help="a xacro argument; repeatable")
+                   type=xacro_arg, help="a xacro argument, NAME=VALUE or NAME:=VALUE; "
+                   "repeatable (a name the xacro does not declare is warned about)")
     p.add_argument("--moveit-config", metavar="DIR",
                    help="the MoveIt config package (config/<robot>.srdf, joint_limits.yaml); "
                    "default: the model package's config/ if it has an SRDF, else a "

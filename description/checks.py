@@ -15,11 +15,11 @@ from typing import Literal
 import numpy as np
 
 from .errors import DescriptionError
-from .loader import find_package_root, read_model_text
+from .loader import _read_joint_limits, apply_position_limits, model_path, read_model
 from .meshes import load_mesh
 from .model import Inertial, Link, Robot
 from .moveit_config import resolve_config
-from .packages import PackageIndex, build_package_index
+from .packages import SHIPPED_PACKAGE_DIR, PackageIndex, build_package_index, find_package_root
 from .srdf import parse_srdf
 from .urdf import parse_urdf
 
@@ -90,13 +90,14 @@ def check_model(
 
     Only what breaks loading, planning or simulation FAILs; what CAD exports and the
     MoveIt Setup Assistant normally leave (open meshes, a stale SRDF) WARNs."""
-    packages = build_package_index(package_dirs, env=env)
+    packages = build_package_index(package_dirs, env=env, model=model_path(path))
     try:
-        text, p = read_model_text(path, args=args, packages=packages)
+        text, p, expansion_warnings = read_model(path, args=args, packages=packages)
         report = parse_urdf(text, packages=packages, source=p, strict=False)
     except DescriptionError as e:
         return CheckReport(str(path or "shipped model"), (_fail_from(e, "load"),))
-    findings: list[Finding] = []
+    findings = [Finding("WARN", "packages", p.name, w) for w in packages.warnings]
+    findings.extend(Finding("WARN", "xacro.args", p.name, w) for w in expansion_warnings)
     findings.extend(_fail_from(e, "parse") for e in report.problems)
     findings.extend(Finding("WARN", "parse", e.element or "model",
                             e.message + (f" (fix: {e.hint})" if e.hint else ""))
@@ -107,8 +108,11 @@ def check_model(
     findings.append(Finding("PASS", "structure", robot.name,
                             f"one root '{robot.root}', a tree of {len(robot.links)} links and "
                             f"{len(robot.joints)} joints, every name resolves"))
-    for fn in (_check_links, _check_inertials, _check_meshes, _check_joints):
-        findings.extend(fn(robot))
+    findings.extend(_check_links(robot))
+    shipped = find_package_root(p.parent) == SHIPPED_PACKAGE_DIR
+    findings.extend(_check_inertials(robot, shipped=shipped))
+    findings.extend(_check_meshes(robot))
+    findings.extend(_check_joints(robot))
     findings.extend(_check_config(robot, p, packages, moveit_config=moveit_config, srdf=srdf,
                                   joint_limits=joint_limits))
     return CheckReport(str(p), tuple(findings))
@@ -139,7 +143,7 @@ def _principal(inertial: Inertial) -> np.ndarray:
     return np.linalg.eigvalsh(inertial.tensor())
 
 
-def _check_inertials(robot: Robot) -> Iterator[Finding]:
+def _check_inertials(robot: Robot, *, shipped: bool = False) -> Iterator[Finding]:
     bad: list[Finding] = []
     with_inertial = [x for x in robot.links.values() if x.inertial is not None]
     for link in with_inertial:
@@ -159,7 +163,7 @@ def _check_inertials(robot: Robot) -> Iterator[Finding]:
                 bad.append(Finding("FAIL", "inertial.inertia", link.name,
                                    f"principal moments {np.round(ev, 9).tolist()} break the "
                                    "triangle inequality (no real body has them)"))
-        bad.extend(_plausibility(link))
+        bad.extend(_plausibility(link, shipped=shipped))
     yield from _summarise("inertial", [x.name for x in with_inertial], bad,
                           "mass > 0, inertia positive definite and physically realisable")
 
@@ -191,7 +195,14 @@ def mesh_inertia(link: Link, mass: float) -> tuple[np.ndarray, bool] | None:
     return np.asarray(mesh.moment_inertia), reliable
 
 
-def _plausibility(link: Link) -> Iterator[Finding]:
+# Why the shipped model keeps inertias the plausibility check flags: said where the WARN
+# appears, so a user does not take it for a fault of their install.
+SHIPPED_INERTIA_NOTE = (
+    "expected: the shipped model keeps the course's unit-tensor default_inertial so its "
+    "figures follow the course; use figures like these for simulation")
+
+
+def _plausibility(link: Link, *, shipped: bool = False) -> Iterator[Finding]:
     ine = link.inertial
     if ine is None or not ine.mass > 0:
         return
@@ -208,9 +219,10 @@ def _plausibility(link: Link) -> Iterator[Finding]:
             "WARN", "inertial.plausible", link.name,
             f"inertia {given:g} kg m^2 is {given / expected:,.0f}x what {src} for "
             f"{ine.mass:g} kg: ixx={t[0, 0]:.3g} ixy={t[0, 1]:.3g} "
-            f"ixz={t[0, 2]:.3g} iyy={t[1, 1]:.3g} iyz={t[1, 2]:.3g} izz={t[2, 2]:.3g}",
+            f"ixz={t[0, 2]:.3g} iyy={t[1, 1]:.3g} iyz={t[1, 2]:.3g} izz={t[2, 2]:.3g}"
+            + (f" ({SHIPPED_INERTIA_NOTE})" if shipped else ""),
             {"given_max": float(given), "implied": t.tolist(), "ratio": float(given / expected),
-             "reliable": reliable})
+             "reliable": reliable, "shipped_placeholder": shipped})
 
 
 def _check_meshes(robot: Robot) -> Iterator[Finding]:
@@ -249,7 +261,11 @@ def _check_meshes(robot: Robot) -> Iterator[Finding]:
                         f"robot whose joints span {span:.3g} m: likely in the wrong unit; try "
                         f"scale=\"{_fmt(tuple(x * factor for x in g.scale))}\" "
                         f"(x{factor:g})", {"extent": size, "factor": factor}))
-    yield from _summarise("mesh", subjects, bad, "every mesh resolves and loads")
+    folders = sorted({str(s.geometry.path.parent) for link in robot.links.values()
+                      for s in (*link.visuals, *link.collisions)
+                      if s.geometry.kind == "mesh" and s.geometry.path is not None})
+    yield from _summarise("mesh", subjects, bad, "every mesh resolves and loads"
+                          + (f", from {', '.join(folders)}" if folders else ""))
 
 
 def _fmt(scale: tuple[float, ...]) -> str:
@@ -305,6 +321,15 @@ def _check_config(robot: Robot, path: Path, packages: PackageIndex, *,
         return
     yield Finding("PASS" if files.srdf else "WARN", "config", "files",
                   "; ".join(x.strip() for x in files.lines()), files.to_json())
+    if files.joint_limits is not None:
+        try:
+            limits, _ = _read_joint_limits(files.joint_limits, robot)
+            _, ignored = apply_position_limits(robot, limits, files.joint_limits)
+        except DescriptionError as e:
+            yield _fail_from(e, "joint_limits")
+        else:
+            for w in ignored:
+                yield Finding("WARN", "joint_limits", files.joint_limits.name, w)
     if files.srdf is None:
         return
     try:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -17,14 +17,29 @@ import yaml
 from .errors import DescriptionError, InvalidModel
 from .model import Origin, Robot
 from .moveit_config import ConfigFiles, resolve_config
-from .packages import SHIPPED_PACKAGE_DIR, PackageIndex, build_package_index
+from .packages import (
+    SHIPPED_PACKAGE_DIR,
+    PackageIndex,
+    build_package_index,
+    find_package_root,
+)
 from .srdf import Srdf, parse_srdf
 from .urdf import parse_urdf
-from .xacro_expand import expand_xacro, is_xacro
+from .xacro_expand import expand_xacro_report, is_xacro
 
 _log = logging.getLogger(__name__)
 
 DEFAULT_MODEL = SHIPPED_PACKAGE_DIR / "urdf" / "arduinobot.urdf.xacro"
+
+#: What the shipped model's size means for an owner of the printed arm (``info`` and the
+#: ``size_note`` of ``<prefix>/description``); the figures are robot-model.md's.
+SHIPPED_SIZE_NOTE = (
+    "the shipped arduinobot follows the course video's figures (shoulder joint 0.307 m "
+    "above the base, centimetre meshes at scale 0.01): ten times the printed arm of the "
+    "course's published packages (0.0307 m, millimetre meshes at scale 0.001). Joint "
+    "goals are the same on both; for tcp positions and obstacles, plan with your own "
+    "workspace's model (e.g. arduinobot serve "
+    "~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro)")
 
 
 @dataclass(frozen=True)
@@ -90,6 +105,11 @@ class Description:
                     for s in srdf.states],
                 "actuated_joints": list(actuated)}
 
+    @property
+    def size_note(self) -> str | None:
+        """For the shipped model, :data:`SHIPPED_SIZE_NOTE`; None for a user's own."""
+        return SHIPPED_SIZE_NOTE if self.package_root == SHIPPED_PACKAGE_DIR else None
+
     def default_group(self) -> str:
         """The planning group of a request that names none (see
         :meth:`Srdf.default_group`); ``all`` without an SRDF."""
@@ -97,12 +117,9 @@ class Description:
         return g or "all"
 
 
-def find_package_root(path: Path) -> Path | None:
-    """The nearest folder at or above ``path`` holding a ``package.xml``."""
-    for d in [path, *path.parents]:
-        if (d / "package.xml").is_file():
-            return d
-    return None
+def model_path(path: str | Path | None) -> Path:
+    """The model file ``path`` names, resolved (the shipped arduinobot's for None)."""
+    return Path(path).expanduser().resolve() if path is not None else DEFAULT_MODEL
 
 
 def read_model_text(
@@ -112,18 +129,31 @@ def read_model_text(
     packages: PackageIndex,
 ) -> tuple[str, Path]:
     """The URDF text of ``path`` (xacro expanded), and the resolved path."""
-    p = Path(path).expanduser().resolve() if path is not None else DEFAULT_MODEL
+    text, p, _ = read_model(path, args=args, packages=packages)
+    return text, p
+
+
+def read_model(
+    path: str | Path | None = None,
+    *,
+    args: Mapping[str, str] | None = None,
+    packages: PackageIndex,
+) -> tuple[str, Path, tuple[str, ...]]:
+    """The URDF text of ``path`` (xacro expanded), the resolved path, and what the
+    expansion tolerated (an ``--arg`` the xacro does not declare)."""
+    p = model_path(path)
     if not p.is_file():
         raise DescriptionError("file does not exist", file=p,
                                hint="give a .urdf or .xacro file, or omit FILE for the "
                                "shipped arduinobot")
     text = p.read_text(encoding="utf-8", errors="replace")
     if is_xacro(p, text):
-        text = expand_xacro(p, args=args, packages=packages)
-    elif args:
+        expansion = expand_xacro_report(p, args=args, packages=packages)
+        return expansion.text, p, expansion.warnings
+    if args:
         raise DescriptionError(f"--arg given ({', '.join(args)}) but the file is plain URDF",
                                file=p, hint="drop --arg, or pass the .xacro file")
-    return text, p
+    return text, p, ()
 
 
 def load_description(
@@ -141,7 +171,9 @@ def load_description(
     Args:
         path: a ``.urdf`` or ``.xacro`` file; None for the shipped arduinobot.
         package_dirs: extra package folders for ``package://`` and ``$(find)``, searched
-            before ``ROS_PACKAGE_PATH`` and ``AMENT_PREFIX_PATH``.
+            after the model's own package and before ``ROS_PACKAGE_PATH``,
+            ``AMENT_PREFIX_PATH`` and the model's workspace (the order:
+            :mod:`description.packages`).
         args: xacro arguments.
         moveit_config: a MoveIt config package folder. By default: the model package's
             own ``config/`` if it has an SRDF, else a ``<robot>_moveit_config`` or
@@ -155,8 +187,8 @@ def load_description(
     Raises:
         DescriptionError: (a subclass naming file, element and fix) for any problem.
     """
-    packages = build_package_index(package_dirs, env=env)
-    text, p = read_model_text(path, args=args, packages=packages)
+    packages = build_package_index(package_dirs, env=env, model=model_path(path))
+    text, p, expansion_warnings = read_model(path, args=args, packages=packages)
     report = parse_urdf(text, packages=packages, source=p)
     robot = report.robot
     if robot is None:  # strict parsing raises first; this guards a future lenient path
@@ -164,7 +196,7 @@ def load_description(
     root = find_package_root(p.parent)
     files = resolve_config(robot.name, description_root=root, packages=packages,
                            moveit_config=moveit_config, srdf=srdf, joint_limits=joint_limits)
-    warnings = [str(w) for w in report.warnings]
+    warnings = [*packages.warnings, *expansion_warnings, *(str(w) for w in report.warnings)]
     srdf_obj = None
     if files.srdf is not None:
         srdf_obj = parse_srdf(files.srdf.read_text(encoding="utf-8"), robot, source=files.srdf)
@@ -174,6 +206,8 @@ def load_description(
     scaling = (1.0, 1.0)
     if files.joint_limits is not None:
         limits, scaling = _read_joint_limits(files.joint_limits, robot)
+        robot, narrowed = apply_position_limits(robot, limits, files.joint_limits)
+        warnings.extend(narrowed)
     initial = _read_initial_positions(files.initial_positions, robot) \
         if files.initial_positions is not None else {}
     for w in warnings:
@@ -273,6 +307,67 @@ def _read_joint_limits(path: Path, robot: Robot
             raise InvalidModel(f"{raw!r} must be a number in (0, 1]", file=path, element=key)
         scaling.append(float(raw))
     return limits, (scaling[0], scaling[1])
+
+
+def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object]],
+                          path: Path) -> tuple[Robot, list[str]]:
+    """The robot with joint_limits.yaml's ``min_position``/``max_position`` applied, and
+    what was not applied.
+
+    MoveIt reads these keys (no ``has_position_limits`` flag) and replaces the URDF's
+    bounds with them, except on continuous joints. We apply them where they narrow the
+    URDF's range, as ``max_velocity`` may only tighten: a figure outside the URDF's range
+    would let the planner send the arm past what its model declares, so it is warned
+    about and the URDF's bound kept. Everything downstream (request checks, IK,
+    sampling, time parameterisation) reads the narrowed robot.
+
+    Raises:
+        InvalidModel: a figure that is not a finite number, or a range left empty.
+    """
+    joints = dict(robot.joints)
+    warnings: list[str] = []
+    for name, entry in limits.items():
+        given = {k: entry[k] for k in ("min_position", "max_position") if k in entry}
+        if not given:
+            continue
+        for key, raw in given.items():
+            if isinstance(raw, bool) or not isinstance(raw, (int, float)) \
+                    or not np.isfinite(raw):
+                raise InvalidModel(f"{raw!r} must be a finite number [rad or m]", file=path,
+                                   element=f"joint_limits.{name}.{key}")
+        j = joints[name]
+        lim = j.limit
+        if j.type not in ("revolute", "prismatic") or lim is None or lim.lower is None \
+                or lim.upper is None:
+            warnings.append(f"{path.name}: joint_limits.{name}: {', '.join(given)} ignored: "
+                            f"a {j.type} joint has no position range to narrow (MoveIt "
+                            "refuses them too)")
+            continue
+        lo, hi = lim.lower, lim.upper
+        if "min_position" in given:
+            v = float(given["min_position"])  # type: ignore[arg-type]
+            if v >= lo:
+                lo = v
+            else:
+                warnings.append(f"{path.name}: joint_limits.{name}.min_position {v:g} is "
+                                f"below the URDF's lower {lim.lower:g}; using the URDF's "
+                                "(it may only narrow the range)")
+        if "max_position" in given:
+            v = float(given["max_position"])  # type: ignore[arg-type]
+            if v <= hi:
+                hi = v
+            else:
+                warnings.append(f"{path.name}: joint_limits.{name}.max_position {v:g} is "
+                                f"above the URDF's upper {lim.upper:g}; using the URDF's "
+                                "(it may only narrow the range)")
+        if not lo < hi:
+            raise InvalidModel(f"min_position/max_position leave [{lo:g}, {hi:g}], an empty "
+                               "range", file=path, element=f"joint_limits.{name}")
+        if (lo, hi) != (lim.lower, lim.upper):
+            joints[name] = replace(j, limit=replace(lim, lower=lo, upper=hi))
+    if joints == robot.joints:
+        return robot, warnings
+    return replace(robot, joints=joints), warnings
 
 
 def _read_initial_positions(path: Path, robot: Robot) -> dict[str, float]:

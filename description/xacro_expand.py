@@ -12,9 +12,11 @@ import re
 import threading
 import xml.parsers.expat
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import xacro
+from lxml import etree
 from xacro import substitution_args
 
 from .errors import MalformedXml, MissingXacroArgument, PackageNotFound, XacroError
@@ -33,13 +35,34 @@ def is_xacro(path: Path, text: str | None = None) -> bool:
     return "http://www.ros.org/wiki/xacro" in text or "<xacro:" in text
 
 
+@dataclass(frozen=True)
+class XacroExpansion:
+    """A xacro file expanded: the URDF ``text``, the arguments the file and its includes
+    declare (``<xacro:arg name=...>``), and ``warnings`` (an argument given that none of
+    them declares: xacro ignores it without a word)."""
+
+    text: str
+    declared_args: tuple[str, ...]
+    warnings: tuple[str, ...] = ()
+
+
 def expand_xacro(
     path: str | Path,
     *,
     args: Mapping[str, str] | None = None,
     packages: PackageIndex,
 ) -> str:
-    """Expand a xacro file to URDF text.
+    """Expand a xacro file to URDF text (see :func:`expand_xacro_report`)."""
+    return expand_xacro_report(path, args=args, packages=packages).text
+
+
+def expand_xacro_report(
+    path: str | Path,
+    *,
+    args: Mapping[str, str] | None = None,
+    packages: PackageIndex,
+) -> XacroExpansion:
+    """Expand a xacro file to URDF text, and say which given arguments it ignores.
 
     Args:
         path: the ``.xacro`` file.
@@ -72,8 +95,10 @@ def expand_xacro(
         saved = substitution_args._eval_find, substitution_args._eval_dict.get("find")
         substitution_args._eval_find = find
         substitution_args._eval_dict["find"] = find
+        xacro.all_includes.clear()  # xacro appends every file it includes here
         try:
             doc = xacro.process_file(str(path), mappings=mappings, verbosity=0)
+            files = [path, *(Path(f) for f in dict.fromkeys(xacro.all_includes))]
         except xml.parsers.expat.ExpatError as e:
             raise MalformedXml(f"not well-formed XML: {e}", file=_current_file(path),
                                hint="fix the XML syntax at that line") from e
@@ -90,7 +115,32 @@ def expand_xacro(
             xacro.init_stacks(None)
     text = doc.toprettyxml(indent="  ")
     _log.debug("expanded %s (%d bytes)", path, len(text))
-    return text
+    declared = declared_args(files)
+    unknown = [n for n in mappings if n not in declared]
+    listed = ", ".join(declared) if declared else "none"
+    warnings = tuple(
+        f"--arg {n}: {path.name} declares no such xacro argument, so it is ignored "
+        f"(declared: {listed})" for n in unknown)
+    return XacroExpansion(text=text, declared_args=declared, warnings=warnings)
+
+
+_XACRO_ARG = "{http://www.ros.org/wiki/xacro}arg"
+
+
+def declared_args(files: list[Path]) -> tuple[str, ...]:
+    """The names of the ``<xacro:arg>`` elements in ``files``, in order of appearance
+    (an argument declared inside a conditional is declared all the same)."""
+    names: dict[str, None] = {}
+    for f in files:
+        try:
+            root = etree.parse(str(f)).getroot()
+        except (OSError, etree.XMLSyntaxError):  # xacro has read it: a yaml, a moved file
+            continue
+        for e in root.iter(_XACRO_ARG):
+            name = e.get("name")
+            if name:
+                names.setdefault(name, None)
+    return tuple(names)
 
 
 def _current_file(default: Path) -> str:

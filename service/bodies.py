@@ -11,23 +11,38 @@ from typing import Any
 
 import numpy as np
 
+_KINDS = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
 
-def limits_body(desc: Any) -> dict[str, dict[str, float | None]]:
+
+def limits_body(desc: Any, lim: Any = None) -> dict[str, dict[str, float | None]]:
     """Per actuated joint: lower, upper [rad], velocity, acceleration, jerk, effort, as
-    the planner enforces them at full scaling (None for an infinite figure)."""
-    from planner.kinematics.limits import JointLimits
-    lim = JointLimits.from_description(desc)
-    kinds = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
+    the planner enforces them at full scaling (None for an infinite figure). ``lim``: the
+    :class:`~planner.kinematics.limits.JointLimits` of ``desc`` if already built."""
+    if lim is None:
+        from planner.kinematics.limits import JointLimits
+        lim = JointLimits.from_description(desc)
 
     def fin(v: float) -> float | None:
         return float(v) if np.isfinite(v) else None
-    return {n: {k: fin(getattr(lim, k)[i]) for k in kinds}
+    return {n: {k: fin(getattr(lim, k)[i]) for k in _KINDS}
             for i, n in enumerate(lim.joint_names)}
 
 
+def limit_sources_body(lim: Any) -> dict[str, dict[str, str]]:
+    """Per actuated joint and limit kind, where the full-scale figure came from: ``urdf``,
+    ``config/joint_limits.yaml`` or ``derived: <rule>`` (the planner's defaults), as
+    :attr:`~planner.kinematics.limits.JointLimits.sources` records it."""
+    return {n: {k: str(lim.sources.get(f"{n}.{k}", "unknown")) for k in _KINDS}
+            for n in lim.joint_names}
+
+
 def description_body(desc: Any) -> dict[str, Any]:
-    """The ``<p>/description`` reply: expanded URDF, SRDF text, limits, joints, tcp."""
+    """The ``<p>/description`` reply: expanded URDF, SRDF text, limits (full scale, with
+    where each came from, and the default scaling a request without one gets), joints,
+    tcp, and for the shipped model a note on its size (``size_note``, else null)."""
+    from planner.kinematics.limits import JointLimits
     robot = desc.robot
+    lim = JointLimits.from_description(desc)
     srdf_text = None
     if desc.srdf is not None and desc.srdf.source is not None:
         srdf_text = Path(desc.srdf.source).read_text("utf-8")
@@ -43,7 +58,8 @@ def description_body(desc: Any) -> dict[str, Any]:
         "position_limits": {n: [float(lo), float(hi)]
                             for n, (lo, hi) in zip(robot.actuated_joints, lims)},
         "joint_limits": {k: dict(v) for k, v in desc.joint_limits.items()},
-        "limits": limits_body(desc),
+        "limits": limits_body(desc, lim),
+        "limit_sources": limit_sources_body(lim),
         **desc.summary(),
         "tcp": None if desc.tcp is None else {"parent_link": desc.tcp.parent_link,
                                               "xyz": list(desc.tcp.xyz),
@@ -51,5 +67,6 @@ def description_body(desc: Any) -> dict[str, Any]:
         "config": desc.config.to_json(),
         "default_scaling": {"velocity": desc.default_velocity_scaling,
                             "acceleration": desc.default_acceleration_scaling},
+        "size_note": desc.size_note,
         "warnings": list(desc.warnings),
     }

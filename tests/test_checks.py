@@ -152,3 +152,17 @@ def test_cad_traits_warn_and_name_the_fix(tmp_path):
     assert 'scale="0.001 0.001 0.001"' in scale[0].message
     assert any(f.check == "parse" and "<material> inside <geometry>" in f.message for f in warns)
     assert any(f.check == "mesh" and "not watertight" in f.message for f in warns)
+
+
+def test_the_shipped_models_inertia_warnings_say_why_they_are_expected(tmp_path):
+    from description.checks import SHIPPED_INERTIA_NOTE
+    warns = [f for f in check_model(env={}).findings if f.check == "inertial.plausible"]
+    assert len(warns) == 6
+    assert all(f.message.endswith(f"({SHIPPED_INERTIA_NOTE})") for f in warns)
+    assert all(f.details["shipped_placeholder"] for f in warns)
+    # a user's model with the same placeholder is not excused
+    pkg = make_user_package(tmp_path, fine_faces=500)
+    xacro = pkg / "urdf" / "my_bot.urdf.xacro"
+    xacro.write_text(xacro.read_text().replace("${m*0.01}", "${m*100}"))
+    user = [f for f in check_model(xacro, env={}).findings if f.check == "inertial.plausible"]
+    assert user and not any(SHIPPED_INERTIA_NOTE in f.message for f in user)

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
-from description import load_description
+from description import InvalidModel, load_description
 from planner.errors import InvalidRequest, LimitsError
 from planner.kinematics.dynamics import InverseDynamics
 from planner.kinematics.limits import (
@@ -224,3 +226,57 @@ def test_no_effort_or_velocity_is_an_error(tmp_path):
 def test_shape_checked_on_construction():
     with pytest.raises(InvalidRequest):
         JointLimits(("a",), *[np.zeros(2)] * 6)
+
+
+# -- joint_limits.yaml min_position/max_position (issue 26 item 9) -----------------------------
+
+def _limits_yaml(tmp_path: Path, entries: dict) -> Path:
+    p = tmp_path / "joint_limits.yaml"
+    p.write_text(yaml.safe_dump({"joint_limits": entries}))
+    return p
+
+
+def test_min_max_position_narrow_the_urdf_range_everywhere(tmp_path):
+    p = _limits_yaml(tmp_path, {"joint_2": {"min_position": -0.5, "max_position": 0.25},
+                                "joint_1": {"max_position": 1.0}})
+    d = load_description(joint_limits=p, env={})
+    lim = d.robot.position_limits(("joint_1", "joint_2", "joint_3"))
+    np.testing.assert_allclose(lim[0], [-np.pi / 2, 1.0], atol=1e-5)
+    np.testing.assert_allclose(lim[1], [-0.5, 0.25])
+    np.testing.assert_allclose(lim[2], [-np.pi / 2, np.pi / 2], atol=1e-5)
+    jl = JointLimits.from_description(d)
+    i2 = jl.joint_names.index("joint_2")
+    assert (jl.lower[i2], jl.upper[i2]) == (-0.5, 0.25)
+    assert jl.sources["joint_2.lower"] == jl.sources["joint_2.upper"] == \
+        jl.sources["joint_1.upper"] == "config/joint_limits.yaml"
+    assert jl.sources["joint_1.lower"] == "urdf"
+    assert not d.warnings
+
+
+def test_a_wider_position_range_keeps_the_urdfs_and_warns(tmp_path):
+    p = _limits_yaml(tmp_path, {"joint_3": {"min_position": -3.0, "max_position": 3.0}})
+    d = load_description(joint_limits=p, env={})
+    np.testing.assert_allclose(d.robot.position_limits(("joint_3",))[0],
+                               [-np.pi / 2, np.pi / 2], atol=1e-5)
+    assert len(d.warnings) == 2
+    assert "min_position -3" in d.warnings[0] and "max_position 3" in d.warnings[1]
+
+
+def test_an_empty_or_malformed_position_range_is_refused(tmp_path):
+    with pytest.raises(InvalidModel, match="empty range"):
+        load_description(joint_limits=_limits_yaml(
+            tmp_path, {"joint_1": {"min_position": 0.5, "max_position": 0.4}}), env={})
+    with pytest.raises(InvalidModel) as e:
+        load_description(joint_limits=_limits_yaml(
+            tmp_path, {"joint_1": {"max_position": "high"}}), env={})
+    assert e.value.element == "joint_limits.joint_1.max_position"
+
+
+def test_check_reports_a_position_range_it_cannot_apply(tmp_path):
+    from description.checks import check_model
+    p = _limits_yaml(tmp_path, {"joint_3": {"max_position": 3.0}})
+    report = check_model(joint_limits=p, env={})
+    warns = [f for f in report.findings if f.check == "joint_limits"]
+    assert len(warns) == 1 and "max_position 3" in warns[0].message
+    bad = _limits_yaml(tmp_path, {"joint_1": {"min_position": 1.0, "max_position": 0.0}})
+    assert check_model(joint_limits=bad, env={}).failed

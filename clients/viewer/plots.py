@@ -7,6 +7,7 @@ draws them with matplotlib (an optional dependency, imported here only).
 from __future__ import annotations
 
 import io
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -15,6 +16,7 @@ import numpy as np
 from description import Description
 from planner.kinematics.limits import JointLimits
 
+from ..applied_limits import KINDS, AppliedLimits, default_scaling_from
 from . import require
 from .trajectory import PlaybackTrajectory
 
@@ -32,6 +34,8 @@ class PlotPanel:
         values: shape (n, j), one column per joint (``joint_names``).
         lower: lower limit per joint, shape (j,) (nan: none).
         upper: upper limit per joint, shape (j,) (nan: none).
+        limit_note: where the limits came from and their scaling (``joint_limits.yaml
+            x0.1``), drawn on the panel; empty if unknown.
     """
 
     quantity: Quantity
@@ -41,19 +45,41 @@ class PlotPanel:
     values: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
+    limit_note: str = ""
+
+
+def applied_limits(description: Description, joints: tuple[str, ...]) -> AppliedLimits:
+    """The limits of ``joints`` at the description's default scaling (what a request
+    that sets none is held to), with where each came from."""
+    return AppliedLimits.from_joint_limits(
+        JointLimits.from_description(description), joints=joints,
+        velocity_scaling=description.default_velocity_scaling,
+        acceleration_scaling=description.default_acceleration_scaling,
+        scaling_from=default_scaling_from(description))
 
 
 def joint_limits(description: Description, joints: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """Position lower/upper, velocity, acceleration and effort limits of ``joints``, each
-    shape (j,), from :class:`planner.kinematics.limits.JointLimits` (URDF and joint_limits.yaml)."""
-    lim = JointLimits.from_description(description)
-    idx = [lim.joint_names.index(n) for n in joints]
-    return {k: np.asarray(getattr(lim, k), float)[idx]
-            for k in ("lower", "upper", "velocity", "acceleration", "effort")}
+    """Position lower/upper, velocity, acceleration, jerk and effort limits of ``joints``,
+    each shape (j,), as applied at the description's default scaling
+    (:func:`applied_limits`)."""
+    return limits_of(applied_limits(description, joints))
 
 
-def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list[PlotPanel]:
-    """The panels the trajectory has data for (positions always)."""
+def limits_of(applied: AppliedLimits) -> dict[str, np.ndarray]:
+    """The applied figures of :func:`plot_panels`'s ``limits``."""
+    return {k: applied.applied(k) for k in KINDS}
+
+
+def limit_notes(applied: AppliedLimits) -> dict[str, str]:
+    """Per plotted quantity, where its dashed limits came from and their scaling."""
+    return {q: applied.origin(q) for q in ("position", "velocity", "acceleration", "effort")}
+
+
+def plot_panels(traj: PlaybackTrajectory, limits: Mapping[str, np.ndarray], *,
+                notes: Mapping[str, str] | None = None) -> list[PlotPanel]:
+    """The panels the trajectory has data for (positions always); ``notes`` (quantity ->
+    where its limits came from, :func:`limit_notes`) are drawn on them."""
+    notes = notes or {}
     specs: list[tuple[Quantity, str, np.ndarray | None, np.ndarray, np.ndarray]] = [
         ("position", "rad", traj.positions, limits["lower"], limits["upper"]),
         ("velocity", "rad/s", traj.velocities, -limits["velocity"], limits["velocity"]),
@@ -61,7 +87,7 @@ def plot_panels(traj: PlaybackTrajectory, limits: dict[str, np.ndarray]) -> list
          limits["acceleration"]),
         ("effort", "N·m", traj.effort, -limits["effort"], limits["effort"]),
     ]
-    return [PlotPanel(q, u, traj.joint_names, traj.times, v, lo, hi)
+    return [PlotPanel(q, u, traj.joint_names, traj.times, v, lo, hi, notes.get(q, ""))
             for q, u, v, lo, hi in specs if v is not None]
 
 
@@ -84,6 +110,9 @@ def plot_figure(panels: list[PlotPanel], *, title: str = "", dpi: int = 110) -> 
                     ax.axhline(lim, color=c, lw=0.8, ls="--", alpha=0.6)
         ax.set_ylabel(f"{p.quantity} [{p.unit}]")
         ax.grid(alpha=0.3)
+        if p.limit_note:
+            ax.text(0.005, 0.98, f"limits: {p.limit_note}", transform=ax.transAxes,
+                    va="top", ha="left", fontsize="small", alpha=0.8)
     axes[0].legend(loc="upper right", fontsize="small", ncols=max(1, len(panels[0].joint_names))
                    if panels else 1)
     axes[-1].set_xlabel("time [s]")

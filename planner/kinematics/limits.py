@@ -1,7 +1,9 @@
 """Every joint limit the planner and the time parameterisation use, with its source.
 
 Position, velocity and effort come from the URDF; acceleration and jerk from the
-package's ``config/joint_limits.yaml`` (MoveIt's keys). Nothing is defaulted silently:
+package's ``config/joint_limits.yaml`` (MoveIt's keys), whose ``max_velocity`` and
+``min_position``/``max_position`` may narrow the URDF's (the loader applies the
+position keys to the robot itself). Nothing is defaulted silently:
 a missing acceleration or jerk limit is derived by a documented rule and ``sources``
 says so; where no rule applies, :class:`~planner.errors.LimitsError` is raised.
 
@@ -140,7 +142,9 @@ class JointLimits:
                                   limit="position")
             vals["lower"].append(lo)
             vals["upper"].append(hi)
-            sources[f"{name}.lower"] = sources[f"{name}.upper"] = "urdf"
+            # the loader has narrowed the URDF's range by min/max_position where given
+            for kind, key, v in (("lower", "min_position", lo), ("upper", "max_position", hi)):
+                sources[f"{name}.{kind}"] = yaml_src if cfg.get(key) == v else "urdf"
             effort = lim.effort if lim is not None else 0.0
             if not (math.isfinite(effort) and effort > 0):
                 raise LimitsError("the URDF gives no positive <limit effort=...>", joint=name,
