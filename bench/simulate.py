@@ -2,7 +2,7 @@
 
 Per scene (bench/scenes.py: the planning benchmark's scenes and seeded problems), each
 problem is planned with ``MotionPlanner.solve`` (jerk-limited, and time-optimal with
-toppra) and replayed on the twin (clients/robots/sim_arduinobot.py: effort-capped
+toppra) and replayed on the twin (execution/robots/sim_arduinobot.py: effort-capped
 position servos with computed-torque feed-forward, contacts on, the scene's obstacles
 in the world) at 100 Hz, faster than real time. Figures per trajectory: tracking error
 (max |simulated - commanded| while playing), final error after settling, the torque the
@@ -28,13 +28,14 @@ sys.path.append(str(Path(__file__).resolve().parent))
 
 from scenes import SCENES, obstacle_dicts, problems  # noqa: E402
 
-from clients.robots.sim_arduinobot import SimArduinobot  # noqa: E402
-from clients.segments import SampledTrajectory  # noqa: E402
-from clients.simulate import simulate  # noqa: E402
 from description import load_description  # noqa: E402
+from execution.robots.sim_arduinobot import SimArduinobot  # noqa: E402
+from execution.segments import SampledTrajectory  # noqa: E402
+from execution.simulate import simulate  # noqa: E402
 from planner.errors import PlanningError  # noqa: E402
 from planner.planning.goals import JointGoal  # noqa: E402
 from planner.planning.pipeline import MotionPlanner, MotionRequest  # noqa: E402
+from service.disk_cache import DiskCache  # noqa: E402
 
 ARM = ("joint_1", "joint_2", "joint_3")
 PROFILES = ("jerk_limited", "time_optimal")
@@ -51,7 +52,7 @@ def main(n: int = 8) -> None:
     for scene, obs in SCENES.items():
         w = mp.world(tuple(obs))
         probs = problems(w, n, np.random.default_rng(0))
-        twin = SimArduinobot(d, obstacles=obstacle_dicts(obs))
+        twin = SimArduinobot(d, obstacles=obstacle_dicts(obs), cache=DiskCache())
         per: dict[str, list] = {p: [] for p in PROFILES}
         failed = 0
         for i, (a, b, _) in enumerate(probs):

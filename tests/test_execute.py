@@ -14,12 +14,16 @@ import time
 import numpy as np
 import pytest
 
-from clients.execute import ExecuteOptions, Executor, NotAtStart
-from clients.robots.sim_arduinobot import SimArduinobot
-from clients.segments import SampledTrajectory
 from description import load_description
+from execution.executor import ExecuteOptions, Executor, NotAtStart
+from execution.robots.sim_arduinobot import SimArduinobot
+from execution.segments import SampledTrajectory
+from service.disk_cache import DiskCache
 
 from .conftest import REPO, start_server
+
+#: the twin's mesh pieces, computed once per machine as the command line keeps them
+CACHE = DiskCache()
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +56,7 @@ def check_within_limits(report, lim, tol=1e-9):
 def test_cancel_stops_at_rest_within_a_second_and_the_limits(desc, planned, at):
     traj = planned["reach_left"]
     cancel = threading.Event()
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
 
     def on_tick(tick):
         if tick.phase == "trajectory" and tick.trajectory_time >= traj.duration * at:
@@ -92,7 +96,7 @@ def test_cancel_stops_at_rest_within_a_second_and_the_limits(desc, planned, at):
 
 def test_refuses_a_start_elsewhere_and_moves_there_on_request(desc, planned):
     traj = SampledTrajectory.from_json(_body(planned["reach_forward"]))
-    sim = SimArduinobot(desc, initial=[0.5, 0.2, -0.3, 0.0])
+    sim = SimArduinobot(desc, cache=CACHE, initial=[0.5, 0.2, -0.3, 0.0])
     ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False))
     with pytest.raises(NotAtStart, match="move-to-start") as e:
         ex.execute(traj)
@@ -298,7 +302,7 @@ def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
     from planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     first = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=11)).trajectory
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
     done = []
 
     def on_tick(tick):

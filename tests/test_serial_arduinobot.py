@@ -15,12 +15,12 @@ import tty
 import numpy as np
 import pytest
 
-from clients.execute import ExecuteOptions, Executor
-from clients.robots.base import PortBusy, PortNotFound, UnsupportedRobot
-from clients.robots.serial_arduinobot import SerialArduinobot, hardware_params
-from clients.segments import SampledTrajectory
 from description import load_description
 from description.packages import SHIPPED_PACKAGE_DIR
+from execution.executor import ExecuteOptions, Executor
+from execution.robots.base import PortBusy, PortNotFound, UnsupportedRobot
+from execution.robots.serial_arduinobot import SerialArduinobot, hardware_params
+from execution.segments import SampledTrajectory
 
 MSG = re.compile(rb"b(\d{3}),s(\d{3}),e(\d{3}),g(\d{3}),")
 DEG = math.pi / 180
