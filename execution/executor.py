@@ -221,7 +221,9 @@ class Executor:
         Raises:
             ExecutionBusy: another execution is running on this executor.
             NotAtStart, InvalidTrajectory: before anything moves.
-            RobotError: the driver failed mid-way (after a stop was attempted).
+            RobotError: the driver failed mid-way (a port unplugged, a write that stalls):
+                its ``details`` add the ``tick``, ``time``, ``phase`` and ``last_commanded``
+                (the setpoint the robot last took, by joint [rad]; the arm holds it).
         """
         if not self._lock.acquire(blocking=False):
             raise ExecutionBusy("the robot is already executing a trajectory")
@@ -258,9 +260,9 @@ class Executor:
             phase = self._playing[0] if self._playing else None
             with self._switch_lock:
                 self._playing, self._switch = None, None
+            held = run.sent if run.sent is not None else now  # none taken: where it was
             e.details.update(tick=run.k, time=run.k * run.dt, phase=phase,
-                             last_commanded=None if run.sent is None else dict(
-                                 zip(names, map(float, run.sent))))
+                             last_commanded=dict(zip(names, map(float, held))))
             log.error("execution aborted at tick %d (%s): %s", run.k, e.code, e.message)
             raise
         except BaseException:

@@ -43,7 +43,7 @@ from execution.joint_states import tick_message
 from execution.report import Tick
 from execution.robots.base import PortError, Robot, RobotError
 from execution.robots.spec import RobotSpec
-from execution.segments import SampledTrajectory
+from execution.segments import SampledTrajectory, check_fits
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
 
@@ -346,6 +346,7 @@ class _Run:
                 if self.req.client is not None:
                     watch = self._watch_client(self.req.client)
                 ex = self._executor()
+                check_fits(traj, svc.description)  # a plan for another robot: refused
                 ex.check_start(traj)  # refuse before telling the client it started
                 svc._running = ex
                 self._reply({"event": "started", "execution": self.execution,
