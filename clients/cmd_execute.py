@@ -290,5 +290,4 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
             done = c.execute(traj, plan=req, start_tolerance=ns.start_tolerance,
                              move_to_start=ns.move_to_start, on_event=on_event,
                              cancel=cancel)
-    assert done.report is not None  # a finished event carries it (ExecutionEvent.parse)
-    return _report(ns, dict(done.report))
+    return _report(ns, dict(done.report or {}))  # a finished event has one (its parse)
