@@ -165,7 +165,10 @@ def _seconds(value: object, field: str) -> float:
 
 
 class Segment(Protocol):
-    joint_names: tuple[str, ...]
+    """A timed motion the executor samples: positions [rad], velocities, accelerations."""
+
+    @property
+    def joint_names(self) -> tuple[str, ...]: ...
 
     @property
     def duration(self) -> float: ...

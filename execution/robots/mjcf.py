@@ -27,7 +27,7 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -88,10 +88,10 @@ def mesh_parts(path: Path, scale: Sequence[float], parts: int, *,
         return np.split(hit["vertices"], np.cumsum(hit["counts"])[:-1])
     if progress is not None:
         progress(f"convex pieces of {Path(path).name} for MuJoCo (first use of this mesh)")
-    m = trimesh.load(path, force="mesh")
+    m = cast("trimesh.Trimesh", trimesh.load(path, force="mesh"))  # force: one mesh
     m.apply_scale(np.asarray(scale, float))
-    pieces = m.convex_decomposition(maxConvexHulls=parts)
-    pieces = pieces if isinstance(pieces, list) else [pieces]
+    got: Any = m.convex_decomposition(maxConvexHulls=parts)  # meshes or vertex dicts
+    pieces = got if isinstance(got, list) else [got]
     out = [_thick(np.asarray(p.vertices if hasattr(p, "vertices") else p["vertices"], float))
            for p in pieces]
     out = [p for p in out if len(p) >= 3]
@@ -118,8 +118,8 @@ def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.nda
     spans a concavity."""
     import trimesh
     from scipy.cluster.vq import kmeans2
-    m = trimesh.load(path, force="mesh")
-    v = np.asarray(m.vertices, float) * np.asarray(scale, float)
+    m = cast("trimesh.Trimesh", trimesh.load(path, force="mesh"))  # force: one mesh
+    v = np.asarray(m.vertices, dtype=float) * np.asarray(scale, dtype=float)
     f = np.asarray(m.faces)
     cen = v[f].mean(axis=1)
     k = max(1, min(parts, len(f)))

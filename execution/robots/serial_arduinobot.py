@@ -128,9 +128,11 @@ class SerialArduinobot(Robot):
 
     realtime_only = True
 
-    def __init__(self, port: str, *, joint_names: Sequence[str], velocity: Sequence[float],
-                 lower: Sequence[float], upper: Sequence[float], rate: float = 100.0,
-                 initial: Sequence[float] | None = None, mimic: MimicMap | None = None,
+    def __init__(self, port: str, *, joint_names: Sequence[str],
+                 velocity: Sequence[float] | np.ndarray, lower: Sequence[float] | np.ndarray,
+                 upper: Sequence[float] | np.ndarray, rate: float = 100.0,
+                 initial: Sequence[float] | np.ndarray | None = None,
+                 mimic: MimicMap | None = None,
                  baud: int = DEFAULT_BAUD, boot_wait: float = 0.0) -> None:
         self.joint_names = tuple(joint_names)
         if len(self.joint_names) != 4:

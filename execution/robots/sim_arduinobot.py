@@ -141,6 +141,11 @@ class SimArduinobot(Robot):
     """
 
     realtime_only = False
+    # the setpoint of the current tick [rad, rad/s, rad/s^2] and its jerk [rad/s^3]
+    _q_ref: np.ndarray
+    _qd_ref: np.ndarray | None
+    _qdd_ref: np.ndarray | None
+    _jerk: np.ndarray | None
 
     def __init__(self, description: Description, *, obstacles: Sequence[Mapping[str, Any]] = (),
                  controllers: Path | None = None, initial: Sequence[float] | None = None,
@@ -324,10 +329,10 @@ class SimArduinobot(Robot):
         q = check_setpoint(positions, self.joint_names, "positions")
         self._mj.mj_resetData(self.model, self.data)
         self._set_positions(q)
-        self._q_ref: np.ndarray = q
-        self._qd_ref: np.ndarray | None = None
-        self._qdd_ref: np.ndarray | None = None
-        self._jerk: np.ndarray | None = None
+        self._q_ref = q
+        self._qd_ref = None
+        self._qdd_ref = None
+        self._jerk = None
         self.data.ctrl[self._act] = servo_ctrl(q, None, self.gains)
         self._peak = np.zeros(len(self.joint_names))
         self._peak_ff = np.zeros(len(self.joint_names))
