@@ -2,7 +2,7 @@
 
 Per scene (bench/_lib/scenes.py: the planning benchmark's scenes and seeded problems), each
 problem is planned with ``MotionPlanner.solve`` (jerk-limited, and time-optimal with
-toppra) and replayed on the twin (clients/robots/sim_arduinobot.py: effort-capped
+toppra) and replayed on the twin (execution/robots/sim_arduinobot.py: effort-capped
 position servos with computed-torque feed-forward, contacts on, the scene's obstacles
 in the world) at 100 Hz, faster than real time. Figures per trajectory: tracking error
 (max |simulated - commanded| while playing), final error after settling, the torque the
@@ -23,13 +23,14 @@ import numpy as np
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from clients.robots.sim_arduinobot import SimArduinobot
-from clients.segments import SampledTrajectory
-from clients.simulate import simulate
 from description import load_description
+from execution.robots.sim_arduinobot import SimArduinobot
+from execution.segments import SampledTrajectory
+from execution.simulate import simulate
 from planner.errors import PlanningError
 from planner.planning.goals import JointGoal
 from planner.planning.pipeline import MotionPlanner, MotionRequest
+from service.disk_cache import DiskCache
 
 ARM = ("joint_1", "joint_2", "joint_3")
 PROFILES = ("jerk_limited", "time_optimal")
@@ -46,7 +47,7 @@ def main(n: int = 8) -> None:
     for scene, obs in SCENES.items():
         w = mp.world(tuple(obs))
         probs = problems(w, n, np.random.default_rng(0))
-        twin = SimArduinobot(d, obstacles=obstacle_dicts(obs))
+        twin = SimArduinobot(d, obstacles=obstacle_dicts(obs), cache=DiskCache())
         per: dict[str, list] = {p: [] for p in PROFILES}
         failed = 0
         for i, (a, b, _) in enumerate(probs):

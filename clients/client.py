@@ -15,17 +15,20 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Mapping, Sequence
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import orjson
 import zenoh
 
+from planner.ranges import RANGES
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
 
 from .balance import LoadBalancer
 from .errors import ServiceBusy, ServiceUnavailable, error_from_reply
+from .remote_execution import ExecutionEvent, cancel_execution, stream
 from .replies import CheckReply, FkReply, IkReply, PlanReply
 
 _log = logging.getLogger(__name__)
@@ -194,6 +197,59 @@ class PlannerClient:
             req["padding"] = padding
         return CheckReply.parse(self.request("check", req))
 
+    # -- moving the service's robot (see clients.remote_execution) -----------------------
+    def execute(self, trajectory: Mapping[str, Any] | None = None, *,
+                plan: Mapping[str, Any] | None = None, start_tolerance: float = 0.01,
+                move_to_start: bool = False,
+                on_event: Callable[[ExecutionEvent], None] | None = None,
+                cancel: threading.Event | None = None) -> ExecutionEvent:
+        """Move the service's robot along ``trajectory`` (a plan reply or ``{joint_names,
+        points}``), or along a plan of ``plan`` (a v1 request; without ``start``, from
+        the robot's state); returns the ``finished`` event with the report.
+
+        Args:
+            on_event: called with each event (started, progress, finished).
+            cancel: set it (from any thread) to stop the arm smoothly; another client
+                can stop it too, with :meth:`cancel_execution` and the execution id.
+
+        Raises:
+            InvalidRequest, InvalidTrajectory, NotAtStart, ServiceBusy (the arm is
+            moving), a robot's coded error (PortError mid-motion: ``details`` hold the
+            last setpoint the arm took), ServiceUnavailable (no reply, or a stream
+            silent for longer than the client's timeout plus the planning time).
+        """
+        if (trajectory is None) == (plan is None):
+            raise TypeError("give exactly one of trajectory and plan")
+        body: dict[str, Any] = {"start_tolerance": start_tolerance,
+                                "move_to_start": move_to_start}
+        if trajectory is not None:
+            body["trajectory"] = dict(trajectory)
+        else:
+            body["plan"] = dict(plan or {})
+        silence = self.timeout + _planning_time(plan)
+        return stream(self.session, self.prefix, body, decode=decode_reply, silence=silence,
+                      on_event=on_event, cancel=cancel)
+
+    def blend(self, plan: Mapping[str, Any]) -> dict[str, Any]:
+        """Blend the goal of ``plan`` into the motion in progress (planned from its state
+        0.8 s ahead): ``{"event": "blended", "execution", "tick", "duration"}``.
+
+        Raises:
+            TooLate: nothing moves, or it stops before the blend could start.
+        """
+        return self.request("execute", {"plan": dict(plan), "blend": True},
+                            timeout=self.timeout + _planning_time(plan))
+
+    def cancel_execution(self, execution: str | None = None) -> str | None:
+        """Stop ``execution`` (its id; None: whatever runs) smoothly, from any client; the
+        id cancelled, or None if it is not running."""
+        return cancel_execution(self.session, self.prefix, execution, decode=decode_reply,
+                                timeout=self.timeout)
+
+    def robot_state(self) -> dict[str, Any]:
+        """The robot's joint state (``{stamp, name, position, velocity, effort}``)."""
+        return self.request("robot_state")
+
     # these three have no response schema: their replies come as they are
     def health(self, *, instance: str | None = None) -> dict[str, Any]:
         return self.request("health", instance=instance)
@@ -207,7 +263,7 @@ class PlannerClient:
 
 def _planning_time(req: object) -> float:
     v = req.get("planning_time", 1.0) if isinstance(req, Mapping) else 1.0
-    return float(v) if isinstance(v, (int, float)) and 0 < v <= 60 else 1.0
+    return float(v) if v in RANGES["planning_time"] else 1.0  # type: ignore[arg-type]
 
 
 def decode_reply(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:

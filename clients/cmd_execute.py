@@ -6,18 +6,23 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import queue
 import signal
 import sys
 import threading
-import uuid
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .argtypes import UsageError, json_object
 from .common import EXIT_OK, add_connection_args, add_model_args, client, connect, load_from_args
+
+if TYPE_CHECKING:  # the executor and the drivers load with the command, not with the CLI
+    from description import Description
+    from execution.robots.mjcf import Progress
+    from execution.robots.spec import RobotSpec
+
+    from .remote_execution import ExecutionEvent
 
 EXIT_CANCELLED = 130
 log = logging.getLogger(__name__)
@@ -30,22 +35,30 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Stream a trajectory to a robot at the controller rate (100 Hz by "
         "default), publishing <prefix>/joint_states while it moves. TRAJ.json is what "
         "`plan --json` writes; --named/--request plan first (through the service, or "
-        "--local), starting from the robot's current state. The robot must be where the "
-        "trajectory begins (--start-tolerance), or --move-to-start moves it there first "
-        "(jerk-limited, a straight line in joint space, not collision-checked). Ctrl-C "
-        "stops the arm smoothly (jerk-limited, within its limits) and exits 130.",
+        "--local), starting from the robot's current state. The robot is FILE's model; "
+        "without FILE, the service's own robot when the service plans, else the shipped "
+        "arduinobot; a trajectory that does not fit it (joints, limits) is refused. The "
+        "robot must be where the trajectory begins (--start-tolerance), or --move-to-start "
+        "moves it there first (jerk-limited, a straight line in joint space, not "
+        "collision-checked). Ctrl-C stops the arm smoothly (jerk-limited, within its "
+        "limits) and exits 130.",
         epilog="examples:\n  arduinobot plan --named reach_left --json traj.json\n"
         "  arduinobot execute traj.json --serial /dev/ttyACM0\n"
         "  arduinobot execute traj.json --sim --fast --no-publish\n"
         "  arduinobot execute --named home --sim --local\n"
+        "  arduinobot execute ~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro "
+        "--named home --group arm_robot --sim --local\n"
         "  arduinobot execute --named reach_left --remote    # on `serve`'s robot")
-    p.add_argument("trajectory", nargs="?", metavar="TRAJ.json",
-                   help="a plan reply (plan --json) or a {joint_names, points} trajectory")
+    p.add_argument("paths", nargs="*", metavar="TRAJ.json|FILE",
+                   help="a plan reply (plan --json) or {joint_names, points} trajectory "
+                   "(.json), and/or the robot's model (a .urdf or .xacro file)")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--named", metavar="NAME", help="plan to a named SRDF state first")
     src.add_argument("--request", metavar="REQ.json", type=json_object,
                      help="plan this v1 request first (without a start, from the robot's "
                      "state)")
+    p.add_argument("--group", metavar="NAME", help="the planning group of --named (a "
+                   "state several groups define, as MoveIt's `home`)")
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--serial", nargs="?", const="", metavar="PORT",
                        help="the real arm on PORT (default: the URDF's ros2_control "
@@ -76,7 +89,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_connection_args(g, timeout_help="seconds to wait for a plan (default 60)",
                         local_help="plan in this process, not through the service")
     p.add_argument("--description", metavar="PATH", dest="description_path",
-                   help="the robot's URDF/xacro (default: the shipped arduinobot)")
+                   help="the robot's URDF/xacro, as FILE (default: see above)")
     add_model_args(p, file_arg=False)
     p.set_defaults(func=cmd_execute)
 
@@ -102,16 +115,31 @@ def _add_robot_args(g: argparse._ArgumentGroup) -> None:
                    "the port opens (default 2)")
 
 
-def robot_spec(ns: argparse.Namespace) -> Any:
-    """The :class:`clients.execute_service.RobotSpec` of the robot options (``serve``'s,
-    or ``execute``'s --serial/--sim)."""
-    from .execute_service import RobotSpec
+def robot_spec(ns: argparse.Namespace, *, progress: Progress | None = None) -> RobotSpec:
+    """The :class:`execution.RobotSpec` of the robot options (``serve``'s, or
+    ``execute``'s --serial/--sim); a twin keeps its mesh pieces in the user's cache
+    (``serve --no-cache``: nowhere) and tells ``progress`` what a first build computes."""
+    from execution.robots.spec import RobotSpec
+    from service.disk_cache import DiskCache
     if getattr(ns, "no_robot", False):
         return RobotSpec(kind="none")
     if getattr(ns, "serial", None) is not None:
         return RobotSpec(kind="serial", port=ns.serial or None, baud=ns.baud, rate=ns.rate,
                          boot_wait=ns.boot_wait)
-    return RobotSpec(kind="sim", rate=ns.rate)
+    cache = None if getattr(ns, "no_cache", False) else DiskCache(getattr(ns, "cache_dir", None))
+    return RobotSpec(kind="sim", rate=ns.rate, cache=cache, progress=progress)
+
+
+def _split_paths(ns: argparse.Namespace) -> None:
+    """TRAJ.json and FILE from the positional paths (a .json is the trajectory)."""
+    trajs = [p for p in ns.paths if p.lower().endswith(".json")]
+    models = [p for p in ns.paths if not p.lower().endswith(".json")]
+    if len(trajs) > 1 or len(models) > 1:
+        raise UsageError("give at most one TRAJ.json and one model FILE (.urdf/.xacro)")
+    ns.trajectory = trajs[0] if trajs else None
+    ns.file = models[0] if models else None
+    if ns.file and ns.description_path:
+        raise UsageError("give the model as FILE or --description, not both")
 
 
 def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
@@ -120,6 +148,7 @@ def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
     Raises:
         UsageError: flags that do not go together.
     """
+    _split_paths(ns)
     if ns.trajectory and (ns.named or ns.request):
         raise UsageError("give TRAJ.json or --named/--request, not both")
     if not (ns.trajectory or ns.named or ns.request):
@@ -128,42 +157,61 @@ def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
         raise UsageError("--fast is for --sim: hardware runs in real time")
     if ns.blend and not (ns.remote and (ns.named or ns.request)):
         raise UsageError("--blend needs --remote and a goal (--named/--request)")
+    if ns.group and not ns.named:
+        raise UsageError("--group goes with --named (a request names its own group)")
+    if ns.remote and (ns.file or ns.description_path):
+        raise UsageError("--remote executes on the service's robot: its model is the "
+                         "service's, not FILE")
     if ns.named:
-        return {"goal": {"named": ns.named}}
+        return {"goal": {"named": ns.named}, **({"group": ns.group} if ns.group else {})}
     return ns.request
+
+
+def _model(ns: argparse.Namespace, planned_by_service: bool) -> Description:
+    """The robot's model: FILE (or --description); without one, the service's own robot
+    when the service plans the motion, else the shipped arduinobot."""
+    if ns.file or ns.description_path or ns.local or not planned_by_service:
+        return load_from_args(ns)
+    from .remote_model import model_of_service
+    with client(ns) as c:
+        return model_of_service(c.description())
 
 
 def cmd_execute(ns: argparse.Namespace) -> int:
     req = _plan_request(ns)
     if ns.remote:
         return _remote(ns, req)
-    from .execute import ExecuteOptions, Executor, plan_start
+    from execution.executor import ExecuteOptions, Executor, plan_start
+    from execution.robots.sim_arduinobot import SimArduinobot
+    from execution.segments import SampledTrajectory, check_fits
+
+    from .remote_model import progress_printer
     from .replies import PlanReply
-    from .segments import SampledTrajectory
-    desc = load_from_args(ns)
+    desc = _model(ns, req is not None)
     with ExitStack() as held:  # the robot and the joint_states session, closed at the end
-        robot = held.enter_context(robot_spec(ns).open(
+        robot = held.enter_context(robot_spec(ns, progress=progress_printer()).open(
             desc, obstacles=(req or {}).get("obstacles", [])))
         if req is not None:
             if "start" not in req:  # plan from where the robot is
                 req["start"] = plan_start(robot, desc)
             with connect(ns, model_drives_robot=True) as service:
-                res = PlanReply.parse(service.request("plan", req))
-            traj = SampledTrajectory.from_json(res.raw)
+                traj = PlanReply.parse(service.request("plan", req)).trajectory
         else:
             traj = SampledTrajectory.load(ns.trajectory)
+        check_fits(traj, desc)
         publish = None if ns.no_publish else _publisher(ns, held)
         cancel = threading.Event()
         opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
                               move_to_start=ns.move_to_start, realtime=ns.realtime)
         ex = Executor.for_description(robot, desc, options=opts, on_tick=publish)
         ex.check_start(traj)
-        print(f"executing {traj.duration:.3f} s on {'the MuJoCo twin' if ns.sim else robot.port}"
-              f" at {ns.rate:g} Hz (Ctrl-C stops smoothly)", file=sys.stderr)
+        where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
+        print(f"executing {traj.duration:.3f} s on {where} of '{desc.robot.name}' at "
+              f"{ns.rate:g} Hz (Ctrl-C stops smoothly)", file=sys.stderr)
         with _sigint_sets(cancel):
             report = ex.execute(traj, cancel=cancel)
         summary = report.to_dict()
-        if ns.sim:
+        if isinstance(robot, SimArduinobot):
             summary["simulation"] = robot.stats().to_dict()
         return _report(ns, summary)
 
@@ -171,8 +219,9 @@ def cmd_execute(ns: argparse.Namespace) -> int:
 def _publisher(ns: argparse.Namespace, held: ExitStack) -> Any:
     """A joint_states publisher on a client session ``held`` closes, or None with a
     warning when no zenoh peer is reachable."""
+    from execution.joint_states import JointStatePublisher
+
     from .errors import ServiceUnavailable
-    from .joint_states import JointStatePublisher
     try:
         c = held.enter_context(client(ns))
     except ServiceUnavailable as e:
@@ -221,55 +270,24 @@ def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
 
 
 def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
-    """Execute on the service's robot: stream its replies; Ctrl-C sends a cancel; our
-    liveliness token tells the service we are still here."""
-    import zenoh
-
-    from .client import decode_reply
-    from .errors import ServiceUnavailable
-    from .segments import read_json
-    if ns.blend:
-        with client(ns) as c:
-            msg = c.request("execute", {"plan": req, "blend": True}, timeout=ns.timeout)
-        print(f"blended into {msg['execution']} at tick {msg['tick']}: the new motion takes "
-              f"{msg['duration']:.3f} s")
-        return EXIT_OK
-    client_id, key, cancel = uuid.uuid4().hex, f"{ns.prefix}/execute", threading.Event()
-    body: dict[str, Any] = {"start_tolerance": ns.start_tolerance,
-                            "move_to_start": ns.move_to_start, "client": client_id}
-    if req is not None:
-        body["plan"] = req
-    else:
-        body["trajectory"] = read_json(ns.trajectory)
+    """Execute on the service's robot through :meth:`PlannerClient.execute`: its events
+    on stderr; Ctrl-C cancels (the arm stops smoothly); a lost client stops the arm."""
+    from execution.segments import read_json
     with client(ns) as c:
-        s = c.session
-        token = s.liveliness().declare_token(f"{key}/client/{client_id}")
-        replies: queue.Queue[Any] = queue.Queue()
-        s.get(key,
-              zenoh.handlers.Callback(replies.put, lambda: replies.put(None)),
-              payload=json.dumps(body), encoding="application/json",
-              consolidation=zenoh.ConsolidationMode.NONE, timeout=ns.timeout + 3600.0)
-        execution = None
-        sent_cancel = False
+        if ns.blend:
+            msg = c.blend(req or {})
+            print(f"blended into {msg['execution']} at tick {msg['tick']}: the new motion "
+                  f"takes {msg['duration']:.3f} s")
+            return EXIT_OK
+
+        def on_event(ev: ExecutionEvent) -> None:
+            if ev.event == "started":
+                print(f"executing {ev.execution}: {ev.duration:.3f} s on the service's "
+                      "robot (Ctrl-C stops smoothly)", file=sys.stderr)
+        cancel = threading.Event()
+        traj = None if req is not None else read_json(ns.trajectory)
         with _sigint_sets(cancel):
-            while True:
-                if cancel.is_set() and execution and not sent_cancel:
-                    print("cancelling: stopping smoothly", file=sys.stderr)
-                    list(s.get(f"{key}/cancel",
-                               payload=json.dumps({"execution": execution}), timeout=5.0))
-                    sent_cancel = True
-                try:
-                    rep = replies.get(timeout=0.1)
-                except queue.Empty:
-                    continue
-                if rep is None:
-                    raise ServiceUnavailable("the service ended the execution without a "
-                                             "report", reason="no_route")
-                msg = decode_reply(rep, key, ns.timeout)
-                if msg.get("event") == "started":
-                    execution = msg["execution"]
-                    print(f"executing {execution}: {msg['duration']:.3f} s on the service's "
-                          "robot (Ctrl-C stops smoothly)", file=sys.stderr)
-                elif msg.get("event") == "finished":
-                    token.undeclare()
-                    return _report(ns, msg["report"])
+            done = c.execute(traj, plan=req, start_tolerance=ns.start_tolerance,
+                             move_to_start=ns.move_to_start, on_event=on_event,
+                             cancel=cancel)
+    return _report(ns, dict(done.report or {}))  # a finished event has one (its parse)

@@ -120,7 +120,7 @@ def cmd_plan(ns: argparse.Namespace) -> int:
         print(summary(res, limits))
     if ns.simulate:
         from .simulate import simulate_command
-        return simulate_command(ns, res, req)
+        return simulate_command(ns, res, req, robot)
     return EXIT_OK
 
 

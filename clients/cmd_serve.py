@@ -78,14 +78,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_serve(ns: argparse.Namespace) -> int:
     import zenoh
 
+    from execution.robots.base import RobotError
+    from service.execution import execute_extension
     from service.pool import PoolStartError
     from service.server import PlannerService, ServeOptions
     from service.worker import DescriptionSpec
     from service.zconfig import DEFAULT_ENDPOINT
 
     from .cmd_execute import robot_spec
-    from .execute_service import execute_extension
-    from .robots.base import RobotError
 
     if ns.file and ns.description_path:
         raise UsageError("give the model as FILE or --description, not both")
@@ -108,7 +108,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         multicast_scouting=ns.multicast_scouting, description=spec,
                         workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout,
                         memory_cap=int(ns.memory_cap * 2**20) if ns.memory_cap > 0 else None,
-                        extensions=(execute_extension(robot_spec(ns)),))
+                        extensions=(execute_extension(robot_spec(
+                            ns, progress=logging.getLogger("service.execution").info)),))
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

@@ -12,12 +12,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from description import Description, DescriptionError, load_description
+from execution.robots.base import RobotError
 from planner.errors import PlanningError
 from service.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX
 
 from .argtypes import JointValues, Mimic, UsageError, joint_map, xacro_arg
 from .errors import ServiceError, ServiceUnavailable
-from .robots.base import RobotError
 
 if TYPE_CHECKING:
     from .client import PlannerClient

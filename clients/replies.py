@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import jsonschema_rs
 import numpy as np
@@ -23,6 +23,9 @@ from planner.timing.trajectory import samples_csv
 from service.wire import field_path, validator
 
 from .errors import MalformedReply
+
+if TYPE_CHECKING:
+    from execution.segments import SampledTrajectory
 
 Reply = Literal["plan", "fk", "ik", "check"]
 
@@ -135,6 +138,14 @@ class PlanReply:
                                 _number(v["min_clearance"]), v["worst_overall"]["quantity"],
                                 float(v["worst_overall"]["ratio"]), _pair(v.get("closest_pair"))),
                    b.get("planner", ""), b["request_id"], b)
+
+    @property
+    def trajectory(self) -> SampledTrajectory:
+        """The samples as a trajectory to execute or replay: built from the arrays parsed
+        above, so a reply is parsed once (the executor takes it as it is)."""
+        from execution.segments import SampledTrajectory  # ruckig: not for a plain plan
+        return SampledTrajectory(self.joint_names, self.times, self.positions,
+                                 self.velocities, self.accelerations)
 
     def to_csv(self) -> str:
         """One row per sample, as the planner writes a trajectory

@@ -1,153 +1,32 @@
-"""``arduinobot plan --simulate``: replay a planned trajectory on the MuJoCo twin.
-
-The twin starts at rest at the trajectory's first point, among the request's obstacles,
-follows the trajectory at the controller rate (faster than real time) and settles; the
-report gives the tracking error, the peak actuator force against the effort limit and
-every contact. Needs mujoco (the ``sim`` extra); the plot needs matplotlib.
-"""
+"""``arduinobot plan --simulate``: replay the plan on the twin of the robot it was planned
+for: the model options' with --local, the service's own (its ``<prefix>/description``)
+otherwise. The replay itself is :func:`execution.simulate.simulate`."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+import argparse
+from collections.abc import Mapping
 from typing import Any
 
-import numpy as np
+from execution.simulate import plot, simulate, summary
 
-from description import Description, load_description
-
-from .argtypes import UsageError
 from .common import load_from_args
-from .execute import ExecuteOptions, Executor
+from .remote_model import disk_cache, model_of_service, progress_printer
 from .replies import PlanReply
-from .segments import SampledTrajectory
 
 
-@dataclass(frozen=True, eq=False)
-class SimulationReport:
-    """The twin's replay of one trajectory.
-
-    Attributes:
-        joint_names: column order.
-        duration: [s] of the trajectory.
-        tracking_error: per joint, max |simulated - commanded| [rad] while it plays.
-        final_error: per joint, |simulated - goal| [rad] after settling.
-        peak_force, peak_need, effort, saturated_steps, steps, contacts, contact_steps:
-            the twin's :class:`~clients.robots.sim_arduinobot.SimStats` of the replay
-            (``peak_need`` is its ``peak_feedforward``) [N m].
-        times (m,) [s], commanded and simulated positions (m, dof) [rad].
-    """
-
-    joint_names: tuple[str, ...]
-    duration: float
-    tracking_error: tuple[float, ...]
-    final_error: tuple[float, ...]
-    peak_force: tuple[float, ...]
-    peak_need: tuple[float, ...]
-    effort: tuple[float, ...]
-    saturated_steps: int
-    steps: int
-    contacts: tuple[tuple[str, str], ...]
-    contact_steps: int
-    times: np.ndarray = field(repr=False)
-    commanded: np.ndarray = field(repr=False)
-    simulated: np.ndarray = field(repr=False)
-
-    @property
-    def force_ratio(self) -> float:
-        """The largest peak actuator force over its limit."""
-        return max(f / e for f, e in zip(self.peak_force, self.effort))
-
-    @property
-    def need_ratio(self) -> float:
-        """The largest torque the trajectory needs over its limit (> 1: more than the
-        motors can give)."""
-        return max(f / e for f, e in zip(self.peak_need, self.effort))
-
-
-def simulate(description: Description, trajectory: SampledTrajectory, *,
-             obstacles: Sequence[Mapping[str, Any]] = (), rate: float = 100.0,
-             settle: float = 0.5, twin: Any = None) -> SimulationReport:
-    """Replay ``trajectory`` on a fresh twin (or ``twin``, a :class:`SimArduinobot` to
-    reuse: it is reset to the trajectory's start) and measure it."""
-    from .robots.sim_arduinobot import SimArduinobot
-    names = description.robot.actuated_joints if twin is None else twin.joint_names
-    positions = trajectory.for_joints(names, np.zeros(len(names))).positions
-    if twin is None:
-        twin = SimArduinobot(description, obstacles=obstacles, initial=positions[0])
-    else:
-        twin.reset(positions[0])
-    ex = Executor.for_description(twin, description, options=ExecuteOptions(
-        rate=rate, realtime=False, settle=settle, settle_velocity=1e-3))
-    rep = ex.execute(trajectory)
-    st = twin.stats()
-    playing = np.array([p == "trajectory" for p in rep.phases])
-    target = np.vstack([rep.q[1:], rep.q[-1:]])  # the state after tick k vs tick k+1's
-    err = np.max(np.abs(rep.measured - target)[playing], axis=0)
-    return SimulationReport(
-        tuple(names), trajectory.duration, tuple(map(float, err)),
-        tuple(map(float, np.abs(rep.measured[-1] - positions[-1]))), st.peak_force,
-        st.peak_feedforward, st.effort,
-        st.saturated_steps, st.steps, st.contacts, st.contact_steps, rep.times, rep.q,
-        rep.measured)
-
-
-def summary(r: SimulationReport) -> str:
-    lines = [f"simulation (MuJoCo twin): {r.duration:.3f} s, {r.steps} physics steps; "
-             f"contacts: " + (", ".join("/".join(p) for p in r.contacts) or "none"),
-             f"{'joint':<10}{'track err':>12}{'final err':>12}{'needs':>12}"
-             f"{'|force| peak':>14}{'limit':>8}"]
-    for i, n in enumerate(r.joint_names):
-        lines.append(f"{n:<10}{1000 * r.tracking_error[i]:>7.3f} mrad"
-                     f"{1000 * r.final_error[i]:>7.3f} mrad{r.peak_need[i]:>8.2f} N m"
-                     f"{r.peak_force[i]:>10.2f} N m{r.effort[i]:>8.1f}")
-    lines.append(f"the trajectory needs {100 * r.need_ratio:.1f}% of the effort limit; the "
-                 f"servos (feedback on top) peak at {100 * r.force_ratio:.1f}%, at the limit "
-                 f"in {r.saturated_steps} of {r.steps} steps")
-    return "\n".join(lines)
-
-
-def plot(r: SimulationReport, out: str) -> None:
-    """Commanded vs simulated positions, and the tracking error, saved to ``out``."""
-    import matplotlib  # cmd_plan checked that it is there
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(9, 7))
-    target = np.vstack([r.commanded[1:], r.commanded[-1:]])
-    t_meas = r.times + (r.times[1] - r.times[0] if len(r.times) > 1 else 0.0)
-    for i, n in enumerate(r.joint_names):
-        line, = a1.plot(r.times, r.commanded[:, i], lw=1.5, label=f"{n} commanded")
-        a1.plot(t_meas, r.simulated[:, i], ls="--", color=line.get_color(), lw=1,
-                label=f"{n} simulated")
-        a2.plot(t_meas, 1000 * (r.simulated[:, i] - target[:, i]), color=line.get_color(),
-                label=n)
-    a1.set_ylabel("position [rad]")
-    a1.legend(fontsize="x-small", ncol=2)
-    a2.set_ylabel("simulated - commanded [mrad]")
-    a2.set_xlabel("time [s]")
-    for a in (a1, a2):
-        a.grid(alpha=0.3)
-    fig.suptitle(f"MuJoCo twin: peak force {100 * r.force_ratio:.0f}% of the effort limit, "
-                 f"contacts: {len(r.contacts)}")
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
-
-
-def simulate_command(ns: Any, res: PlanReply, req: Mapping[str, Any]) -> int:
-    """``plan --simulate``: the twin of the model (--local: the model options; through the
-    service: the shipped arduinobot, which must be the robot the service planned for).
+def simulate_command(ns: argparse.Namespace, res: PlanReply, req: Mapping[str, Any],
+                     robot: Mapping[str, Any]) -> int:
+    """``plan --simulate`` of the plan ``res`` (of request ``req``): on the model options'
+    twin with --local, else on the robot the service serves (``robot``, its
+    ``<prefix>/description`` reply).
 
     Raises:
-        UsageError: the service's robot has joints the local model lacks.
+        TrajectoryMismatch: the plan does not fit the model it is replayed on.
     """
-    desc = load_from_args(ns) if ns.local else load_description()
-    missing = [n for n in res.joint_names if n not in desc.robot.actuated_joints]
-    if missing:
-        raise UsageError(f"--simulate: the service's robot moves {', '.join(missing)}, "
-                         "which the local model lacks; plan with --local and the model "
-                         "options")
-    r = simulate(desc, SampledTrajectory.from_json(res.raw), obstacles=req.get("obstacles", ()))
+    desc = load_from_args(ns) if ns.local else model_of_service(robot)
+    r = simulate(desc, res.trajectory, obstacles=req.get("obstacles", ()), cache=disk_cache(),
+                 progress=progress_printer())
     print(summary(r))
     if ns.plot:
         plot(r, ns.plot)

@@ -2,8 +2,8 @@
 
 The planner's exceptions (:mod:`planner.errors`), the planning service's replies
 (``service/``), its schema (``service/schema/error.json``), the client's exceptions
-(:mod:`clients.errors`) and the execute service's (``clients/execute*.py``,
-``clients/robots/``) all take their codes from :class:`Code`; ``tests/test_codes.py`` fails
+(:mod:`clients.errors`) and execution's (``service/execution.py``, ``execution/``
+with its drivers) all take their codes from :class:`Code`; ``tests/test_codes.py`` fails
 if any of them uses a code not listed here, or if the schema's enum drifts from
 :data:`PLAN_SERVICE_CODES`. It lives in ``planner/``, the lowest layer, so every layer
 can import it.
@@ -38,7 +38,7 @@ class Code(str, Enum):
     # the client's own, never sent: no reply at all, or a code it does not know
     UNAVAILABLE = "UNAVAILABLE"
     UNKNOWN = "UNKNOWN"
-    # the execute service's (clients/execute_service.py) and the robot drivers'
+    # the execute service's (service/execution.py) and execution/'s, drivers included
     NOT_AT_START = "NOT_AT_START"
     TOO_LATE = "TOO_LATE"
     ROBOT_ERROR = "ROBOT_ERROR"

@@ -30,9 +30,13 @@ __all__ = ["MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite",
            "decode", "encode", "field_path", "parse_json", "schema", "validate",
            "validator"]
 
-Kind = Literal["plan", "fk", "ik", "check"]
+Kind = Literal["plan", "fk", "ik", "check", "execute"]
 SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_response",
-                "ik_request", "ik_response", "check_request", "check_response")
+                "ik_request", "ik_response", "check_request", "check_response",
+                "execute_request")
+#: Requests whose element counts are not capped: an execute request carries a whole
+#: trajectory (thousands of points), bounded by the payload cap and read point by point.
+_UNCOUNTED: frozenset[str] = frozenset({"execute"})
 #: Schema keywords whose figure is a cap or a bound: their refusals carry it as
 #: ``details.limit``.
 _LIMIT_KEYWORDS = ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum", "maxItems",
@@ -258,9 +262,10 @@ def _schema_at(name: str, schema_path: list[Any]) -> Any:
 
 
 def decode(kind: Kind, payload: bytes | str) -> dict[str, Any]:
-    """:func:`parse_json` (with the count caps) then :func:`validate`: the whole cheap,
-    description-free check, bounded to a few milliseconds whatever the payload."""
-    return validate(kind, parse_json(payload, counts=True))
+    """:func:`parse_json` (with the count caps, but for an execute request's trajectory)
+    then :func:`validate`: the whole cheap, description-free check, bounded to a few
+    milliseconds whatever the payload."""
+    return validate(kind, parse_json(payload, counts=kind not in _UNCOUNTED))
 
 
 def encode(value: Any, *, finite: bool = False) -> bytes:

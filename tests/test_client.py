@@ -199,6 +199,12 @@ def test_flags_that_do_not_go_together_are_usage_errors(capsys, tmp_path):
         ["execute", str(traj), "--serial", "--fast"], capsys)
     assert "--blend needs --remote" in _usage_error(
         ["execute", "--named", "home", "--sim", "--blend"], capsys)
+    assert "--group goes with --named" in _usage_error(
+        ["execute", str(traj), "--sim", "--group", "arm"], capsys)
+    assert "its model is the service's, not FILE" in _usage_error(
+        ["execute", "my.urdf", "--named", "home", "--remote"], capsys)
+    assert "at most one TRAJ.json and one model FILE" in _usage_error(
+        ["execute", "a.urdf", "b.xacro", "--named", "home", "--sim"], capsys)
     assert "give a goal: --goal, --named" in _usage_error(["plan", "--local"], capsys)
     assert "--package-dir" in _usage_error(["plan", "--named", "home", "--package-dir",
                                             str(tmp_path)], capsys)

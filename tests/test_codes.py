@@ -99,7 +99,8 @@ def test_planner_error_reaches_the_client_as_its_class() -> None:
 
 
 def test_every_code_string_in_service_and_clients_is_registered() -> None:
-    found = {**_code_like_strings("service"), **_code_like_strings("clients")}
+    found = {**_code_like_strings("service"), **_code_like_strings("clients"),
+             **_code_like_strings("execution")}
     unknown = {s: where for s, where in found.items()
                if s not in NOT_CODES and s not in set(Code)}
     assert not unknown, f"codes not in planner/codes.py (add them there): {unknown}"

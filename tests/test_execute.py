@@ -14,12 +14,16 @@ import time
 import numpy as np
 import pytest
 
-from clients.execute import ExecuteOptions, Executor, NotAtStart
-from clients.robots.sim_arduinobot import SimArduinobot
-from clients.segments import SampledTrajectory
 from description import load_description
+from execution.executor import ExecuteOptions, Executor, NotAtStart
+from execution.robots.sim_arduinobot import SimArduinobot
+from execution.segments import SampledTrajectory
+from service.disk_cache import DiskCache
 
 from .conftest import REPO, start_server
+
+#: the twin's mesh pieces, computed once per machine as the command line keeps them
+CACHE = DiskCache()
 
 
 @pytest.fixture(scope="module")
@@ -34,6 +38,16 @@ def planned(desc):
     mp = MotionPlanner(desc)
     return {name: mp.solve(MotionRequest(goal=NamedGoal(name), seed=11)).trajectory
             for name in ("reach_left", "reach_forward")}
+
+
+def wait_until(pred, timeout: float = 30.0, what: str = "condition"):
+    """Poll ``pred()`` until it holds (returns its value); the timeout only bounds a
+    failure, it synchronises nothing."""
+    end = time.monotonic() + timeout
+    while not (got := pred()):
+        assert time.monotonic() < end, f"{what} never held"
+        time.sleep(0.005)
+    return got
 
 
 def _body(traj):
@@ -52,7 +66,7 @@ def check_within_limits(report, lim, tol=1e-9):
 def test_cancel_stops_at_rest_within_a_second_and_the_limits(desc, planned, at):
     traj = planned["reach_left"]
     cancel = threading.Event()
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
 
     def on_tick(tick):
         if tick.phase == "trajectory" and tick.trajectory_time >= traj.duration * at:
@@ -92,7 +106,7 @@ def test_cancel_stops_at_rest_within_a_second_and_the_limits(desc, planned, at):
 
 def test_refuses_a_start_elsewhere_and_moves_there_on_request(desc, planned):
     traj = SampledTrajectory.from_json(_body(planned["reach_forward"]))
-    sim = SimArduinobot(desc, initial=[0.5, 0.2, -0.3, 0.0])
+    sim = SimArduinobot(desc, cache=CACHE, initial=[0.5, 0.2, -0.3, 0.0])
     ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False))
     with pytest.raises(NotAtStart, match="move-to-start") as e:
         ex.execute(traj)
@@ -207,7 +221,9 @@ def test_cancel_through_serve_and_execute(served, tmp_path):
         assert rep["outcome"] == "cancelled"
         assert rep["stop_time"] < 1.0
         assert all(v <= 1 + 1e-6 for v in rep["peak_ratio"].values()), rep["peak_ratio"]
-        time.sleep(0.3)
+        # the stop's states at rest have arrived (the stream's, not a guessed delay)
+        wait_until(lambda: _at_rest(lis.msgs, t_cancel) is not None
+                   and lis.msgs[-1][1]["phase"] in ("stop", "settle"), what="rest")
         rest = _at_rest(lis.msgs, t_cancel)
         assert rest is not None, lis.msgs[-3:]
         # on the robot's own clock (the stamps, not this busy machine's wall clock): at
@@ -235,7 +251,9 @@ def test_a_lost_client_stops_the_arm(served):
         proc.kill()  # no cancel sent: only its liveliness token disappears
         proc.wait(10)
         lis.wait(lambda m: m["phase"] == "stop", timeout=5)
-        time.sleep(1.5)
+        # the stop runs to rest on the robot's own clock: wait for its at-rest states
+        wait_until(lambda: _at_rest(lis.msgs, t_kill) is not None
+                   and lis.msgs[-1][1]["phase"] in ("stop", "settle"), what="rest")
         rest = _at_rest(lis.msgs, t_kill)
         assert rest is not None, [(round(t - t_kill, 3), m["phase"], m["velocity"])
                                   for t, m in lis.msgs[-5:]]
@@ -301,7 +319,7 @@ def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
     from planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     first = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=11)).trajectory
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
     done = []
 
     def on_tick(tick):
@@ -352,12 +370,63 @@ def test_the_viewer_follows_a_running_execute(served, desc):
         proc = _execute(served.endpoint, "--named", "reach_forward")
         stdout, stderr = proc.communicate(timeout=60)
         assert proc.returncode == 0, stderr
-        time.sleep(0.3)
-        elapsed = time.monotonic() - t0
         goal = desc.srdf.named_state("reach_forward").values
-        assert viewer.q[:3] == pytest.approx([goal[n] for n in viewer.joint_names[:3]],
-                                             abs=2e-3)
+        want = np.array([goal[n] for n in viewer.joint_names[:3]])
+        wait_until(lambda: np.abs(np.asarray(viewer.q[:3]) - want).max() <= 2e-3,
+                   what="the viewer at the goal")
+        elapsed = time.monotonic() - t0
         assert 5 <= follower.shown <= 30 * elapsed + 1  # throttled to 30 Hz
     finally:
         follower.close()
         viewer.close()
+
+
+# -- the service's robot through the Python client ---------------------------------------
+SLOW_PLAN = {"goal": {"named": "reach_left"}, "velocity_scaling": 0.05,
+             "acceleration_scaling": 0.05, "seed": 5}
+
+
+def test_a_second_execute_while_moving_is_busy_and_another_client_cancels_it(served):
+    from clients.client import PlannerClient
+    from clients.errors import ServiceBusy
+
+    events, outcome = [], {}
+    started = threading.Event()
+
+    def on_event(ev):
+        events.append(ev)
+        if ev.event == "started":
+            started.set()
+
+    def run():
+        with PlannerClient(served.endpoint, timeout=30) as c1:
+            try:
+                outcome["done"] = c1.execute(plan=SLOW_PLAN, on_event=on_event)
+            except Exception as e:  # noqa: BLE001 -- asserted below
+                outcome["error"] = e
+    t = threading.Thread(target=run)
+    t.start()
+    try:
+        assert started.wait(60), outcome
+        execution = events[0].execution
+        with PlannerClient(served.endpoint, timeout=30) as c2:
+            # the arm is moving: a second execution is refused, naming the running one
+            with pytest.raises(ServiceBusy) as e:
+                c2.execute(plan={"goal": {"named": "home"}})
+            assert e.value.details["execution"] == execution
+            wait_until(lambda: any(ev.event == "progress" for ev in events),
+                       what="a progress event")
+            # another client stops it by its id; a wrong id stops nothing
+            assert c2.cancel_execution("x999") is None
+            assert c2.cancel_execution(execution) == execution
+    finally:
+        t.join(60)
+    assert "error" not in outcome, outcome
+    done = outcome["done"]
+    assert done.event == "finished" and done.execution == execution
+    assert done.report["outcome"] == "cancelled" and done.report["stop_time"] < 1.0
+    kinds = [ev.event for ev in events]
+    assert kinds[0] == "started" and kinds[-1] == "finished" and "progress" in kinds
+    # the arm is free again: the next execution runs to its end
+    with PlannerClient(served.endpoint, timeout=30) as c:
+        assert c.execute(plan={"goal": {"named": "home"}}).report["outcome"] == "completed"

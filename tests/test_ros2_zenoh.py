@@ -24,9 +24,9 @@ import zenoh_ros2_sdk as sdk
 from rosbags.typesys import Stores, get_typestore
 from zenoh_ros2_sdk import message_registry
 
-from clients.execution_report import Tick
-from clients.robots.base import JointState as RobotJointState
 from description.loader import load_description
+from execution.report import Tick
+from execution.robots.base import JointState as RobotJointState
 from ros2 import (
     Attachment,
     EntityClosed,

@@ -253,3 +253,51 @@ def test_parse_json_caps_counts_only_when_asked():
     assert e.value.details["cap"] == "MAX_ITEMS"
     with pytest.raises(InvalidRequest, match="deeper"):
         wire.parse_json("[" * (caps.MAX_DEPTH + 1) + "]" * (caps.MAX_DEPTH + 1))
+
+
+# -- execute requests: the same wire path (decode -> schema) -----------------------------
+def test_minimal_and_full_execute_requests_pass_and_round_trip():
+    point = {"positions": [0.1] * 4, "velocities": [0.0] * 4, "time_from_start": 0.0}
+    traj = {"trajectory": {"joint_names": ["joint_1", "joint_2", "joint_3", "joint_4"],
+                           "points": [point] * 700}}  # more values than a plan may hold
+    for body in ({"plan": {"goal": {"named": "home"}}}, {"trajectory": traj},
+                 {"trajectory": traj, "start_tolerance": 0.05, "move_to_start": True,
+                  "client": "a1b2c3"},
+                 {"plan": {"goal": {"named": "home"}}, "blend": True, "start_tolerance": 1}):
+        assert wire.decode("execute", wire.encode(body)) == body
+        assert wire.decode("execute", json.dumps(body)) == body
+
+
+@pytest.mark.parametrize("payload, field", [
+    ('{"plan": {}, "speed": 1}', "speed"),
+    ('{"plan": {}, "start_tolerance": 0}', "start_tolerance"),
+    ('{"plan": {}, "start_tolerance": 1.5}', "start_tolerance"),
+    ('{"plan": {}, "start_tolerance": "0.1"}', "start_tolerance"),
+    ('{"plan": {}, "move_to_start": 1}', "move_to_start"),
+    ('{"plan": {}, "blend": "yes"}', "blend"),
+    ('{"plan": {}, "client": "not/alnum"}', "client"),
+    ('{"plan": {}, "client": ""}', "client"),
+    ('{"plan": []}', "plan"),
+    ('{"trajectory": "traj.json"}', "trajectory"),
+])
+def test_execute_refusals_name_the_field(payload, field):
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("execute", payload)
+    assert e.value.details["field"] == field
+
+
+@pytest.mark.parametrize("payload", ['{}', '{"plan": {}, "trajectory": {}}',
+                                     '{"start_tolerance": 0.1}'])
+def test_an_execute_request_needs_exactly_one_of_trajectory_and_plan(payload):
+    with pytest.raises(InvalidRequest, match=r"\{trajectory\}, \{plan\}"):
+        wire.decode("execute", payload)
+
+
+def test_the_execute_request_schema_is_published_and_its_ranges_are_the_services():
+    from service.execution import DEFAULT_START_TOLERANCE
+    s = wire.schema("execute_request")
+    assert "execute_request" in wire.all_schemas()
+    tol = s["properties"]["start_tolerance"]
+    assert tol["default"] == DEFAULT_START_TOLERANCE
+    assert s["properties"]["client"]["maxLength"] <= caps.MAX_NAME
+    assert str(wire.MAX_PAYLOAD // 1024) in s["description"]

@@ -15,12 +15,12 @@ import tty
 import numpy as np
 import pytest
 
-from clients.execute import ExecuteOptions, Executor
-from clients.robots.base import PortBusy, PortNotFound, UnsupportedRobot
-from clients.robots.serial_arduinobot import SerialArduinobot, hardware_params
-from clients.segments import SampledTrajectory
 from description import load_description
 from description.packages import SHIPPED_PACKAGE_DIR
+from execution.executor import ExecuteOptions, Executor
+from execution.robots.base import PortBusy, PortError, PortNotFound, UnsupportedRobot
+from execution.robots.serial_arduinobot import SerialArduinobot, hardware_params
+from execution.segments import SampledTrajectory
 
 MSG = re.compile(rb"b(\d{3}),s(\d{3}),e(\d{3}),g(\d{3}),")
 DEG = math.pi / 180
@@ -52,6 +52,7 @@ class PtyReader:
         tty.setraw(self.slave)
         self.path = os.ttyname(self.slave)
         self.chunks: list[tuple[float, bytes]] = []
+        self._eof = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -60,14 +61,40 @@ class PtyReader:
         while not self._stop.is_set():
             r, _, _ = select.select([self.master], [], [], 0.02)
             if r:
-                self.chunks.append((time.monotonic(), os.read(self.master, 4096)))
+                try:
+                    data = os.read(self.master, 4096)
+                except OSError:  # EIO: every slave end closed and the buffer drained
+                    data = b""
+                if not data:
+                    self._eof.set()
+                    return
+                self.chunks.append((time.monotonic(), data))
 
-    def close(self) -> list[tuple[float, bytes]]:
-        time.sleep(0.1)
+    def received(self) -> int:
+        """Messages received so far."""
+        return len(MSG.findall(b"".join(c for _, c in list(self.chunks))))
+
+    def wait_for(self, n: int, timeout: float = 60.0) -> None:
+        """Until ``n`` messages have arrived (a condition, not a time)."""
+        end = time.monotonic() + timeout
+        while self.received() < n:
+            assert time.monotonic() < end, f"only {self.received()} messages arrived"
+            time.sleep(0.005)
+
+    def unplug(self) -> None:
+        """The USB cable pulled mid-motion: the far end and the device node vanish."""
         self._stop.set()
         self._thread.join()
         os.close(self.master)
         os.close(self.slave)
+
+    def close(self) -> list[tuple[float, bytes]]:
+        """Every chunk the driver wrote: read to the end (the driver closed its side, so
+        the master reads EIO once drained)."""
+        os.close(self.slave)
+        assert self._eof.wait(30), "the port is still held open"
+        self._thread.join()
+        os.close(self.master)
         return self.chunks
 
 
@@ -84,6 +111,17 @@ def messages(chunks):
         t = chunks[int(np.searchsorted(ends, m.end() - 1, side="right"))][0]
         out.append((t, tuple(int(x) for x in m.groups()), m.group(0)))
     return out
+
+
+class StampedSerial(SerialArduinobot):
+    """The driver, noting when (its monotonic clock) it was told to send each message:
+    the executor's tick time, before the write itself takes its time."""
+
+    def command(self, positions, velocities=None, accelerations=None, *, jerks=None):
+        before, told = self._last, time.monotonic()
+        super().command(positions, velocities, accelerations, jerks=jerks)
+        if self._last != before:
+            self.writes = [*getattr(self, "writes", []), (told, self._last)]
 
 
 @pytest.fixture(scope="module")
@@ -104,7 +142,7 @@ def test_bytes_on_the_tty_follow_the_plan_tick_by_tick(desc, planned):
     body = {"trajectory": planned.to_dict()}  # what plan --json writes
     traj = SampledTrajectory.from_json(body)
     pty = PtyReader()
-    with SerialArduinobot.from_description(desc, pty.path, rate=100.0) as robot:
+    with StampedSerial.from_description(desc, pty.path, rate=100.0) as robot:
         report = Executor.for_description(robot, desc, options=ExecuteOptions(
             rate=100.0)).execute(traj)
     msgs = messages(pty.close())
@@ -137,10 +175,13 @@ def test_bytes_on_the_tty_follow_the_plan_tick_by_tick(desc, planned):
         worst = max(worst, float(err.max()))
     assert worst < 1 * DEG, f"worst {worst / DEG:.3f} deg"
 
-    # the stream lasts the trajectory: arrivals 10 ms apart per tick, +- scheduling
-    span = msgs[-1][0] - msgs[0][0]
+    # paced: on the driver's own clock, no message goes out before its tick's time (the
+    # first may be late by at most what the executor measured): unpaced would be ~0
+    writes = robot.writes
+    assert [a for _, a in writes] == expected
+    span = writes[-1][0] - writes[0][0]
     due_span = (sent_at[-1] - sent_at[0]) / 100
-    assert abs(span - due_span) < 0.06, (span, due_span)  # paced: unpaced would be ~0
+    assert span >= due_span - report.max_lateness, (span, due_span, report.max_lateness)
     assert abs(report.duration - planned.duration) <= 0.01 + 1e-9
     assert report.outcome == "completed"
     print(f"\n{len(msgs)} messages over {span:.3f} s (due {due_span:.3f} s), trajectory "
@@ -266,3 +307,127 @@ def test_serve_drives_the_real_arm_on_its_port(tmp_path):
     msgs = messages(pty.close())
     assert msgs[0][1] == angles([0, 0, 0, 0])
     assert msgs[-1][1] == angles([0.0, 0.8, 0.6, 0.0])  # reach_forward
+
+
+# -- faults the real arm has -------------------------------------------------------------
+def _slow(planned):
+    """The plan stretched to 4x its duration: long enough to fail in the middle of."""
+    return SampledTrajectory(planned.joint_names, planned.times * 4, planned.positions,
+                             planned.velocities / 4, planned.accelerations / 16)
+
+
+def test_the_port_vanishing_mid_motion_stops_with_the_last_setpoint(desc, planned):
+    traj = _slow(SampledTrajectory.from_json({"trajectory": planned.to_dict()}))
+    pty = PtyReader()
+    robot = SerialArduinobot.from_description(desc, pty.path, rate=100.0)
+    ex = Executor.for_description(robot, desc, options=ExecuteOptions(rate=100.0))
+    failed: list[PortError] = []
+
+    def run() -> None:
+        with pytest.raises(PortError) as e:
+            ex.execute(traj)
+        failed.append(e.value)
+    t = threading.Thread(target=run)
+    t.start()
+    pty.wait_for(20)  # mid-motion
+    pty.unplug()
+    t.join(30)
+    assert not t.is_alive() and failed
+    err = failed[0]
+    assert err.code == "PORT_ERROR" and "unplugged" in err.message
+    d = err.details
+    assert d["port"] == pty.path and d["stalled"] is False
+    assert 20 <= d["tick"] < math.ceil(traj.duration * 100)
+    assert d["phase"] == "trajectory"
+    # the last setpoint the arm took is the driver's state: nothing after it counts
+    last = np.array([d["last_commanded"][n] for n in robot.joint_names])
+    assert last == pytest.approx(robot.state().actuated(robot.joint_names), abs=1e-12)
+    assert angles(last) == messages(pty.chunks)[-1][1]  # the last message on the wire
+    with pytest.raises(PortError):  # the port stays dead: a new angle cannot go out
+        robot.command(last + np.array([0.05, 0.0, 0.0, 0.0]))
+    robot.close()
+
+
+def test_a_write_that_stalls_is_a_coded_failure(desc, planned):
+    traj = SampledTrajectory.from_json({"trajectory": planned.to_dict()})
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    # the arm stopped reading: its input buffer is full, so the next write blocks
+    filler = os.open(path, os.O_WRONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    for chunk in (4096, 1):  # to the last byte: a 20-byte message cannot go in
+        try:
+            while True:
+                os.write(filler, b"x" * chunk)
+        except BlockingIOError:
+            pass
+    try:
+        with SerialArduinobot.from_description(desc, path, rate=100.0) as robot:
+            start = robot.state().actuated(robot.joint_names)
+            ex = Executor.for_description(robot, desc, options=ExecuteOptions(rate=100.0))
+            with pytest.raises(PortError) as e:
+                ex.execute(traj)
+            d = e.value.details
+            assert d["stalled"] is True and "stalled" in e.value.message
+            assert d["tick"] == 0 and d["last_sent"] is None
+            # nothing went through: the arm holds where it was
+            assert [d["last_commanded"][n] for n in robot.joint_names] == \
+                pytest.approx(start.tolist())
+    finally:
+        for fd in (filler, slave, master):
+            os.close(fd)
+
+
+def test_a_port_that_never_opens_is_a_coded_failure(desc):
+    import fcntl
+    import struct
+    master, slave = os.openpty()
+    path = os.ttyname(slave)
+    os.close(slave)
+    # the device node is there, but the device refuses every open (EIO), as a board
+    # that enumerates and then hangs: the pty's slave locked (TIOCSPTLCK)
+    fcntl.ioctl(master, 0x40045431, struct.pack("i", 1))
+    try:
+        assert os.path.exists(path)
+        with pytest.raises(PortError, match="cannot open serial port") as e:
+            SerialArduinobot.from_description(desc, path)
+        assert e.value.code == "PORT_ERROR" and e.value.details["port"] == path
+    finally:
+        os.close(master)
+
+
+def test_the_service_keeps_serving_after_the_arm_is_unplugged(planned):
+    from clients.client import PlannerClient
+    from clients.errors import ServiceError
+
+    from .conftest import start_server
+    pty = PtyReader()
+    srv = start_server(["--workers", "1", "--serial", pty.path, "--boot-wait", "0"])
+    try:
+        with PlannerClient(srv.endpoint, timeout=30) as c:
+            failed: list[ServiceError] = []
+
+            def run() -> None:
+                with pytest.raises(ServiceError) as e:
+                    c.execute(plan={"goal": {"named": "reach_forward"},
+                                    "velocity_scaling": 0.2, "acceleration_scaling": 0.2})
+                failed.append(e.value)
+            t = threading.Thread(target=run)
+            t.start()
+            pty.wait_for(20)
+            pty.unplug()
+            t.join(60)
+            assert failed and failed[0].code == "PORT_ERROR", failed
+            d = failed[0].details
+            assert set(d["last_commanded"]) == {"joint_1", "joint_2", "joint_3", "joint_4"}
+            assert d["tick"] >= 20 and d["phase"] == "trajectory"
+            # planning goes on; the arm is gone: asking for it is a coded refusal, and
+            # the service still answers afterwards
+            assert c.plan(goal={"named": "reach_right"}).duration > 0
+            with pytest.raises(ServiceError) as e:
+                c.robot_state()
+            assert e.value.code == "PORT_NOT_FOUND" and pty.path in e.value.message
+            assert c.health()["instance"] == srv.instance
+            assert c.plan(goal={"named": "reach_left"}).duration > 0
+    finally:
+        srv.stop()

@@ -8,11 +8,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from clients.execute import ExecuteOptions, Executor
-from clients.robots.mjcf import Gains
-from clients.robots.sim_arduinobot import SimArduinobot
-from clients.segments import SampledTrajectory
 from description import load_description
+from execution.executor import ExecuteOptions, Executor
+from execution.robots.mjcf import Gains
+from execution.robots.sim_arduinobot import SimArduinobot
+from execution.segments import SampledTrajectory
+from service.disk_cache import DiskCache
+
+#: the twin's mesh pieces, computed once per machine as the command line keeps them
+CACHE = DiskCache()
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +37,7 @@ def plan(planner, name, seed=5, **kw):
 
 
 def test_the_model_is_the_description(desc):
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
     m = sim.model
     robot = desc.robot
     for name in robot.actuated_joints + robot.mimic_joints:
@@ -63,7 +67,7 @@ def test_the_model_is_the_description(desc):
 
 
 def test_mimic_follows_and_servos_hold_against_gravity(desc):
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
     q = np.array([0.4, 0.6, -0.5, -1.0])
     for k in range(1, 201):  # a slow ramp over 2 s, then 1 s of holding
         sim.command(q * min(1.0, k / 100))
@@ -84,7 +88,7 @@ def test_mimic_follows_and_servos_hold_against_gravity(desc):
 def test_a_plan_replays_within_its_limits(desc, planner, goal):
     traj = plan(planner, goal)
     body = {"trajectory": traj.to_dict()}
-    sim = SimArduinobot(desc)
+    sim = SimArduinobot(desc, cache=CACHE)
     rep = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False)).execute(
         SampledTrajectory.from_json(body))
     st = sim.stats()
@@ -110,7 +114,7 @@ def test_contacts_with_an_obstacle_are_reported(desc, planner):
     kin = Kinematics(desc.robot)
     xyz = kin.link_poses(tip)[kin.link_index["claw_support"]][:3, 3]
     ball = {"id": "ball", "shape": "sphere", "radius": 0.15, "xyz": [float(v) for v in xyz]}
-    sim = SimArduinobot(desc, obstacles=[ball])
+    sim = SimArduinobot(desc, cache=CACHE, obstacles=[ball])
     Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False)).execute(
         SampledTrajectory.from_json({"trajectory": traj.to_dict()}))
     st = sim.stats()
@@ -127,7 +131,7 @@ def test_gains_come_from_the_controllers_yaml(desc, tmp_path):
                  "gripper_controller:\n  ros__parameters:\n    joints: [joint_4]\n"
                  "    command_interfaces: [position]\n"
                  "    gains:\n      joint_4: {p: 1.0, d: 0.1}\n")
-    sim = SimArduinobot(desc, controllers=y)
+    sim = SimArduinobot(desc, cache=CACHE, controllers=y)
     assert sim.gains[0] == Gains(800.0, 12.5)
     assert sim.gains[1] == Gains(900.0, 0.0)
     assert "default" in sim.gain_source["joint_3"]
@@ -138,7 +142,7 @@ def test_gains_come_from_the_controllers_yaml(desc, tmp_path):
 
 
 def test_default_servo_bandwidth(desc):
-    sim = SimArduinobot(desc, bandwidth=10.0)
+    sim = SimArduinobot(desc, cache=CACHE, bandwidth=10.0)
     full = np.zeros((sim.model.nv, sim.model.nv))
     mujoco.mj_fullM(sim.model, sim.data, full)
     w = 2 * math.pi * 10.0
@@ -166,12 +170,12 @@ def test_the_course_workspace_twin_and_port(course_ws):
     """The course's own packages: its controllers yaml (position-commanded, so its PID
     gains do not apply) is found, the twin holds the arm, and the serial port comes from
     the real-robot ros2_control block."""
-    from clients.robots.base import PortNotFound
-    from clients.robots.serial_arduinobot import SerialArduinobot
-    from clients.robots.sim_arduinobot import find_controllers_yaml
+    from execution.robots.base import PortNotFound
+    from execution.robots.serial_arduinobot import SerialArduinobot
+    from execution.robots.sim_arduinobot import find_controllers_yaml
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src])
     assert find_controllers_yaml(d).name == "arduinobot_controllers.yaml"
-    sim = SimArduinobot(d)
+    sim = SimArduinobot(d, cache=CACHE)
     assert all("default" in sim.gain_source[n] for n in sim.joint_names)
     for _ in range(100):
         sim.command([0.0] * len(sim.joint_names))
@@ -190,8 +194,8 @@ def test_the_course_workspace_twin_and_port(course_ws):
 def test_convex_pieces_are_cached_and_cover_the_mesh(tmp_path):
     import trimesh
 
-    from clients.robots.mjcf import cluster_parts, mesh_parts
     from description.packages import SHIPPED_PACKAGE_DIR
+    from execution.robots.mjcf import cluster_parts, mesh_parts
     from service.disk_cache import DiskCache
     path = SHIPPED_PACKAGE_DIR / "meshes" / "right_finger.STL"
     cache = DiskCache(tmp_path)

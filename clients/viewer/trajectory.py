@@ -64,7 +64,7 @@ class PlaybackTrajectory:
     @classmethod
     def from_json(cls, data: object) -> PlaybackTrajectory:
         """From `arduinobot plan --json` output or the trajectory object itself
-        (:func:`~clients.segments.parse_trajectory`); an optional column that
+        (:func:`~execution.segments.parse_trajectory`); an optional column that
         some point lacks is left out.
 
         Raises:

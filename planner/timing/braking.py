@@ -1,7 +1,7 @@
 """Braking a moving arm to rest with ruckig, within the effort limits.
 
 One mechanism for the planner's moving start (:mod:`planner.planning.moving_start`) and the
-clients' stops of a running execution (:mod:`clients.stops`): ruckig's time-optimal,
+clients' stops of a running execution (:mod:`execution.stops`): ruckig's time-optimal,
 jerk-limited brake, every joint on its own (the velocity interface), all reaching rest
 together; and the search for the largest acceleration and jerk scale whose torques fit
 the effort limits, because a heavy arm brakes by its motors' strength, not by its

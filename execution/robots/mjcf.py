@@ -24,15 +24,18 @@ The servo force is ``kp (q_ref - q) + kv (qd_ref - qd)``, clamped to +-effort: a
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from description.model import Robot, Shape, rpy_matrix
 from planner.cache import ArtifactCache, content_key
+
+#: told what is being built, for a user waiting on a first twin: ``progress(message)``
+Progress = Callable[[str], None]
 
 TIMESTEP = 0.001  # [s]
 COLLISION_PARTS = 32  # convex pieces per collision mesh (at most)
@@ -62,36 +65,39 @@ def _esc(name: str) -> str:
 
 
 def mesh_parts(path: Path, scale: Sequence[float], parts: int, *,
-               cache: ArtifactCache | None = None) -> list[np.ndarray]:
+               cache: ArtifactCache | None = None,
+               progress: Progress | None = None) -> list[np.ndarray]:
     """A mesh as up to ``parts`` convex pieces for MuJoCo, which collides convex hulls:
     each piece's vertices [m], shape (k_i, 3).
 
     V-HACD's approximate convex decomposition (``vhacdx``, trimesh's backend) when it is
     installed: its hulls follow the surface within its tolerance. It takes seconds per
-    mesh, so the pieces are kept in ``cache`` (default: the service's disk cache) keyed
-    by the mesh's bytes and scale. Without it, :func:`cluster_parts`."""
+    mesh, so the pieces are kept in ``cache`` (the caller's: the command line and the
+    service pass their disk cache; None computes them afresh) keyed by the mesh's bytes
+    and scale. Without V-HACD, :func:`cluster_parts`. ``progress`` hears of each mesh
+    decomposed afresh (seconds each: a first twin of a new model takes a while)."""
     import trimesh
     try:
         import vhacdx  # noqa: F401 -- trimesh's decomposition backend
     except ImportError:
         return cluster_parts(path, scale, parts)
-    if cache is None:
-        from service.disk_cache import DiskCache
-        cache = DiskCache()
     key = content_key([Path(path).read_bytes(), np.asarray(scale, float),
                        f"vhacd:{parts}:v1"])
-    hit = cache.load("mujoco_hulls", key)
+    hit = None if cache is None else cache.load("mujoco_hulls", key)
     if hit is not None:
         return np.split(hit["vertices"], np.cumsum(hit["counts"])[:-1])
-    m = trimesh.load(path, force="mesh")
+    if progress is not None:
+        progress(f"convex pieces of {Path(path).name} for MuJoCo (first use of this mesh)")
+    m = cast("trimesh.Trimesh", trimesh.load(path, force="mesh"))  # force: one mesh
     m.apply_scale(np.asarray(scale, float))
-    pieces = m.convex_decomposition(maxConvexHulls=parts)
-    pieces = pieces if isinstance(pieces, list) else [pieces]
+    got: Any = m.convex_decomposition(maxConvexHulls=parts)  # meshes or vertex dicts
+    pieces = got if isinstance(got, list) else [got]
     out = [_thick(np.asarray(p.vertices if hasattr(p, "vertices") else p["vertices"], float))
            for p in pieces]
     out = [p for p in out if len(p) >= 3]
-    cache.store("mujoco_hulls", key, {"vertices": np.vstack(out),
-                                      "counts": np.array([len(p) for p in out])})
+    if cache is not None:
+        cache.store("mujoco_hulls", key, {"vertices": np.vstack(out),
+                                          "counts": np.array([len(p) for p in out])})
     return out
 
 
@@ -112,8 +118,8 @@ def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.nda
     spans a concavity."""
     import trimesh
     from scipy.cluster.vq import kmeans2
-    m = trimesh.load(path, force="mesh")
-    v = np.asarray(m.vertices, float) * np.asarray(scale, float)
+    m = cast("trimesh.Trimesh", trimesh.load(path, force="mesh"))  # force: one mesh
+    v = np.asarray(m.vertices, dtype=float) * np.asarray(scale, dtype=float)
     f = np.asarray(m.faces)
     cen = v[f].mean(axis=1)
     k = max(1, min(parts, len(f)))
@@ -126,7 +132,8 @@ def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.nda
     return [_thick(v[idx]) for idx in groups if len(idx) >= 3]
 
 
-def _geom(shape: Shape, name: str, assets: list[str]) -> str | None:
+def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | None,
+          progress: Progress | None) -> str | None:
     """A collision shape as contact geoms (a mesh as :data:`COLLISION_PARTS` pieces)."""
     g = shape.geometry
     pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
@@ -135,7 +142,8 @@ def _geom(shape: Shape, name: str, assets: list[str]) -> str | None:
         if g.path is None:
             return None
         out = []
-        for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS)):
+        for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS,
+                                               cache=cache, progress=progress)):
             assets.append(f'<mesh name="{_esc(name)}/{i}" vertex="{_f(vs)}"/>')
             out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
                        f'{common}/>')
@@ -174,13 +182,15 @@ def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]]) -> list[str]:
 
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
-            obstacles: Sequence[Mapping[str, Any]] = ()) -> str:
+            obstacles: Sequence[Mapping[str, Any]] = (),
+            cache: ArtifactCache | None = None, progress: Progress | None = None) -> str:
     """The MJCF text of ``robot`` (see the module doc).
 
     Args:
         gains: per actuated joint.
         excluded: link pairs whose contacts are ignored (besides parent/child pairs).
         obstacles: world obstacles, as in a plan request.
+        cache, progress: the meshes' convex pieces (:func:`mesh_parts`).
     """
     assets: list[str] = []
 
@@ -195,7 +205,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
                        f'mass="{inertial.mass!r}" fullinertia="'
                        f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
         for i, s in enumerate(lk.collisions):
-            g = _geom(s, f"{link}/collision/{i}", assets)
+            g = _geom(s, f"{link}/collision/{i}", assets, cache, progress)
             if g:
                 out.append(indent + g)
         for j in robot.child_joints[link]:

@@ -46,6 +46,7 @@ from .base import (
 log = logging.getLogger(__name__)
 
 DEFAULT_BAUD = 115200
+WRITE_TIMEOUT = 1.0  # [s] a write that takes longer means the arm stopped reading
 
 
 def servo_angles(q: Sequence[float] | np.ndarray) -> tuple[int, int, int, int]:
@@ -75,7 +76,8 @@ def hardware_params(urdf: str) -> dict[str, str]:
 
 
 def open_port(port: str, baud: int) -> object:
-    """An exclusively locked pyserial port, 8N1, non-blocking reads, 1 s write timeout.
+    """An exclusively locked pyserial port, 8N1, non-blocking reads, writes that give up
+    after :data:`WRITE_TIMEOUT`.
 
     Raises:
         PortNotFound, PortBusy, PortError: with the port and the reason.
@@ -91,7 +93,7 @@ def open_port(port: str, baud: int) -> object:
         return serial.serial_for_url(port, baudrate=baud, bytesize=serial.EIGHTBITS,
                                      parity=serial.PARITY_NONE,
                                      stopbits=serial.STOPBITS_ONE, timeout=0,
-                                     write_timeout=1.0, exclusive=True)
+                                     write_timeout=WRITE_TIMEOUT, exclusive=True)
     except serial.SerialException as e:
         code = getattr(e, "errno", None)
         if "exclusively lock" in str(e) or code in (errno.EBUSY, errno.EAGAIN):
@@ -126,9 +128,11 @@ class SerialArduinobot(Robot):
 
     realtime_only = True
 
-    def __init__(self, port: str, *, joint_names: Sequence[str], velocity: Sequence[float],
-                 lower: Sequence[float], upper: Sequence[float], rate: float = 100.0,
-                 initial: Sequence[float] | None = None, mimic: MimicMap | None = None,
+    def __init__(self, port: str, *, joint_names: Sequence[str],
+                 velocity: Sequence[float] | np.ndarray, lower: Sequence[float] | np.ndarray,
+                 upper: Sequence[float] | np.ndarray, rate: float = 100.0,
+                 initial: Sequence[float] | np.ndarray | None = None,
+                 mimic: MimicMap | None = None,
                  baud: int = DEFAULT_BAUD, boot_wait: float = 0.0) -> None:
         self.joint_names = tuple(joint_names)
         if len(self.joint_names) != 4:
@@ -205,17 +209,24 @@ class SerialArduinobot(Robot):
                 "setpoint limited to one tick's motion / the position limits: asked %s, "
                 "sending %s (further ones are logged at debug level)", np.round(q, 4),
                 np.round(target, 4))
+        angles = servo_angles(target)
+        if angles != self._last:
+            try:
+                self._serial.write(encode(angles))  # type: ignore[attr-defined]
+            except Exception as e:  # pyserial: SerialException / SerialTimeoutException
+                # unplugged (EIO), or a write that stalled past write_timeout: the arm
+                # holds the last angles it took, which stay the state
+                stalled = type(e).__name__ == "SerialTimeoutException"
+                raise PortError(
+                    f"writing to {self.port} failed: "
+                    + (f"the write stalled for {WRITE_TIMEOUT:g} s (the arm stopped "
+                       "reading)" if stalled else f"{e} (unplugged?)"),
+                    details={"port": self.port, "stalled": stalled,
+                             "last_sent": None if self._last is None else list(self._last)}
+                ) from e
+            self._last = angles
         self._qd = (target - self._q) / self.period
         self._q = target
-        angles = servo_angles(target)
-        if angles == self._last:
-            return
-        try:
-            self._serial.write(encode(angles))  # type: ignore[attr-defined]
-        except Exception as e:  # pyserial raises SerialException / SerialTimeoutException
-            raise PortError(f"writing to {self.port} failed: {e}",
-                            details={"port": self.port}) from e
-        self._last = angles
 
     def advance(self, dt: float) -> None:
         """Hardware keeps its own time: the executor's clock paces the ticks."""

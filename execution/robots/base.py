@@ -1,6 +1,6 @@
 """The :class:`Robot` interface: joint setpoints in, joint state out.
 
-A robot is driven tick by tick by :mod:`clients.execute`: each tick it gets one setpoint
+A robot is driven tick by tick by :mod:`execution.executor`: each tick it gets one setpoint
 (:meth:`Robot.command`), then the tick's time passes (:meth:`Robot.advance`: a simulator
 steps its physics, hardware does nothing, the executor's clock paces the wall time), and
 :meth:`Robot.state` reports where it is. Setpoints name the actuated joints of the

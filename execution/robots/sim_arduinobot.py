@@ -3,7 +3,7 @@
 Position servos (force capped at the URDF effort) follow the setpoints, with velocity
 and, when the setpoint carries an acceleration, computed-torque feed-forward (MuJoCo's
 inverse dynamics of the reference motion), so feedback only corrects; the physics
-steps at :data:`~clients.robots.mjcf.TIMESTEP` with contacts on. Servo gains come from a
+steps at :data:`~execution.robots.mjcf.TIMESTEP` with contacts on. Servo gains come from a
 ros2_control controllers yaml (``gains: {joint: {p, d}}`` of an effort-commanding
 joint_trajectory_controller) when the packages have one, else each joint is a critically damped servo of
 ``bandwidth`` Hz at its inertia in the initial pose: ``kp = M_ii w^2``, ``kv = 2 M_ii w``.
@@ -25,10 +25,11 @@ import numpy as np
 import yaml
 
 from description import Description
+from planner.cache import ArtifactCache
 from planner.codes import Code
 
 from .base import JointState, MimicMap, Robot, RobotError, check_setpoint
-from .mjcf import TIMESTEP, Gains, servo_ctrl, to_mjcf
+from .mjcf import TIMESTEP, Gains, Progress, servo_ctrl, to_mjcf
 from .serial_arduinobot import initial_positions
 
 log = logging.getLogger(__name__)
@@ -132,16 +133,24 @@ class SimArduinobot(Robot):
         controllers: a controllers yaml (default: :func:`find_controllers_yaml`).
         initial: actuated positions [rad] to start at (default: initial_positions.yaml, else 0).
         bandwidth: [Hz] of the default servos.
+        cache: keeps the meshes' convex pieces between runs (V-HACD takes seconds per
+            mesh); progress: told of each mesh decomposed afresh.
 
     Raises:
         SimulationError: MuJoCo refused the model.
     """
 
     realtime_only = False
+    # the setpoint of the current tick [rad, rad/s, rad/s^2] and its jerk [rad/s^3]
+    _q_ref: np.ndarray
+    _qd_ref: np.ndarray | None
+    _qdd_ref: np.ndarray | None
+    _jerk: np.ndarray | None
 
     def __init__(self, description: Description, *, obstacles: Sequence[Mapping[str, Any]] = (),
                  controllers: Path | None = None, initial: Sequence[float] | None = None,
-                 bandwidth: float = DEFAULT_BANDWIDTH) -> None:
+                 bandwidth: float = DEFAULT_BANDWIDTH, cache: ArtifactCache | None = None,
+                 progress: Progress | None = None) -> None:
         import mujoco  # optional dependency (the `sim` extra)
 
         self._mj = mujoco
@@ -158,7 +167,8 @@ class SimArduinobot(Robot):
         q0 = initial_positions(description, self.joint_names) if initial is None \
             else check_setpoint(initial, self.joint_names, "initial positions")
         for _ in range(2):
-            self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded, obstacles=obstacles)
+            self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded, obstacles=obstacles,
+                               cache=cache, progress=progress)
             self._build(robot.name)
             self._set_positions(q0)
             # MuJoCo collides meshes as convex hulls: hulls of concave links (fingers, an
@@ -319,10 +329,10 @@ class SimArduinobot(Robot):
         q = check_setpoint(positions, self.joint_names, "positions")
         self._mj.mj_resetData(self.model, self.data)
         self._set_positions(q)
-        self._q_ref: np.ndarray = q
-        self._qd_ref: np.ndarray | None = None
-        self._qdd_ref: np.ndarray | None = None
-        self._jerk: np.ndarray | None = None
+        self._q_ref = q
+        self._qd_ref = None
+        self._qdd_ref = None
+        self._jerk = None
         self.data.ctrl[self._act] = servo_ctrl(q, None, self.gains)
         self._peak = np.zeros(len(self.joint_names))
         self._peak_ff = np.zeros(len(self.joint_names))

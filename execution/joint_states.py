@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from .execution_report import Tick
+from .report import Tick
 
 JSON = "application/json"
 

@@ -22,6 +22,7 @@ from typing import Any, Protocol
 import numpy as np
 from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchronization, Trajectory
 
+from description import Description
 from planner.codes import Code
 from planner.errors import TrajectoryError
 from planner.timing.braking import brake_to_rest
@@ -42,7 +43,50 @@ class MotionError(RobotError):
     code: str = Code.MOTION_ERROR
 
 
+class TrajectoryMismatch(InvalidTrajectory):
+    """A trajectory that does not fit the robot it would be played on: a joint the robot
+    lacks, or a position or velocity beyond the robot's limits (a plan for another
+    robot). ``details`` name the joint and the limit."""
+
+
 COLUMNS = ("positions", "velocities", "accelerations", "effort")
+#: how far past a limit a sample may lie and still fit: sampling and JSON round-off
+POSITION_SLACK = 1e-4  # [rad or m]
+VELOCITY_SLACK = 1e-3  # relative
+
+
+def check_fits(trajectory: SampledTrajectory, description: Description) -> None:
+    """Refuse a trajectory that is not for ``description``'s robot.
+
+    Raises:
+        TrajectoryMismatch: naming the joint and the limit (or the joints it lacks).
+    """
+    from planner.kinematics.limits import JointLimits
+    robot = description.robot
+    actuated = robot.actuated_joints
+    extra = [n for n in trajectory.joint_names if n not in actuated]
+    if extra:
+        raise TrajectoryMismatch(
+            f"the trajectory moves {', '.join(extra)}, which robot '{robot.name}' does not "
+            f"have (its joints: {', '.join(actuated)}): it was planned for another robot",
+            details={"joints": extra, "robot": robot.name, "robot_joints": list(actuated)})
+    lim = JointLimits.from_description(description, joint_names=trajectory.joint_names)
+    lo, hi = trajectory.positions.min(axis=0), trajectory.positions.max(axis=0)
+    vmax = np.abs(trajectory.velocities).max(axis=0)
+    for j, name in enumerate(trajectory.joint_names):
+        for limit, value, bound, over in (
+                ("lower", lo[j], lim.lower[j], lo[j] < lim.lower[j] - POSITION_SLACK),
+                ("upper", hi[j], lim.upper[j], hi[j] > lim.upper[j] + POSITION_SLACK),
+                ("velocity", vmax[j], lim.velocity[j],
+                 vmax[j] > lim.velocity[j] * (1 + VELOCITY_SLACK))):
+            if over:
+                value, bound = float(value), float(bound)
+                raise TrajectoryMismatch(
+                    f"the trajectory does not fit robot '{robot.name}': {name} reaches "
+                    f"{value:.4f} against its {limit} limit {bound:.4f} (planned for "
+                    "another robot, or with other limits)",
+                    details={"joint": name, "limit": limit, "value": value, "bound": bound,
+                             "robot": robot.name})
 
 
 def _bad(field: str, problem: str) -> InvalidTrajectory:
@@ -121,7 +165,10 @@ def _seconds(value: object, field: str) -> float:
 
 
 class Segment(Protocol):
-    joint_names: tuple[str, ...]
+    """A timed motion the executor samples: positions [rad], velocities, accelerations."""
+
+    @property
+    def joint_names(self) -> tuple[str, ...]: ...
 
     @property
     def duration(self) -> float: ...

@@ -1,4 +1,4 @@
-"""Robots that follow trajectories: one :class:`~clients.robots.base.Robot` interface,
+"""Robots that follow trajectories: one :class:`~execution.robots.base.Robot` interface,
 a serial driver for the real arduinobot and a MuJoCo twin.
 
 Nothing here is imported by the core; :mod:`serial` and :mod:`mujoco` are imported only

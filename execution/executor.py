@@ -8,7 +8,7 @@ sequence of setpoints is always the trajectory's. With ``realtime=False`` (simul
 only) no wall clock paces the ticks.
 
 Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
-the next tick to a stop within every limit (:func:`clients.stops.choose_stop`). A new goal
+the next tick to a stop within every limit (:func:`execution.stops.choose_stop`). A new goal
 while moving takes over through :meth:`Executor.lookahead` and :meth:`Executor.switch`.
 """
 
@@ -26,8 +26,9 @@ import numpy as np
 from description import Description
 from planner.codes import Code
 from planner.kinematics.limits import JointLimits
+from planner.ranges import RANGES
 
-from .execution_report import ExecutionReport, Phase, Recorder, Tick
+from .report import ExecutionReport, Phase, Recorder, Tick
 from .robots.base import Robot, RobotError
 from .segments import SampledTrajectory, Segment, move_segment
 from .stops import StopKind, TorqueFn, choose_stop, effort_safe
@@ -124,8 +125,9 @@ class Executor:
                  on_tick: Callable[[Tick], None] | None = None) -> None:
         if tuple(limits.joint_names) != tuple(robot.joint_names):
             limits = limits.subset(robot.joint_names)
-        if not (math.isfinite(options.rate) and 1.0 <= options.rate <= 1000.0):
-            raise RobotError(f"rate {options.rate!r} must be within [1, 1000] Hz")
+        if options.rate not in RANGES["sample_rate"]:  # the planner's sample rates
+            raise RobotError(f"rate {options.rate!r} must be within {RANGES['sample_rate']}",
+                             details={"field": "rate"})
         if robot.realtime_only and not options.realtime:
             raise RobotError("hardware runs in real time only (drop --fast)")
         self.robot, self.limits, self.options, self.on_tick = robot, limits, options, on_tick
@@ -219,7 +221,9 @@ class Executor:
         Raises:
             ExecutionBusy: another execution is running on this executor.
             NotAtStart, InvalidTrajectory: before anything moves.
-            RobotError: the driver failed mid-way (after a stop was attempted).
+            RobotError: the driver failed mid-way (a port unplugged, a write that stalls):
+                its ``details`` add the ``tick``, ``time``, ``phase`` and ``last_commanded``
+                (the setpoint the robot last took, by joint [rad]; the arm holds it).
         """
         if not self._lock.acquire(blocking=False):
             raise ExecutionBusy("the robot is already executing a trajectory")
@@ -243,81 +247,120 @@ class Executor:
                 lim, self.torques)))
             log.info("moving to the start first (%.3f s)", plan[0][1].duration)
         plan.append(("trajectory", traj))
-        rec = Recorder()
-        clock = _Clock(o.realtime)
-        dt = 1.0 / o.rate
-        k = 0
-        cur = traj.evaluate(0.0)
-        cancelled_at: float | None = None
-        stop_time: float | None = None
-        last: tuple[Segment, float] = (plan[0][1], 0.0)
-
-        def tick(phase: Phase, traj_t: float, cur: tuple[np.ndarray, np.ndarray, np.ndarray],
-                 jerk: np.ndarray) -> None:
-            """Command ``cur`` at tick ``k``, let the tick pass, record the state."""
-            nonlocal k
-            clock.wait_until(k * dt)
-            late = clock.now() - k * dt
-            q, qd, qdd = cur
-            self.robot.command(q, qd, qdd, jerks=jerk)
-            self.robot.advance(dt)
-            st = self.robot.state()
-            rec.add(k * dt, phase, traj_t, q, qd, qdd, st, names, late, dt)
-            if self.on_tick is not None:
-                prog = traj_t / traj.duration if traj.duration > 0 else 1.0
-                self.on_tick(Tick(k, k * dt, phase, traj_t, min(1.0, prog), q, qd, qdd, st))
-            k += 1
+        run = _Playback(self, traj)
         try:
-            for phase, seg in plan:
-                n = int(math.ceil(seg.duration * o.rate - 1e-9))
-                i = 0 if k == 0 else 1  # a junction is one tick, not two
-                self._playing = (phase, seg, k - i, k)
-                while i <= n:
-                    if cancel.is_set():
-                        break
-                    with self._switch_lock:
-                        sw, self._tick_index = self._switch, k
-                        if sw is not None and sw[0] == k:
-                            # blend: the new trajectory starts in this tick's state
-                            self._switch = None
-                            seg = traj = sw[1]
-                            n, i = int(math.ceil(seg.duration * o.rate - 1e-9)), 0
-                            self._playing = (phase, seg, k, k)
-                            self.blends += 1
-                            log.info("tick %d: blended into a new %.3f s trajectory", k,
-                                     seg.duration)
-                    t = min(i * dt, seg.duration)
-                    cur = seg.evaluate(t)
-                    jerk = (seg.evaluate(t + dt)[2] - cur[2]) / dt
-                    tick(phase, t if phase == "trajectory" else 0.0, cur, jerk)
-                    last = (seg, t)
-                    i += 1
-                if cancel.is_set():
-                    cancelled_at = rec.traj_time
-                    break
+            cancelled_at = run.play(plan, cancel)
             with self._switch_lock:
                 self._playing, self._switch = None, None
-            if cancelled_at is not None:
-                how, stop = choose_stop(*last, cur, limits=lim, torques=self.torques)
-                stop_time = stop.duration
-                self.last_stop = how
-                log.info("cancelled at %.3f s of the trajectory: stopping (%s) in %.3f s",
-                         cancelled_at, how, stop_time)
-                n = int(math.ceil(stop.duration * o.rate - 1e-9))
-                for i in range(1, n + 1):
-                    t = min(i * dt, stop.duration)
-                    cur = stop.evaluate(t)
-                    jerk = (stop.evaluate(t + dt)[2] - cur[2]) / dt
-                    tick("stop", cancelled_at, cur, jerk)
-            held = (cur[0], np.zeros_like(cur[0]), np.zeros_like(cur[0]))
-            for _ in range(int(round(o.settle * o.rate))):
-                v = np.abs(rec.rows[-1][6]) if rec.rows else np.zeros(1)
-                if np.all(v < o.settle_velocity):
-                    break
-                tick("settle", rec.traj_time, held, held[2])
-        except BaseException:
-            # the driver failed or we are interrupted mid-motion: hold the last setpoint
-            log.exception("execution aborted at tick %d", k)
+            stop_time = run.stop(cancelled_at) if cancelled_at is not None else None
+            run.settle()
+        except RobotError as e:
+            # the driver failed mid-motion (a port unplugged, a write that stalls): the
+            # arm holds what it was last sent; say what that was, and when
+            phase = self._playing[0] if self._playing else None
+            with self._switch_lock:
+                self._playing, self._switch = None, None
+            held = run.sent if run.sent is not None else now  # none taken: where it was
+            e.details.update(tick=run.k, time=run.k * run.dt, phase=phase,
+                             last_commanded=dict(zip(names, map(float, held))))
+            log.error("execution aborted at tick %d (%s): %s", run.k, e.code, e.message)
             raise
-        return rec.report("cancelled" if cancelled_at is not None else "completed", names,
-                          traj.duration, cancelled_at, stop_time, lim, dt)
+        except BaseException:
+            # interrupted mid-motion: the robot holds the last setpoint
+            log.exception("execution aborted at tick %d", run.k)
+            raise
+        return run.rec.report("cancelled" if cancelled_at is not None else "completed",
+                              names, run.traj.duration, cancelled_at, stop_time, lim, run.dt)
+
+
+class _Playback:
+    """One execution's ticks on ``ex``'s robot: the clock, the record, the setpoint."""
+
+    def __init__(self, ex: Executor, traj: SampledTrajectory) -> None:
+        self.ex, self.traj = ex, traj
+        self.rec = Recorder()
+        self.clock = _Clock(ex.options.realtime)
+        self.dt = 1.0 / ex.options.rate
+        self.k = 0
+        self.cur = traj.evaluate(0.0)
+        self.last: tuple[Segment, float] = (traj, 0.0)
+        self.sent: np.ndarray | None = None  # the last setpoint the robot took
+
+    def tick(self, phase: Phase, traj_t: float, cur: tuple[np.ndarray, np.ndarray, np.ndarray],
+             jerk: np.ndarray) -> None:
+        """Command ``cur`` at tick ``k``, let the tick pass, record the state."""
+        ex, k, dt = self.ex, self.k, self.dt
+        self.clock.wait_until(k * dt)
+        late = self.clock.now() - k * dt
+        q, qd, qdd = cur
+        self.cur = cur
+        ex.robot.command(q, qd, qdd, jerks=jerk)
+        self.sent = q
+        ex.robot.advance(dt)
+        st = ex.robot.state()
+        self.rec.add(k * dt, phase, traj_t, q, qd, qdd, st, ex.robot.joint_names, late, dt)
+        if ex.on_tick is not None:
+            d = self.traj.duration
+            prog = traj_t / d if d > 0 else 1.0
+            ex.on_tick(Tick(k, k * dt, phase, traj_t, min(1.0, prog), q, qd, qdd, st))
+        self.k += 1
+
+    def _segment(self, seg: Segment, t: float, phase: Phase, traj_t: float) -> None:
+        cur = seg.evaluate(t)
+        jerk = (seg.evaluate(t + self.dt)[2] - cur[2]) / self.dt
+        self.tick(phase, traj_t, cur, jerk)
+
+    def play(self, plan: list[tuple[Phase, Segment]], cancel: threading.Event
+             ) -> float | None:
+        """Play ``plan``'s segments (switching to a blend when one is due); the trajectory
+        time of a cancel, or None if it played to the end."""
+        ex, rate, dt = self.ex, self.ex.options.rate, self.dt
+        self.last = (plan[0][1], 0.0)
+        for phase, seg in plan:
+            n = int(math.ceil(seg.duration * rate - 1e-9))
+            i = 0 if self.k == 0 else 1  # a junction is one tick, not two
+            ex._playing = (phase, seg, self.k - i, self.k)
+            while i <= n:
+                if cancel.is_set():
+                    break
+                with ex._switch_lock:
+                    sw, ex._tick_index = ex._switch, self.k
+                    if sw is not None and sw[0] == self.k:
+                        # blend: the new trajectory starts in this tick's state
+                        ex._switch = None
+                        seg = self.traj = sw[1]
+                        n, i = int(math.ceil(seg.duration * rate - 1e-9)), 0
+                        ex._playing = (phase, seg, self.k, self.k)
+                        ex.blends += 1
+                        log.info("tick %d: blended into a new %.3f s trajectory", self.k,
+                                 seg.duration)
+                t = min(i * dt, seg.duration)
+                self._segment(seg, t, phase, t if phase == "trajectory" else 0.0)
+                self.last = (seg, t)
+                i += 1
+            if cancel.is_set():
+                return self.rec.traj_time
+        return None
+
+    def stop(self, cancelled_at: float) -> float:
+        """Stop within every limit from where the cancel found the arm; the stop's [s]."""
+        ex = self.ex
+        how, stop = choose_stop(*self.last, self.cur, limits=ex.limits, torques=ex.torques)
+        ex.last_stop = how
+        log.info("cancelled at %.3f s of the trajectory: stopping (%s) in %.3f s",
+                 cancelled_at, how, stop.duration)
+        n = int(math.ceil(stop.duration * ex.options.rate - 1e-9))
+        for i in range(1, n + 1):
+            self._segment(stop, min(i * self.dt, stop.duration), "stop", cancelled_at)
+        return stop.duration
+
+    def settle(self) -> None:
+        """Hold the last setpoint while the arm still moves (a servo's lag)."""
+        o = self.ex.options
+        q = self.cur[0]
+        held = (q, np.zeros_like(q), np.zeros_like(q))
+        for _ in range(int(round(o.settle * o.rate))):
+            v = np.abs(self.rec.rows[-1][6]) if self.rec.rows else np.zeros(1)
+            if np.all(v < o.settle_velocity):
+                break
+            self.tick("settle", self.rec.traj_time, held, held[2])

@@ -1,0 +1,60 @@
+"""Which robot to open: the real arm on a serial port, the MuJoCo twin, or none.
+
+The command line (``execute --serial/--sim``) and the service (``serve --serial``,
+``--no-robot``) both describe their robot with a :class:`RobotSpec` and open it here, so
+neither goes through the other to reach a driver.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from description import Description
+from planner.cache import ArtifactCache
+
+from .base import Robot, RobotError
+from .mjcf import Progress
+
+RobotKind = Literal["sim", "serial", "none"]
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot to drive.
+
+    Attributes:
+        kind: ``sim`` (MuJoCo twin), ``serial`` (the real arm) or ``none``.
+        port, baud: the serial port (None: the URDF's ros2_control ``port``) and baud.
+        rate: control rate [Hz].
+        boot_wait: [s] to wait after opening the port (the Arduino resets).
+        cache: the twin's mesh pieces kept between runs (see
+            :func:`execution.robots.mjcf.mesh_parts`).
+        progress: told what a first twin of a new model is building (seconds per mesh).
+    """
+
+    kind: RobotKind = "sim"
+    port: str | None = None
+    baud: int | None = None
+    rate: float = 100.0
+    boot_wait: float = 2.0
+    cache: ArtifactCache | None = field(default=None, compare=False, repr=False)
+    progress: Progress | None = field(default=None, compare=False, repr=False)
+
+    def open(self, description: Description, *,
+             obstacles: Sequence[Mapping[str, Any]] = ()) -> Robot:
+        """The driver: the real arm (its port opened) or the twin among ``obstacles``.
+
+        Raises:
+            RobotError: kind ``none``, or the port's error (PortNotFound, PortBusy, ...).
+        """
+        if self.kind == "serial":
+            from .serial_arduinobot import SerialArduinobot
+            return SerialArduinobot.from_description(description, self.port, baud=self.baud,
+                                                     rate=self.rate, boot_wait=self.boot_wait)
+        if self.kind == "sim":
+            from .sim_arduinobot import SimArduinobot
+            return SimArduinobot(description, obstacles=obstacles, cache=self.cache,
+                                 progress=self.progress)
+        raise RobotError("this service drives no robot (serve --no-robot)")
