@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..segments import InvalidTrajectory, parse_trajectory, read_json
+from execution.segments import InvalidTrajectory, parse_trajectory, read_json
 
 #: the viewer's name for a file or object not in the `arduinobot plan --json` format
 TrajectoryFileError = InvalidTrajectory
