@@ -538,6 +538,27 @@ class TrajectoryTarget:
             for _, pub in pubs:
                 pub.close()
 
+    # -- where the robot is ------------------------------------------------------------------
+    def joint_positions(self, *, timeout: float = 3.0, topic: str = "joint_states"
+                        ) -> dict[str, float] | None:
+        """The positions [rad] of the first ``sensor_msgs/msg/JointState`` on ``topic``
+        (ros2_control's joint_state_broadcaster publishes it), or None if none arrives
+        within ``timeout`` [s]."""
+        got: list[dict[str, float]] = []
+        done = threading.Event()
+
+        def on_msg(msg: Any, info: Any) -> None:
+            if not done.is_set() and len(msg.name) == len(msg.position):
+                got.append({str(n): float(p) for n, p in zip(msg.name, msg.position)})
+                done.set()
+        sub = self._node("jazzy").create_subscription(topic, "sensor_msgs/msg/JointState",
+                                                      on_msg)
+        try:
+            done.wait(timeout)
+        finally:
+            sub.close()
+        return got[0] if got else None
+
     def close(self) -> None:
         for node in self._nodes.values():
             node.close()
