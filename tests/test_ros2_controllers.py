@@ -239,6 +239,17 @@ def test_controllers_of_the_shipped_model_follow_its_srdf_groups() -> None:
     assert controllers_of(desc, ["my_jtc"]) == (Controller("my_jtc", ARM + GRIPPER),)
 
 
+def test_controllers_of_the_course_come_from_its_moveit_controllers_yaml(
+        course_ws, caplog: pytest.LogCaptureFixture) -> None:
+    from clients.cmd_execute import controllers_of
+    desc = load_description(course_ws.xacro, package_dirs=[course_ws.src],
+                            moveit_config=course_ws.moveit_pkg)
+    with caplog.at_level("INFO", logger="clients.cmd_execute"):
+        assert controllers_of(desc, None) == COURSE
+    yaml_file = course_ws.moveit_pkg / "config" / "moveit_controllers.yaml"
+    assert f"controllers from {yaml_file}" in caplog.text
+
+
 def test_control_msgs_versions_differ_in_the_feedback_only() -> None:
     jazzy, rolling = control_msgs_types("jazzy"), control_msgs_types("rolling")
     fjt = FOLLOW_JOINT_TRAJECTORY
