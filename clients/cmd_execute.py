@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import signal
 import sys
 import threading
@@ -176,20 +175,18 @@ def ros2_settings(ns: argparse.Namespace, *, flag: str = "--ros2") -> Ros2Settin
             raise UsageError(f"{', '.join(given)} {'go' if len(given) > 1 else 'goes'} "
                              f"with {flag}")
         return None
-    domain = ns.ros_domain_id
-    if domain is None:
-        env = os.environ.get("ROS_DOMAIN_ID", "").strip()
-        if env and not env.isdigit():
-            raise UsageError(f"ROS_DOMAIN_ID={env!r} is not a domain id (0..232)")
-        domain = int(env) if env else 0
-    if not 0 <= domain <= 232:
-        raise UsageError(f"ROS 2 domain id {domain} is out of 0..232")
     try:  # only now: the ros2 extra is optional
-        from ros2 import InvalidName
-        from ros2.names import validate_namespace
+        from ros2 import InvalidName, InvalidOption
+        from ros2.names import domain_id_from_env, validate_namespace
     except ImportError as e:
         raise UsageError(f"{flag} needs the ros2 extra (pip install 'arduinobot[ros2]'): "
                          f"{e}") from e
+    try:
+        domain = domain_id_from_env() if ns.ros_domain_id is None else ns.ros_domain_id
+    except InvalidOption as e:
+        raise UsageError(e.message) from e
+    if not 0 <= domain <= 232:
+        raise UsageError(f"ROS 2 domain id {domain} is out of 0..232")
     try:
         namespace = validate_namespace(ns.ros_namespace or "/")
     except InvalidName as e:

@@ -440,3 +440,28 @@ def test_execute_ros2_cli_runs_a_plan_and_codes_a_rejection(session, port, contr
     f.write_text(json.dumps({"trajectory": plan}))
     r = run_execute(port, str(f), "--controller", "arm_controller")
     assert r.returncode == 1 and "ROS2_NO_CONTROLLER" in r.stderr and "joint_4" in r.stderr
+
+
+def test_ros2_options_domain_from_the_environment_and_usage_errors(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from clients.argtypes import UsageError
+    from clients.cli import build_parser
+    from clients.cmd_execute import Ros2Settings, ros2_settings
+
+    def settings(*argv: str) -> Ros2Settings | None:
+        return ros2_settings(build_parser().parse_args(["serve", *argv]))
+    monkeypatch.delenv("ROS_DOMAIN_ID", raising=False)
+    assert settings() is None
+    assert settings("--ros2") == Ros2Settings(0, "/", "current")
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")
+    assert settings("--ros2", "--ros-namespace", "/cell") == Ros2Settings(42, "/cell", "current")
+    assert settings("--ros2", "--ros-domain-id", "7", "--ros2-attachment",
+                    "jazzy-0.2.3") == Ros2Settings(7, "/", "jazzy-0.2.3")
+    for argv, says in ((["--ros-domain-id", "3"], "--ros-domain-id goes with --ros2"),
+                       (["--ros2", "--ros-domain-id", "233"], "out of 0..232"),
+                       (["--ros2", "--ros-namespace", "bad//ns"], "--ros-namespace")):
+        with pytest.raises(UsageError, match=says):
+            settings(*argv)
+    monkeypatch.setenv("ROS_DOMAIN_ID", "abc")
+    with pytest.raises(UsageError, match="ROS_DOMAIN_ID"):
+        settings("--ros2")
