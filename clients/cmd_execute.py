@@ -29,6 +29,7 @@ from .common import (
 
 if TYPE_CHECKING:  # the executor and the drivers load with the command, not with the CLI
     from description import Description
+    from execution.robots.base import RobotError
     from execution.robots.mjcf import Progress
     from execution.robots.spec import RobotSpec
     from ros2.controllers import Controller
@@ -416,8 +417,9 @@ def controllers_of(desc: Description, names: list[str] | None) -> tuple[Controll
         known = read_moveit_controllers(found)
         log.info("controllers from %s: %s", found, ", ".join(c.name for c in known))
     else:
-        robot, taken, out = desc.robot, set(), []
-        actuated = set(robot.actuated_joints)
+        taken: set[str] = set()
+        out = []
+        actuated = set(desc.robot.actuated_joints)
         for g in (desc.srdf.groups.values() if desc.srdf else ()):
             joints = tuple(j for j in g.joints if j in actuated and j not in taken)
             if joints:
@@ -522,7 +524,7 @@ def _start_from(now: dict[str, float] | None, desc: Description) -> dict[str, fl
 
 
 def _check_ros2_start(traj: Any, now: dict[str, float] | None, tolerance: float,
-                      not_at_start: type[Exception]) -> None:
+                      not_at_start: type[RobotError]) -> None:
     """Refuse a trajectory that does not start where /joint_states says the arm is (a
     controller would jump there); without /joint_states the check is skipped, said."""
     if now is None:

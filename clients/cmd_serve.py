@@ -134,9 +134,11 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     svc = PlannerService(opts)
+    failures: tuple[type[BaseException], ...] = (PoolStartError, zenoh.ZError, RobotError,
+                                                 *_ros2_errors(ros))
     try:
         svc.start()
-    except (PoolStartError, zenoh.ZError, RobotError, *_ros2_errors(ros)) as e:
+    except failures as e:
         print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
         return EXIT_FAIL
     try:
@@ -163,7 +165,7 @@ def _joint_states(ros: Ros2Settings) -> Callable[[Any, Description], Any]:
     return open_js
 
 
-def _ros2_errors(ros: Ros2Settings | None) -> tuple[type[Exception], ...]:
+def _ros2_errors(ros: Ros2Settings | None) -> tuple[type[BaseException], ...]:
     """``ros2.Ros2Error`` when --ros2 is on (the package is not imported otherwise)."""
     if ros is None:
         return ()

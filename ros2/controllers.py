@@ -179,7 +179,8 @@ def read_moveit_controllers(path: str | Path) -> tuple[Controller, ...]:
         raise InvalidOption("moveit_controllers.yaml", str(p), f"unreadable: {e}") from e
     manager = data.get("moveit_simple_controller_manager") if isinstance(data, dict) else None
     names = manager.get("controller_names") if isinstance(manager, dict) else None
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+    if not isinstance(manager, dict) or not isinstance(names, list) \
+            or not all(isinstance(n, str) for n in names):
         raise InvalidOption("moveit_controllers.yaml", str(p), "no moveit_simple_controller_"
                             "manager.controller_names list")
     out = []
@@ -216,7 +217,7 @@ class Part:
         return float(self.times[-1])
 
 
-def split_trajectory(joint_names: Sequence[str], times: Sequence[float],
+def split_trajectory(joint_names: Sequence[str], times: Sequence[float] | np.ndarray,
                      columns: Mapping[str, np.ndarray], controllers: Sequence[Controller]
                      ) -> list[Part]:
     """The trajectory (``columns``: ``positions`` and optionally ``velocities``,
