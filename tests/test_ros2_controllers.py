@@ -465,3 +465,43 @@ def test_ros2_options_domain_from_the_environment_and_usage_errors(
     monkeypatch.setenv("ROS_DOMAIN_ID", "abc")
     with pytest.raises(UsageError, match="ROS_DOMAIN_ID"):
         settings("--ros2")
+
+
+@pytest.fixture
+def arm_at(session: zenoh.Session) -> Iterator[dict[str, float]]:  # noqa: F811
+    """A joint_state_broadcaster: /joint_states at 50 Hz from the dict it yields (edit it to
+    move the arm)."""
+    from ros2 import open_joint_states
+    robot = load_description().robot
+    names = robot.actuated_joints + robot.mimic_joints
+    where = dict.fromkeys(names, 0.0)
+    js = open_joint_states(session, names, node_name="joint_state_broadcaster")
+    stop = threading.Event()
+
+    def loop() -> None:
+        while not stop.wait(0.02):
+            js.publish([where[n] for n in names])
+    th = threading.Thread(target=loop, daemon=True)
+    th.start()
+    yield where
+    stop.set()
+    th.join()
+    js.close()
+
+
+def test_execute_ros2_plans_from_joint_states_and_checks_the_start(
+        session, port, controllers, arm_at, plan, tmp_path) -> None:  # noqa: F811
+    # planned (--local) from where /joint_states says the arm is
+    arm_at["joint_1"] = 0.2
+    r = run_execute(port, "--named", "reach_forward", "--local")
+    assert r.returncode == 0, r.stderr
+    assert "arm_controller: succeeded" in r.stdout
+    first = controllers["arm_controller"].handles[-1].goal.trajectory.points[0]
+    assert first.positions[0] == pytest.approx(0.2, abs=1e-6)
+    # a trajectory that starts elsewhere is refused before anything is sent
+    f = tmp_path / "traj.json"
+    f.write_text(json.dumps({"trajectory": plan}))  # starts at joint_1 = 0
+    sent = len(controllers["arm_controller"].raw_goals)
+    r = run_execute(port, str(f))
+    assert r.returncode == 1 and "NOT_AT_START" in r.stderr and "joint_1" in r.stderr, r.stderr
+    assert len(controllers["arm_controller"].raw_goals) == sent
