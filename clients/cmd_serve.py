@@ -11,9 +11,16 @@ import signal
 import socket
 import sys
 import threading
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from .argtypes import UsageError, positive_int
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, model_options
+
+if TYPE_CHECKING:
+    from description import Description
+
+    from .cmd_execute import Ros2Settings
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,7 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot serve --config zenoh.json5   # TLS, user/password, access control\n"
         "  arduinobot serve my_robot.urdf.xacro --package-dir ~/ws/src/my_robot_description\n"
         "  arduinobot serve ~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro "
-        "--package-dir ~/ws/src --moveit-config ~/ws/src/arduinobot_moveit")
+        "--package-dir ~/ws/src --moveit-config ~/ws/src/arduinobot_moveit\n"
+        "  arduinobot serve --ros2 --listen tcp/127.0.0.1:7448 --connect tcp/127.0.0.1:7447"
+        "   # beside rmw_zenohd")
     add_model_args(p)
     p.add_argument("--description", metavar="PATH", dest="description_path",
                    help="the robot's URDF/xacro (same as FILE)")
@@ -70,8 +79,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "else ~/.cache/arduinobot)")
     p.add_argument("--no-cache", action="store_true",
                    help="keep nothing between starts (recompute at every start)")
-    from .cmd_execute import add_serve_args
+    from .cmd_execute import add_ros2_args, add_serve_args
     add_serve_args(p)
+    ros = p.add_argument_group("ROS 2 (rmw_zenoh; see docs/ros2.md)")
+    ros.add_argument("--ros2", action="store_true",
+                     help="publish /joint_states (sensor_msgs/msg/JointState) while the "
+                     "robot moves, as a ROS 2 node on rmw_zenoh (needs the ros2 extra). "
+                     "With a ROS 2 router on 7447: --listen tcp/127.0.0.1:7448 --connect "
+                     "tcp/127.0.0.1:7447")
+    add_ros2_args(ros)
     p.set_defaults(func=cmd_serve)
 
 
@@ -85,10 +101,13 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     from service.worker import DescriptionSpec
     from service.zconfig import DEFAULT_ENDPOINT
 
-    from .cmd_execute import robot_spec
+    from .cmd_execute import robot_spec, ros2_settings
 
     if ns.file and ns.description_path:
         raise UsageError("give the model as FILE or --description, not both")
+    ros = ros2_settings(ns)
+    if ros is not None and ns.no_robot:
+        raise UsageError("--ros2 publishes the robot's /joint_states: not with --no-robot")
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
                            **model_options(ns),  # type: ignore[arg-type]
@@ -109,14 +128,17 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout,
                         memory_cap=int(ns.memory_cap * 2**20) if ns.memory_cap > 0 else None,
                         extensions=(execute_extension(robot_spec(
-                            ns, progress=logging.getLogger("service.execution").info)),))
+                            ns, progress=logging.getLogger("service.execution").info),
+                            tick_sink=None if ros is None else _joint_states(ros)),))
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     svc = PlannerService(opts)
+    failures: tuple[type[BaseException], ...] = (PoolStartError, zenoh.ZError, RobotError,
+                                                 *_ros2_errors(ros))
     try:
         svc.start()
-    except (PoolStartError, zenoh.ZError, RobotError) as e:
+    except failures as e:
         print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
         return EXIT_FAIL
     try:
@@ -126,6 +148,29 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         logging.getLogger("service.server").info("shutting down")
         svc.close()
     return EXIT_OK
+
+
+def _joint_states(ros: Ros2Settings) -> Callable[[Any, Description], Any]:
+    """Opens ``/joint_states`` (``ros2.JointStates``, the executor's tick sink) on the
+    service's session: the model's actuated joints, then its mimic joints."""
+    def open_js(session: Any, description: Description) -> Any:
+        import ros2
+        robot = description.robot
+        js = ros2.open_joint_states(session, robot.actuated_joints + robot.mimic_joints,
+                                    domain_id=ros.domain_id, namespace=ros.namespace,
+                                    attachment=ros.attachment)
+        logging.getLogger("service.execution").info(
+            "ROS 2: /joint_states on domain %d (key %s)", ros.domain_id, js.publisher.key)
+        return js
+    return open_js
+
+
+def _ros2_errors(ros: Ros2Settings | None) -> tuple[type[BaseException], ...]:
+    """``ros2.Ros2Error`` when --ros2 is on (the package is not imported otherwise)."""
+    if ros is None:
+        return ()
+    from ros2 import Ros2Error
+    return (Ros2Error,)
 
 
 def _tcp_address(endpoint: str) -> tuple[str, int] | None:

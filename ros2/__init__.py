@@ -4,15 +4,19 @@ No ROS install: keys, liveliness tokens and attachments are built here from rmw_
 design document and source (each module cites the file and commit); CDR and RIHS01 type
 hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attachment`,
 :mod:`.qos`, :mod:`.names`, :mod:`.graph` (keys, tokens, GIDs), then :mod:`.topics` and
-:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions` and :mod:`.joint_states`. Nothing here
-imports ``clients/`` or ``service/``. Needs the ``ros2`` extra (rosbags, xxhash).
+:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states` and
+:mod:`.controllers` (trajectories to ros2_control's joint_trajectory_controllers).
+Nothing here imports ``clients/`` or ``service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """
 
 from .actions import ActionClient, ActionServer, GoalHandle
 from .attachment import Attachment, AttachmentLayout
 from .errors import (
+    ControllerFailed,
+    ControllerUnavailable,
     EntityClosed,
     GoalAlreadyEnded,
+    GoalRejected,
     InvalidName,
     InvalidOption,
     InvalidTypeDefinition,
@@ -20,6 +24,7 @@ from .errors import (
     MalformedCdr,
     MalformedToken,
     MessageMismatch,
+    NoController,
     Ros2Error,
     ServiceFailed,
     UnknownType,
@@ -30,9 +35,10 @@ from .qos import QoS
 from .types import TypeStore
 
 __all__ = [
-    "ActionClient", "ActionServer", "Attachment", "AttachmentLayout", "EntityClosed",
-    "GoalAlreadyEnded", "GoalHandle", "InvalidName", "InvalidOption", "InvalidTypeDefinition",
+    "ActionClient", "ActionServer", "Attachment", "AttachmentLayout", "ControllerFailed",
+    "ControllerUnavailable", "EntityClosed", "GoalAlreadyEnded", "GoalHandle", "GoalRejected",
+    "InvalidName", "InvalidOption", "InvalidTypeDefinition",
     "JointStates", "MalformedAttachment", "MalformedCdr", "MalformedToken", "MessageMismatch",
-    "Node", "QoS", "Ros2Error", "ServiceFailed", "TypeStore", "UnknownType",
+    "NoController", "Node", "QoS", "Ros2Error", "ServiceFailed", "TypeStore", "UnknownType",
     "open_joint_states",
 ]

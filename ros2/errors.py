@@ -137,3 +137,57 @@ class EntityClosed(Ros2Error):
 
     def __init__(self, what: str) -> None:
         super().__init__(f"{what} is closed", details={"entity": what})
+
+
+class NoController(Ros2Error):
+    """Joints of a trajectory that no controller moves (or that two claim)."""
+
+    code = "ROS2_NO_CONTROLLER"
+
+    def __init__(self, joints: list[str], reason: str, *, controllers: list[str]) -> None:
+        self.joints, self.controllers = joints, controllers
+        super().__init__(f"{', '.join(joints)}: {reason} (controllers: "
+                         f"{', '.join(controllers) or 'none'})",
+                         details={"joints": joints, "controllers": controllers})
+
+
+class ControllerUnavailable(Ros2Error):
+    """A controller's action server or trajectory subscription did not show up."""
+
+    code = "ROS2_CONTROLLER_UNAVAILABLE"
+
+    def __init__(self, controller: str, name: str, timeout: float) -> None:
+        self.controller, self.name = controller, name
+        super().__init__(f"{controller}: nothing serves {name} (waited {timeout:g} s): is "
+                         "the controller active, on this domain, behind the same router?",
+                         details={"controller": controller, "name": name, "timeout": timeout})
+
+
+class GoalRejected(Ros2Error):
+    """A controller refused the goal (joint_trajectory_controller: joints it lacks, an
+    empty or invalid trajectory, the controller inactive)."""
+
+    code = "ROS2_GOAL_REJECTED"
+
+    def __init__(self, controller: str) -> None:
+        self.controller = controller
+        super().__init__(f"{controller} rejected the goal (see the controller's log: its "
+                         "joints, the trajectory, the controller active?)",
+                         details={"controller": controller})
+
+
+class ControllerFailed(Ros2Error):
+    """A goal that ended other than succeeded, or with ``error_code != 0``; ``details``
+    hold the controller's ``error_code`` (its name too) and ``error_string``."""
+
+    code = "ROS2_CONTROLLER_FAILED"
+
+    def __init__(self, controller: str, reason: str, error_code: int | None,
+                 error_string: str, *, error_name: str | None = None) -> None:
+        self.controller, self.error_code, self.error_string = controller, error_code, error_string
+        shown = "" if error_code is None else \
+            f": error_code {error_code}" + (f" ({error_name})" if error_name else "")
+        super().__init__(f"{controller} {reason}{shown}"
+                         + (f": {error_string}" if error_string else ""),
+                         details={"controller": controller, "error_code": error_code,
+                                  "error_name": error_name, "error_string": error_string})

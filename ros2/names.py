@@ -8,9 +8,11 @@ trailing ``/``. Private (``~``) names and substitutions (``{node}``) are not sup
 
 from __future__ import annotations
 
+import os
 import re
+from collections.abc import Mapping
 
-from .errors import InvalidName
+from .errors import InvalidName, InvalidOption
 
 _TOKEN = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -73,3 +75,17 @@ def mangle(name: str) -> str:
 def demangle(name: str) -> str:
     """rmw_zenoh's ``demangle_name``: every ``%`` becomes ``/``."""
     return name.replace("%", "/")
+
+
+def domain_id_from_env(environ: Mapping[str, str] | None = None) -> int:
+    """The ROS 2 domain as rcl reads it: ``ROS_DOMAIN_ID`` (0 when unset or empty).
+
+    Raises:
+        InvalidOption: a value that is not an integer in 0..232.
+    """
+    env = (os.environ if environ is None else environ).get("ROS_DOMAIN_ID", "").strip()
+    if not env:
+        return 0
+    if not env.isdigit() or not 0 <= int(env) <= 232:
+        raise InvalidOption("ROS_DOMAIN_ID", env, "a ROS 2 domain id, 0..232")
+    return int(env)

@@ -32,7 +32,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Protocol
 
 import orjson
 import zenoh
@@ -61,6 +61,19 @@ DEFAULT_START_TOLERANCE = 0.01  # [rad]
 # submit(plan request dict, respond(Success | Failure)) -> None: hands a plan job to the
 # pool; respond is called once, from a pool thread
 SubmitPlan = Callable[[dict[str, Any], Callable[[Outcome], None]], None]
+
+
+class TickSink(Protocol):
+    """Another consumer of each execution tick (``serve --ros2``'s /joint_states: a
+    ``ros2.JointStates``), called on the executor's thread; closed with the service."""
+
+    def __call__(self, tick: Tick) -> None: ...
+
+    def close(self) -> None: ...
+
+
+# open(session, description) -> TickSink: built once the service's session is open
+OpenTickSink = Callable[[zenoh.Session, Description], TickSink]
 
 
 @dataclass(frozen=True)
@@ -109,10 +122,13 @@ class ExecuteService:
     """The execute, cancel and robot_state queryables and the joint_states publisher."""
 
     def __init__(self, session: zenoh.Session, prefix: str, description: Description,
-                 spec: RobotSpec, *, submit_plan: SubmitPlan | None = None) -> None:
+                 spec: RobotSpec, *, submit_plan: SubmitPlan | None = None,
+                 tick_sink: TickSink | None = None) -> None:
         self.session, self.prefix, self.description, self.spec = (session, prefix,
                                                                    description, spec)
         self.submit_plan = submit_plan
+        self.tick_sink = tick_sink
+        self._sink_failed = False  # logged once: a failing sink never stops the arm
         self._robot: Robot | None = None
         self._executor: Executor | None = None
         self._robot_lock = threading.Lock()
@@ -156,6 +172,25 @@ class ExecuteService:
                 _log.warning("undeclaring %s failed: %s", e, err)
         self._entities.clear()
         self.drop_robot()
+        if self.tick_sink is not None:
+            try:
+                self.tick_sink.close()
+            except Exception:  # noqa: BLE001 -- closing goes on; the session ends it too
+                _log.exception("closing the tick sink failed")
+            self.tick_sink = None
+
+    def _to_sink(self, tick: Tick) -> None:
+        """Hand ``tick`` to the sink; its failure is logged (once) and never reaches the
+        executor: /joint_states for RViz must not stop the arm."""
+        sink = self.tick_sink
+        if sink is None:
+            return
+        try:
+            sink(tick)
+        except Exception:  # noqa: BLE001 -- logged; the motion goes on
+            if not self._sink_failed:
+                self._sink_failed = True
+                _log.exception("publishing a tick failed (further failures not logged)")
 
     # -- the robot ------------------------------------------------------------------------
 
@@ -330,6 +365,7 @@ class _Run:
             msg = tick_message(tick)
             if pub is not None:
                 pub.put(wire.encode(msg))
+            self.svc._to_sink(tick)
             if tick.index % PROGRESS_EVERY == 0:
                 self._reply({"event": "progress", "execution": self.execution,
                              "time": tick.time, **msg})
@@ -388,12 +424,21 @@ class _Run:
         return self.svc.session.liveliness().declare_subscriber(key, on_change)
 
 
-def execute_extension(spec: RobotSpec) -> Callable[..., ExecuteService]:
+def execute_extension(spec: RobotSpec, *, tick_sink: OpenTickSink | None = None
+                      ) -> Callable[..., ExecuteService]:
     """A :class:`service.server.ServeOptions` extension serving ``<prefix>/execute`` on
-    the robot ``spec`` describes (started once the service's session is open)."""
+    the robot ``spec`` describes (started once the service's session is open);
+    ``tick_sink(session, description)`` opens another consumer of every tick (``serve
+    --ros2``'s /joint_states), closed with the service."""
     def make(session: zenoh.Session, prefix: str, description: Description,
              submit_plan: SubmitPlan) -> ExecuteService:
-        svc = ExecuteService(session, prefix, description, spec, submit_plan=submit_plan)
-        svc.start()
+        sink = tick_sink(session, description) if tick_sink is not None else None
+        svc = ExecuteService(session, prefix, description, spec, submit_plan=submit_plan,
+                             tick_sink=sink)
+        try:
+            svc.start()
+        except BaseException:
+            svc.close()
+            raise
         return svc
     return make
