@@ -182,6 +182,8 @@ def mesh_inertia(link: Link, mass: float) -> tuple[np.ndarray, bool] | None:
         return None
     import trimesh
     mesh = trimesh.util.concatenate(parts)
+    if not isinstance(mesh, trimesh.Trimesh):  # concatenating meshes gives a mesh
+        return None
     reliable = bool(mesh.is_volume and mesh.volume > 0)
     if not reliable:
         try:

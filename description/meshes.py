@@ -33,7 +33,7 @@ def load_mesh(path: Path, scale: tuple[float, float, float] = (1.0, 1.0, 1.0), *
         stat = path.stat()
     except OSError:
         raise MeshNotFound(f"{path} does not exist", file=path, element=element) from None
-    key = (str(path), stat.st_mtime_ns, tuple(scale))
+    key = (str(path), stat.st_mtime_ns, (float(scale[0]), float(scale[1]), float(scale[2])))
     with _cache_lock:
         hit = _cache.get(key)
     if hit is not None:

@@ -189,7 +189,7 @@ def _joint(ctx: _Ctx, el: etree._Element) -> Joint | None:
         mimic = Mimic(joint=mim_el.get("joint", ""),
                       multiplier=ctx.number(mim_el, "multiplier", where, 1.0) or 0.0,
                       offset=ctx.number(mim_el, "offset", where, 0.0) or 0.0)
-    return Joint(name=name, type=jtype, parent=parent, child=child,  # type: ignore[arg-type]
+    return Joint(name=name, type=jtype, parent=parent, child=child,
                  origin=_origin(ctx, el.find("origin"), where), axis=axis,  # type: ignore[arg-type]
                  limit=limit, mimic=mimic)
 

@@ -7,7 +7,7 @@ field that is wrong (``obstacles[2].size``) before any collision object exists.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -23,8 +23,10 @@ _KINDS = ("box", "sphere", "cylinder", "mesh")
 
 
 def _finite_vec(value: object, n: int, field: str, *, positive: bool = False) -> tuple[float, ...]:
+    if not isinstance(value, Iterable):
+        raise InvalidRequest(f"{value!r} must be {n} numbers", field=field)
     try:
-        vec = tuple(float(v) for v in value)  # type: ignore[union-attr]
+        vec = tuple(float(v) for v in value)
     except (TypeError, ValueError):
         raise InvalidRequest(f"{value!r} must be {n} numbers", field=field) from None
     if len(vec) != n or not all(math.isfinite(v) for v in vec):

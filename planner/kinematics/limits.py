@@ -94,7 +94,8 @@ class JointLimits:
         names = tuple(joint_names)
         src = {k: v for k, v in self.sources.items()
                if k.split(".", 1)[0] in names or "." not in k}
-        return JointLimits(names, *(getattr(self, kind)[idx] for kind in _KINDS), sources=src)
+        return JointLimits(names, self.lower[idx], self.upper[idx], self.velocity[idx],
+                           self.acceleration[idx], self.jerk[idx], self.effort[idx], sources=src)
 
     @classmethod
     def from_description(
@@ -177,7 +178,9 @@ class JointLimits:
         vals["jerk"] = [j * acceleration_scaling for j in vals["jerk"]]
         sources["scaling"] = (f"velocity x {velocity_scaling}, acceleration and jerk x "
                               f"{acceleration_scaling}")
-        return cls(names, *(np.array(vals[k], dtype=float) for k in _KINDS), sources=sources)
+        arr = {k: np.array(vals[k], dtype=float) for k in _KINDS}
+        return cls(names, arr["lower"], arr["upper"], arr["velocity"], arr["acceleration"],
+                   arr["jerk"], arr["effort"], sources=sources)
 
 
 def _check_scaling(value: float, name: str) -> None:
