@@ -91,7 +91,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         raise UsageError("give the model as FILE or --description, not both")
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
-                           **model_options(ns),  # type: ignore[arg-type]
+                           **model_options(ns),
                            cache_dir="" if ns.no_cache else ns.cache_dir)
     # a client-mode instance is reached through its router only: a listener of its own
     # would be a way around the router's TLS, passwords and access control

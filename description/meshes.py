@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -78,3 +79,12 @@ def shape_mesh(shape: Shape, *, element: str | None = None) -> trimesh.Trimesh:
     else:
         base = primitive_mesh(g)
     return base.copy().apply_transform(shape.origin.matrix())
+
+
+def concatenate(parts: Sequence[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """The triangles of ``parts`` as one mesh (trimesh's own concatenate is typed as
+    returning any geometry; for meshes it returns a mesh)."""
+    mesh = trimesh.util.concatenate(list(parts))
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise TypeError(f"trimesh concatenated meshes into a {type(mesh).__name__}")
+    return mesh

@@ -101,8 +101,9 @@ class Obstacle:
         return Origin(xyz=self.xyz, rpy=self.rpy).matrix()
 
     @classmethod
-    def from_mapping(cls, data: Mapping[str, object], *, where: str = "obstacle") -> Obstacle:
-        """Build from a JSON-like mapping (the service's wire format)."""
+    def from_mapping(cls, data: object, *, where: str = "obstacle") -> Obstacle:
+        """Build from a JSON-like mapping (the service's wire format); anything else is
+        refused with InvalidRequest."""
         if not isinstance(data, Mapping):
             raise InvalidRequest("must be an object", field=where)
         known = {"id", "shape", "size", "radius", "length", "mesh_path", "xyz", "rpy"}
@@ -112,7 +113,7 @@ class Obstacle:
         for key in ("id", "shape"):
             if key not in data:
                 raise InvalidRequest("is required", field=f"{where}.{key}")
-        return cls(where=where, **{k: v for k, v in data.items()})  # type: ignore[arg-type]
+        return cls(where=where, **{k: v for k, v in data.items()})
 
 
 def validate_obstacles(obstacles: Sequence[Obstacle], *,
