@@ -160,7 +160,10 @@ def endpoint_in_use(endpoint: str) -> bool:
 
 def _elsewhere(endpoint: str) -> str:
     """``endpoint`` on the next free port (the suggestion for a busy one)."""
-    host, port = _tcp_address(endpoint)  # type: ignore[misc]
+    addr = _tcp_address(endpoint)
+    if addr is None:  # only a TCP or TLS endpoint can be in use: nothing to suggest
+        return endpoint
+    host, port = addr
     proto, shown = endpoint.partition("/")[0], f"[{host}]" if ":" in host else host
     for p in range(port + 1, min(port + 100, 65536)):
         if not endpoint_in_use(f"{proto}/{shown}:{p}"):

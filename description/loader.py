@@ -337,11 +337,13 @@ def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object
         given = {k: entry[k] for k in ("min_position", "max_position") if k in entry}
         if not given:
             continue
+        nums: dict[str, float] = {}
         for key, raw in given.items():
             if isinstance(raw, bool) or not isinstance(raw, (int, float)) \
                     or not np.isfinite(raw):
                 raise InvalidModel(f"{raw!r} must be a finite number [rad or m]", file=path,
                                    element=f"joint_limits.{name}.{key}")
+            nums[key] = float(raw)
         j = joints[name]
         lim = j.limit
         if j.type not in ("revolute", "prismatic") or lim is None or lim.lower is None \
@@ -352,7 +354,7 @@ def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object
             continue
         lo, hi = lim.lower, lim.upper
         if "min_position" in given:
-            v = float(given["min_position"])  # type: ignore[arg-type]
+            v = nums["min_position"]
             if v >= lo:
                 lo = v
             else:
@@ -360,7 +362,7 @@ def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object
                                 f"below the URDF's lower {lim.lower:g}; using the URDF's "
                                 "(it may only narrow the range)")
         if "max_position" in given:
-            v = float(given["max_position"])  # type: ignore[arg-type]
+            v = nums["max_position"]
             if v <= hi:
                 hi = v
             else:

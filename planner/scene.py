@@ -10,7 +10,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, SupportsFloat, SupportsIndex
 
 import numpy as np
 
@@ -37,8 +37,10 @@ def _finite_vec(value: object, n: int, field: str, *, positive: bool = False) ->
 
 
 def _positive(value: object, field: str) -> float:
+    if not isinstance(value, (str, SupportsFloat, SupportsIndex)):  # what float() takes
+        raise InvalidRequest(f"{value!r} is not a number", field=field)
     try:
-        v = float(value)  # type: ignore[arg-type]
+        v = float(value)
     except (TypeError, ValueError):
         raise InvalidRequest(f"{value!r} is not a number", field=field) from None
     if not math.isfinite(v) or v <= 0:
