@@ -95,11 +95,12 @@ class AppliedLimits:
         ``default_scaling``) and the plan request that set the scaling, if any. A
         service that does not send ``limit_sources`` gives ``?`` sources."""
         limits = robot.get("limits", {})
-        full = {k: np.array([_num(limits.get(j, {}).get(k)) for j in joints], float)
-                for k in KINDS}
+        full: dict[str, np.ndarray] = {
+            k: np.array([_num(limits.get(j, {}).get(k)) for j in joints], float) for k in KINDS}
         raw = robot.get("limit_sources") or {}
         flat = {f"{j}.{k}": src for j, kinds in raw.items() for k, src in kinds.items()}
-        sources = {k: summarise_sources(flat, joints, k) if flat else "?" for k in KINDS}
+        sources: dict[str, str] = {k: summarise_sources(flat, joints, k) if flat else "?"
+                                   for k in KINDS}
         req = request or {}
         default = robot.get("default_scaling") or {}
         vs, as_ = req.get("velocity_scaling"), req.get("acceleration_scaling")

@@ -8,8 +8,8 @@ import inspect
 import logging
 import re
 import sys
-from collections.abc import Sequence
-from typing import Any, NoReturn
+from collections.abc import Iterable, Sequence
+from typing import Any, NoReturn, TypeVar, overload
 
 from . import cmd_execute, cmd_model, cmd_plan, cmd_serve, cmd_srdf, cmd_state, cmd_view
 from .common import run_guarded
@@ -26,6 +26,7 @@ _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_
 NEGATIVE_VALUE = re.compile(r"-\.?\d")
 #: argparse's own "maybe you meant" for a mistyped choice (a command, --profile's value)
 _HAS_SUGGEST = "suggest_on_error" in inspect.signature(argparse.ArgumentParser).parameters
+_N = TypeVar("_N")  # a namespace object given to parse_args
 
 
 class CommandParser(argparse.ArgumentParser):
@@ -41,9 +42,17 @@ class CommandParser(argparse.ArgumentParser):
         # no option of ours looks like a number, so every such token is a value
         self._negative_number_matcher = NEGATIVE_VALUE
 
-    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
-                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
-        ns, extras = self.parse_known_args(args, namespace)
+    # argparse's own overloads (a namespace given comes back, with its type)
+    @overload
+    def parse_args(self, args: Iterable[str] | None = None,
+                   namespace: None = None) -> argparse.Namespace: ...
+    @overload
+    def parse_args(self, args: Iterable[str] | None, namespace: _N) -> _N: ...
+    @overload
+    def parse_args(self, *, namespace: _N) -> _N: ...
+
+    def parse_args(self, args: Iterable[str] | None = None, namespace: Any = None) -> Any:
+        ns, extras = self.parse_known_args(None if args is None else list(args), namespace)
         if extras:  # argparse would blame the top-level parser; blame the command's
             parser: CommandParser = getattr(ns, "command_parser", self)
             parser.unrecognized(extras)

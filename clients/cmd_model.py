@@ -51,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_check(ns: argparse.Namespace) -> int:
     from description.checks import check_model  # trimesh: only for this command
 
-    report = check_model(ns.file, **model_options(ns))  # type: ignore[arg-type]
+    report = check_model(ns.file, **model_options(ns))
     if ns.json:
         print(json.dumps(report.to_json(), indent=2))
     else:

@@ -110,7 +110,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         raise UsageError("--ros2 publishes the robot's /joint_states: not with --no-robot")
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
-                           **model_options(ns),  # type: ignore[arg-type]
+                           **model_options(ns),
                            cache_dir="" if ns.no_cache else ns.cache_dir)
     # a client-mode instance is reached through its router only: a listener of its own
     # would be a way around the router's TLS, passwords and access control
@@ -206,7 +206,10 @@ def endpoint_in_use(endpoint: str) -> bool:
 
 def _elsewhere(endpoint: str) -> str:
     """``endpoint`` on the next free port (the suggestion for a busy one)."""
-    host, port = _tcp_address(endpoint)  # type: ignore[misc]
+    addr = _tcp_address(endpoint)
+    if addr is None:  # only a TCP or TLS endpoint can be in use: nothing to suggest
+        return endpoint
+    host, port = addr
     proto, shown = endpoint.partition("/")[0], f"[{host}]" if ":" in host else host
     for p in range(port + 1, min(port + 100, 65536)):
         if not endpoint_in_use(f"{proto}/{shown}:{p}"):

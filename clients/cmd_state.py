@@ -6,11 +6,14 @@ from __future__ import annotations
 import argparse
 import json
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .argtypes import add_obstacle_arg, joint_values, numbers
 from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joints_by_name
 from .replies import CheckReply, FkReply, IkReply
+
+if TYPE_CHECKING:
+    from service.wire import Kind
 
 _JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot info` "
                 "lists them), or name=value,... [rad]")
@@ -55,7 +58,7 @@ def _add_common(p: argparse.ArgumentParser, fn: Callable[[argparse.Namespace], i
     p.set_defaults(func=fn)
 
 
-def _ask(ns: argparse.Namespace, kind: str, req: dict[str, Any], *,
+def _ask(ns: argparse.Namespace, kind: Kind, req: dict[str, Any], *,
          with_joints: bool = True) -> dict[str, Any]:
     """The reply to ``req`` (with ``joints`` from --joints: positional values follow every
     actuated joint's order), printed as JSON with --json."""

@@ -9,11 +9,17 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from planner.scene import Obstacle
 
 from .argtypes import UsageError
 from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
+
+if TYPE_CHECKING:  # the viewer's modules need the view extra: imported when it runs
+    from description import Description
+
+    from .viewer.trajectory import PlaybackTrajectory
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -86,7 +92,7 @@ def read_obstacles(items: list[str], scene: str | None) -> tuple[Obstacle, ...]:
             raw.append((json.loads(text), f"--obstacle[{i}]"))
         except json.JSONDecodeError as e:
             raise UsageError(f"--obstacle '{text}' is not JSON: {e}") from None
-    return tuple(Obstacle.from_mapping(o, where=w) for o, w in raw)  # type: ignore[arg-type]
+    return tuple(Obstacle.from_mapping(o, where=w) for o, w in raw)
 
 
 def cmd_view(ns: argparse.Namespace) -> int:
@@ -105,19 +111,19 @@ def cmd_view(ns: argparse.Namespace) -> int:
         return EXIT_FAIL
 
 
-def _write_png(ns: argparse.Namespace, d: object, traj: object) -> int:
+def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory | None) -> int:
     from .viewer.plots import joint_limits, plot_panels, plot_png
 
     if traj is None:
         raise UsageError("--plot-png needs --trajectory FILE.json")
-    panels = plot_panels(traj, joint_limits(d, traj.joint_names))  # type: ignore[arg-type]
+    panels = plot_panels(traj, joint_limits(d, traj.joint_names))
     Path(ns.plot_png).write_bytes(plot_png(panels, title=str(ns.trajectory)))
-    wrote(ns.plot_png, f"plots of {len(traj.times)} samples")  # type: ignore[attr-defined]
+    wrote(ns.plot_png, f"plots of {len(traj.times)} samples")
     return EXIT_OK
 
 
-def _serve(ns: argparse.Namespace, d: object, obstacles: tuple[Obstacle, ...],
-           traj: object) -> int:
+def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ...],
+           traj: PlaybackTrajectory | None) -> int:
     from .viewer.app import RobotViewer
     from .viewer.plan_panel import PlanningPanel
     from .viewer.planning import LocalBackend, RemoteBackend
@@ -125,12 +131,12 @@ def _serve(ns: argparse.Namespace, d: object, obstacles: tuple[Obstacle, ...],
 
     # the backend first: it refuses what the service cannot plan around before a page opens
     backend = (RemoteBackend(ns.connect, obstacles=obstacles) if ns.connect
-               else LocalBackend(d, obstacles=obstacles))  # type: ignore[arg-type]
-    viewer = RobotViewer(d, obstacles=obstacles, host=ns.host, port=ns.port)  # type: ignore[arg-type]
+               else LocalBackend(d, obstacles=obstacles))
+    viewer = RobotViewer(d, obstacles=obstacles, host=ns.host, port=ns.port)
     playback = PlaybackPanel(viewer)
     PlanningPanel(viewer, playback, backend)
     if traj is not None:
-        playback.load(traj, source=Path(ns.trajectory).name)  # type: ignore[arg-type]
+        playback.load(traj, source=Path(ns.trajectory).name)
     follower = None
     if ns.follow:
         from .viewer.follow import JointStateFollower
@@ -141,7 +147,7 @@ def _serve(ns: argparse.Namespace, d: object, obstacles: tuple[Obstacle, ...],
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    print(f"arduinobot view: {d.robot.name} at {viewer.url} (Ctrl-C stops)",  # type: ignore[attr-defined]
+    print(f"arduinobot view: {d.robot.name} at {viewer.url} (Ctrl-C stops)",
           flush=True)
     stop.wait()
     if follower is not None:

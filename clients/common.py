@@ -9,7 +9,7 @@ import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 from description import Description, DescriptionError, load_description
 from execution.robots.base import RobotError
@@ -20,6 +20,8 @@ from .argtypes import JointValues, Mimic, UsageError, joint_map, xacro_arg
 from .errors import ServiceError, ServiceUnavailable
 
 if TYPE_CHECKING:
+    from service.wire import Kind
+
     from .client import PlannerClient
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_UNAVAILABLE = 0, 1, 2, 3
@@ -74,7 +76,17 @@ def add_service_args(p: argparse.ArgumentParser) -> None:
     add_model_args(p)
 
 
-def model_options(ns: argparse.Namespace) -> dict[str, object]:
+class ModelOptions(TypedDict):
+    """The model options' keyword arguments of :func:`description.load_description`."""
+
+    package_dirs: list[str]
+    args: dict[str, str]
+    moveit_config: str | None
+    srdf: str | None
+    joint_limits: str | None
+
+
+def model_options(ns: argparse.Namespace) -> ModelOptions:
     """The keyword arguments of :func:`description.load_description` the model options
     in ``ns`` give (everything but the model file)."""
     return {"package_dirs": list(ns.package_dir), "args": dict(ns.arg),
@@ -87,7 +99,7 @@ def load_from_args(ns: argparse.Namespace) -> Description:
     command: the request, the robot and a simulation of one command share it."""
     if getattr(ns, "_description", None) is None:
         path = getattr(ns, "file", None) or getattr(ns, "description_path", None)
-        ns._description = load_description(path, **model_options(ns))  # type: ignore[arg-type]
+        ns._description = load_description(path, **model_options(ns))
     return ns._description
 
 
@@ -116,7 +128,7 @@ def wrote(path: str | Path, what: str = "", *, stderr: bool = False) -> None:
 class Service(Protocol):
     """What a command asks of the service, or of :class:`service.local.LocalService`."""
 
-    def request(self, kind: str, req: Mapping[str, Any]) -> dict[str, Any]: ...
+    def request(self, kind: Kind, req: Mapping[str, Any]) -> dict[str, Any]: ...
 
     def description(self) -> dict[str, Any]: ...
 
@@ -136,14 +148,14 @@ def connect(ns: argparse.Namespace, *, model_drives_robot: bool = False) -> Iter
     """
     if ns.local:
         from service.local import LocalService
-        yield LocalService(load_from_args(ns))  # type: ignore[misc]
+        yield LocalService(load_from_args(ns))
         return
     if not model_drives_robot and (getattr(ns, "file", None) or any(model_options(ns).values())):
         raise UsageError("FILE, --package-dir, --arg, --moveit-config, --srdf and "
                          "--joint-limits choose the model for --local; the service plans "
                          "for the model it serves")
     with client(ns) as c:
-        yield c  # type: ignore[misc]
+        yield c
 
 
 def joint_order(robot: Mapping[str, Any], group: str | None) -> tuple[str, ...]:

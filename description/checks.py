@@ -173,15 +173,14 @@ def mesh_inertia(link: Link, mass: float) -> tuple[np.ndarray, bool] | None:
     meshes imply at ``mass`` and uniform density, in the link frame, and whether it is
     reliable: an open (not watertight) CAD mesh has no volume, so its convex hull stands
     in and the figure is only indicative. None if the meshes cannot say."""
-    from .meshes import shape_mesh
+    from .meshes import concatenate, shape_mesh
     try:
         parts = [shape_mesh(s) for s in link.collisions]
     except DescriptionError:
         return None
     if not parts:
         return None
-    import trimesh
-    mesh = trimesh.util.concatenate(parts)
+    mesh = concatenate(parts)
     reliable = bool(mesh.is_volume and mesh.volume > 0)
     if not reliable:
         try:

@@ -95,15 +95,20 @@ class Description:
         actuated joints, ``all`` included), ``default_group``, ``named_states`` (name,
         group, values) and ``actuated_joints``."""
         srdf = self.srdf
+        return {"groups": self.group_joints(), "default_group": self.default_group(),
+                "named_states": [] if srdf is None else [
+                    {"name": s.name, "group": s.group, "values": dict(s.values)}
+                    for s in srdf.states],
+                "actuated_joints": list(self.robot.actuated_joints)}
+
+    def group_joints(self) -> dict[str, list[str]]:
+        """Each planning group's actuated joints, by group name (``all``: every one)."""
+        srdf = self.srdf
         actuated = self.robot.actuated_joints
         groups = {g.name: [j for j in g.joints if j in actuated]
                   for g in (srdf.groups.values() if srdf is not None else ())}
         groups["all"] = list(actuated)
-        return {"groups": groups, "default_group": self.default_group(),
-                "named_states": [] if srdf is None else [
-                    {"name": s.name, "group": s.group, "values": dict(s.values)}
-                    for s in srdf.states],
-                "actuated_joints": list(actuated)}
+        return groups
 
     @property
     def size_note(self) -> str | None:
@@ -275,13 +280,13 @@ def _read_tcp(path: Path, robot: Robot) -> Tcp:
                            element="tcp.parent_link")
     xyz = tcp.get("xyz")
     try:
-        vec = tuple(float(v) for v in xyz)  # type: ignore[union-attr]
+        vec = tuple(float(v) for v in xyz) if xyz is not None else ()
     except (TypeError, ValueError):
         vec = ()
     if len(vec) != 3 or not np.all(np.isfinite(vec)):
         raise InvalidModel(f"xyz {xyz!r} must be 3 finite numbers [m]", file=path,
                            element="tcp.xyz")
-    return Tcp(parent_link=str(parent), xyz=vec)  # type: ignore[arg-type]
+    return Tcp(parent_link=str(parent), xyz=(vec[0], vec[1], vec[2]))
 
 
 def _read_joint_limits(path: Path, robot: Robot
@@ -289,7 +294,9 @@ def _read_joint_limits(path: Path, robot: Robot
     """MoveIt's joint_limits.yaml: per-joint entries, and the default velocity and
     acceleration scaling factors (1 when absent)."""
     data = _read_yaml(path)
-    limits = data.get("joint_limits") if isinstance(data, dict) else None
+    if not isinstance(data, dict):
+        raise InvalidModel("needs a 'joint_limits' mapping (MoveIt's format)", file=path)
+    limits = data.get("joint_limits")
     if not isinstance(limits, dict):
         raise InvalidModel("needs a 'joint_limits' mapping (MoveIt's format)", file=path)
     for name, entry in limits.items():
@@ -301,7 +308,7 @@ def _read_joint_limits(path: Path, robot: Robot
                                element=f"joint_limits.{name}")
     scaling = []
     for key in ("default_velocity_scaling_factor", "default_acceleration_scaling_factor"):
-        raw = data.get(key, 1.0)  # type: ignore[union-attr]
+        raw = data.get(key, 1.0)
         ok = isinstance(raw, (int, float)) and not isinstance(raw, bool) and 0 < raw <= 1
         if not ok:
             raise InvalidModel(f"{raw!r} must be a number in (0, 1]", file=path, element=key)
@@ -330,11 +337,13 @@ def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object
         given = {k: entry[k] for k in ("min_position", "max_position") if k in entry}
         if not given:
             continue
+        nums: dict[str, float] = {}
         for key, raw in given.items():
             if isinstance(raw, bool) or not isinstance(raw, (int, float)) \
                     or not np.isfinite(raw):
                 raise InvalidModel(f"{raw!r} must be a finite number [rad or m]", file=path,
                                    element=f"joint_limits.{name}.{key}")
+            nums[key] = float(raw)
         j = joints[name]
         lim = j.limit
         if j.type not in ("revolute", "prismatic") or lim is None or lim.lower is None \
@@ -345,7 +354,7 @@ def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object
             continue
         lo, hi = lim.lower, lim.upper
         if "min_position" in given:
-            v = float(given["min_position"])  # type: ignore[arg-type]
+            v = nums["min_position"]
             if v >= lo:
                 lo = v
             else:
@@ -353,7 +362,7 @@ def apply_position_limits(robot: Robot, limits: Mapping[str, Mapping[str, object
                                 f"below the URDF's lower {lim.lower:g}; using the URDF's "
                                 "(it may only narrow the range)")
         if "max_position" in given:
-            v = float(given["max_position"])  # type: ignore[arg-type]
+            v = nums["max_position"]
             if v <= hi:
                 hi = v
             else:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,7 @@ def load_mesh(path: Path, scale: tuple[float, float, float] = (1.0, 1.0, 1.0), *
         stat = path.stat()
     except OSError:
         raise MeshNotFound(f"{path} does not exist", file=path, element=element) from None
-    key = (str(path), stat.st_mtime_ns, tuple(scale))
+    key = (str(path), stat.st_mtime_ns, (float(scale[0]), float(scale[1]), float(scale[2])))
     with _cache_lock:
         hit = _cache.get(key)
     if hit is not None:
@@ -78,3 +79,12 @@ def shape_mesh(shape: Shape, *, element: str | None = None) -> trimesh.Trimesh:
     else:
         base = primitive_mesh(g)
     return base.copy().apply_transform(shape.origin.matrix())
+
+
+def concatenate(parts: Sequence[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """The triangles of ``parts`` as one mesh (trimesh's own concatenate is typed as
+    returning any geometry; for meshes it returns a mesh)."""
+    mesh = trimesh.util.concatenate(list(parts))
+    if not isinstance(mesh, trimesh.Trimesh):
+        raise TypeError(f"trimesh concatenated meshes into a {type(mesh).__name__}")
+    return mesh

@@ -171,6 +171,7 @@ def resolve_config(
         p = Path(override).expanduser().resolve()
         if not p.is_file():
             raise DescriptionError(f"--{label.replace('_', '-')} file does not exist", file=p)
-        files = replace(files, **{label: p, "found_by": files.found_by +  # type: ignore[arg-type]
-                                  f"; --{label.replace('_', '-')} {p}"})
+        found_by = f"{files.found_by}; --{label.replace('_', '-')} {p}"
+        files = (replace(files, srdf=p, found_by=found_by) if label == "srdf"
+                 else replace(files, joint_limits=p, found_by=found_by))
     return files

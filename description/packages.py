@@ -184,9 +184,11 @@ def build_package_index(
     if include_shipped:
         searched.append(f"shipped {SHIPPED_PACKAGE_DIR}")
         add(SHIPPED_PACKAGE, SHIPPED_PACKAGE_DIR, "shipped")
+    # only add() under own_name fills shadowed, so own_name is set when it is not empty
     warnings = tuple(
         f"package '{own_name}' resolves to {found[own_name]} (the package holding the model); "
-        f"the copy in {path} ({where}) is not used" for path, where in shadowed)
+        f"the copy in {path} ({where}) is not used"
+        for path, where in shadowed if own_name is not None)
     return PackageIndex(packages=found, searched=tuple(searched), origins=origins,
                         warnings=warnings)
 

@@ -6,7 +6,7 @@ in MoveIt.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -156,9 +156,13 @@ def _chain_joints(robot: Robot, base: str, tip: str, where: str, source: Path | 
     return [j.name for j in path[start:]]
 
 
+# need_link / need_joint: (name or None, where) -> the name, or SrdfError if the URDF lacks it
+_Need = Callable[[str | None, str], str]
+
+
 def _group(robot: Robot, el: etree._Element, raw: dict[str, etree._Element],
            done: dict[str, Group], virtual: set[str], source: Path | None,
-           need_link, need_joint, visiting: tuple[str, ...] = ()) -> Group:  # type: ignore[no-untyped-def]
+           need_link: _Need, need_joint: _Need, visiting: tuple[str, ...] = ()) -> Group:
     name = el.get("name", "")
     if name in done:
         return done[name]
@@ -237,13 +241,13 @@ def parse_srdf(text: str, robot: Robot, *, source: Path | None = None) -> Srdf:
         _group(robot, g, raw, done, virtual, source, need_link, need_joint)
     groups = {name: done[name] for name in raw}
     effs = []
-    for e in root.findall("end_effector"):
-        where = f"end_effector '{e.get('name')}'"
-        group = e.get("group", "")
+    for eff in root.findall("end_effector"):
+        where = f"end_effector '{eff.get('name')}'"
+        group = eff.get("group", "")
         if group not in groups:
             raise SrdfError(f"group '{group}' is not declared", file=source, element=where)
-        effs.append(EndEffector(e.get("name", ""), need_link(e.get("parent_link"), where), group,
-                                e.get("parent_group")))
+        effs.append(EndEffector(eff.get("name", ""), need_link(eff.get("parent_link"), where),
+                                group, eff.get("parent_group")))
     states: list[GroupState] = []
     seen: set[tuple[str, str]] = set()
     warnings: list[str] = []

@@ -52,8 +52,8 @@ class _Ctx:
     def fail(self, message: str, element: str, hint: str | None = None) -> None:
         self.problems.append(InvalidModel(message, file=self.source, element=element, hint=hint))
 
-    def floats(self, el: etree._Element | None, attr: str, n: int, default: tuple[float, ...],
-               where: str) -> tuple[float, ...]:
+    def vec3(self, el: etree._Element | None, attr: str, default: tuple[float, float, float],
+             where: str) -> tuple[float, float, float]:
         if el is None or el.get(attr) is None:
             return default
         raw = el.get(attr, "")
@@ -61,11 +61,11 @@ class _Ctx:
             vals = tuple(float(v) for v in raw.split())
         except ValueError:
             vals = ()
-        if len(vals) != n:
-            self.fail(f"{attr}=\"{raw}\" must be {n} numbers", where,
-                      hint=f"write {n} space-separated numbers")
+        if len(vals) != 3:
+            self.fail(f"{attr}=\"{raw}\" must be 3 numbers", where,
+                      hint="write 3 space-separated numbers")
             return default
-        return vals
+        return vals[0], vals[1], vals[2]
 
     def number(self, el: etree._Element | None, attr: str, where: str,
                default: float | None = None) -> float | None:
@@ -82,8 +82,8 @@ class _Ctx:
 def _origin(ctx: _Ctx, el: etree._Element | None, where: str) -> Origin:
     if el is None:
         return Origin()
-    return Origin(xyz=ctx.floats(el, "xyz", 3, (0.0, 0.0, 0.0), where),  # type: ignore[arg-type]
-                  rpy=ctx.floats(el, "rpy", 3, (0.0, 0.0, 0.0), where))  # type: ignore[arg-type]
+    return Origin(xyz=ctx.vec3(el, "xyz", (0.0, 0.0, 0.0), where),
+                  rpy=ctx.vec3(el, "rpy", (0.0, 0.0, 0.0), where))
 
 
 def _geometry(ctx: _Ctx, el: etree._Element | None, where: str) -> Geometry | None:
@@ -113,10 +113,10 @@ def _geometry(ctx: _Ctx, el: etree._Element | None, where: str) -> Geometry | No
                                file=ctx.source, element=where)
         except DescriptionError as e:
             ctx.problems.append(e)
-        scale = ctx.floats(g, "scale", 3, (1.0, 1.0, 1.0), where)
-        return Geometry("mesh", uri=uri, path=path, scale=scale)  # type: ignore[arg-type]
+        scale = ctx.vec3(g, "scale", (1.0, 1.0, 1.0), where)
+        return Geometry("mesh", uri=uri, path=path, scale=scale)
     if tag == "box":
-        return Geometry("box", size=ctx.floats(g, "size", 3, (0.0, 0.0, 0.0), where))  # type: ignore[arg-type]
+        return Geometry("box", size=ctx.vec3(g, "size", (0.0, 0.0, 0.0), where))
     if tag == "sphere":
         return Geometry("sphere", radius=ctx.number(g, "radius", where, 0.0))
     if tag == "cylinder":
@@ -171,7 +171,7 @@ def _joint(ctx: _Ctx, el: etree._Element) -> Joint | None:
     if not parent or not child:
         ctx.fail("needs <parent link=...> and <child link=...>", where)
         return None
-    axis = ctx.floats(el.find("axis"), "xyz", 3, (1.0, 0.0, 0.0), where)
+    axis = ctx.vec3(el.find("axis"), "xyz", (1.0, 0.0, 0.0), where)
     limit = None
     lim_el = el.find("limit")
     if lim_el is not None:
@@ -189,8 +189,8 @@ def _joint(ctx: _Ctx, el: etree._Element) -> Joint | None:
         mimic = Mimic(joint=mim_el.get("joint", ""),
                       multiplier=ctx.number(mim_el, "multiplier", where, 1.0) or 0.0,
                       offset=ctx.number(mim_el, "offset", where, 0.0) or 0.0)
-    return Joint(name=name, type=jtype, parent=parent, child=child,  # type: ignore[arg-type]
-                 origin=_origin(ctx, el.find("origin"), where), axis=axis,  # type: ignore[arg-type]
+    return Joint(name=name, type=jtype, parent=parent, child=child,
+                 origin=_origin(ctx, el.find("origin"), where), axis=axis,
                  limit=limit, mimic=mimic)
 
 

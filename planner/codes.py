@@ -20,7 +20,9 @@ class Code(str, Enum):
     (``enum.StrEnum`` would do the same but needs Python 3.11.)"""
 
     __str__ = str.__str__
-    __format__ = str.__format__  # type: ignore[assignment]
+
+    def __format__(self, spec: str) -> str:
+        return str.__format__(self, spec)
 
     # the planning service's replies (service/schema/error.json)
     INVALID_REQUEST = "INVALID_REQUEST"

@@ -7,10 +7,10 @@ field that is wrong (``obstacles[2].size``) before any collision object exists.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, SupportsFloat, SupportsIndex
 
 import numpy as np
 
@@ -23,8 +23,10 @@ _KINDS = ("box", "sphere", "cylinder", "mesh")
 
 
 def _finite_vec(value: object, n: int, field: str, *, positive: bool = False) -> tuple[float, ...]:
+    if not isinstance(value, Iterable):
+        raise InvalidRequest(f"{value!r} must be {n} numbers", field=field)
     try:
-        vec = tuple(float(v) for v in value)  # type: ignore[union-attr]
+        vec = tuple(float(v) for v in value)
     except (TypeError, ValueError):
         raise InvalidRequest(f"{value!r} must be {n} numbers", field=field) from None
     if len(vec) != n or not all(math.isfinite(v) for v in vec):
@@ -35,8 +37,10 @@ def _finite_vec(value: object, n: int, field: str, *, positive: bool = False) ->
 
 
 def _positive(value: object, field: str) -> float:
+    if not isinstance(value, (str, SupportsFloat, SupportsIndex)):  # what float() takes
+        raise InvalidRequest(f"{value!r} is not a number", field=field)
     try:
-        v = float(value)  # type: ignore[arg-type]
+        v = float(value)
     except (TypeError, ValueError):
         raise InvalidRequest(f"{value!r} is not a number", field=field) from None
     if not math.isfinite(v) or v <= 0:
@@ -99,8 +103,9 @@ class Obstacle:
         return Origin(xyz=self.xyz, rpy=self.rpy).matrix()
 
     @classmethod
-    def from_mapping(cls, data: Mapping[str, object], *, where: str = "obstacle") -> Obstacle:
-        """Build from a JSON-like mapping (the service's wire format)."""
+    def from_mapping(cls, data: object, *, where: str = "obstacle") -> Obstacle:
+        """Build from a JSON-like mapping (the service's wire format); anything else is
+        refused with InvalidRequest."""
         if not isinstance(data, Mapping):
             raise InvalidRequest("must be an object", field=where)
         known = {"id", "shape", "size", "radius", "length", "mesh_path", "xyz", "rpy"}
@@ -110,7 +115,7 @@ class Obstacle:
         for key in ("id", "shape"):
             if key not in data:
                 raise InvalidRequest("is required", field=f"{where}.{key}")
-        return cls(where=where, **{k: v for k, v in data.items()})  # type: ignore[arg-type]
+        return cls(where=where, **{k: v for k, v in data.items()})
 
 
 def validate_obstacles(obstacles: Sequence[Obstacle], *,

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, TypeGuard
 
 import xxhash
 
@@ -35,6 +35,10 @@ log = logging.getLogger(__name__)
 ADMIN_SPACE = "@ros2_lv"
 EntityKind = Literal["NN", "MP", "MS", "SS", "SC"]
 ENTITY_KINDS: tuple[str, ...] = ("NN", "MP", "MS", "SS", "SC")
+
+
+def _is_entity_kind(kind: str) -> TypeGuard[EntityKind]:
+    return kind in ENTITY_KINDS
 
 
 @dataclass(frozen=True)
@@ -109,7 +113,7 @@ class Token:
         if any(not p for p in parts):
             raise MalformedToken(key, "has an empty chunk")
         kind = parts[5]
-        if kind not in ENTITY_KINDS or (kind == "NN") != (len(parts) == 9):
+        if not _is_entity_kind(kind) or (kind == "NN") != (len(parts) == 9):
             raise MalformedToken(key, f"entity kind {kind!r} with {len(parts) - 1} chunks")
         if not (parts[1].isdigit() and parts[3].isdigit() and parts[4].isdigit()):
             raise MalformedToken(key, "domain, node and entity ids must be integers")
@@ -117,10 +121,10 @@ class Token:
                         demangle(parts[8]), demangle(parts[6]))
         endpoint = None
         if kind != "NN":
-            endpoint = EndpointInfo(node, int(parts[4]), kind,  # type: ignore[arg-type]
+            endpoint = EndpointInfo(node, int(parts[4]), kind,
                                     demangle(parts[9]), demangle(parts[10]),
                                     demangle(parts[11]), QoS.decode(parts[12]))
-        return cls(node, kind, int(parts[4]), endpoint)  # type: ignore[arg-type]
+        return cls(node, kind, int(parts[4]), endpoint)
 
 
 def endpoint_selector(domain_id: int, kind: EntityKind, name: str, dds_type: str,

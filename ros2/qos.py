@@ -14,7 +14,7 @@ reliable 1 / best_effort 2; durability transient_local 1 / volatile 2; history k
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypeVar
 
 from .errors import MalformedToken
 
@@ -26,10 +26,11 @@ Liveliness = Literal["automatic", "manual_by_topic"]
 #: RMW_DURATION_INFINITE (rmw/time.h): (sec, nsec).
 INFINITE: tuple[int, int] = (9223372036, 854775807)
 
-_RELIABILITY = {"reliable": 1, "best_effort": 2}
-_DURABILITY = {"transient_local": 1, "volatile": 2}
-_HISTORY = {"keep_last": 1, "keep_all": 2}
-_LIVELINESS = {"automatic": 1, "manual_by_topic": 3}
+_RELIABILITY: dict[Reliability, int] = {"reliable": 1, "best_effort": 2}
+_DURABILITY: dict[Durability, int] = {"transient_local": 1, "volatile": 2}
+_HISTORY: dict[History, int] = {"keep_last": 1, "keep_all": 2}
+_LIVELINESS: dict[Liveliness, int] = {"automatic": 1, "manual_by_topic": 3}
+_Choice = TypeVar("_Choice", bound=str)  # one of the Literal choices above
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,7 @@ class QoS:
                                  "kind,s,ns")
         d = RMW_ZENOH_DEFAULT
 
-        def enum(s: str, default: str, table: dict[str, int]) -> str:
+        def enum(s: str, default: _Choice, table: dict[_Choice, int]) -> _Choice:
             if not s:
                 return default
             for name, value in table.items():
@@ -95,13 +96,13 @@ class QoS:
 
         hist, dl, ls, lv = groups
         return cls(
-            reliability=enum(parts[0], d.reliability, _RELIABILITY),  # type: ignore[arg-type]
-            durability=enum(parts[1], d.durability, _DURABILITY),  # type: ignore[arg-type]
-            history=enum(hist[0], d.history, _HISTORY),  # type: ignore[arg-type]
+            reliability=enum(parts[0], d.reliability, _RELIABILITY),
+            durability=enum(parts[1], d.durability, _DURABILITY),
+            history=enum(hist[0], d.history, _HISTORY),
             depth=integer(hist[1], d.depth),
             deadline=(integer(dl[0], d.deadline[0]), integer(dl[1], d.deadline[1])),
             lifespan=(integer(ls[0], d.lifespan[0]), integer(ls[1], d.lifespan[1])),
-            liveliness=enum(lv[0], d.liveliness, _LIVELINESS),  # type: ignore[arg-type]
+            liveliness=enum(lv[0], d.liveliness, _LIVELINESS),
             liveliness_lease_duration=(integer(lv[1], d.liveliness_lease_duration[0]),
                                        integer(lv[2], d.liveliness_lease_duration[1])),
         )

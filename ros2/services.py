@@ -165,10 +165,12 @@ class ServiceClient:
                                     target=zenoh.QueryTarget.ALL_COMPLETE, timeout=timeout)
         errors: list[str] = []
         for reply in replies:
-            if reply.ok is None:
-                errors.append(reply.err.payload.to_bytes().decode(errors="replace"))
-                continue
             sample = reply.ok
+            if sample is None:
+                err = reply.err  # a reply is either ok or err
+                errors.append("" if err is None else
+                              err.payload.to_bytes().decode(errors="replace"))
+                continue
             raw = sample.attachment
             try:
                 back = Attachment.decode(None if raw is None else raw.to_bytes(), self._layout)

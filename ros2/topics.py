@@ -23,6 +23,7 @@ from .types import TypeStore
 
 if TYPE_CHECKING:
     import zenoh
+    import zenoh.ext
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +64,7 @@ class Publisher:
             reliability=z.Reliability.RELIABLE if reliable else z.Reliability.BEST_EFFORT,
             congestion_control=(z.CongestionControl.BLOCK if block
                                 else z.CongestionControl.DROP))
+        self._pub: zenoh.Publisher | zenoh.ext.AdvancedPublisher
         if qos.durability == "transient_local":
             # As PublisherData::make: an advanced publisher caching `depth` samples for
             # late joiners, detectable, with sporadic heartbeats when reliable (500 ms).
@@ -128,6 +130,7 @@ class Subscription:
         self.rejected = 0
         self.callback_errors = 0
         self.last_error: Ros2Error | None = None
+        self._sub: zenoh.Subscriber[None] | zenoh.ext.AdvancedSubscriber[None]
         if endpoint.qos.durability == "transient_local":
             # design.md "Subscriptions": an advanced subscriber querying the cached history
             # of (late-detected) transient_local publishers.

@@ -62,7 +62,7 @@ class Handlers:
 
         mp = self._motion_planner()
         desc = self.description
-        joints = desc.summary()["groups"][desc.default_group()]
+        joints = desc.group_joints()[desc.default_group()]
         if not joints:
             return
         name = joints[0]
@@ -117,7 +117,7 @@ class Handlers:
         if desc.tcp is None:
             raise InvalidRequest("this description has no tcp (config/tcp.yaml)")
         # the default group's joints that move the tcp
-        joints = tcp_joints(desc, desc.summary()["groups"][desc.default_group()])
+        joints = tcp_joints(desc, desc.group_joints()[desc.default_group()])
         sols = position_ik(self.kin, desc.tcp, [float(v) for v in data["position"]],
                            joints=joints)
         return {"solutions": [{"joints": dict(zip(self.kin.joint_names, map(float, s.q))),

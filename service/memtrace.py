@@ -136,7 +136,8 @@ class MemTrace:
         rss, kinds = rss_bytes(os.getpid()), rss_kinds()
         trimmed = ""
         if self.trim:
-            if hasattr(_LIBC, "malloc_trim"):  # glibc returns free heap memory to the system
+            # glibc returns free heap memory to the system
+            if _LIBC is not None and hasattr(_LIBC, "malloc_trim"):
                 _LIBC.malloc_trim(0)
             trimmed = f" -> {rss_bytes(os.getpid()) / _MIB:.1f} MiB after malloc_trim"
         _log.info("memtrace: rss %.1f MiB (%s)%s, traced %.1f MiB, malloc in use %s, "

@@ -244,8 +244,11 @@ class PlannerService:
     def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
                      ) -> None:
         """A plan job for an extension's own planning, through the same pool."""
-        self.pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
-                             time.monotonic() + self.options.timeout, respond))
+        pool = self.pool
+        if pool is None:  # closed: as _on_query answers a query that arrives then
+            raise ShuttingDown(SHUTTING_DOWN)
+        pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
+                        time.monotonic() + self.options.timeout, respond))
 
     def _held(self) -> dict[str, int]:
         """Live jobs and what the pool holds (the memory probe's numbers)."""

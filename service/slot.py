@@ -102,7 +102,10 @@ class Workers:
         Raises:
             ZygoteError: the zygote is gone or did not fork.
         """
-        w = self._zygote.fork()  # type: ignore[union-attr]
+        zygote = self._zygote
+        if zygote is None:  # before start() or after a failed restart
+            raise ZygoteError("the worker zygote is not running")
+        w = zygote.fork()
         with self._cond:
             self._live.add(w.pid)
         return w
@@ -120,7 +123,8 @@ class Workers:
                 if self.stopping or (self._zygote is not None and self._zygote.alive):
                     continue
                 try:
-                    self._zygote.close(timeout=0.5)  # type: ignore[union-attr]
+                    if self._zygote is not None:
+                        self._zygote.close(timeout=0.5)
                     self.start()
                     self._count("zygote_restarts")
                 except ZygoteError:

@@ -200,7 +200,8 @@ class Zygote:
         if not self.alive:
             raise ZygoteError("the worker zygote is not running")
         token = next(self._tokens)
-        event, box = threading.Event(), []
+        event = threading.Event()
+        box: list[Any] = []
         self._pending[token] = (event, box)
         try:
             with self._send_lock:

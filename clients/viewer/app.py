@@ -11,6 +11,7 @@ import logging
 import math
 import threading
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -29,6 +30,9 @@ from .geometry import (
     obstacle_mesh,
     world_bounds,
 )
+
+if TYPE_CHECKING:
+    import viser  # optional (the view extra): imported at run time through require()
 
 _log = logging.getLogger(__name__)
 
@@ -108,10 +112,10 @@ class RobotViewer:
         self._colors = {m.link: m.color for m in self.meshes}
         self._colors.update({o: OBSTACLE_RGB for o in self._obstacle_handles})
 
-    def _build_joint_panel(self) -> dict[str, object]:
+    def _build_joint_panel(self) -> dict[str, viser.GuiSliderHandle[float]]:
         gui = self.server.gui
         robot = self.description.robot
-        sliders = {}
+        sliders: dict[str, viser.GuiSliderHandle[float]] = {}
         with gui.add_folder("Joints"):
             for i, name in enumerate(self.joint_names):
                 mimics = robot.mimics_of(name)
@@ -163,13 +167,13 @@ class RobotViewer:
     def set_q(self, q: ArrayLike, *, force: bool = False) -> StateCheck:
         """Show pose ``q`` (shape (dof,) [rad], clamped into the limits): move the links,
         the sliders, and colour colliding bodies red. Returns the collision check."""
-        q = np.clip(np.asarray(q, dtype=float).reshape(-1), self.lower, self.upper)
+        qc = np.clip(np.asarray(q, dtype=float).reshape(-1), self.lower, self.upper)
         with self._lock:
-            if not force and np.array_equal(q, self._q):
+            if not force and np.array_equal(qc, self._q):
                 return self.check
-            self._q = q
-            poses = self.kin.link_poses(q)
-            check = self.world.check(q)
+            self._q = qc
+            poses = self.kin.link_poses(qc)
+            check = self.world.check(qc)
             red = {name for pair in check.pairs for name in pair}
             with self.server.atomic():
                 for m in self.meshes:
@@ -184,8 +188,10 @@ class RobotViewer:
                 self._local.setting = True
                 try:
                     for i, n in enumerate(self.joint_names):
-                        if abs(float(self.sliders[n].value) - q[i]) > 1e-9:
-                            self.sliders[n].value = float(q[i])
+                        if abs(float(self.sliders[n].value) - qc[i]) > 1e-9:
+                            # viser defines value's setter apart from its getter, which
+                            # mypy reads as a read-only property
+                            self.sliders[n].value = float(qc[i])  # type: ignore[misc]
                 finally:
                     self._local.setting = False
                 self._collision_md.content = _collision_text(check)

@@ -60,6 +60,8 @@ class JointStateFollower:
                 if self._stop:
                     return
                 msg, self._latest = self._latest, None
+            if msg is None:  # the wait ends on a message or on stop, which returned
+                continue
             check = self.viewer.set_joints(dict(zip(msg.get("name", []),
                                                     msg.get("position", []))))
             self.shown += 1

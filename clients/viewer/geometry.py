@@ -14,7 +14,7 @@ import numpy as np
 import trimesh
 
 from description import Description
-from description.meshes import load_mesh, primitive_mesh, shape_mesh
+from description.meshes import concatenate, load_mesh, primitive_mesh, shape_mesh
 from description.model import Geometry
 from planner.kinematics.chain import Kinematics
 from planner.scene import Obstacle
@@ -68,7 +68,7 @@ def link_meshes(description: Description, kin: Kinematics) -> tuple[LinkMesh, ..
         if not shapes:
             continue
         parts = [shape_mesh(s, element=f"link '{name}'") for s in shapes]
-        mesh = trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+        mesh = concatenate(parts) if len(parts) > 1 else parts[0]
         out.append(LinkMesh(link=name, index=i,
                             vertices=np.asarray(mesh.vertices, dtype=np.float32),
                             faces=np.asarray(mesh.faces, dtype=np.uint32),
@@ -122,8 +122,8 @@ def frame_box(bounds: np.ndarray, *, fov: float = math.radians(45.0), aspect: fl
     dist = max(dist, 1e-3)
     target = centre + right * (dist * math.tan(fov / 2.0) * aspect * left)
     pos = target + back * dist
-    return CameraView(position=tuple(float(x) for x in pos),
-                      look_at=tuple(float(x) for x in target), fov=fov)
+    return CameraView(position=(float(pos[0]), float(pos[1]), float(pos[2])),
+                      look_at=(float(target[0]), float(target[1]), float(target[2])), fov=fov)
 
 
 def matrix_to_wxyz(rot: np.ndarray) -> tuple[float, float, float, float]:
@@ -131,4 +131,4 @@ def matrix_to_wxyz(rot: np.ndarray) -> tuple[float, float, float, float]:
     t = np.eye(4)
     t[:3, :3] = rot
     q = trimesh.transformations.quaternion_from_matrix(t, isprecise=True)
-    return tuple(float(v) for v in q)  # type: ignore[return-value]
+    return float(q[0]), float(q[1]), float(q[2]), float(q[3])

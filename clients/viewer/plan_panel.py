@@ -62,7 +62,7 @@ class PlanningPanel:
         if self.marked is None:
             raise InvalidRequest("mark a goal first (move the sliders, press 'Mark sliders "
                                  "as goal', move them back to the start)", field="goal")
-        group: Group = self._group.value  # type: ignore[assignment]
+        group = self._group.value
         joints = self.viewer.description.srdf.groups[group].joints \
             if group != "all" and self.viewer.description.srdf is not None \
             else self.viewer.joint_names

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from description import Description
 from planner.errors import InvalidRequest
@@ -13,6 +13,10 @@ from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
 
 from .trajectory import PlaybackTrajectory
+
+if TYPE_CHECKING:  # both are imported on the first plan: the viewer starts without them
+    from clients.client import PlannerClient
+    from planner.planning.pipeline import MotionPlanner
 
 _log = logging.getLogger(__name__)
 
@@ -40,14 +44,15 @@ class LocalBackend:
     def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = ()) -> None:
         self.description = description
         self.obstacles = tuple(obstacles)
-        self._planner = None
+        self._planner: MotionPlanner | None = None
 
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
         from planner.planning.pipeline import MotionPlanner, MotionRequest
 
-        if self._planner is None:
-            self._planner = MotionPlanner(self.description)
-        res = self._planner.solve(MotionRequest(goal=goal, start=dict(start), group=group,
+        planner = self._planner
+        if planner is None:
+            planner = self._planner = MotionPlanner(self.description)
+        res = planner.solve(MotionRequest(goal=goal, start=dict(start), group=group,
                                                 obstacles=self.obstacles, seed=SEED))
         _log.info("planned %.2f s of motion with %s in %.3f s", res.trajectory.duration,
                   res.planner, res.timing.get("total", float("nan")))
@@ -72,7 +77,7 @@ class RemoteBackend:
         self.endpoint = endpoint
         self.name = f"through the service at {endpoint}"
         self.obstacles = tuple(obstacles)
-        self._client = None
+        self._client: PlannerClient | None = None
 
     def request(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> dict:
         """The v1 plan request (service/schema/plan_request.json)."""
@@ -84,9 +89,10 @@ class RemoteBackend:
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
         from clients.client import PlannerClient
 
-        if self._client is None:
-            self._client = PlannerClient(self.endpoint)
-        res = self._client.plan(self.request(goal, start=start, group=group))
+        client = self._client
+        if client is None:
+            client = self._client = PlannerClient(self.endpoint)
+        res = client.plan(self.request(goal, start=start, group=group))
         return PlaybackTrajectory.from_json(res.raw)
 
 

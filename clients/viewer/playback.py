@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from . import require
 from .app import RobotViewer
 from .plots import PlotPanel, joint_limits, plot_panels, plot_png
 from .trajectory import PlaybackTrajectory, TrajectoryFileError
+
+if TYPE_CHECKING:
+    import viser  # the view extra: imported at run time through require()
 
 _SPEEDS = ("0.1", "0.25", "0.5", "1", "2")
 _COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf")
@@ -46,7 +50,7 @@ class PlaybackPanel:
             self._loop = gui.add_checkbox("Loop", False)
         self._plot_folder = gui.add_folder("Plots", expand_by_default=False)
         with self._plot_folder:
-            self._plots: list[object] = []
+            self._plots: list[viser.GuiUplotHandle] = []
             self._png = gui.add_button("Download plots as PNG", disabled=True)
             self._png.on_click(self._download_png)
         self._thread = threading.Thread(target=self._run, name="viewer-playback", daemon=True)
@@ -140,7 +144,7 @@ class PlaybackPanel:
         uplot = require("viser.uplot")
         gui = self.viewer.server.gui
         for h in self._plots:
-            h.remove()  # type: ignore[attr-defined]
+            h.remove()
         self._plots = []
         for p in self.panels():
             data = [p.times]

@@ -71,8 +71,14 @@ class PlaybackTrajectory:
             TrajectoryFileError: naming the field that is wrong.
         """
         names, times, cols = parse_trajectory(data)
-        return cls(names, times, **{k: None if np.isnan(c).any() else c
-                                    for k, c in cols.items()})
+
+        def optional(kind: str) -> np.ndarray | None:
+            c = cols[kind]
+            return None if np.isnan(c).any() else c
+
+        # positions: parse_trajectory requires them at every point
+        return cls(names, times, cols["positions"], velocities=optional("velocities"),
+                   accelerations=optional("accelerations"), effort=optional("effort"))
 
     @classmethod
     def from_file(cls, path: str | Path) -> PlaybackTrajectory:

@@ -44,6 +44,13 @@ def joint_rotation(origin: np.ndarray, x: float, y: float, z: float, v: float,
         out[i, 2] = a0 * j02 + a1 * j12 + a2 * j22
 
 
+# What the kernels take after the joint values, in this order: parent, origin, jtype,
+# axis, src, scale, offset (Kinematics._args). A fixed-length tuple, so the kernels'
+# typed signatures check a call that spreads it.
+ChainArrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                    np.ndarray]
+
+
 @numba.njit(cache=True, nogil=True)
 def _fk_into(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray,
              axis: np.ndarray, src: np.ndarray, scale: np.ndarray, offset: np.ndarray,
@@ -135,7 +142,7 @@ class Kinematics:
     def dof(self) -> int:
         return len(self.joint_names)
 
-    def _args(self) -> tuple[np.ndarray, ...]:
+    def _args(self) -> ChainArrays:
         return (self._parent, self._origin, self._jtype, self._axis, self._src,
                 self._scale, self._offset)
 

@@ -23,7 +23,11 @@ from description.model import Robot, rpy_matrix
 
 from ..errors import InvalidRequest
 from ..path_limits import torque_coefficients
-from .chain import FIXED, PRISMATIC, REVOLUTE, Kinematics, joint_rotation
+from .chain import FIXED, PRISMATIC, REVOLUTE, ChainArrays, Kinematics, joint_rotation
+
+# _rnea_batch's model arrays: the chain's (ChainArrays) then mass, com, inertia
+_DynamicsArrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                        np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # [m/s^2] in the root frame
 
@@ -150,8 +154,8 @@ def _rnea_batch(qs, qds, qdds, gravity, parent, origin, jtype, axis, src, scale,
             work[p, 14] += r2[0] * nx + r2[1] * ny + r2[2] * nz + (rx * gy - ry * gx)
 
 
-def _lump_fixed(args: tuple[np.ndarray, ...], mass: np.ndarray, com: np.ndarray,
-                inertia: np.ndarray) -> tuple[np.ndarray, ...]:
+def _lump_fixed(args: ChainArrays, mass: np.ndarray, com: np.ndarray,
+                inertia: np.ndarray) -> _DynamicsArrays:
     """The RNEA's arrays with every link on a fixed joint merged into the link it hangs
     from (its mass, centre of mass and inertia combined there, parallel axes): the same
     torques for fewer links (a CAD export's camera mounts, flanges and tool frames).
@@ -306,4 +310,5 @@ class InverseDynamics:
             ``a``, ``b``, ``c``, each shape (N, dof), in one batched call (what toppra's
             ``JointTorqueConstraint`` computes with 3N single calls).
         """
-        return torque_coefficients(self, np.asarray(p, float), ps, pss)
+        return torque_coefficients(self, np.asarray(p, float), np.asarray(ps, float),
+                                   np.asarray(pss, float))

@@ -27,6 +27,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import SupportsFloat, SupportsIndex
 
 import numpy as np
 
@@ -94,7 +95,8 @@ class JointLimits:
         names = tuple(joint_names)
         src = {k: v for k, v in self.sources.items()
                if k.split(".", 1)[0] in names or "." not in k}
-        return JointLimits(names, *(getattr(self, kind)[idx] for kind in _KINDS), sources=src)
+        return JointLimits(names, self.lower[idx], self.upper[idx], self.velocity[idx],
+                           self.acceleration[idx], self.jerk[idx], self.effort[idx], sources=src)
 
     @classmethod
     def from_description(
@@ -177,7 +179,9 @@ class JointLimits:
         vals["jerk"] = [j * acceleration_scaling for j in vals["jerk"]]
         sources["scaling"] = (f"velocity x {velocity_scaling}, acceleration and jerk x "
                               f"{acceleration_scaling}")
-        return cls(names, *(np.array(vals[k], dtype=float) for k in _KINDS), sources=sources)
+        arr = {k: np.array(vals[k], dtype=float) for k in _KINDS}
+        return cls(names, arr["lower"], arr["upper"], arr["velocity"], arr["acceleration"],
+                   arr["jerk"], arr["effort"], sources=sources)
 
 
 def _check_scaling(value: float, name: str) -> None:
@@ -188,8 +192,8 @@ def _check_scaling(value: float, name: str) -> None:
 
 def _yaml_number(name: str, cfg: Mapping[str, object], key: str) -> float:
     raw = cfg.get(key)
-    try:
-        v = float(raw)  # type: ignore[arg-type]
+    try:  # what float() does not take is not a number either
+        v = float(raw) if isinstance(raw, (str, SupportsFloat, SupportsIndex)) else math.nan
     except (TypeError, ValueError):
         v = math.nan
     if isinstance(raw, bool) or not (math.isfinite(v) and v > 0):
@@ -243,7 +247,12 @@ def derive_accelerations(description: Description, joints: Sequence[str]) -> np.
     out = []
     for name in joints:
         i = dyn.joint_names.index(name)
-        effort = robot.joints[name].limit.effort  # type: ignore[union-attr]
+        urdf_limit = robot.joints[name].limit
+        if urdf_limit is None:  # a continuous joint may come without <limit>
+            raise LimitsError("no acceleration limit in joint_limits.yaml, and none can be "
+                              "derived: the URDF gives the joint no <limit effort=>",
+                              joint=name, limit="acceleration")
+        effort = urdf_limit.effort
         if inertia[i] <= 0:
             raise LimitsError("no acceleration limit in joint_limits.yaml, and none can be "
                               "derived: the joint moves no mass (no <inertial>)",

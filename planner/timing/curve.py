@@ -175,7 +175,7 @@ def _blend_free(checker: _Checker | _Certifier, blend: PathCurve, step: float
     if hasattr(checker, "pieces"):
         cert = checker.pieces(blend.starts, blend.u1, blend.u2, blend.lengths)
         return bool(cert.free), cert
-    return checker.first_invalid(blend.dense(step)) < 0, None  # type: ignore[union-attr]
+    return checker.first_invalid(blend.dense(step)) < 0, None
 
 
 def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
