@@ -57,6 +57,24 @@ def axis_rows(free_axes: Sequence[str]) -> np.ndarray:
     return np.array([i for i, a in enumerate("xyz") if a not in free_axes], dtype=np.int64)
 
 
+def _axis_error(rot: np.ndarray, goal: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The world-frame rotation (m, 3) [rad, to first order] turning the tool towards the
+    goal on the constrained axes: ``0.5 sum_i r_i x g_i`` for all three, ``r_a x g_a``
+    for the one axis a left constrained in direction (the other free), so the free
+    rotation stays free; smooth everywhere, unlike a rotation vector near pi. Two free
+    axes: the rotation-vector component of the one bounded, in the world frame."""
+    r_cols, g_cols = np.swapaxes(rot, -1, -2), goal.T  # rows: the frames' axes
+    if len(rows) == 3:
+        return 0.5 * np.cross(r_cols, g_cols[None]).sum(axis=1)
+    if len(rows) == 2:
+        a = ({0, 1, 2} - set(rows.tolist())).pop()  # the free axis keeps its direction
+        return np.cross(r_cols[:, a], g_cols[a][None])
+    e = rotation_error(goal, rot)
+    keep = np.zeros_like(e)
+    keep[:, rows] = e[:, rows]
+    return -(goal @ keep[:, :, None])[:, :, 0]
+
+
 def _step(jac: np.ndarray, e: np.ndarray, err: np.ndarray) -> np.ndarray:
     # damped least squares, damping vanishing at a solution (as ik_numeric's)
     lam2 = np.clip(err, 1e-6, 0.1)[:, None, None] ** 2
@@ -84,14 +102,10 @@ def _solve(kin: Kinematics, tcp: Tcp, chain: Chain, q_base: np.ndarray, starts: 
         ep = np.linalg.norm(e_lin, axis=1)
         if target_r is None or len(rows) == 0:
             jac, e = jp, e_lin
-            eo = np.zeros((len(qs), 3)) if target_r is None else rotation_error(target_r, rot)
             size = ep
         else:
-            eo = rotation_error(target_r, rot)
-            # d(rotvec in the goal frame) ~ R_goal^T omega near the goal
-            jo = (target_r.T @ jw)[:, rows]
-            jac = np.concatenate([jp, jo], axis=1)
-            e = np.concatenate([e_lin, -eo[:, rows]], axis=1)
+            jac = np.concatenate([jp, jw], axis=1)
+            e = np.concatenate([e_lin, _axis_error(rot, target_r, rows)], axis=1)
             size = np.linalg.norm(e, axis=1)
         if np.all(size < 1e-12):
             break
