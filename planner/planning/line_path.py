@@ -130,7 +130,23 @@ def follow_line(kin: Kinematics, tcp: Tcp, chain: Chain, world: CollisionWorld,
     step = min(WALK_STEP, length) / length
     while f < 1.0:
         nxt = min(1.0, f + step)
-        q_new = solve(q, nxt, f)
+        try:
+            q_new = solve(q, nxt, f)
+            check(q_new, f)
+        except LineInterrupted:
+            # how far it really gets: bisect the step (to 1/64 of it), then refuse there
+            lo, hi, q_lo = f, nxt, q
+            for _ in range(6):
+                mid = 0.5 * (lo + hi)
+                try:
+                    q_mid = solve(q_lo, mid, lo)
+                    check(q_mid, lo)
+                except LineInterrupted:
+                    hi = mid
+                else:
+                    lo, q_lo = mid, q_mid
+            check(solve(q_lo, hi, lo), lo)
+            raise
         jump = float(np.max(np.abs(q_new - q)))
         if jump > JUMP * (nxt - f) * length / WALK_STEP + 1e-9:
             step /= 2
@@ -140,7 +156,6 @@ def follow_line(kin: Kinematics, tcp: Tcp, chain: Chain, world: CollisionWorld,
                     "or the edge of an IK branch)", fraction=f, reason="singularity",
                     details={"position": point(f).tolist(), "joint_step": jump})
             continue
-        check(q_new, f)
         verts.append(q_new)
         fracs.append(nxt)
         f, q = nxt, q_new
