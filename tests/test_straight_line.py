@@ -17,12 +17,14 @@ from scipy.spatial.transform import Rotation
 from description import load_description
 from description.errors import DescriptionError
 from description.moveit_config import CartesianLimits, read_cartesian_limits
-from planner.errors import InvalidRequest, LineInterrupted
+from planner.errors import GoalOutOfReach, InvalidRequest, LineInterrupted
 from planner.kinematics.ik import position_ik
 from planner.planning.goals import LineGoal
 from planner.planning.pipeline import MotionPlanner, MotionRequest
 from planner.planning.straight_line import MAX_DEVIATION
 from planner.scene import Obstacle
+
+from .helpers.fk import tool_frames
 
 START = {"joint_1": 0.3, "joint_2": 0.4, "joint_3": -0.3}
 
@@ -30,36 +32,6 @@ START = {"joint_1": 0.3, "joint_2": 0.4, "joint_3": -0.3}
 @pytest.fixture(scope="module")
 def shipped():
     return MotionPlanner(load_description())
-
-
-def tool_frames(description, names, positions):
-    """tcp positions (m, 3) and tool rotations (m, 3, 3), by walking the URDF joints with
-    scipy (independent of planner.kinematics)."""
-    robot, tcp = description.robot, description.tcp
-    col = {n: i for i, n in enumerate(names)}
-    chain = robot.link_path(tcp.parent_link)
-    ps, rs = [], []
-    for q in positions:
-        t = np.eye(4)
-        for j in chain:
-            o = np.eye(4)
-            o[:3, :3] = Rotation.from_euler("xyz", j.origin.rpy).as_matrix()
-            o[:3, 3] = j.origin.xyz
-            t = t @ o
-            if j.movable:
-                leader, mult, off = (j.mimic.joint, j.mimic.multiplier, j.mimic.offset) \
-                    if j.mimic else (j.name, 1.0, 0.0)
-                v = mult * q[col[leader]] + off
-                axis = np.asarray(j.axis, float) / np.linalg.norm(j.axis)
-                m = np.eye(4)
-                if j.type == "prismatic":
-                    m[:3, 3] = axis * v
-                else:
-                    m[:3, :3] = Rotation.from_rotvec(axis * v).as_matrix()
-                t = t @ m
-        ps.append(t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3])
-        rs.append(t[:3, :3])
-    return np.array(ps), np.array(rs)
 
 
 def check_line(description, result, a, b, limits: CartesianLimits, vs: float, as_: float):
@@ -143,7 +115,7 @@ def test_a_line_out_of_reach_is_refused_with_its_fraction(shipped):
     assert position_ik(kin, d.tcp, reached, joints=("joint_1", "joint_2", "joint_3"))
     if err.reason == "out_of_workspace":
         beyond = a + (err.fraction + 0.05) * np.array([0.0, 2.0, 0.0])
-        with pytest.raises(Exception):
+        with pytest.raises(GoalOutOfReach):
             position_ik(kin, d.tcp, beyond, joints=("joint_1", "joint_2", "joint_3"))
 
 

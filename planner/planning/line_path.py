@@ -6,7 +6,7 @@ so the joints stay on one IK branch; a group that can choose its orientation (si
 more joints moving the tcp) holds the start's orientation, a position-only group lets it
 follow from the position. Every vertex is within the joint limits and collision-free, and
 between two vertices the tcp (joints interpolated linearly) stays within
-``deviation / 4`` of the line: a segment whose mid or quarter points stray further is
+``deviation / 4`` of the line (a held orientation within ``MAX_TURN / 4``): a segment whose mid or quarter points stray further is
 split at the line's own point. Where the walk cannot go on it raises
 :class:`~planner.errors.LineInterrupted` with the fraction it reached, like MoveIt's
 computeCartesianPath, instead of bending the line.
@@ -26,6 +26,7 @@ from ..errors import LineInterrupted
 from ..kinematics.chain import Kinematics
 from ..kinematics.ik_numeric import Chain
 from ..kinematics.ik_pose import tool_jacobian, track_step
+from ..kinematics.rotations import rotation_error
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +39,8 @@ MIN_STEP = 1e-5
 JUMP = 0.25
 #: [m] a solve counts as converged within this of the line's point
 SOLVE_TOL = 1e-7
+#: [rad] a held orientation stays this close to the start's (as the tcp to the line)
+MAX_TURN = 1e-3
 
 
 @dataclass(frozen=True)
@@ -169,9 +172,11 @@ def follow_line(kin: Kinematics, tcp: Tcp, chain: Chain, world: CollisionWorld,
     while stack:
         qa, fa, qb, fb = stack.pop()
         probe = qa + np.array([0.25, 0.5, 0.75])[:, None] * (qb - qa)
-        pts, _, _, _ = tool_jacobian(kin, tcp, chain, probe)
+        pts, rots, _, _ = tool_jacobian(kin, tcp, chain, probe)
         dev = float(line_deviation(pts, p0, target).max())
-        if dev > tol and (fb - fa) * length > 1e-4:
+        turn = 0.0 if rot is None else float(np.max(np.linalg.norm(
+            rotation_error(rot, rots), axis=1)))
+        if (dev > tol or turn > MAX_TURN / 4) and (fb - fa) * length > 1e-4:
             fm = 0.5 * (fa + fb)
             qm = solve(0.5 * (qa + qb), fm, fa)
             check(qm, fa)

@@ -73,10 +73,11 @@ def line_timing(curve: Curve, bounds: Bounds) -> CurveTiming:
 class TcpMotion:
     """The tcp on a time grid: ``times`` (m,) [s], ``positions`` (m, 3) [m],
     ``velocities`` (m, 3) [m/s], ``accelerations`` (m, 3) [m/s^2] (central differences
-    of the exact velocities), ``angular`` (m, 3) [rad/s]."""
+    of the exact velocities), ``angular`` (m, 3) [rad/s], ``rotations`` (m, 3, 3)."""
 
     times: np.ndarray
     positions: np.ndarray
+    rotations: np.ndarray
     velocities: np.ndarray
     accelerations: np.ndarray
     angular: np.ndarray
@@ -104,9 +105,9 @@ def tcp_motion(kin: Kinematics, chain: Chain, tcp, timing: CurveTiming, *,  # no
     n = max(3, int(math.ceil(timing.duration / step)) + 1)
     ts = np.linspace(0.0, timing.duration, n)
     q, qd, _ = timing.evaluate(ts)
-    p, _, jp, jw = tool_jacobian(kin, tcp, chain, q)
+    p, rot, jp, jw = tool_jacobian(kin, tcp, chain, q)
     qdc = qd[:, chain.columns]
     v = np.einsum("mij,mj->mi", jp, qdc)
     w = np.einsum("mij,mj->mi", jw, qdc)
     a = np.gradient(v, ts, axis=0) if timing.duration > 0 else np.zeros_like(v)
-    return TcpMotion(ts, p, v, a, w)
+    return TcpMotion(ts, p, rot, v, a, w)

@@ -19,7 +19,8 @@
 4. the tcp's deviation from the line, measured by forward kinematics on a fine time grid
    of the timed motion, must be at most ``max_deviation`` (1 mm): it is reported.
 
-A group of six or more joints moving the tcp holds the start orientation along the line;
+A group of six or more joints moving the tcp holds the start orientation along the line
+(within ``MAX_TURN``, 1 mrad, on the same fine grid);
 a position-only group (the arduinobot) turns as the position makes it (reported at the
 end in ``reached``).
 """
@@ -38,12 +39,13 @@ from ..collision.certify import Certifier, combine
 from ..errors import InvalidRequest, LineInterrupted, StartInCollision, TrajectoryError
 from ..kinematics.ik_numeric import build_chain
 from ..kinematics.ik_pose import tool_jacobian
+from ..kinematics.rotations import rotation_error
 from ..timing.curve import build_curve
 from ..timing.trajectory import JointTrajectory
 from ..timing.verify import Verifier
 from .context import PlanningContext
 from .goals import LineGoal, resolve_group, tcp_joints
-from .line_path import LinePath, LineReport, follow_line, line_deviation
+from .line_path import MAX_TURN, LinePath, LineReport, follow_line, line_deviation
 from .line_timing import Bounds, line_timing, tcp_motion
 from .motion import MotionRequest, MotionResult
 from .strategy import moves_at_start
@@ -208,6 +210,13 @@ class StraightLine:
                 raise TrajectoryError(
                     f"the tcp strays {1e3 * dev:.3g} mm from the line (at most "
                     f"{1e3 * self.max_deviation:.3g} mm)", details={"max_deviation": dev})
+            if line.rotation is not None:
+                turn = float(np.linalg.norm(rotation_error(line.rotation, motion.rotations),
+                                            axis=1).max())
+                if turn > MAX_TURN:
+                    raise TrajectoryError(
+                        f"the tool turns {turn:.3g} rad off its held orientation (at most "
+                        f"{MAX_TURN:g})", details={"max_turn": turn})
             if not report.collision_free or "position" in report.violations:
                 raise TrajectoryError("the line's timing left its certified curve",
                                       details={"report": report.to_dict()})
