@@ -189,3 +189,27 @@ def test_lin_on_the_course_workspace(course_ws):
     assert (vs, as_) == (0.1, 0.1)
     check_line(d, res, a, a + [0.0, 0.0, -0.05], lim, vs, as_)
     assert res.line.limits["source"] == str(d.config.cartesian_limits)
+
+
+# -- through a real serve ------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_line_and_pose_goals_through_the_service(client):
+    from clients import errors
+
+    res = client.plan(goal={"line": {"offset": [0.0, 0.0, -0.05]}}, start=START)
+    assert res.planner == "straight line"
+    assert res.line["max_deviation"] <= MAX_DEVIATION and res.line["fraction"] == 1.0
+    assert res.line["limits"]["max_trans_vel"] == pytest.approx(1.0)
+    assert res.reached["within_tolerance"] and res.reached["residuals"]["position"] < 1e-6
+    d = load_description()
+    p, _ = tool_frames(d, res.joint_names, res.positions[[0, -1]])
+    assert np.allclose(p[1] - p[0], [0.0, 0.0, -0.05], atol=1e-6)
+    with pytest.raises(errors.LineInterrupted) as e:
+        client.plan(goal={"line": {"offset": [0.0, 2.0, 0.0]}}, start=START)
+    assert 0.0 < e.value.details["fraction"] < 1.0
+    with pytest.raises(errors.OrientationNotControllable) as e:
+        client.plan(goal={"position": p[1].tolist(), "orientation": {"rpy": [np.pi, 0, 0]}},
+                    start=START)
+    assert {tuple(a["joints"]) for a in e.value.details["controllable_axes"]} == \
+        {("joint_1",), ("joint_2", "joint_3")}
