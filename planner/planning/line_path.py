@@ -35,7 +35,8 @@ WALK_STEP = 0.01
 #: [m] a step is halved when a joint would move more than JUMP per WALK_STEP; below
 #: this the joints would have to jump (a singularity or a branch change): refused
 MIN_STEP = 1e-5
-#: [rad] the largest joint move per WALK_STEP of tcp travel before the step is halved
+#: [rad] a joint move per WALK_STEP of tcp travel above this is accepted only where
+#: the Jacobian predicts it (a fast, continuous turn); else the step is halved
 JUMP = 0.25
 #: [m] a solve counts as converged within this of the line's point
 SOLVE_TOL = 1e-7
@@ -128,6 +129,16 @@ def follow_line(kin: Kinematics, tcp: Tcp, chain: Chain, world: CollisionWorld,
                 details={"pairs": pairs, "position": point(done).tolist(),
                          "q": dict(zip(names, map(float, q)))})
 
+    def continuous(qa: np.ndarray, qb: np.ndarray, dp: np.ndarray) -> bool:
+        # a fast but continuous move (the line passing near the yaw axis): the step is
+        # what the Jacobian predicts to first order; a jump to another branch is not
+        _, _, jp, jw = tool_jacobian(kin, tcp, chain, qa[None])
+        jac, rhs = (jp[0], dp) if rot is None else \
+            (np.vstack([jp[0], jw[0]]), np.concatenate([dp, np.zeros(3)]))
+        pred = np.linalg.lstsq(jac, rhs, rcond=1e-9)[0]
+        miss = float(np.max(np.abs((qb - qa)[chain.columns] - pred)))
+        return miss <= 0.1 * float(np.max(np.abs(pred))) + 1e-6
+
     verts, fracs = [start.copy()], [0.0]
     f, q = 0.0, start.copy()
     step = min(WALK_STEP, length) / length
@@ -151,7 +162,8 @@ def follow_line(kin: Kinematics, tcp: Tcp, chain: Chain, world: CollisionWorld,
             check(solve(q_lo, hi, lo), lo)
             raise
         jump = float(np.max(np.abs(q_new - q)))
-        if jump > JUMP * (nxt - f) * length / WALK_STEP + 1e-9:
+        if jump > JUMP * (nxt - f) * length / WALK_STEP + 1e-9 and \
+                not continuous(q, q_new, (nxt - f) * (target - p0)):
             step /= 2
             if step * length < MIN_STEP:
                 raise LineInterrupted(
