@@ -213,3 +213,27 @@ def test_line_and_pose_goals_through_the_service(client):
                     start=START)
     assert {tuple(a["joints"]) for a in e.value.details["controllable_axes"]} == \
         {("joint_1",), ("joint_2", "joint_3")}
+
+
+def test_the_plan_command_takes_lines_and_tolerances(capsys):
+    from clients.argtypes import UsageError
+    from clients.cli import build_parser, main
+    from clients.cmd_plan import build_request
+
+    robot = {"joints": [{"name": n} for n in ("joint_1", "joint_2", "joint_3", "joint_4")]}
+
+    def req(*argv):
+        return build_request(build_parser().parse_args(["plan", *argv]), robot)
+
+    assert req("--line", "0,1,1.2")["goal"] == {"line": {"position": [0.0, 1.0, 1.2]}}
+    assert req("--offset", "0,0,-0.05", "--frame", "tcp")["goal"] == \
+        {"line": {"offset": [0.0, 0.0, -0.05], "frame": "tcp"}}
+    assert req("--position", "0,1,1.2", "--tolerance", "0.01")["goal"] == \
+        {"position": [0.0, 1.0, 1.2], "tolerance": 0.01}
+    for bad in (("--line", "0,1,1.2", "--frame", "tcp"), ("--named", "home", "--tolerance", "0.1")):
+        with pytest.raises(UsageError):
+            req(*bad)
+    assert main(["plan", "--offset", "0,0,-0.05", "--start", "0.3,0.4,-0.3", "--local"]) == 0
+    out = capsys.readouterr().out
+    assert "line: 0.0500 m, largest deviation" in out and "planner straight line" in out
+    assert "reached: tcp" in out and "mm from the goal" in out

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
+from description.loader import Tcp
 from description.moveit_config import CartesianLimits
 
 from ..errors import TrajectoryError
@@ -99,7 +100,7 @@ class TcpMotion:
         }
 
 
-def tcp_motion(kin: Kinematics, chain: Chain, tcp, timing: CurveTiming, *,  # noqa: ANN001
+def tcp_motion(kin: Kinematics, chain: Chain, tcp: Tcp, timing: CurveTiming, *,
                step: float = 1e-3) -> TcpMotion:
     """The tcp's motion under ``timing`` on a grid ``step`` [s] apart (and the end)."""
     n = max(3, int(math.ceil(timing.duration / step)) + 1)

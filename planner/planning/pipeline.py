@@ -36,7 +36,7 @@ from .from_rest import FromRest
 from .goals import LineGoal, resolve_group
 from .motion import MotionRequest, MotionResult, Profile
 from .moving_start import FromMovingState
-from .reached import reached
+from .reached import Reached, reached
 from .straight_line import StraightLine, line_target
 from .strategy import Strategy, moves_at_start
 
@@ -101,7 +101,7 @@ class MotionPlanner:
             result = replace(result, reached=self._reached(request, result))
         return result
 
-    def _reached(self, request: MotionRequest, result: MotionResult):  # noqa: ANN202
+    def _reached(self, request: MotionRequest, result: MotionResult) -> Reached:
         # what the last state reaches against the goal: every strategy's reply has it
         goal = request.goal
         group = resolve_group(self.description, request.group, goal)

@@ -35,18 +35,19 @@ import numpy as np
 
 from description.moveit_config import CartesianLimits, read_cartesian_limits
 
-from ..collision.certify import Certifier, combine
+from ..collision.certify import Certificate, Certifier, combine
+from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, LineInterrupted, StartInCollision, TrajectoryError
-from ..kinematics.ik_numeric import build_chain
+from ..kinematics.ik_numeric import Chain, build_chain
 from ..kinematics.ik_pose import tool_jacobian
 from ..kinematics.rotations import rotation_error
-from ..timing.curve import build_curve
+from ..timing.curve import Curve, build_curve
 from ..timing.trajectory import JointTrajectory
-from ..timing.verify import Verifier
+from ..timing.verify import VerificationReport, Verifier
 from .context import PlanningContext
 from .goals import LineGoal, resolve_group, tcp_joints
 from .line_path import MAX_TURN, LinePath, LineReport, follow_line, line_deviation
-from .line_timing import Bounds, line_timing, tcp_motion
+from .line_timing import Bounds, TcpMotion, line_timing, tcp_motion
 from .motion import MotionRequest, MotionResult
 from .strategy import moves_at_start
 
@@ -107,7 +108,9 @@ class StraightLine:
             TrajectoryError: no timing passed the joint and Cartesian limits.
         """
         goal = request.goal
-        assert isinstance(goal, LineGoal)  # accepts() took only these
+        if not isinstance(goal, LineGoal):  # accepts() takes only these
+            raise InvalidRequest(f"the straight-line strategy plans lines, not "
+                                 f"{type(goal).__name__}", field="goal")
         t0 = time.perf_counter()
         d = context.description
         start = context.validate(request)
@@ -165,8 +168,12 @@ class StraightLine:
         return MotionResult(trajectory=traj, path=line.vertices, timing=timing,
                             verification=report, planner=self.name, line=report_line)
 
-    def _time(self, context: PlanningContext, request: MotionRequest, curve, line: LinePath,  # noqa: ANN001
-              world, chain, cert, vs: float, as_: float):  # noqa: ANN001, ANN202
+    def _time(self, context: PlanningContext, request: MotionRequest, curve: Curve,
+              line: LinePath, world: CollisionWorld, chain: Chain, cert: Certificate,
+              vs: float, as_: float
+              ) -> tuple[JointTrajectory, VerificationReport, TcpMotion, float, float]:
+        """Time ``curve`` until the verifier and the tcp check pass: the trajectory, its
+        report, the tcp's motion and the seconds spent timing and verifying."""
         # bounds from the curve's largest joint and tcp rates per unit of s, then
         # tightened by each ratio the verifier or the tcp check finds over 1
         lim = context.limits(vs, as_)
