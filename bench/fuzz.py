@@ -37,8 +37,8 @@ from tests.helpers.serve import start_server
 
 KINDS = ("plan", "fk", "ik", "check")
 CODES = {"INVALID_REQUEST", "START_IN_COLLISION", "GOAL_IN_COLLISION", "GOAL_OUT_OF_REACH",
-         "NO_PATH_FOUND", "TRAJECTORY_FAILED", "INVALID_LIMITS", "TIMEOUT", "BUSY",
-         "RESOURCE_LIMIT", "SHUTTING_DOWN"}
+         "NO_PATH_FOUND", "TRAJECTORY_FAILED", "INVALID_LIMITS", "LINE_INTERRUPTED",
+         "ORIENTATION_NOT_CONTROLLABLE", "TIMEOUT", "BUSY", "RESOURCE_LIMIT", "SHUTTING_DOWN"}
 
 # Valid requests: the seeds of mutations, and the interleaved requests that must succeed
 # (plans short and seeded, so they succeed every time).

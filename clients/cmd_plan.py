@@ -26,6 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "took. Sends a v1 request to `arduinobot serve` (start one first), or plans "
         "in-process with --local exactly as the service would.",
         epilog="examples:\n  arduinobot plan --goal -1.14,-0.6,-0.07\n"
+        "  arduinobot plan --start 0.3,0.4,-0.3 --offset 0,0,-0.05\n"
         "  arduinobot plan --group gripper --goal -0.7,0.7\n"
         "  arduinobot plan --named reach_left --start 0.2,0,0 --json traj.json\n"
         "  arduinobot plan --position 0,1.0,1.2 --obstacle box:table:1,1,0.1@0,1,0.5\n"
@@ -38,8 +39,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", type=numbers(3),
                       help="a tcp position [m]")
+    goal.add_argument("--line", metavar="X,Y,Z", type=numbers(3),
+                      help="a straight-line tcp move (Pilz LIN) to this position [m]")
+    goal.add_argument("--offset", metavar="DX,DY,DZ", type=numbers(3),
+                      help="a straight-line tcp move by this offset [m] (see --frame)")
     goal.add_argument("--request", metavar="REQ.json", type=json_object, help="a whole v1 request from a file "
                       "(options given here override its fields)")
+    p.add_argument("--frame", choices=("world", "tcp"), help="the frame of --offset: world "
+                   "(default) or the tool frame at the start")
+    p.add_argument("--tolerance", type=float, metavar="M", help="with --position: the tcp "
+                   "may end anywhere within this radius [m] where the exact point is out of "
+                   "reach or collides")
     p.add_argument("--start", metavar="Q", type=joint_values, help="start: every actuated joint's value in the "
                    "model's order or name=value,...; "
                    "default all 0")
@@ -78,8 +88,19 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
         req["goal"] = {"named": ns.named}
     elif ns.position:
         req["goal"] = {"position": ns.position}
+    elif ns.line:
+        req["goal"] = {"line": {"position": ns.line}}
+    elif ns.offset:
+        req["goal"] = {"line": {"offset": ns.offset, "frame": ns.frame or "world"}}
     elif "goal" not in req:
-        raise UsageError("give a goal: --goal, --named, --position or --request")
+        raise UsageError("give a goal: --goal, --named, --position, --line, --offset or "
+                         "--request")
+    if ns.frame is not None and not ns.offset:
+        raise UsageError("--frame applies to --offset")
+    if ns.tolerance is not None:
+        if not ns.position:
+            raise UsageError("--tolerance applies to --position")
+        req["goal"]["tolerance"] = ns.tolerance
     if ns.start is not None:
         req["start"] = joints_by_name(robot, ns.start, group="all", flag="--start")
     if ns.obstacle:
@@ -157,6 +178,29 @@ def summary(res: PlanReply, limits: AppliedLimits) -> str:
     lines.append(f"verification: {'ok' if v.ok else 'FAILED'}; closest to its limit: "
                  f"{v.worst_quantity} at {100 * v.worst_ratio:.1f}% (of the scaled limits); "
                  f"min clearance {gap}")
+    if res.line is not None:
+        ln, peak = res.line, res.line.get("peak", {})
+        lim = ln.get("limits", {})
+        lines.append(f"line: {ln['length']:.4f} m, largest deviation "
+                     f"{1000 * ln['max_deviation']:.3f} mm; tcp peak "
+                     f"{peak.get('velocity', 0):.3f} m/s (limit {lim.get('max_trans_vel', 0):.3g}),"
+                     f" {peak.get('acceleration', 0):.3f} m/s^2 (limits "
+                     f"{lim.get('max_trans_acc', 0):.3g} / {lim.get('max_trans_dec', 0):.3g}), "
+                     f"{peak.get('angular_velocity', 0):.3f} rad/s (limit "
+                     f"{lim.get('max_rot_vel', 0):.3g}); limits from {lim.get('source', '?')}")
+    if res.reached is not None and "position" in res.reached:
+        r, resid = res.reached, res.reached.get("residuals", {})
+        parts = [f"tcp {[round(v, 4) for v in r['position']]} m, "
+                 f"rpy {[round(v, 4) for v in r['rpy']]} rad"]
+        if "position" in resid:
+            parts.append(f"{1000 * resid['position']:.3f} mm from the goal")
+        if "orientation" in resid:
+            parts.append(f"orientation off by {[round(v, 4) for v in resid['orientation']]} rad")
+        if resid.get("joints"):
+            parts.append("joints off by " + ", ".join(
+                f"{k} {v:.2g}" for k, v in resid["joints"].items()))
+        lines.append("reached: " + "; ".join(parts)
+                     + ("" if r.get("within_tolerance", True) else " (OUTSIDE the tolerance)"))
     lines.append("timing: " + ", ".join(f"{k} {1000 * t:.1f} ms" for k, t in res.timing.items()))
     return "\n".join(lines)
 

@@ -62,6 +62,17 @@ class InvalidLimits(ServiceError):
     code: str = Code.INVALID_LIMITS
 
 
+class LineInterrupted(ServiceError):
+    """A straight-line move cannot go the whole way (``details.fraction``, ``details.reason``)."""
+    code: str = Code.LINE_INTERRUPTED
+
+
+class OrientationNotControllable(ServiceError):
+    """A pose goal constrains an orientation the group cannot choose
+    (``details.controllable_axes``)."""
+    code: str = Code.ORIENTATION_NOT_CONTROLLABLE
+
+
 class RequestTimeout(ServiceError):
     """The service's deadline for the request passed (it answered TIMEOUT)."""
     code: str = Code.TIMEOUT

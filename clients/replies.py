@@ -106,6 +106,8 @@ class PlanReply:
         timing: seconds per stage. verification: the service's check of the motion.
         planner, request_id: who planned it, and the request's id.
         raw: the reply as received.
+        reached: the tool frame at the end and the residuals to the goal (the reply's
+            ``reached``), if sent; ``line``: a straight-line move's report, if one.
     """
 
     joint_names: tuple[str, ...]
@@ -121,6 +123,8 @@ class PlanReply:
     planner: str
     request_id: str
     raw: Mapping[str, Any] = field(repr=False)
+    reached: Mapping[str, Any] | None = None
+    line: Mapping[str, Any] | None = None
 
     @classmethod
     def parse(cls, body: Any) -> PlanReply:
@@ -137,7 +141,7 @@ class PlanReply:
                    Verification(v["ok"], v["certified"], v["collision_free"],
                                 _number(v["min_clearance"]), v["worst_overall"]["quantity"],
                                 float(v["worst_overall"]["ratio"]), _pair(v.get("closest_pair"))),
-                   b.get("planner", ""), b["request_id"], b)
+                   b.get("planner", ""), b["request_id"], b, b.get("reached"), b.get("line"))
 
     @property
     def trajectory(self) -> SampledTrajectory:

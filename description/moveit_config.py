@@ -10,6 +10,7 @@ folder is used and records how, so ``check``, ``info`` and the service can say s
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -32,6 +33,8 @@ class ConfigFiles:
         tcp: our ``tcp.yaml`` (the tool point).
         initial_positions: MoveIt's ``initial_positions.yaml`` (what the hardware
             reports before its first command).
+        cartesian_limits: MoveIt's ``pilz_cartesian_limits.yaml`` (the tcp's limits in
+            straight-line moves, :func:`read_cartesian_limits`).
         moveit_package: the MoveIt config package folder, when one is used.
         found_by: how the folder was chosen, for humans.
     """
@@ -40,6 +43,7 @@ class ConfigFiles:
     joint_limits: Path | None = None
     tcp: Path | None = None
     initial_positions: Path | None = None
+    cartesian_limits: Path | None = None
     moveit_package: Path | None = None
     found_by: str = "no configuration found"
 
@@ -48,15 +52,88 @@ class ConfigFiles:
             return None if p is None else str(p)
         return {"srdf": s(self.srdf), "joint_limits": s(self.joint_limits), "tcp": s(self.tcp),
                 "initial_positions": s(self.initial_positions),
+                "cartesian_limits": s(self.cartesian_limits),
                 "moveit_package": s(self.moveit_package), "found_by": self.found_by}
 
     def lines(self) -> list[str]:
         """One line per file, for ``info`` and ``check``."""
         out = [f"config: {self.found_by}"]
         for label, p in (("srdf", self.srdf), ("joint_limits", self.joint_limits),
-                         ("tcp", self.tcp), ("initial_positions", self.initial_positions)):
+                         ("tcp", self.tcp), ("initial_positions", self.initial_positions),
+                         ("cartesian_limits", self.cartesian_limits)):
             out.append(f"  {label}: {p if p is not None else '(none)'}")
         return out
+
+
+CARTESIAN_LIMITS_FILE = "pilz_cartesian_limits.yaml"
+
+
+@dataclass(frozen=True)
+class CartesianLimits:
+    """The tcp's limits in straight-line moves (Pilz's ``cartesian_limits``).
+
+    Attributes:
+        max_trans_vel: tcp speed [m/s].
+        max_trans_acc: tcp acceleration [m/s^2] while speeding up.
+        max_trans_dec: tcp acceleration [m/s^2] while slowing down, negative (Pilz's sign).
+        max_rot_vel: the tool's angular speed [rad/s].
+        source: the file they came from, or where the defaults come from.
+
+    A request's velocity scaling multiplies the two speeds, its acceleration scaling
+    the acceleration and deceleration (Pilz's semantics).
+    """
+
+    max_trans_vel: float = 1.0
+    max_trans_acc: float = 2.25
+    max_trans_dec: float = -5.0
+    max_rot_vel: float = 1.57
+    source: str = ("defaults: the values the MoveIt Setup Assistant writes into a new "
+                   "config's pilz_cartesian_limits.yaml")
+
+    def to_json(self) -> dict[str, object]:
+        return {"max_trans_vel": self.max_trans_vel, "max_trans_acc": self.max_trans_acc,
+                "max_trans_dec": self.max_trans_dec, "max_rot_vel": self.max_rot_vel,
+                "source": self.source}
+
+
+def read_cartesian_limits(path: Path | None) -> CartesianLimits:
+    """The ``cartesian_limits`` of a ``pilz_cartesian_limits.yaml``; without a file, the
+    defaults of :class:`CartesianLimits` (MoveIt Setup Assistant's template: 1.0 m/s,
+    2.25 m/s^2, -5.0 m/s^2, 1.57 rad/s), as Pilz itself has none and refuses to load;
+    a key the file leaves out keeps its default (and the source says so).
+
+    Raises:
+        DescriptionError: unreadable YAML, or a value that is not a positive number
+            (``max_trans_dec``: a negative one; a positive one is read as its magnitude
+            would be ambiguous, so it is refused).
+    """
+    if path is None:
+        return CartesianLimits()
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    except (yaml.YAMLError, OSError, UnicodeDecodeError) as e:
+        raise DescriptionError(f"unreadable: {e}", file=Path(path)) from None
+    block = data.get("cartesian_limits", data) if isinstance(data, dict) else None
+    if not isinstance(block, dict):
+        raise DescriptionError("expected a mapping 'cartesian_limits:' with max_trans_vel, "
+                               "max_trans_acc, max_trans_dec, max_rot_vel", file=Path(path))
+    values: dict[str, float] = {}
+    for key in ("max_trans_vel", "max_trans_acc", "max_trans_dec", "max_rot_vel"):
+        if key not in block:
+            continue
+        v = block[key]
+        ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) \
+            and (v < 0 if key == "max_trans_dec" else v > 0)
+        if not ok:
+            want = "a negative number [m/s^2]" if key == "max_trans_dec" else "a positive number"
+            raise DescriptionError(f"cartesian_limits.{key} must be {want}, got {v!r}",
+                                   file=Path(path))
+        values[key] = float(v)
+    missing = [k for k in ("max_trans_vel", "max_trans_acc", "max_trans_dec", "max_rot_vel")
+               if k not in values]
+    source = str(path) + (f" ({', '.join(missing)}: Setup Assistant defaults)" if missing
+                          else "")
+    return CartesianLimits(**values, source=source)
 
 
 def default_srdf(cfg: Path | None, robot_name: str) -> Path | None:
@@ -164,6 +241,7 @@ def resolve_config(
         else None,
         tcp=first("tcp.yaml"),
         initial_positions=first("initial_positions.yaml"),
+        cartesian_limits=first(CARTESIAN_LIMITS_FILE),
         moveit_package=pkg, found_by=how)
     for label, override in (("srdf", srdf), ("joint_limits", joint_limits)):
         if override is None:

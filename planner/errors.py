@@ -87,6 +87,39 @@ class TrajectoryError(PlanningError):
     code: Code = Code.TRAJECTORY_FAILED
 
 
+class LineInterrupted(PlanningError):
+    """A straight-line move cannot go the whole way: the line leaves the workspace,
+    crosses a joint limit or a collision. The line is never bent round it.
+
+    ``fraction``: how far along the line [0, 1] the tcp got before it (MoveIt's
+    computeCartesianPath fraction); ``reason``: ``out_of_workspace``, ``joint_limit``,
+    ``collision`` or ``singularity`` (the joints would have to jump to stay on the line).
+    """
+
+    code: Code = Code.LINE_INTERRUPTED
+
+    def __init__(self, message: str, *, fraction: float, reason: str,
+                 details: Mapping[str, object] | None = None) -> None:
+        self.fraction, self.reason = float(fraction), reason
+        d = {"fraction": self.fraction, "reason": reason, **dict(details or {})}
+        super().__init__(f"{message} (after {100 * self.fraction:.1f}% of the line)",
+                         details=d)
+
+
+class OrientationNotControllable(PlanningError):
+    """A pose goal constrains an orientation the group cannot choose (a position-only
+    arm): ``controllable`` names the axes its joints turn the tool about, and the
+    details say what orientation the position gives and how far that is from the goal."""
+
+    code: Code = Code.ORIENTATION_NOT_CONTROLLABLE
+
+    def __init__(self, message: str, *, controllable: Sequence[Mapping[str, object]],
+                 details: Mapping[str, object] | None = None) -> None:
+        self.controllable = [dict(c) for c in controllable]
+        d = {"controllable_axes": self.controllable, **dict(details or {})}
+        super().__init__(message, details=d)
+
+
 class LimitsError(PlanningError):
     """A joint's limits are missing or invalid, and no documented rule can derive them."""
 

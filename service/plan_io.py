@@ -13,7 +13,8 @@ import numpy as np
 
 from description import Description
 from planner.errors import PlanningError
-from planner.planning.goals import JointGoal, NamedGoal, PositionGoal
+from planner.kinematics.rotations import quaternion_of_rpy
+from planner.planning.goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal
 from planner.planning.pipeline import MotionRequest
 from planner.timing.trajectory import check_sample_count
 
@@ -29,14 +30,30 @@ _OPTIONS: dict[str, Callable[[Any], Any]] = {
     "start_velocity": dict, "start_acceleration": dict}
 
 
-def goal(description: Description, data: Mapping[str, Any]) -> JointGoal | NamedGoal | PositionGoal:
-    """The goal of a plan request (exactly one of joints, named, position)."""
+def goal(description: Description, data: Mapping[str, Any]) -> Goal:
+    """The goal of a plan request (exactly one of joints, named, position (a pose with an
+    orientation), line)."""
     if "joints" in data:
         # joint names and limits: checked where every goal is, by the planner
-        return JointGoal(dict(data["joints"]), where="goal.joints")
+        return JointGoal(dict(data["joints"]), where="goal.joints",
+                         tolerances=dict(data.get("tolerances", {})))
     if "named" in data:
         return NamedGoal(data["named"])  # looked up in the request's group by the planner
-    return PositionGoal(tuple(float(v) for v in data["position"]))  # type: ignore[arg-type]
+    if "line" in data:
+        line = data["line"]
+        return LineGoal(position=line.get("position"), offset=line.get("offset"),
+                        frame=line.get("frame", "world"))
+    position = tuple(float(v) for v in data["position"])
+    tolerance = float(data.get("tolerance", 0.0))
+    if "orientation" not in data:
+        return PositionGoal(position, tolerance=tolerance)  # type: ignore[arg-type]
+    o = data["orientation"]
+    quat = o["quaternion"] if "quaternion" in o else quaternion_of_rpy(o["rpy"])
+    options: dict[str, Any] = {"tolerance": tolerance,
+                               "free_axes": tuple(data.get("free_axes", ()))}
+    if "orientation_tolerances" in data:
+        options["orientation_tolerances"] = tuple(data["orientation_tolerances"])
+    return PoseGoal(position=position, orientation=tuple(quat), **options)  # type: ignore[arg-type]
 
 
 def plan_request(description: Description, data: Mapping[str, Any]) -> MotionRequest:
@@ -84,5 +101,10 @@ def plan_response(result: Any) -> dict[str, Any]:
         "verification": result.verification.to_dict(),
         "planner": str(result.planner),
     }
-    check_finite({k: body[k] for k in ("duration", "timing", "verification")})
+    if result.reached is not None:
+        body["reached"] = result.reached.to_dict()
+    if result.line is not None:
+        body["line"] = result.line.to_dict()
+    check_finite({k: body[k] for k in ("duration", "timing", "verification", "reached",
+                                       "line") if k in body})
     return body  # every number finite: wire.encode(..., finite=True) may take it

@@ -15,7 +15,7 @@ import numpy as np
 from ..collision.certify import combine
 from ..timing.curve import build_curve
 from .context import PlanningContext
-from .goals import JointGoal, NamedGoal, PositionGoal
+from .goals import JointGoal, NamedGoal, PoseGoal, PositionGoal
 from .motion import MotionRequest, MotionResult
 from .paths import PathRequest
 from .strategy import moves_at_start
@@ -24,13 +24,13 @@ __all__ = ["FromRest"]
 
 
 class FromRest:
-    """Free-space motion from a start at rest to a joint, named or position goal."""
+    """Free-space motion from a start at rest to a joint, named, position or pose goal."""
 
     name = "from rest"
 
     def accepts(self, request: MotionRequest) -> bool:
         return not moves_at_start(request) and \
-            isinstance(request.goal, (JointGoal, NamedGoal, PositionGoal))
+            isinstance(request.goal, (JointGoal, NamedGoal, PositionGoal, PoseGoal))
 
     def solve(self, context: PlanningContext, request: MotionRequest) -> MotionResult:
         """Plan, time and verify ``request`` from rest.

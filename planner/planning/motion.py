@@ -15,7 +15,9 @@ import numpy as np
 from ..scene import Obstacle
 from ..timing.trajectory import JointTrajectory
 from ..timing.verify import VerificationReport
-from .goals import JointGoal, NamedGoal, PositionGoal, check_goal
+from .goals import JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal, check_goal
+from .line_path import LineReport
+from .reached import Reached
 
 Profile = Literal["jerk_limited", "time_optimal"]
 
@@ -32,7 +34,7 @@ class MotionRequest:
     :data:`planner.timing.profiles.PROFILES`.
     """
 
-    goal: JointGoal | NamedGoal | PositionGoal
+    goal: JointGoal | NamedGoal | PositionGoal | PoseGoal | LineGoal
     start: Mapping[str, float] | None = None
     group: str | None = None
     obstacles: tuple[Obstacle, ...] = ()
@@ -60,6 +62,8 @@ class MotionResult:
 
     ``timing``: seconds per stage (validate, plan, simplify, recheck, parameterise,
     verify, total); ``path`` shape (k, dof) in ``trajectory.joint_names`` order.
+    ``reached``: the tool frame at the end and the residuals to the goal (the planner
+    fills it in for every strategy); ``line``: a straight-line move's report.
     """
 
     trajectory: JointTrajectory
@@ -67,3 +71,5 @@ class MotionResult:
     timing: Mapping[str, float]
     verification: VerificationReport
     planner: str
+    reached: Reached | None = None
+    line: LineReport | None = None

@@ -7,13 +7,15 @@ and timing profiles, built once) and an ordered tuple of strategies
 down into the context and into the strategies it wraps, never back into this class.
 
 The strategies by default (:func:`default_strategies`): :class:`FromRest` (a
-collision-free path, blended, timed, verified) and :class:`FromMovingState` around it
-(a moving start blended into that plan).
+collision-free path, blended, timed, verified), :class:`StraightLine` (a tcp line, Pilz's
+LIN) and :class:`FromMovingState` around the first (a moving start blended into that
+plan). Every result carries what its last state reached (:mod:`planner.planning.reached`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -31,8 +33,11 @@ from ..timing.trajectory import JointTrajectory
 from ..timing.verify import VerificationReport
 from .context import MAX_ATTEMPTS, PlanningContext
 from .from_rest import FromRest
+from .goals import LineGoal, resolve_group
 from .motion import MotionRequest, MotionResult, Profile
 from .moving_start import FromMovingState
+from .reached import Reached, reached
+from .straight_line import StraightLine, line_target
 from .strategy import Strategy, moves_at_start
 
 __all__ = ["MotionPlanner", "MotionRequest", "MotionResult", "MAX_ATTEMPTS",
@@ -40,9 +45,10 @@ __all__ = ["MotionPlanner", "MotionRequest", "MotionResult", "MAX_ATTEMPTS",
 
 
 def default_strategies() -> tuple[Strategy, ...]:
-    """From rest, and from a moving state into the plan from rest."""
+    """From rest, a straight line from rest, and from a moving state into the plan
+    from rest."""
     from_rest = FromRest()
-    return (from_rest, FromMovingState(from_rest))
+    return (from_rest, StraightLine(), FromMovingState(from_rest))
 
 
 class MotionPlanner:
@@ -90,7 +96,28 @@ class MotionPlanner:
             GoalOutOfReach, NoPathFound: from validation and path planning.
             TrajectoryError: no timing passed verification (details hold the report).
         """
-        return self.strategy(request).solve(self.context, request)
+        result = self.strategy(request).solve(self.context, request)
+        if result.reached is None:
+            result = replace(result, reached=self._reached(request, result))
+        return result
+
+    def _reached(self, request: MotionRequest, result: MotionResult) -> Reached:
+        # what the last state reaches against the goal: every strategy's reply has it
+        goal = request.goal
+        group = resolve_group(self.description, request.group, goal)
+        target = None
+        if isinstance(goal, LineGoal) and result.line is not None:
+            target = np.asarray(result.line.end)
+        elif isinstance(goal, LineGoal):
+            target = line_target(goal, *self._tool(result.trajectory.positions[0]))
+        return reached(self.description, self.context.world(()).kin, goal,
+                       np.asarray(result.trajectory.positions[-1], float), group=group,
+                       target=target)
+
+    def _tool(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        tcp = self.description.tcp
+        t = self.context.world(()).kin.link_pose(q, tcp.parent_link)
+        return t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3], t[:3, :3]
 
     # -- the context's resources and stages, for callers that time paths themselves ---
     @property
