@@ -29,7 +29,7 @@ from description.model import Joint, Robot
 from ..kinematics.chain import Chain, _fk_into
 from .body_speed import local_rates
 from .obbtree import Forest, box_in_frame, in_box_frame, relative_pose
-from .table import Bodies, Pairs, body_pose
+from .table import CARRIED, Bodies, Pairs, carried_pose
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
 # absorbs rounding in poses, boxes and weights, far below any mesh feature
@@ -313,8 +313,12 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: 
             for j in range(dof):
                 rem += weight[p, j] * (cum[m - 1, j] - cum[i, j])
             a, b = index[p, 0], index[p, 1]
-            ta = body_pose(kind, frame, pose, poses, a, placed[0])
-            tb = body_pose(kind, frame, pose, poses, b, placed[1])
+            ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
+            tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
+            if kind[a] == CARRIED:
+                ta = carried_pose(ta, pose[a], placed[0])
+            if kind[b] == CARRIED:
+                tb = carried_pose(tb, pose[b], placed[1])
             cap = pad + MARGIN + min(rem, horizon) + 1e-9
             lb = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left, right,
                                   pad + MARGIN, cap, stack, gaps, scratch)

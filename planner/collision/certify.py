@@ -40,8 +40,9 @@ from .body_speed import local_rates, local_step
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
 from .resume import Status, Stop, new_walk
-from .table import Bodies, Pairs, body_pose
+from .table import CARRIED, Bodies, Pairs, carried_pose
 from .world import CollisionWorld
+
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more
 # tree descent than the extra step they buy (0.1 -> 0.03: 20-28% more bounds, 25-40%
 # less time on the course and shipped models). With a clearance to report, a pair
@@ -149,7 +150,8 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     Returns ``Status.NEED_BOUND`` with the point in ``walk`` when a point needs a closer
     bound than the trees' and the warm hulls' (a new hull query, else exact),
     ``Status.BUDGET`` when the bounds are spent, else ``Status.DONE``.
-    ``walk.bounds`` counts bounds evaluated; ``q`` (dof,) is a work buffer.
+    ``walk.bounds`` counts bounds evaluated; ``q`` (dof,) is a work buffer. (The status
+    leaves as a plain int: boxing an enum member back into Python costs ~0.1 ms.)
     """
     # unpacked once: taking an array out of a tuple costs a reference count
     starts, u1, u2, lengths = motion
@@ -162,6 +164,7 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     vertices, offsets, radii = hulls
     at = walk[0]
     p0, k0, s0, injected = at.pair, at.piece, at.sigma, at.injected
+    bounds = at.bounds  # counted here, written back on return (a local stays in a register)
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
     placed = np.empty((2, 4, 4))  # carried objects' poses
@@ -206,8 +209,12 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
             else:
                 _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
                 posed = True
-                ta = body_pose(kind, frame, pose, poses, a, placed[0])
-                tb = body_pose(kind, frame, pose, poses, b, placed[1])
+                ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
+                tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
+                if kind[a] == CARRIED:
+                    ta = carried_pose(ta, pose[a], placed[0])
+                if kind[b] == CARRIED:
+                    tb = carried_pose(tb, pose[b], placed[1])
                 d = -1.0
                 if near and warm[p]:
                     # near contact the steps are short and the hulls barely turn: the
@@ -217,13 +224,13 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                     d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
                                          right, clear + GAP, _CAP, stack, gaps, scratch)
                     near = d <= clear + GAP
-                at.bounds += 1
+                bounds += 1
                 if d <= clear + GAP:
-                    at.pair, at.piece, at.sigma = p, k, s
-                    return Status.NEED_BOUND
-                if at.bounds > MAX_BOUNDS:
-                    at.pair, at.piece, at.sigma = p, k, s
-                    return Status.BUDGET
+                    at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    return Status.NEED_BOUND.value
+                if bounds > MAX_BOUNDS:
+                    at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    return Status.BUDGET.value
                 measured = d
             covered = max(clear + GAP / 2, min(fraction * d, low))
             reach = (d - covered) / speed
@@ -234,7 +241,9 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                 if mov >= 0:
                     if not posed:
                         _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-                    t = body_pose(kind, frame, pose, poses, mov, placed[0])
+                    t = poses[frame[mov]]  # a mover hangs from a link
+                    if kind[mov] == CARRIED:
+                        t = carried_pose(t, pose[mov], placed[0])
                     local_rates(poses, t, frame[mov], root[mov], LOCAL_DEPTH, center, half,
                                 left, right, parent, jtype, axis, src, scale, rates)
                     reach = max(reach, local_step(rates[0], rates[1], u1[k], u2[k], speed,
@@ -256,7 +265,8 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
             if covered < best[p]:
                 best[p] = covered
                 low = min(low, covered)
-    return Status.DONE
+    at.bounds = bounds
+    return Status.DONE.value
 
 
 class Certifier:
@@ -331,8 +341,9 @@ class Certifier:
         walk = new_walk()
         exact, queries = 0, 0
         while True:
-            status = _advance(motion, walk, w.chain, table.bodies, pairs, w.forest, w.hulls,
-                              clear, self.fraction, self.local, self._work, self._q, proof)
+            status = Status(_advance(motion, walk, w.chain, table.bodies, pairs, w.forest,
+                                     w.hulls, clear, self.fraction, self.local, self._work,
+                                     self._q, proof))
             if status == Status.DONE:
                 break
             at = Stop.read(walk)

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..cache import ArtifactCache, content_key
 from ..kinematics.chain import Chain, _fk_into
-from .table import Bodies, body_pose
+from .table import CARRIED, Bodies, carried_pose
 
 
 @dataclass(frozen=True)
@@ -328,8 +328,12 @@ def pair_candidates(poses: np.ndarray, bodies: Bodies, pairs: np.ndarray, forest
     center, axes, half, left, right, root = forest
     for p in range(pairs.shape[0]):
         a, b = pairs[p, 0], pairs[p, 1]
-        ta = body_pose(kind, frame, pose, poses, a, placed[0])
-        tb = body_pose(kind, frame, pose, poses, b, placed[1])
+        ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
+        tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
+        if kind[a] == CARRIED:
+            ta = carried_pose(ta, pose[a], placed[0])
+        if kind[b] == CARRIED:
+            tb = carried_pose(tb, pose[b], placed[1])
         hit = trees_overlap(ta, root[a], tb, root[b], center, axes, half, left, right, pad,
                             stack, scratch)
         out[p] = 1 if hit else 0

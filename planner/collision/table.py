@@ -72,23 +72,22 @@ def _frozen(a: np.ndarray, dtype: type) -> np.ndarray:
     return out
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def body_pose(kind: np.ndarray, frame: np.ndarray, pose: np.ndarray, poses: np.ndarray, b: int,
-              out: np.ndarray) -> np.ndarray:
-    """Body ``b``'s world pose (4, 4) at link poses ``poses`` (n_links, 4, 4), from a
-    :class:`Bodies`' arrays (a kernel unpacks them once: taking an array out of a tuple
-    costs a reference count, too much per pair): a view of ``poses`` or of ``pose``, or,
-    for a carried object, computed into ``out`` (4, 4)."""
-    f = frame[b]
-    if f < 0:
-        return pose[b]
-    if kind[b] != BodyKind.CARRIED:
-        return poses[f]
-    t, o = poses[f], pose[b]
+#: BodyKind.CARRIED as a plain int, for the kernels' hot loops
+CARRIED = int(BodyKind.CARRIED)
+
+
+@numba.njit(cache=True, nogil=True)
+def carried_pose(link: np.ndarray, offset: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """A carried object's world pose: its link's pose ``link`` (4, 4) times its pose in
+    the link's frame ``offset`` (4, 4), into ``out`` (4, 4), returned.
+
+    The kernels pose a body inline (``poses[frame[b]]`` for a link, ``pose[b]`` for an
+    obstacle) and call this only for a carried one: a helper returning any of the three
+    arrays costs ~15% of a sweep (measured on the course model), the branch nothing."""
     for r in range(4):
         for c in range(4):
-            out[r, c] = t[r, 0] * o[0, c] + t[r, 1] * o[1, c] + t[r, 2] * o[2, c] \
-                + t[r, 3] * o[3, c]
+            out[r, c] = link[r, 0] * offset[0, c] + link[r, 1] * offset[1, c] \
+                + link[r, 2] * offset[2, c] + link[r, 3] * offset[3, c]
     return out
 
 

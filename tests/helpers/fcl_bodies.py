@@ -17,8 +17,12 @@ def fcl_objects(w: CollisionWorld) -> list[fcl.CollisionObject]:
     """One FCL object per body of ``w``'s table (obstacles placed, links at identity)."""
     objs = [fcl.CollisionObject(g, fcl.Transform()) for g in w.bodies.geometries]
     for o in w.obstacles:
-        geom = {"box": lambda: fcl.Box(*o.size), "sphere": lambda: fcl.Sphere(o.radius),
-                "cylinder": lambda: fcl.Cylinder(o.radius, o.length)}[o.shape]()
+        if o.shape == "box":
+            geom = fcl.Box(*o.size)
+        elif o.shape == "sphere":
+            geom = fcl.Sphere(o.radius)
+        else:
+            geom = fcl.Cylinder(o.radius, o.length)
         t = o.pose()
         objs.append(fcl.CollisionObject(geom, fcl.Transform(t[:3, :3], t[:3, 3])))
     assert len(objs) == len(w.table)
