@@ -6,7 +6,7 @@ import pytest
 from description import load_description
 from planner.collision.certify import Certifier
 from planner.collision.resume import WALK, Status, Stop, new_walk
-from planner.collision.table import BodyKind, BodyTable, carried_pose, checked_kinds
+from planner.collision.table import BodyKind, BodyTable, checked_kinds, place_carried
 from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle
 
@@ -62,25 +62,36 @@ def test_the_table_is_frozen(world):
         t.names = ()  # type: ignore[misc]
 
 
-def test_build_refuses_a_body_whose_frame_contradicts_its_kind():
+def test_build_refuses_a_body_whose_link_contradicts_its_kind():
     eye = np.tile(np.eye(4), (2, 1, 1))
     none = np.zeros((0, 2), np.int64)
     with pytest.raises(ValueError, match="OBSTACLE"):
         BodyTable.build(["a", "b"], [BodyKind.LINK, BodyKind.OBSTACLE], [1, 2], eye, none,
-                        np.zeros((0, 1)), np.zeros(0, np.int64))
+                        np.zeros((0, 1)), np.zeros(0, np.int64), n_links=3)
     with pytest.raises(ValueError, match="CARRIED"):
         BodyTable.build(["a", "b"], [BodyKind.LINK, BodyKind.CARRIED], [1, -1], eye, none,
-                        np.zeros((0, 1)), np.zeros(0, np.int64))
+                        np.zeros((0, 1)), np.zeros(0, np.int64), n_links=3)
 
 
-def test_a_carried_body_is_posed_by_its_link_times_its_offset():
+def test_a_carried_body_gets_a_pose_slot_of_its_link_times_its_offset():
     rng = np.random.default_rng(4)
-    link, offset = np.eye(4), np.eye(4)
-    link[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
-    link[:3, 3] = rng.normal(size=3)
+    offset = np.eye(4)
     offset[:3, 3] = (0.0, 0.0, 0.12)
-    got = carried_pose(link, offset, np.empty((4, 4)))
-    assert np.allclose(got, link @ offset, atol=1e-15)
+    poses = np.tile(np.eye(4), (4, 1, 1))  # 3 links + the box's slot
+    for k in range(3):
+        poses[k, :3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        poses[k, :3, 3] = rng.normal(size=3)
+    table = BodyTable.build(["l1", "box", "wall"],
+                            [BodyKind.LINK, BodyKind.CARRIED, BodyKind.OBSTACLE], [1, 2, -1],
+                            np.stack([np.eye(4), offset, np.eye(4)]),
+                            np.array([[0, 1], [1, 2]]), np.ones((2, 1)), np.array([-1, 1]),
+                            n_links=3)
+    b = table.bodies
+    assert list(b.frame) == [1, 3, -1] and list(b.link) == [1, 2, -1]
+    assert list(b.carried) == [1] and table.slots == 4
+    assert table.pair_kinds(1) == (BodyKind.CARRIED, BodyKind.OBSTACLE)
+    place_carried(b.frame, b.link, b.pose, b.carried, poses)
+    assert np.allclose(poses[3], poses[2] @ offset, atol=1e-15)
 
 
 def test_the_walk_record_round_trips_and_the_status_is_an_int():

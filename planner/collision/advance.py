@@ -29,7 +29,7 @@ from description.model import Joint, Robot
 from ..kinematics.chain import Chain, _fk_into
 from .body_speed import local_rates
 from .obbtree import Forest, box_in_frame, in_box_frame, relative_pose
-from .table import CARRIED, Bodies, Pairs, carried_pose
+from .table import Bodies, Pairs, place_carried
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
 # absorbs rounding in poses, boxes and weights, far below any mesh feature
@@ -271,7 +271,7 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: 
     budget, since, rates = carry
     index, weight, mover = pairs
     poses, stack, gaps = work
-    kind, frame, pose = bodies
+    frame, link, pose, carried = bodies.frame, bodies.link, bodies.pose, bodies.carried
     center, axes, half, left, right, root = forest
     parent, origin, jtype, axis, src, scale, offset = chain
     m, dof = qs.shape
@@ -285,7 +285,6 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: 
         for p in range(npair):
             budget[p] = -1.0
     scratch = np.empty((8, 3, 3))
-    placed = np.empty((2, 4, 4))  # carried objects' poses
     for i in range(start, m):
         posed = False
         marked = False
@@ -308,6 +307,7 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: 
                         continue
             if not posed:
                 _fk_into(qs[i], parent, origin, jtype, axis, src, scale, offset, poses)
+                place_carried(frame, link, pose, carried, poses)
                 posed = True
             rem = 0.0
             for j in range(dof):
@@ -315,10 +315,6 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: 
             a, b = index[p, 0], index[p, 1]
             ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
             tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
-            if kind[a] == CARRIED:
-                ta = carried_pose(ta, pose[a], placed[0])
-            if kind[b] == CARRIED:
-                tb = carried_pose(tb, pose[b], placed[1])
             cap = pad + MARGIN + min(rem, horizon) + 1e-9
             lb = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left, right,
                                   pad + MARGIN, cap, stack, gaps, scratch)
@@ -329,7 +325,7 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: 
                 if mov >= 0:
                     # the root's box alone: a sweep re-proves pairs too often to pay
                     # for more
-                    local_rates(poses, ta if mov == a else tb, frame[mov], root[mov], 0,
+                    local_rates(poses, ta if mov == a else tb, link[mov], root[mov], 0,
                                 center, half, left, right, parent, jtype, axis, src, scale,
                                 rates[p])
             else:

@@ -40,7 +40,7 @@ from .body_speed import local_rates, local_step
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
 from .resume import Status, Stop, new_walk
-from .table import CARRIED, Bodies, Pairs, carried_pose
+from .table import Bodies, Pairs, place_carried
 from .world import CollisionWorld
 
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more
@@ -158,7 +158,7 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     index, weight, mover = pairs
     best, directions, warm = proof
     poses, stack, gaps = work
-    kind, frame, pose = bodies
+    frame, link, pose, carried = bodies.frame, bodies.link, bodies.pose, bodies.carried
     center, axes, half, left, right, root = forest
     parent, origin, jtype, axis, src, scale, offset = chain
     vertices, offsets, radii = hulls
@@ -167,7 +167,6 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     bounds = at.bounds  # counted here, written back on return (a local stays in a register)
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
-    placed = np.empty((2, 4, 4))  # carried objects' poses
     end = np.empty(dof)
     rates = np.empty((2, dof))  # local_rates' (rate, turn)
     # the smallest clearance certified so far, any pair: no step need prove more (the
@@ -208,13 +207,10 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                 d = carry
             else:
                 _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+                place_carried(frame, link, pose, carried, poses)
                 posed = True
                 ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
                 tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
-                if kind[a] == CARRIED:
-                    ta = carried_pose(ta, pose[a], placed[0])
-                if kind[b] == CARRIED:
-                    tb = carried_pose(tb, pose[b], placed[1])
                 d = -1.0
                 if near and warm[p]:
                     # near contact the steps are short and the hulls barely turn: the
@@ -241,11 +237,10 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                 if mov >= 0:
                     if not posed:
                         _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-                    t = poses[frame[mov]]  # a mover hangs from a link
-                    if kind[mov] == CARRIED:
-                        t = carried_pose(t, pose[mov], placed[0])
-                    local_rates(poses, t, frame[mov], root[mov], LOCAL_DEPTH, center, half,
-                                left, right, parent, jtype, axis, src, scale, rates)
+                        place_carried(frame, link, pose, carried, poses)
+                    local_rates(poses, poses[frame[mov]], link[mov], root[mov], LOCAL_DEPTH,
+                                center, half, left, right, parent, jtype, axis, src, scale,
+                                rates)
                     reach = max(reach, local_step(rates[0], rates[1], u1[k], u2[k], speed,
                                                   d - covered))
             carry = -1.0
@@ -286,7 +281,7 @@ class Certifier:
         self.world = world
         self.fraction = fraction
         self.local = local
-        self._work = Work.of(len(world.kin.link_names))
+        self._work = Work.of(world.table.slots)
         self._q = np.empty(world.dof)
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..cache import ArtifactCache, content_key
 from ..kinematics.chain import Chain, _fk_into
-from .table import CARRIED, Bodies, carried_pose
+from .table import Bodies, place_carried
 
 
 @dataclass(frozen=True)
@@ -316,24 +316,19 @@ def trees_overlap(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.nda
 def pair_candidates(poses: np.ndarray, bodies: Bodies, pairs: np.ndarray, forest: Forest,
                     pad: float, stack: np.ndarray, out: np.ndarray) -> int:
     """Mark pairs ``pairs`` (n_pairs, 2) of ``bodies`` whose trees overlap for one state
-    (link ``poses`` (n_links, 4, 4)).
+    (pose slots ``poses`` (n_slots, 4, 4): the links', then the carried objects').
 
     Returns the number of marked pairs; ``out`` shape (n_pairs,) gets 1/0.
     """
     n = 0
     scratch = np.empty((8, 3, 3))
-    placed = np.empty((2, 4, 4))  # carried objects' poses
     # unpacked once: taking an array out of a tuple costs a reference count
-    kind, frame, pose = bodies
+    frame, pose = bodies.frame, bodies.pose
     center, axes, half, left, right, root = forest
     for p in range(pairs.shape[0]):
         a, b = pairs[p, 0], pairs[p, 1]
         ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
         tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
-        if kind[a] == CARRIED:
-            ta = carried_pose(ta, pose[a], placed[0])
-        if kind[b] == CARRIED:
-            tb = carried_pose(tb, pose[b], placed[1])
         hit = trees_overlap(ta, root[a], tb, root[b], center, axes, half, left, right, pad,
                             stack, scratch)
         out[p] = 1 if hit else 0
@@ -345,9 +340,10 @@ def pair_candidates(poses: np.ndarray, bodies: Bodies, pairs: np.ndarray, forest
 def state_candidates(q: np.ndarray, chain: Chain, bodies: Bodies, pairs: np.ndarray,
                      forest: Forest, pad: float, poses: np.ndarray, stack: np.ndarray,
                      out: np.ndarray) -> int:
-    """:func:`pair_candidates` at state ``q`` (dof,), its link poses computed into
-    ``poses`` (n_links, 4, 4) on the way (one call from Python, not two: a state check
+    """:func:`pair_candidates` at state ``q`` (dof,), its pose slots computed into
+    ``poses`` (n_slots, 4, 4) on the way (one call from Python, not two: a state check
     is ~20 us, and each crossing costs one or two)."""
     parent, origin, jtype, axis, src, scale, offset = chain
     _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+    place_carried(bodies.frame, bodies.link, bodies.pose, bodies.carried, poses)
     return pair_candidates(poses, bodies, pairs, forest, pad, stack, out)

@@ -2,11 +2,16 @@
 pairs that are checked.
 
 A body is a link's mesh, an object the gripper carries, or a scene obstacle
-(:class:`BodyKind`); its pose is its frame link's (a link), that link's times a fixed
-offset (a carried object), or a fixed world pose (an obstacle). The kernels read the
-same table as the Python code (:class:`Bodies`, :class:`Pairs`: NamedTuples of arrays
-numba takes as one argument each), so a new kind of body is a new row, not a new index
-range. Built once per world and frozen (the arrays are read-only).
+(:class:`BodyKind`); its pose is its link's (a link), that link's times a fixed offset
+(a carried object), or a fixed world pose (an obstacle). The kernels read the same
+table as the Python code (:class:`Bodies`, :class:`Pairs`: NamedTuples of arrays numba
+takes as one argument each), so a new kind of body is a new row, not a new index range.
+Built once per world and frozen (the arrays are read-only).
+
+In the kernels a body's pose is ``poses[frame[b]]`` (``pose[b]`` for an obstacle) with
+no test of its kind: a carried object has a pose slot of its own after the links',
+filled after each forward kinematics (:func:`place_carried`). A branch on the kind per
+pair and step cost 5-25% of the walks (measured on the course model).
 """
 
 from __future__ import annotations
@@ -39,15 +44,21 @@ class Bodies(NamedTuple):
 
     Attributes:
         kind: :class:`BodyKind` values, shape (n,) int64.
-        frame: the link index (into ``Kinematics.link_names``) whose pose it takes, -1
-            for an obstacle, shape (n,) int64.
+        frame: the pose slot it takes its pose from: its link's index (into
+            ``Kinematics.link_names``) for a link, a slot after the links' for a carried
+            object, -1 for an obstacle; shape (n,) int64.
+        link: the link that moves it (a link's own, a carried object's holder), -1 for
+            an obstacle; shape (n,) int64.
         pose: shape (n, 4, 4): an obstacle's world pose; a carried object's pose in its
             link's frame; identity for a link (unused).
+        carried: the carried bodies, shape (c,) int64.
     """
 
     kind: np.ndarray
     frame: np.ndarray
+    link: np.ndarray
     pose: np.ndarray
+    carried: np.ndarray
 
 
 class Pairs(NamedTuple):
@@ -72,23 +83,20 @@ def _frozen(a: np.ndarray, dtype: type) -> np.ndarray:
     return out
 
 
-#: BodyKind.CARRIED as a plain int, for the kernels' hot loops
-CARRIED = int(BodyKind.CARRIED)
-
-
-@numba.njit(cache=True, nogil=True)
-def carried_pose(link: np.ndarray, offset: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """A carried object's world pose: its link's pose ``link`` (4, 4) times its pose in
-    the link's frame ``offset`` (4, 4), into ``out`` (4, 4), returned.
-
-    The kernels pose a body inline (``poses[frame[b]]`` for a link, ``pose[b]`` for an
-    obstacle) and call this only for a carried one: a helper returning any of the three
-    arrays costs ~15% of a sweep (measured on the course model), the branch nothing."""
-    for r in range(4):
-        for c in range(4):
-            out[r, c] = link[r, 0] * offset[0, c] + link[r, 1] * offset[1, c] \
-                + link[r, 2] * offset[2, c] + link[r, 3] * offset[3, c]
-    return out
+@numba.njit(cache=True, nogil=True, inline="always")
+def place_carried(frame: np.ndarray, link: np.ndarray, pose: np.ndarray, carried: np.ndarray,
+                  poses: np.ndarray) -> None:
+    """Fill the carried objects' pose slots of ``poses`` (n_slots, 4, 4), its links'
+    poses just computed: each one's link's pose times its offset (``frame``, ``link``,
+    ``pose``, ``carried``: a :class:`Bodies`' arrays, unpacked once by the kernel).
+    Nothing to do when nothing is carried."""
+    for i in range(carried.shape[0]):
+        b = carried[i]
+        t, o, out = poses[link[b]], pose[b], poses[frame[b]]
+        for r in range(4):
+            for c in range(4):
+                out[r, c] = t[r, 0] * o[0, c] + t[r, 1] * o[1, c] + t[r, 2] * o[2, c] \
+                    + t[r, 3] * o[3, c]
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +111,7 @@ class BodyTable:
         pair_names: those pairs by name, (body, body).
         fixed: checked pairs of two bodies no motion moves (decided once), by index.
         fixed_hits: those of them in contact (every state then collides), by name.
+        n_links: the robot's links (pose slots before the carried objects').
     """
 
     names: tuple[str, ...]
@@ -112,32 +121,45 @@ class BodyTable:
     pair_names: tuple[tuple[str, str], ...]
     fixed: tuple[tuple[int, int], ...]
     fixed_hits: tuple[tuple[str, str], ...]
+    n_links: int
 
     @classmethod
-    def build(cls, names: Sequence[str], kinds: Sequence[BodyKind], frames: Sequence[int],
+    def build(cls, names: Sequence[str], kinds: Sequence[BodyKind], links: Sequence[int],
               poses: np.ndarray, pairs: np.ndarray, weight: np.ndarray, mover: np.ndarray,
-              *, fixed: Sequence[tuple[int, int]] = (),
+              *, n_links: int, fixed: Sequence[tuple[int, int]] = (),
               fixed_hits: Sequence[tuple[str, str]] = ()) -> BodyTable:
-        """A table of bodies ``names`` (with ``kinds``, link ``frames``, ``poses`` shape
-        (n, 4, 4)) and checked ``pairs`` (m, 2) with their ``weight`` (m, dof) and
-        ``mover`` (m,); arrays are copied and frozen."""
+        """A table of bodies ``names`` (with ``kinds``, the ``links`` that move them,
+        ``poses`` shape (n, 4, 4)) of a robot of ``n_links`` links, and checked ``pairs``
+        (m, 2) with their ``weight`` (m, dof) and ``mover`` (m,); arrays are copied and
+        frozen. Carried objects get pose slots ``n_links, n_links + 1, ...``."""
         n = len(names)
-        if not (len(kinds) == len(frames) == len(poses) == n):
-            raise ValueError("names, kinds, frames and poses differ in length")
+        if not (len(kinds) == len(links) == len(poses) == n):
+            raise ValueError("names, kinds, links and poses differ in length")
         if len(pairs) != len(weight) or len(pairs) != len(mover):
             raise ValueError("pairs, weight and mover differ in length")
-        for k, f in zip(kinds, frames):
-            if (f < 0) != (k == BodyKind.OBSTACLE):
-                raise ValueError(f"a {BodyKind(k).name} body with frame {f}")
+        for k, f in zip(kinds, links):
+            if (f < 0) != (k == BodyKind.OBSTACLE) or f >= n_links:
+                raise ValueError(f"a {BodyKind(k).name} body on link {f}")
+        carried = [b for b, k in enumerate(kinds) if k == BodyKind.CARRIED]
+        frames = list(links)
+        for i, b in enumerate(carried):
+            frames[b] = n_links + i
         index = _frozen(np.asarray(pairs).reshape(-1, 2), np.int64)
         return cls(tuple(names), tuple(BodyKind(k) for k in kinds),
-                   Bodies(_frozen(np.asarray(kinds), np.int64),
-                          _frozen(np.asarray(frames), np.int64),
-                          _frozen(np.asarray(poses).reshape(n, 4, 4), np.float64)),
+                   Bodies(_frozen(np.asarray(kinds), np.int64), _frozen(frames, np.int64),
+                          _frozen(links, np.int64),
+                          _frozen(np.asarray(poses).reshape(n, 4, 4), np.float64),
+                          _frozen(carried, np.int64).reshape(-1)),
                    Pairs(index, _frozen(np.asarray(weight).reshape(len(index), -1), np.float64),
                          _frozen(mover, np.int64)),
                    tuple((names[a], names[b]) for a, b in index),
-                   tuple((int(a), int(b)) for a, b in fixed), tuple(fixed_hits))
+                   tuple((int(a), int(b)) for a, b in fixed), tuple(fixed_hits), n_links)
+
+    @property
+    def slots(self) -> int:
+        """Pose slots the kernels' pose buffers need: the links', then one per carried
+        object."""
+        return self.n_links + len(self.bodies.carried)
 
     def __len__(self) -> int:
         return len(self.names)

@@ -165,12 +165,12 @@ class CollisionWorld:
                 continue
             (fixed if statics[a] and statics[b] else moving).append((a, b))
         index = np.array(moving, dtype=np.int64).reshape(-1, 2)
-        frame = np.array(frames, dtype=np.int64)
         # [m/rad] how fast each pair can close in per joint, for conservative advancement
         weight = pair_weights(robot, self.kin.joint_names, points, index)
         # per pair, the body that moves by a static one (its local speed bounds the pair's
         # steps too), or -1
-        mover = np.array([moving_by_static(int(a), int(b), frame, self.chain)
+        links = np.array(frames, dtype=np.int64)
+        mover = np.array([moving_by_static(int(a), int(b), links, self.chain)
                           for a, b in index], np.int64)
         self._placed = np.full(len(names), -1, dtype=np.int64)
         self._stamp = 0
@@ -178,8 +178,8 @@ class CollisionWorld:
         self._dreq = fcl.DistanceRequest()
         #: every body, its kind and pose, and the checked pairs (frozen)
         self.table = BodyTable.build(names, kinds, frames, static_pose, index, weight, mover,
-                                     fixed=fixed)
-        # the table's frames and carried bodies as Python values (read per narrow-phase call)
+                                     n_links=len(self.kin.link_names), fixed=fixed)
+        # the table's links and carried bodies as Python values (read per narrow-phase call)
         self._link_of = tuple(int(f) for f in frames)
         self._carried = frozenset(self.table.of_kind(BodyKind.CARRIED))
         # Pairs of bodies that never move are decided once, here.
@@ -187,11 +187,11 @@ class CollisionWorld:
         hits = tuple((names[a], names[b]) for a, b in fixed
                      if self._narrow(poses0, a, b, exact=True))
         self.table = replace(self.table, fixed_hits=hits)
-        self._poses = np.empty((len(self.kin.link_names), 4, 4))
+        self._poses = np.empty((self.table.slots, 4, 4))
         # (pair, above, the state it was measured at) -> its distance bound (still_distance)
         self._still: dict[tuple[int, float, bytes], float] = {}
         self._cand = np.zeros(len(index), dtype=np.int64)
-        self._work = Work.of(len(self.kin.link_names), _STACK)
+        self._work = Work.of(self.table.slots, _STACK)
         # [m] how far ahead one distance bound is asked to prove a pair free: a short
         # proof is a shallow tree descent, and a sampled edge's states are close together
         # (0.06 -> 0.01 m: course model self 9.3 -> 8.3 ms median in process, 14.4 ->
@@ -240,8 +240,8 @@ class CollisionWorld:
         self._placed[b] = self._stamp
 
     def body_pose(self, poses: np.ndarray, b: int) -> np.ndarray:
-        """Body ``b``'s world pose (4, 4) at link poses ``poses`` (n_links, 4, 4), as the
-        kernels' :func:`.table.body_pose` gives it."""
+        """Body ``b``'s world pose (4, 4) at link poses ``poses`` (n_links, 4, 4): its
+        link's, that times its offset for a carried object, its own for an obstacle."""
         f = self._link_of[b]
         if f < 0:
             return self.table.bodies.pose[b]
@@ -279,7 +279,11 @@ class CollisionWorld:
         return hits
 
     def _poses_of(self, q: ArrayLike) -> np.ndarray:
-        return self.kin.link_poses(q, out=self._poses)
+        # the kernels' pose slots: the links', then the carried objects'
+        poses = self.kin.link_poses(q, out=self._poses)
+        for b in self._carried:
+            poses[self.table.bodies.frame[b]] = self.body_pose(poses, b)
+        return poses
 
     # -- public -----------------------------------------------------------------------
     @property
