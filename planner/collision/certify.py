@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Any
 
 import numba
 import numpy as np
@@ -39,7 +39,7 @@ from .advance import Work, tree_lower_bound
 from .body_speed import local_rates, local_step
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
-from .resume import Status, Stop, new_walk
+from .resume import Motion, Proof, Status, Stop, new_walk
 from .table import Bodies, Pairs, place_carried
 from .world import CollisionWorld
 
@@ -100,30 +100,6 @@ class Certificate:
     failure: tuple[int, float, tuple[str, str], float] | None
     bounds: int
     exact: int
-
-
-class Motion(NamedTuple):
-    """The pieces of a motion (see the module's docstring): ``starts``, ``u1``, ``u2``
-    shape (n, dof), ``lengths`` (n,) [rad]."""
-
-    starts: np.ndarray
-    u1: np.ndarray
-    u2: np.ndarray
-    lengths: np.ndarray
-
-
-class Proof(NamedTuple):
-    """What one certification builds up per pair, across the walk's resumed calls.
-
-    Attributes:
-        best: the clearance [m] certified so far, shape (n_pairs,).
-        directions: the pair's last hull direction (unit, world), shape (n_pairs, 3).
-        warm: whether it has one, shape (n_pairs,) bool.
-    """
-
-    best: np.ndarray
-    directions: np.ndarray
-    warm: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

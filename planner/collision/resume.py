@@ -10,8 +10,33 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import NamedTuple
 
 import numpy as np
+
+
+class Motion(NamedTuple):
+    """The pieces of a motion (see :mod:`.certify`): ``starts``, ``u1``, ``u2``
+    shape (n, dof), ``lengths`` (n,) [rad]."""
+
+    starts: np.ndarray
+    u1: np.ndarray
+    u2: np.ndarray
+    lengths: np.ndarray
+
+
+class Proof(NamedTuple):
+    """What one certification builds up per pair, across the walk's resumed calls.
+
+    Attributes:
+        best: the clearance [m] certified so far, shape (n_pairs,).
+        directions: the pair's last hull direction (unit, world), shape (n_pairs, 3).
+        warm: whether it has one, shape (n_pairs,) bool.
+    """
+
+    best: np.ndarray
+    directions: np.ndarray
+    warm: np.ndarray
 
 
 class Status(IntEnum):

@@ -12,11 +12,9 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from itertools import combinations
 
 import fcl
 import numpy as np
-import trimesh
 from numpy.typing import ArrayLike
 
 from description import Description
@@ -27,18 +25,12 @@ from ..kinematics.chain import Kinematics
 from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import SweepCarry, Work, pair_weights, sweep, tree_lower_bound
-from .bodies import RobotBodies, bvh
+from .assembly import SceneBodies
+from .bodies import RobotBodies
 from .body_speed import moving_by_static
-from .hulls import Hull, HullBounds, mesh_hull, primitive_hull
-from .obbtree import (
-    Forest,
-    ObbTree,
-    box_tree,
-    build_tree,
-    pair_candidates,
-    state_candidates,
-)
-from .table import BodyKind, BodyTable, checked_kinds
+from .hulls import HullBounds
+from .obbtree import Forest, pair_candidates, state_candidates
+from .table import BodyKind, BodyTable
 
 _log = logging.getLogger(__name__)
 _STACK = 4096
@@ -67,19 +59,6 @@ class StateCheck:
     pairs: tuple[tuple[str, str], ...]
     clearance: float | None = None
     closest: tuple[str, str] | None = None
-
-
-def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hull]:
-    if o.shape == "box":
-        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
-    if o.shape == "sphere":
-        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
-    if o.shape == "cylinder":
-        return (fcl.Cylinder(o.radius, o.length),
-                box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
-    mesh = trimesh.load(o.mesh_path, force="mesh")
-    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
-            mesh_hull(np.asarray(mesh.vertices, float)))
 
 
 class CollisionWorld:
@@ -120,56 +99,23 @@ class CollisionWorld:
         elif bodies.description is not description:
             raise InvalidRequest("bodies were built for another description", field="bodies")
         self.bodies = bodies
-        names = list(bodies.names)
-        frames = list(bodies.frames)
-        kinds = [BodyKind.LINK] * len(names)
-        trees = list(bodies.trees)
-        objs = [fcl.CollisionObject(g, fcl.Transform()) for g in bodies.geometries]
-        # a box obstacle's surface as 12 triangles, for distances at free states only
-        # (FCL's mesh-box distance is 2.5x slower than mesh-mesh on CAD links, measured)
-        self._surfaces: dict[int, fcl.CollisionObject] = {}
-        statics = list(bodies.statics)
-        points = list(bodies.points)
-        hulls = list(bodies.hulls)
-        n_links = len(names)
-        static_pose = np.tile(np.eye(4), (len(names) + len(self.obstacles), 1, 1))
-        for i, o in enumerate(self.obstacles):
-            geom, tree, hull = _obstacle_geometry(o)
-            pose = o.pose()
-            names.append(o.id)
-            frames.append(-1)
-            kinds.append(BodyKind.OBSTACLE)
-            trees.append(tree)
-            objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-            if o.shape == "box":
-                self._surfaces[len(objs) - 1] = fcl.CollisionObject(
-                    bvh(trimesh.creation.box(extents=o.size)),
-                    fcl.Transform(pose[:3, :3], pose[:3, 3]))
-            statics.append(True)
-            points.append((None, np.zeros((1, 3))))
-            hulls.append(hull)
-            static_pose[n_links + i] = pose
-        self._objs = objs
+        scene = SceneBodies.assemble(bodies, self.obstacles)
+        names = scene.names
+        self._objs = scene.objects
+        self._surfaces = scene.surfaces
         #: every body's OBB tree, for the kernels
-        self.forest = Forest.of(trees)
-        self._hull_bounds = HullBounds(hulls, static_pose)
+        self.forest = Forest.of(list(scene.trees))
+        self._hull_bounds = HullBounds(list(scene.hulls), scene.poses)
         #: every body's convex hull packed, for the kernels
         self.hulls = self._hull_bounds.pack
         #: the kinematic chain, for the kernels
         self.chain = self.kin.chain
-        moving, fixed = [], []
-        for a, b in combinations(range(len(names)), 2):
-            if not checked_kinds(kinds[a], kinds[b]):
-                continue
-            if self.acm.allowed(names[a], names[b]):
-                continue
-            (fixed if statics[a] and statics[b] else moving).append((a, b))
-        index = np.array(moving, dtype=np.int64).reshape(-1, 2)
+        index, fixed = scene.checked_pairs(self.acm)
         # [m/rad] how fast each pair can close in per joint, for conservative advancement
-        weight = pair_weights(robot, self.kin.joint_names, points, index)
+        weight = pair_weights(robot, self.kin.joint_names, list(scene.points), index)
         # per pair, the body that moves by a static one (its local speed bounds the pair's
         # steps too), or -1
-        links = np.array(frames, dtype=np.int64)
+        links = np.array(scene.links, dtype=np.int64)
         mover = np.array([moving_by_static(int(a), int(b), links, self.chain)
                           for a, b in index], np.int64)
         self._placed = np.full(len(names), -1, dtype=np.int64)
@@ -177,10 +123,11 @@ class CollisionWorld:
         self._creq = fcl.CollisionRequest()
         self._dreq = fcl.DistanceRequest()
         #: every body, its kind and pose, and the checked pairs (frozen)
-        self.table = BodyTable.build(names, kinds, frames, static_pose, index, weight, mover,
-                                     n_links=len(self.kin.link_names), fixed=fixed)
+        self.table = BodyTable.build(names, scene.kinds, scene.links, scene.poses, index,
+                                     weight, mover, n_links=len(self.kin.link_names),
+                                     fixed=fixed)
         # the table's links and carried bodies as Python values (read per narrow-phase call)
-        self._link_of = tuple(int(f) for f in frames)
+        self._link_of = scene.links
         self._carried = frozenset(self.table.of_kind(BodyKind.CARRIED))
         # Pairs of bodies that never move are decided once, here.
         poses0 = self.kin.link_poses(np.zeros(self.kin.dof))
