@@ -10,6 +10,7 @@ from planner.collision.advance import tree_lower_bound
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle
+from tests.helpers.fcl_bodies import fcl_objects, place
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +27,8 @@ def _vertices(w, body):
 
 def _common_frame(w, a, b):
     robot = w.description.robot
-    paths = [robot.link_path(w.body_names[x]) if w._frame[x] >= 0 else () for x in (a, b)]
+    frame = w.table.bodies.frame
+    paths = [robot.link_path(w.body_names[x]) if frame[x] >= 0 else () for x in (a, b)]
     k = 0
     while k < min(map(len, paths)) and paths[0][k].name == paths[1][k].name:
         k += 1
@@ -39,9 +41,10 @@ def test_pair_weights_bound_relative_motion(world):
     lim = world.description.robot.position_limits()
     rng = np.random.default_rng(5)
     checked = 0
-    for p, (a, b) in enumerate(world._pairs):
+    frame = world.table.bodies.frame
+    for p, (a, b) in enumerate(world.table.pairs.index):
         c = _common_frame(world, a, b)
-        pts = [_vertices(world, x)[::5] if world._frame[x] >= 0 else np.zeros((1, 3))
+        pts = [_vertices(world, x)[::5] if frame[x] >= 0 else np.zeros((1, 3))
                for x in (a, b)]
         for _ in range(20):
             q0, q1 = rng.uniform(lim[:, 0], lim[:, 1], size=(2, 4))
@@ -50,11 +53,10 @@ def test_pair_weights_bound_relative_motion(world):
                 poses = world.kin.link_poses(q)
                 inv_c = np.linalg.inv(poses[c])
                 for k, x in enumerate((a, b)):
-                    t = poses[world._frame[x]] if world._frame[x] >= 0 else world._static_pose[x]
-                    rel = inv_c @ t
+                    rel = inv_c @ world.body_pose(poses, x)
                     moved[k].append(pts[k] @ rel[:3, :3].T + rel[:3, 3])
             disp = sum(np.max(np.linalg.norm(m[1] - m[0], axis=1)) for m in moved.values())
-            bound = world._weight[p] @ np.abs(q1 - q0)
+            bound = world.table.pairs.weight[p] @ np.abs(q1 - q0)
             assert disp <= bound + 1e-9
             checked += 1
     assert checked > 200
@@ -63,20 +65,18 @@ def test_pair_weights_bound_relative_motion(world):
 def test_tree_bound_never_exceeds_fcl_distance(world):
     lim = world.description.robot.position_limits()
     qs = np.random.default_rng(8).uniform(lim[:, 0], lim[:, 1], size=(40, 4))
-    f = world._forest
+    f = world.forest
+    objs = fcl_objects(world)
     stack, gaps, scratch = np.empty((4096, 2), np.int64), np.empty(4096), np.empty((8, 3, 3))
     positive = 0
     for q in qs:
         poses = world.kin.link_poses(q)
-        world._stamp += 1
-        for a, b in world._pairs:
-            ta = poses[world._frame[a]] if world._frame[a] >= 0 else world._static_pose[a]
-            tb = poses[world._frame[b]] if world._frame[b] >= 0 else world._static_pose[b]
+        for a, b in world.table.pairs.index:
+            ta, tb = world.body_pose(poses, a), world.body_pose(poses, b)
             lb = tree_lower_bound(ta, f.root[a], tb, f.root[b], f.center, f.axes, f.half,
                                   f.left, f.right, 0.0, np.inf, stack, gaps, scratch)
-            world._place(poses, a)
-            world._place(poses, b)
-            d = fcl.distance(world._objs[a], world._objs[b], fcl.DistanceRequest(),
+            place(world, objs, poses, a, b)
+            d = fcl.distance(objs[a], objs[b], fcl.DistanceRequest(),
                              fcl.DistanceResult())
             assert lb <= max(d, 0.0) + 1e-9
             positive += lb > 0.01

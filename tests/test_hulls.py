@@ -35,11 +35,10 @@ OBSTACLES = [Obstacle("slab", "box", size=(0.4, 0.4, 0.04), xyz=(0.0, 0.9, 0.9))
 
 
 def _warm(world: CollisionWorld, q: np.ndarray, p: int, n: np.ndarray) -> float:
-    h = world._hulls
-    poses = world._poses_of(q)
-    a, b = (int(x) for x in world._pairs[p])
-    return warm_bound(h.vertices, h.offsets, h.radii, a, world._pose(poses, a), b,
-                      world._pose(poses, b), n)
+    poses = world.kin.link_poses(q)
+    a, b = (int(x) for x in world.table.pairs.index[p])
+    return warm_bound(*world.hulls, a, world.body_pose(poses, a), b, world.body_pose(poses, b),
+                      n)
 
 
 def _bounds_never_exceed_exact(world: CollisionWorld, seed: int, n: int) -> int:

@@ -6,6 +6,7 @@ from description import load_description
 from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest
 from planner.scene import Obstacle
+from tests.helpers.fcl_bodies import fcl_objects, place
 
 
 @pytest.fixture(scope="module")
@@ -21,15 +22,12 @@ def world(d):
 
 def _brute(w, q):
     poses = w.kin.link_poses(q)
+    objs = fcl_objects(w)
     hits = set()
-    for (a, b), nm in zip(w._pairs, w.pair_names):
-        for x in (a, b):
-            if w._frame[x] >= 0:
-                t = poses[w._frame[x]]
-                w._objs[x].setTransform(fcl.Transform(t[:3, :3], t[:3, 3]))
-        if fcl.collide(w._objs[a], w._objs[b], fcl.CollisionRequest(), fcl.CollisionResult()):
+    for (a, b), nm in zip(w.table.pairs.index, w.pair_names):
+        place(w, objs, poses, a, b)
+        if fcl.collide(objs[a], objs[b], fcl.CollisionRequest(), fcl.CollisionResult()):
             hits.add(nm)
-    w._placed[:] = -1
     return hits
 
 
@@ -111,14 +109,15 @@ def test_pair_distance_to_a_box_is_fcl_distance_to_the_solid_box_at_free_states(
                                               xyz=(0.3, 0.6, 1.0), rpy=(0.2, 0, 0.4))])
     lim = d.robot.position_limits()
     box = next(p for p, (_, b) in enumerate(w.pair_names) if b == "table")
-    a, b = w._pairs[box]
+    a, b = w.table.pairs.index[box]
+    objs = fcl_objects(w)
     compared = 0
     for q in np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(60, 4)):
         if not w.is_valid(q):
             continue
         got = w.pair_distance(q, box)
-        w._place(w.kin.link_poses(q), a)
-        solid = fcl.distance(w._objs[a], w._objs[b], fcl.DistanceRequest(),
+        place(w, objs, w.kin.link_poses(q), a)
+        solid = fcl.distance(objs[a], objs[b], fcl.DistanceRequest(),
                              fcl.DistanceResult())
         assert got == pytest.approx(max(solid, 0.0), abs=1e-9)
         compared += got < 0.2

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..cache import ArtifactCache, content_key
 from .advance import tree_lower_bound
+from .table import BodyKind
 from .world import CollisionWorld
 
 _log = logging.getLogger(__name__)
@@ -65,7 +66,7 @@ def prove_never(world: CollisionWorld, *, samples: int = 256, seed: int = 0,
     """
     t0 = time.perf_counter()
     kin = world.kin
-    n_links = len(world.link_bodies)
+    table = world.table
     lim = world.description.robot.position_limits(kin.joint_names)
     lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -np.pi)
     hi = np.where(np.isfinite(lim[:, 1]), lim[:, 1], np.pi)
@@ -76,22 +77,23 @@ def prove_never(world: CollisionWorld, *, samples: int = 256, seed: int = 0,
     proven: list[tuple[str, str]] = []
     unproven: list[tuple[str, str]] = []
     # two links that never move are decided at construction: apart or always touching
-    for a, b in world._fixed_pairs:
-        pair = (world.body_names[a], world.body_names[b])
-        if pair not in world._fixed_hits:
+    for a, b in table.fixed:
+        pair = (table.names[a], table.names[b])
+        if table.kinds[a] == table.kinds[b] == BodyKind.LINK and pair not in table.fixed_hits:
             proven.append(pair)
     evaluations = 0
-    f = world._forest
+    f = world.forest
+    frame = table.bodies.frame
     stack = np.empty((4096, 2), dtype=np.int64)
     gaps = np.empty(4096)
     scratch = np.empty((8, 3, 3))
-    for p, (a, b) in enumerate(world._pairs):
-        if a >= n_links or b >= n_links:
-            continue
-        pair = world.pair_names[p]
+    for p, (a, b) in enumerate(table.pairs.index):
+        if table.pair_kinds(p) != (BodyKind.LINK, BodyKind.LINK):
+            continue  # the matrix is the robot's: scene and carried bodies change
+        pair = table.pair_names[p]
         if pair in touching or pair[::-1] in touching:
             continue
-        weight = world._weight[p]
+        weight = table.pairs.weight[p]
         moving = np.flatnonzero(weight > 1e-9)
         boxes = [((lo[moving] + hi[moving]) / 2, (hi[moving] - lo[moving]) / 2)]
         verdict = "proven"
@@ -104,9 +106,9 @@ def prove_never(world: CollisionWorld, *, samples: int = 256, seed: int = 0,
             q = np.zeros(kin.dof)
             q[moving] = centre
             poses = kin.link_poses(q)
-            d = tree_lower_bound(poses[world._frame[a]], f.root[a], poses[world._frame[b]],
-                                 f.root[b], f.center, f.axes, f.half, f.left, f.right, 0.0,
-                                 _CAP, stack, gaps, scratch)
+            d = tree_lower_bound(poses[frame[a]], f.root[a], poses[frame[b]], f.root[b],
+                                 f.center, f.axes, f.half, f.left, f.right, 0.0, _CAP, stack,
+                                 gaps, scratch)
             used += 1
             reach = weight[moving] * half
             if d - reach.sum() > margin:

@@ -19,18 +19,59 @@ the same as checking every state (the bound is a proof), typically for a tenth o
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
 from description.model import Joint, Robot
 
-from ..kinematics.chain import _fk_into
+from ..kinematics.chain import Chain, _fk_into
 from .body_speed import local_rates
-from .obbtree import box_in_frame, in_box_frame, relative_pose
+from .obbtree import Forest, box_in_frame, in_box_frame, relative_pose
+from .table import Bodies, Pairs, place_carried
 
 # [m] a pair needs this much more than the padding to be called free by a bound:
 # absorbs rounding in poses, boxes and weights, far below any mesh feature
 MARGIN = 1e-6
+
+
+class Work(NamedTuple):
+    """Work buffers of the walks (reused, so a call allocates nothing large).
+
+    Attributes:
+        poses: link poses, shape (n_links, 4, 4).
+        stack: tree descent pairs, shape (s, 2) int64.
+        gaps: their inherited bounds, shape (s,).
+    """
+
+    poses: np.ndarray
+    stack: np.ndarray
+    gaps: np.ndarray
+
+    @classmethod
+    def of(cls, n_links: int, depth: int = 4096) -> Work:
+        return cls(np.empty((n_links, 4, 4)), np.empty((depth, 2), np.int64), np.empty(depth))
+
+
+class SweepCarry(NamedTuple):
+    """What :func:`sweep` carries per pair between its resumed calls.
+
+    Attributes:
+        budget: the distance [m] proven at state ``since`` (-1: none yet; 0: marked),
+            shape (n_pairs,).
+        since: that state, shape (n_pairs,) int64.
+        rates: the :func:`~.body_speed.local_rates` (rate, turn) there of the pair's
+            body that moves by a static one, shape (n_pairs, 2, dof).
+    """
+
+    budget: np.ndarray
+    since: np.ndarray
+    rates: np.ndarray
+
+    @classmethod
+    def of(cls, n_pairs: int, dof: int) -> SweepCarry:
+        return cls(np.empty(n_pairs), np.zeros(n_pairs, np.int64), np.empty((n_pairs, 2, dof)))
 
 
 def _rigid(joints: tuple[Joint, ...]) -> np.ndarray:
@@ -147,7 +188,9 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
                      pad: float, cap: float, stack: np.ndarray, gaps: np.ndarray,
                      scratch: np.ndarray) -> float:
     """A lower bound [m] on the distance between trees ``a`` (pose ``ta``) and ``b``
-    (pose ``tb``): the smallest leaf-pair bound if one is below ``cap``, else the
+    (pose ``tb``) of a :class:`.obbtree.Forest`'s arrays (root nodes ``a``, ``b``; the
+    caller unpacks the forest once: this runs per pair and step): the smallest leaf-pair
+    bound if one is below ``cap``, else the
     smallest gap of the node pairs the search pruned (``>= cap``: a far pair proves its
     whole distance for the box tests it took). Stops early with a value <= ``pad`` once
     a leaf pair is that close.
@@ -207,32 +250,32 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
 
 
 @numba.njit(cache=True, nogil=True)
-def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget: np.ndarray,
-          since: np.ndarray, rates: np.ndarray,
-          parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray, axis: np.ndarray,
-          src: np.ndarray, scale: np.ndarray, offset: np.ndarray, body_frame: np.ndarray,
-          static_pose: np.ndarray, pairs: np.ndarray, mover: np.ndarray, weight: np.ndarray,
-          root: np.ndarray, center: np.ndarray, axes: np.ndarray, half: np.ndarray,
-          left: np.ndarray, right: np.ndarray, pad: float, horizon: float,
-          poses: np.ndarray, stack: np.ndarray, gaps: np.ndarray, out: np.ndarray) -> int:
-    """Mark (state, pair) where the pair may be closer than ``pad``; the rest is proven.
+def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, carry: SweepCarry,
+          chain: Chain, bodies: Bodies, pairs: Pairs, forest: Forest, pad: float,
+          horizon: float, work: Work, out: np.ndarray) -> int:
+    """Mark (state, pair) where a checked pair of ``pairs`` may be closer than ``pad``;
+    the rest is proven.
 
     Walks ``qs`` (m, dof) in order from state ``start``; with ``stop_early`` returns the
     first state given a mark (call again from the next state to resume), else walks to
     the end and returns m. ``cum`` (m, dof) gets the cumulative |joint motion| when
-    ``start`` is 0. Carried between resumed calls, per pair: ``budget`` (n_pairs,) the
-    distance [m] proven at state ``since`` (n_pairs,) int64, and ``rates`` (n_pairs, 2,
-    dof) the :func:`~.body_speed.local_rates` there of the pair's body ``mover``
-    (n_pairs,) that moves by a static one (-1: none), so the proof lasts while the motion
-    since, by the pair's every-configuration ``weight`` (n_pairs, dof) [m/rad] or by
-    those local rates, stays below it. The kinematics arrays are
-    :class:`~planner.kinematics.chain.Kinematics`';
-    ``horizon`` [m] caps how far ahead one bound is asked to prove (deeper proofs cost
-    more tree descent); ``poses`` (n_links, 4, 4) work buffer; ``out`` (m, n_pairs)
-    int8, zeroed, gets 1 where the narrow phase must decide.
+    ``start`` is 0. ``carry`` holds each pair's proof between resumed calls: the distance
+    proven at a state, and the local rates there of the pair's body that moves by a
+    static one (``pairs.mover``), so the proof lasts while the motion since, by the
+    pair's every-configuration ``pairs.weight`` [m/rad] or by those local rates, stays
+    below it. ``horizon`` [m] caps how far ahead one bound is asked to prove (deeper
+    proofs cost more tree descent); ``out`` (m, n_pairs) int8, zeroed, gets 1 where the
+    narrow phase must decide.
     """
+    # unpacked once: taking an array out of a tuple costs a reference count
+    budget, since, rates = carry
+    index, weight, mover = pairs
+    poses, stack, gaps = work
+    frame, link, pose, carried = bodies.frame, bodies.link, bodies.pose, bodies.carried
+    center, axes, half, left, right, root = forest
+    parent, origin, jtype, axis, src, scale, offset = chain
     m, dof = qs.shape
-    npair = pairs.shape[0]
+    npair = index.shape[0]
     if start == 0:
         for j in range(dof):
             cum[0, j] = 0.0
@@ -264,13 +307,14 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
                         continue
             if not posed:
                 _fk_into(qs[i], parent, origin, jtype, axis, src, scale, offset, poses)
+                place_carried(frame, link, pose, carried, poses)
                 posed = True
             rem = 0.0
             for j in range(dof):
                 rem += weight[p, j] * (cum[m - 1, j] - cum[i, j])
-            a, b = pairs[p, 0], pairs[p, 1]
-            ta = poses[body_frame[a]] if body_frame[a] >= 0 else static_pose[a]
-            tb = poses[body_frame[b]] if body_frame[b] >= 0 else static_pose[b]
+            a, b = index[p, 0], index[p, 1]
+            ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
+            tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
             cap = pad + MARGIN + min(rem, horizon) + 1e-9
             lb = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left, right,
                                   pad + MARGIN, cap, stack, gaps, scratch)
@@ -281,9 +325,9 @@ def sweep(qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray, budget:
                 if mov >= 0:
                     # the root's box alone: a sweep re-proves pairs too often to pay
                     # for more
-                    local_rates(poses, body_frame[mov], root[mov], 0, center, half, left,
-                                right, parent, jtype, axis, src, scale, rates[p, 0],
-                                rates[p, 1])
+                    local_rates(poses, ta if mov == a else tb, link[mov], root[mov], 0,
+                                center, half, left, right, parent, jtype, axis, src, scale,
+                                rates[p])
             else:
                 out[i, p] = 1
                 marked = True

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ..kinematics.chain import FIXED, PRISMATIC
+from ..kinematics.chain import FIXED, PRISMATIC, Chain
 
 
 @numba.njit(cache=True, nogil=True)
@@ -40,23 +40,25 @@ def movable_above(link: int, parent: np.ndarray, jtype: np.ndarray, src: np.ndar
 
 
 @numba.njit(cache=True, nogil=True)
-def local_rates(poses: np.ndarray, link: int, root: int, depth: int, center: np.ndarray,
-                half: np.ndarray, left: np.ndarray, right: np.ndarray, parent: np.ndarray,
-                jtype: np.ndarray, axis: np.ndarray, src: np.ndarray, scale: np.ndarray,
-                rate: np.ndarray, turn: np.ndarray) -> None:
-    """Per actuated joint ``j``: how fast the body of ``link`` (its OBB tree from node
-    ``root``; link poses ``poses`` now) moves per unit of ``q_j`` where it is now
-    (``rate[j]`` [m/rad]), and how many of its revolute joints follow ``q_j``
-    (``turn[j]``, mimics by their multipliers: each lets ``r_k`` grow).
+def local_rates(poses: np.ndarray, t: np.ndarray, link: int, root: int, depth: int,
+                center: np.ndarray, half: np.ndarray, left: np.ndarray, right: np.ndarray,
+                parent: np.ndarray, jtype: np.ndarray, axis: np.ndarray, src: np.ndarray,
+                scale: np.ndarray, out: np.ndarray) -> None:
+    """Per actuated joint ``j``: how fast a body carried by ``link`` (its pose ``t``
+    (4, 4); its OBB tree from node ``root`` of a :class:`.obbtree.Forest`'s arrays; link
+    poses ``poses`` now; the :class:`~planner.kinematics.chain.Chain`'s arrays, which
+    the caller unpacks once: this runs per step) moves per unit of ``q_j`` where it is
+    now (``out[0, j]`` [m/rad]), and how many of its revolute joints follow ``q_j``
+    (``out[1, j]``, mimics by their multipliers: each lets ``r_k`` grow).
 
     A joint's ``r_k`` is the largest, over the tree's nodes ``depth`` levels down (they
     hold every triangle), of a node's centre's distance from the axis plus its box's half
     diagonal: a long link is a few short pieces, each as far from the axis as it is
     (``2**depth`` pieces at most, each a few flops per joint).
     """
+    rate, turn = out[0], out[1]
     frontier = np.empty((2 ** depth, 4))  # world centre and radius of each piece
     stack = np.empty((2 ** depth + depth + 1, 2), np.int64)
-    t = poses[link]
     n, top = 0, 1
     stack[0, 0], stack[0, 1] = root, 0
     while top > 0:
@@ -119,13 +121,12 @@ def local_step(rate: np.ndarray, turn: np.ndarray, u1: np.ndarray, u2: np.ndarra
 
 
 @numba.njit(cache=True, nogil=True)
-def moving_by_static(a: int, b: int, body_frame: np.ndarray, parent: np.ndarray,
-                     jtype: np.ndarray, src: np.ndarray) -> int:
-    """Of bodies ``a`` and ``b`` (indices into ``body_frame``), the one that moves when the
-    other does not; -1 if both move or neither does."""
+def moving_by_static(a: int, b: int, body_frame: np.ndarray, chain: Chain) -> int:
+    """Of bodies ``a`` and ``b`` (indices into ``body_frame``, their link or -1), the one
+    that moves when the other does not; -1 if both move or neither does."""
     fa, fb = body_frame[a], body_frame[b]
-    ma = movable_above(fa, parent, jtype, src) if fa >= 0 else 0
-    mb = movable_above(fb, parent, jtype, src) if fb >= 0 else 0
+    ma = movable_above(fa, chain.parent, chain.jtype, chain.src) if fa >= 0 else 0
+    mb = movable_above(fb, chain.parent, chain.jtype, chain.src) if fb >= 0 else 0
     if (ma == 0) == (mb == 0):
         return -1
     return a if ma > 0 else b

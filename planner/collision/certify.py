@@ -34,13 +34,15 @@ from typing import Any
 import numba
 import numpy as np
 
-from ..kinematics.chain import _fk_into
-from .advance import tree_lower_bound
+from ..kinematics.chain import Chain, _fk_into
+from .advance import Work, tree_lower_bound
 from .body_speed import local_rates, local_step
-from .hulls import warm_bound
+from .hulls import HullPack, warm_bound
+from .obbtree import Forest
+from .resume import Motion, Proof, Status, Stop, new_walk
+from .table import Bodies, Pairs, place_carried
 from .world import CollisionWorld
 
-_DONE, _NEED_EXACT, _BUDGET = 0, 1, 2
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more
 # tree descent than the extra step they buy (0.1 -> 0.03: 20-28% more bounds, 25-40%
 # less time on the course and shipped models). With a clearance to report, a pair
@@ -110,45 +112,49 @@ def _eval_piece(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float
 
 
 @numba.njit(cache=True, nogil=True)
-def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.ndarray,
-             p0: int, k0: int, s0: float, injected: float, parent: np.ndarray,
-             origin: np.ndarray, jtype: np.ndarray, axis: np.ndarray, src: np.ndarray,
-             scale: np.ndarray, offset: np.ndarray, body_frame: np.ndarray,
-             static_pose: np.ndarray, pairs: np.ndarray, mover: np.ndarray,
-             weight: np.ndarray,
-             root: np.ndarray, center: np.ndarray, axes: np.ndarray, half: np.ndarray,
-             left: np.ndarray, right: np.ndarray, hull_vertices: np.ndarray,
-             hull_offsets: np.ndarray, hull_radii: np.ndarray, clear: float,
-             fraction: float, local: bool, poses: np.ndarray, stack: np.ndarray,
-             gaps: np.ndarray, q: np.ndarray, best: np.ndarray, directions: np.ndarray,
-             warm: np.ndarray, request: np.ndarray, counts: np.ndarray) -> int:
-    """Walk pairs ``p0..`` along every piece from (piece ``k0``, ``sigma`` ``s0``).
+def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pairs: Pairs,
+             forest: Forest, hulls: HullPack, clear: float, fraction: float, local: bool,
+             work: Work, q: np.ndarray, proof: Proof) -> int:
+    """Walk pairs ``walk.pair..`` along every piece of ``motion`` from (``walk.piece``,
+    ``walk.sigma``); ``walk`` is a :data:`.resume.WALK` record.
 
-    ``injected`` >= 0 is a distance bound [m] for pair ``p0`` at that point (from the
-    caller's hull or FCL query). ``mover`` (n_pairs,): the body of each pair that moves by a
-    static one (its local speed may lengthen the steps), or -1. ``best`` (n_pairs,) gets
-    each pair's certified clearance. A pair whose trees failed at its last bound (near
-    contact) with a ``warm`` direction (``directions`` (n_pairs, 3), from the caller's
-    last hull query; refined in place) tries the hulls along it first, the trees only
-    where that does not prove the step.
-    Returns ``_NEED_EXACT`` with (pair, piece, sigma) in ``request`` when a point needs
-    a closer bound than the trees' and the warm hulls' (a new hull query, else exact),
-    else ``_DONE``. ``counts[0]`` counts bounds evaluated.
+    ``walk.injected`` >= 0 is a distance bound [m] for that pair at that point (from the
+    caller's hull or FCL query). ``proof.best`` gets each pair's certified clearance. A
+    pair whose trees failed at its last bound (near contact) with a ``proof.warm``
+    direction (from the caller's last hull query; refined in place) tries the hulls
+    along it first, the trees only where that does not prove the step.
+    Returns ``Status.NEED_BOUND`` with the point in ``walk`` when a point needs a closer
+    bound than the trees' and the warm hulls' (a new hull query, else exact),
+    ``Status.BUDGET`` when the bounds are spent, else ``Status.DONE``.
+    ``walk.bounds`` counts bounds evaluated; ``q`` (dof,) is a work buffer. (The status
+    leaves as a plain int: boxing an enum member back into Python costs ~0.1 ms.)
     """
+    # unpacked once: taking an array out of a tuple costs a reference count
+    starts, u1, u2, lengths = motion
+    index, weight, mover = pairs
+    best, directions, warm = proof
+    poses, stack, gaps = work
+    frame, link, pose, carried = bodies.frame, bodies.link, bodies.pose, bodies.carried
+    center, axes, half, left, right, root = forest
+    parent, origin, jtype, axis, src, scale, offset = chain
+    vertices, offsets, radii = hulls
+    at = walk[0]
+    p0, k0, s0, injected = at.pair, at.piece, at.sigma, at.injected
+    bounds = at.bounds  # counted here, written back on return (a local stays in a register)
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
     end = np.empty(dof)
-    rate, turn = np.empty(dof), np.empty(dof)
+    rates = np.empty((2, dof))  # local_rates' (rate, turn)
     # the smallest clearance certified so far, any pair: no step need prove more (the
     # certified minimum is the same, the steps longer)
     low = np.inf
     for i in range(best.shape[0]):
         low = min(low, best[i])
-    for p in range(p0, pairs.shape[0]):
+    for p in range(p0, index.shape[0]):
         k = k0 if p == p0 else 0
         s = s0 if p == p0 else 0.0
         inj = injected if p == p0 else -1.0
-        a, b = pairs[p, 0], pairs[p, 1]
+        a, b = index[p, 0], index[p, 1]
         carry = -1.0  # a bound [m] proven at the start of piece k, if any
         measured = np.inf  # the last bound measured (trees or FCL)
         # the trees failed here (their leaf boxes overlap though the meshes do not, as
@@ -177,27 +183,26 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 d = carry
             else:
                 _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+                place_carried(frame, link, pose, carried, poses)
                 posed = True
-                ta = poses[body_frame[a]] if body_frame[a] >= 0 else static_pose[a]
-                tb = poses[body_frame[b]] if body_frame[b] >= 0 else static_pose[b]
+                ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
+                tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
                 d = -1.0
                 if near and warm[p]:
                     # near contact the steps are short and the hulls barely turn: the
                     # last direction still separates them, without a round trip
-                    d = warm_bound(hull_vertices, hull_offsets, hull_radii, a, ta, b, tb,
-                                   directions[p])
+                    d = warm_bound(vertices, offsets, radii, a, ta, b, tb, directions[p])
                 if d <= clear + GAP:
-                    d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half,
-                                         left, right, clear + GAP, _CAP, stack, gaps,
-                                         scratch)
+                    d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
+                                         right, clear + GAP, _CAP, stack, gaps, scratch)
                     near = d <= clear + GAP
-                counts[0] += 1
+                bounds += 1
                 if d <= clear + GAP:
-                    request[0], request[1], request[2] = p, k, s
-                    return _NEED_EXACT
-                if counts[0] > MAX_BOUNDS:
-                    request[0], request[1], request[2] = p, k, s
-                    return _BUDGET
+                    at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    return Status.NEED_BOUND.value
+                if bounds > MAX_BOUNDS:
+                    at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    return Status.BUDGET.value
                 measured = d
             covered = max(clear + GAP / 2, min(fraction * d, low))
             reach = (d - covered) / speed
@@ -208,9 +213,11 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
                 if mov >= 0:
                     if not posed:
                         _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-                    local_rates(poses, body_frame[mov], root[mov], LOCAL_DEPTH, center,
-                                half, left, right, parent, jtype, axis, src, scale, rate, turn)
-                    reach = max(reach, local_step(rate, turn, u1[k], u2[k], speed,
+                        place_carried(frame, link, pose, carried, poses)
+                    local_rates(poses, poses[frame[mov]], link[mov], root[mov], LOCAL_DEPTH,
+                                center, half, left, right, parent, jtype, axis, src, scale,
+                                rates)
+                    reach = max(reach, local_step(rates[0], rates[1], u1[k], u2[k], speed,
                                                   d - covered))
             carry = -1.0
             if reach >= left_on_piece:
@@ -229,7 +236,8 @@ def _advance(starts: np.ndarray, u1: np.ndarray, u2: np.ndarray, lengths: np.nda
             if covered < best[p]:
                 best[p] = covered
                 low = min(low, covered)
-    return _DONE
+    at.bounds = bounds
+    return Status.DONE.value
 
 
 class Certifier:
@@ -249,9 +257,7 @@ class Certifier:
         self.world = world
         self.fraction = fraction
         self.local = local
-        self._poses = np.empty((len(world.kin.link_names), 4, 4))
-        self._stack = np.empty((4096, 2), dtype=np.int64)
-        self._gaps = np.empty(4096)
+        self._work = Work.of(world.table.slots)
         self._q = np.empty(world.dof)
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
@@ -285,39 +291,38 @@ class Certifier:
                 pair = chk.pairs[0] if chk.pairs else ("", "")
                 return Certificate(False, clear, 0.0, pair, (k, float(sig[bad]), pair, 0.0),
                                    0, 0)
-        npair = len(w._pairs)
-        best = np.full(npair, np.inf)
-        request = np.zeros(3)
-        counts = np.zeros(1, dtype=np.int64)
+        table = w.table
+        npair = len(table.pair_names)
         # per motion, so a certificate never depends on what was certified before
-        directions = np.zeros((npair, 3))
-        warm = np.zeros(npair, dtype=np.bool_)
+        proof = Proof(np.full(npair, np.inf), np.zeros((npair, 3)), np.zeros(npair, np.bool_))
+        best, directions, warm = proof
         direction = np.empty(3)
-        weight = w._weight
+        pairs = table.pairs
         still: dict[int, float] = {}
         if self.fraction > 0:  # a clearance to report: still pairs at their own bound
             still = self._still_pairs(starts, u1, u2, lengths, clear)
             if still:
                 idx = np.fromiter(still, np.int64)
                 best[idx] = np.fromiter(still.values(), float)
-                weight = weight.copy()
+                weight = pairs.weight.copy()
                 weight[idx] = 0.0  # proven: the walk passes over them
-        f, h = w._forest, w._hulls
-        p, k, s, injected, exact, queries = 0, 0, 0.0, -1.0, 0, 0
+                weight.flags.writeable = False  # as the table's (one compiled variant)
+                pairs = pairs._replace(weight=weight)
+        motion = Motion(starts, u1, u2, lengths)
+        walk = new_walk()
+        exact, queries = 0, 0
         while True:
-            status = _advance(starts, u1, u2, lengths, p, k, s, injected, *w.kin._args(),
-                              w._frame, w._static_pose, w._pairs, w._mover, weight,
-                              f.root, f.center, f.axes, f.half, f.left, f.right,
-                              h.vertices, h.offsets, h.radii, clear, self.fraction,
-                              self.local, self._poses, self._stack, self._gaps, self._q,
-                              best, directions, warm, request, counts)
-            if status == _DONE:
+            status = Status(_advance(motion, walk, w.chain, table.bodies, pairs, w.forest,
+                                     w.hulls, clear, self.fraction, self.local, self._work,
+                                     self._q, proof))
+            if status == Status.DONE:
                 break
-            p, k, s = int(request[0]), int(request[1]), float(request[2])
-            pair = w.pair_names[p]
-            if exact >= MAX_EXACT or queries >= MAX_NEAR or status == _BUDGET:
+            at = Stop.read(walk)
+            p, k, s = at.pair, at.piece, at.sigma
+            pair = table.pair_names[p]
+            if exact >= MAX_EXACT or queries >= MAX_NEAR or status == Status.BUDGET:
                 return Certificate(False, clear, 0.0, pair, (k, s, pair, float("nan")),
-                                   int(counts[0]), exact)
+                                   at.bounds, exact)
             q = np.empty(w.dof)  # the very point the walk stopped at
             _eval_piece(starts[k], u1[k], u2[k], lengths[k], s, q)
             # free: the walk reached it from a checked sample, every point farther than
@@ -333,14 +338,14 @@ class Certifier:
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
-                                   int(counts[0]), exact)
-            injected = d
+                                   at.bounds, exact)
+            walk[0]["injected"] = d
         # other pairs' figures stop at the smallest so far (the walk proves no more): on a
         # tie, the pair whose figure is its own (a still pair's) is the closest
         worst = min(range(npair), key=lambda p: (best[p], p not in still), default=-1)
         cert = float(best[worst]) if npair and np.isfinite(best[worst]) else float("inf")
-        return Certificate(True, clear, cert, w.pair_names[worst] if npair else None, None,
-                           int(counts[0]), exact)
+        return Certificate(True, clear, cert, table.pair_names[worst] if npair else None,
+                           None, Stop.read(walk).bounds, exact)
 
     def _still_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                      lengths: np.ndarray, clear: float) -> dict[int, float]:
@@ -355,7 +360,7 @@ class Certifier:
         travel = (lengths[:, None] * np.maximum(np.abs(u1), np.abs(u2))).sum(axis=0)
         ends = starts + lengths[:, None] * (u1 + u2) / 2  # H(1) = 1/2
         travel += np.abs(starts[1:] - ends[:-1]).sum(axis=0)
-        moved = w._weight @ travel
+        moved = w.table.pairs.weight @ travel
         out = {}
         for p in np.flatnonzero(moved < STILL):
             d = w.still_distance(starts[0], int(p), above=clear + GAP) - moved[p]

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import fcl
 import numba
@@ -172,6 +173,16 @@ def _along(va: np.ndarray, ta: np.ndarray, vb: np.ndarray, tb: np.ndarray, n: np
             - hi - n[0] * tb[0, 3] - n[1] * tb[1, 3] - n[2] * tb[2, 3])
 
 
+class HullPack(NamedTuple):
+    """Every body's hull packed for compiled code (one argument): body ``i``'s vertices
+    are ``vertices[offsets[i]:offsets[i + 1]]`` (shape (v, 3), its frame), within
+    ``radii[i]`` [m] of which it lies."""
+
+    vertices: np.ndarray
+    offsets: np.ndarray
+    radii: np.ndarray
+
+
 @numba.njit(cache=True, nogil=True)
 def warm_bound(vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int,
                ta: np.ndarray, b: int, tb: np.ndarray, n: np.ndarray) -> float:
@@ -180,7 +191,8 @@ def warm_bound(vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: 
     the separation along ``n`` and along the line between the extreme points it picks
     (which ``n`` then becomes). Sound for any ``n``, close to GJK's while the bodies have
     hardly moved, in a few microseconds and without leaving compiled code.
-    ``vertices``, ``offsets``, ``radii``: as :class:`HullBounds` packs them."""
+    ``vertices``, ``offsets``, ``radii``: a :class:`HullPack`'s (the caller unpacks it
+    once: this runs per step)."""
     va = vertices[offsets[a]:offsets[a + 1]]
     vb = vertices[offsets[b]:offsets[b + 1]]
     xa, yb, m = np.empty(3), np.empty(3), np.empty(3)
@@ -206,9 +218,7 @@ class HullBounds:
         static_poses: shape (n_bodies, 4, 4), the pose of each body that never moves.
 
     Attributes:
-        vertices, offsets, radii: every hull packed for compiled code: body ``i``'s
-            vertices are ``vertices[offsets[i]:offsets[i + 1]]`` (shape (v, 3), its
-            frame), within ``radii[i]`` [m] of which it lies.
+        pack: every hull packed for compiled code (:class:`HullPack`).
     """
 
     def __init__(self, hulls: list[Hull], static_poses: np.ndarray) -> None:
@@ -216,10 +226,11 @@ class HullBounds:
         self._objs = [fcl.CollisionObject(h.geometry, fcl.Transform(p[:3, :3], p[:3, 3]))
                       for h, p in zip(hulls, static_poses)]
         self._request = fcl.DistanceRequest(enable_nearest_points=True)
-        self.vertices = np.ascontiguousarray(np.concatenate([h.vertices for h in hulls])
-                                             if hulls else np.zeros((0, 3)))
-        self.offsets = np.cumsum([0] + [len(h.vertices) for h in hulls]).astype(np.int64)
-        self.radii = np.array([h.radius for h in hulls], float)
+        self.pack = HullPack(
+            np.ascontiguousarray(np.concatenate([h.vertices for h in hulls])
+                                 if hulls else np.zeros((0, 3)), dtype=float),
+            np.cumsum([0] + [len(h.vertices) for h in hulls]).astype(np.int64),
+            np.array([h.radius for h in hulls], float))
 
     def bound(self, a: int, ta: np.ndarray, b: int, tb: np.ndarray, *,
               direction: np.ndarray | None = None) -> float:

@@ -11,11 +11,14 @@ trees separate cannot collide: the prefilter never hides a collision.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from ..cache import ArtifactCache, content_key
+from ..kinematics.chain import Chain, _fk_into
+from .table import Bodies, place_carried
 
 
 @dataclass(frozen=True)
@@ -155,9 +158,9 @@ def box_tree(half: np.ndarray) -> ObbTree:
                    np.array([-1]), np.array([-1]))
 
 
-@dataclass(frozen=True)
-class Forest:
-    """Every body's tree concatenated, for the numba kernels; ``root[b]`` is body b's."""
+class Forest(NamedTuple):
+    """Every body's tree concatenated, as the numba kernels take it (one argument);
+    ``root[b]`` is body b's root node, ``left``/``right`` index the whole forest."""
 
     center: np.ndarray
     axes: np.ndarray
@@ -259,7 +262,8 @@ def relative_pose(ta: np.ndarray, tb: np.ndarray, rel_r: np.ndarray, rel_t: np.n
 def trees_overlap(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.ndarray,
                   axes: np.ndarray, half: np.ndarray, left: np.ndarray, right: np.ndarray,
                   pad: float, stack: np.ndarray, scratch: np.ndarray) -> bool:
-    """True if some leaf box of tree ``a`` (pose ``ta``) overlaps one of ``b`` (pose ``tb``).
+    """True if some leaf box of tree ``a`` (pose ``ta``) overlaps one of ``b`` (pose
+    ``tb``); the trees are a :class:`Forest`'s arrays (its root nodes ``a``, ``b``).
 
     ``scratch`` is a work buffer, shape (8, 3, 3).
     """
@@ -309,23 +313,37 @@ def trees_overlap(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.nda
 
 
 @numba.njit(cache=True, nogil=True)
-def pair_candidates(poses: np.ndarray, body_frame: np.ndarray, static_pose: np.ndarray,
-                    pairs: np.ndarray, root: np.ndarray, center: np.ndarray, axes: np.ndarray,
-                    half: np.ndarray, left: np.ndarray, right: np.ndarray, pad: float,
-                    stack: np.ndarray, out: np.ndarray) -> int:
-    """Mark pairs whose trees overlap for one state (link ``poses`` (n_links, 4, 4)).
+def pair_candidates(poses: np.ndarray, bodies: Bodies, pairs: np.ndarray, forest: Forest,
+                    pad: float, stack: np.ndarray, out: np.ndarray) -> int:
+    """Mark pairs ``pairs`` (n_pairs, 2) of ``bodies`` whose trees overlap for one state
+    (pose slots ``poses`` (n_slots, 4, 4): the links', then the carried objects').
 
-    A body's pose is ``poses[body_frame[b]]``, or ``static_pose[b]`` if the frame is -1.
     Returns the number of marked pairs; ``out`` shape (n_pairs,) gets 1/0.
     """
     n = 0
     scratch = np.empty((8, 3, 3))
+    # unpacked once: taking an array out of a tuple costs a reference count
+    frame, pose = bodies.frame, bodies.pose
+    center, axes, half, left, right, root = forest
     for p in range(pairs.shape[0]):
         a, b = pairs[p, 0], pairs[p, 1]
-        ta = poses[body_frame[a]] if body_frame[a] >= 0 else static_pose[a]
-        tb = poses[body_frame[b]] if body_frame[b] >= 0 else static_pose[b]
+        ta = poses[frame[a]] if frame[a] >= 0 else pose[a]
+        tb = poses[frame[b]] if frame[b] >= 0 else pose[b]
         hit = trees_overlap(ta, root[a], tb, root[b], center, axes, half, left, right, pad,
                             stack, scratch)
         out[p] = 1 if hit else 0
         n += 1 if hit else 0
     return n
+
+
+@numba.njit(cache=True, nogil=True)
+def state_candidates(q: np.ndarray, chain: Chain, bodies: Bodies, pairs: np.ndarray,
+                     forest: Forest, pad: float, poses: np.ndarray, stack: np.ndarray,
+                     out: np.ndarray) -> int:
+    """:func:`pair_candidates` at state ``q`` (dof,), its pose slots computed into
+    ``poses`` (n_slots, 4, 4) on the way (one call from Python, not two: a state check
+    is ~20 us, and each crossing costs one or two)."""
+    parent, origin, jtype, axis, src, scale, offset = chain
+    _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+    place_carried(bodies.frame, bodies.link, bodies.pose, bodies.carried, poses)
+    return pair_candidates(poses, bodies, pairs, forest, pad, stack, out)

@@ -11,12 +11,10 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
-from itertools import combinations
+from dataclasses import dataclass, replace
 
 import fcl
 import numpy as np
-import trimesh
 from numpy.typing import ArrayLike
 
 from description import Description
@@ -26,17 +24,13 @@ from ..errors import InvalidRequest
 from ..kinematics.chain import Kinematics
 from ..scene import Obstacle, validate_obstacles
 from .acm import AllowedCollisionMatrix
-from .advance import pair_weights, sweep, tree_lower_bound
-from .bodies import RobotBodies, bvh
+from .advance import SweepCarry, Work, pair_weights, sweep, tree_lower_bound
+from .assembly import SceneBodies
+from .bodies import RobotBodies
 from .body_speed import moving_by_static
-from .hulls import Hull, HullBounds, mesh_hull, primitive_hull
-from .obbtree import (
-    Forest,
-    ObbTree,
-    box_tree,
-    build_tree,
-    pair_candidates,
-)
+from .hulls import HullBounds
+from .obbtree import Forest, pair_candidates, state_candidates
+from .table import BodyKind, BodyTable
 
 _log = logging.getLogger(__name__)
 _STACK = 4096
@@ -65,19 +59,6 @@ class StateCheck:
     pairs: tuple[tuple[str, str], ...]
     clearance: float | None = None
     closest: tuple[str, str] | None = None
-
-
-def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hull]:
-    if o.shape == "box":
-        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
-    if o.shape == "sphere":
-        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
-    if o.shape == "cylinder":
-        return (fcl.Cylinder(o.radius, o.length),
-                box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
-    mesh = trimesh.load(o.mesh_path, force="mesh")
-    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
-            mesh_hull(np.asarray(mesh.vertices, float)))
 
 
 class CollisionWorld:
@@ -118,79 +99,69 @@ class CollisionWorld:
         elif bodies.description is not description:
             raise InvalidRequest("bodies were built for another description", field="bodies")
         self.bodies = bodies
-        names = list(bodies.names)
-        frames = list(bodies.frames)
-        trees = list(bodies.trees)
-        objs = [fcl.CollisionObject(g, fcl.Transform()) for g in bodies.geometries]
-        # a box obstacle's surface as 12 triangles, for distances at free states only
-        # (FCL's mesh-box distance is 2.5x slower than mesh-mesh on CAD links, measured)
-        self._surfaces: dict[int, fcl.CollisionObject] = {}
-        statics = list(bodies.statics)
-        points = list(bodies.points)
-        hulls = list(bodies.hulls)
-        self.link_bodies = tuple(names)
-        static_pose = np.tile(np.eye(4), (len(names) + len(self.obstacles), 1, 1))
-        for i, o in enumerate(self.obstacles):
-            geom, tree, hull = _obstacle_geometry(o)
-            pose = o.pose()
-            names.append(o.id)
-            frames.append(-1)
-            trees.append(tree)
-            objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-            if o.shape == "box":
-                self._surfaces[len(objs) - 1] = fcl.CollisionObject(
-                    bvh(trimesh.creation.box(extents=o.size)),
-                    fcl.Transform(pose[:3, :3], pose[:3, 3]))
-            statics.append(True)
-            points.append((None, np.zeros((1, 3))))
-            hulls.append(hull)
-            static_pose[len(self.link_bodies) + i] = pose
-        self.body_names = tuple(names)
-        self._frame = np.array(frames, dtype=np.int64)
-        self._static_pose = static_pose
-        self._objs = objs
-        self._forest = Forest.of(trees)
-        self._hulls = HullBounds(hulls, static_pose)
-        moving, fixed = [], []
-        for a, b in combinations(range(len(names)), 2):
-            if a >= len(self.link_bodies) and b >= len(self.link_bodies):
-                continue  # obstacle/obstacle never matters
-            if self.acm.allowed(names[a], names[b]):
-                continue
-            (fixed if statics[a] and statics[b] else moving).append((a, b))
-        self._pairs = np.array(moving, dtype=np.int64).reshape(-1, 2)
-        self.pair_names: tuple[tuple[str, str], ...] = tuple(
-            (names[a], names[b]) for a, b in self._pairs)
+        scene = SceneBodies.assemble(bodies, self.obstacles)
+        names = scene.names
+        self._objs = scene.objects
+        self._surfaces = scene.surfaces
+        #: every body's OBB tree, for the kernels
+        self.forest = Forest.of(list(scene.trees))
+        self._hull_bounds = HullBounds(list(scene.hulls), scene.poses)
+        #: every body's convex hull packed, for the kernels
+        self.hulls = self._hull_bounds.pack
+        #: the kinematic chain, for the kernels
+        self.chain = self.kin.chain
+        index, fixed = scene.checked_pairs(self.acm)
         # [m/rad] how fast each pair can close in per joint, for conservative advancement
-        self._weight = pair_weights(robot, self.kin.joint_names, points, self._pairs)
+        weight = pair_weights(robot, self.kin.joint_names, list(scene.points), index)
         # per pair, the body that moves by a static one (its local speed bounds the pair's
         # steps too), or -1
-        parent, _, jtype, _, src, _, _ = self.kin._args()
-        self._mover = np.array([moving_by_static(int(a), int(b), self._frame, parent, jtype,
-                                                 src) for a, b in self._pairs], np.int64)
+        links = np.array(scene.links, dtype=np.int64)
+        mover = np.array([moving_by_static(int(a), int(b), links, self.chain)
+                          for a, b in index], np.int64)
         self._placed = np.full(len(names), -1, dtype=np.int64)
         self._stamp = 0
         self._creq = fcl.CollisionRequest()
         self._dreq = fcl.DistanceRequest()
+        #: every body, its kind and pose, and the checked pairs (frozen)
+        self.table = BodyTable.build(names, scene.kinds, scene.links, scene.poses, index,
+                                     weight, mover, n_links=len(self.kin.link_names),
+                                     fixed=fixed)
+        # the table's links and carried bodies as Python values (read per narrow-phase call)
+        self._link_of = scene.links
+        self._carried = frozenset(self.table.of_kind(BodyKind.CARRIED))
         # Pairs of bodies that never move are decided once, here.
         poses0 = self.kin.link_poses(np.zeros(self.kin.dof))
-        self._fixed_hits = tuple((names[a], names[b]) for a, b in fixed
-                                 if self._narrow(poses0, a, b, exact=True))
-        self._fixed_pairs = tuple(fixed)
-        self._poses = np.empty((len(self.kin.link_names), 4, 4))
+        hits = tuple((names[a], names[b]) for a, b in fixed
+                     if self._narrow(poses0, a, b, exact=True))
+        self.table = replace(self.table, fixed_hits=hits)
+        self._poses = np.empty((self.table.slots, 4, 4))
         # (pair, above, the state it was measured at) -> its distance bound (still_distance)
         self._still: dict[tuple[int, float, bytes], float] = {}
-        self._cand = np.zeros(len(self._pairs), dtype=np.int64)
-        self._stack = np.empty((_STACK, 2), dtype=np.int64)
-        self._gaps = np.empty(_STACK)
-        self._sweep_poses = np.empty_like(self._poses)
+        self._cand = np.zeros(len(index), dtype=np.int64)
+        self._work = Work.of(self.table.slots, _STACK)
         # [m] how far ahead one distance bound is asked to prove a pair free: a short
         # proof is a shallow tree descent, and a sampled edge's states are close together
         # (0.06 -> 0.01 m: course model self 9.3 -> 8.3 ms median in process, 14.4 ->
         # 12.5 mean; the shipped arm's self 12.0 -> 10.5; the same decisions, as any cap)
         self.horizon = 0.01
         _log.info("collision world: %d bodies, %d moving pairs, %d fixed pairs (%d colliding)",
-                  len(names), len(self._pairs), len(fixed), len(self._fixed_hits))
+                  len(names), len(index), len(fixed), len(hits))
+
+    # -- the table by name (the public names other modules read) ------------------------
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        """Every body's name, in the table's order."""
+        return self.table.names
+
+    @property
+    def link_bodies(self) -> tuple[str, ...]:
+        """The links that have collision geometry."""
+        return tuple(self.table.names[b] for b in self.table.of_kind(BodyKind.LINK))
+
+    @property
+    def pair_names(self) -> tuple[tuple[str, str], ...]:
+        """The checked pairs some motion moves, by name (indices of the kernels' pairs)."""
+        return self.table.pair_names
 
     # -- internals -------------------------------------------------------------------
     def with_scene(self, obstacles: Sequence[Obstacle] = (), *,
@@ -208,15 +179,20 @@ class CollisionWorld:
 
     def _place(self, poses: np.ndarray, b: int) -> None:
         # move body b's FCL object once per state (stamped), never for obstacles
-        if self._frame[b] < 0 or self._placed[b] == self._stamp:
+        if self._link_of[b] < 0 or self._placed[b] == self._stamp:
             return
-        t = poses[self._frame[b]]
+        t = self.body_pose(poses, b)
         self._objs[b].setRotation(t[:3, :3])
         self._objs[b].setTranslation(t[:3, 3])
         self._placed[b] = self._stamp
 
-    def _pose(self, poses: np.ndarray, b: int) -> np.ndarray:
-        return poses[self._frame[b]] if self._frame[b] >= 0 else self._static_pose[b]
+    def body_pose(self, poses: np.ndarray, b: int) -> np.ndarray:
+        """Body ``b``'s world pose (4, 4) at link poses ``poses`` (n_links, 4, 4): its
+        link's, that times its offset for a carried object, its own for an obstacle."""
+        f = self._link_of[b]
+        if f < 0:
+            return self.table.bodies.pose[b]
+        return poses[f] @ self.table.bodies.pose[b] if b in self._carried else poses[f]
 
     def _narrow(self, poses: np.ndarray, a: int, b: int, *, exact: bool = False) -> bool:
         if not (exact or self.narrow_phase):
@@ -234,16 +210,15 @@ class CollisionWorld:
         return max(float(d), 0.0)
 
     def _candidates(self, poses: np.ndarray, out: np.ndarray) -> int:
-        f = self._forest
-        return pair_candidates(poses, self._frame, self._static_pose, self._pairs, f.root,
-                               f.center, f.axes, f.half, f.left, f.right, self.padding,
-                               self._stack, out)
+        return pair_candidates(poses, self.table.bodies, self.table.pairs.index, self.forest,
+                               self.padding, self._work.stack, out)
 
     def _state_hits(self, poses: np.ndarray, cand: np.ndarray, *, first: bool) -> list[int]:
         self._stamp += 1
         hits = []
+        index = self.table.pairs.index
         for p in np.flatnonzero(cand):
-            a, b = self._pairs[p]
+            a, b = index[p]
             if self._narrow(poses, a, b):
                 hits.append(int(p))
                 if first:
@@ -251,7 +226,11 @@ class CollisionWorld:
         return hits
 
     def _poses_of(self, q: ArrayLike) -> np.ndarray:
-        return self.kin.link_poses(q, out=self._poses)
+        # the kernels' pose slots: the links', then the carried objects'
+        poses = self.kin.link_poses(q, out=self._poses)
+        for b in self._carried:
+            poses[self.table.bodies.frame[b]] = self.body_pose(poses, b)
+        return poses
 
     # -- public -----------------------------------------------------------------------
     @property
@@ -261,10 +240,14 @@ class CollisionWorld:
     def is_valid(self, q: ArrayLike) -> bool:
         """True if state ``q`` (shape (dof,), [rad]) collides with nothing."""
         self.checks += 1
-        if self._fixed_hits:
+        if self.table.fixed_hits:
             return False
-        poses = self._poses_of(q)
-        if self._candidates(poses, self._cand) == 0:
+        q = np.ascontiguousarray(q, dtype=float)
+        if q.shape != (self.dof,):
+            self.kin.link_poses(q)  # raises its InvalidRequest naming the joints
+        t, poses = self.table, self._poses
+        if state_candidates(q, self.chain, t.bodies, t.pairs.index, self.forest, self.padding,
+                            poses, self._work.stack, self._cand) == 0:
             return True
         return not self._state_hits(poses, self._cand, first=True)
 
@@ -276,7 +259,7 @@ class CollisionWorld:
         faster)."""
         poses = self._poses_of(q)
         self._stamp += 1
-        a, b = self._pairs[pair]
+        a, b = self.table.pairs.index[pair]
         self._place(poses, a)
         self._place(poses, b)
         return self._distance(a, b, surface=True)
@@ -292,14 +275,15 @@ class CollisionWorld:
         an arm motion) is measured once, and the same whatever was asked before (the
         others only ever add their rounding floor)."""
         q = np.asarray(q, float)
-        at = np.where(self._weight[pair] > _MOVES, q, 0.0)
+        weight = self.table.pairs.weight[pair]
+        at = np.where(weight > _MOVES, q, 0.0)
         key = (pair, above, at.tobytes())
         d = self._still.get(key)
         if d is None:
             if len(self._still) >= _STILL_KEPT:
                 self._still.clear()
             d = self._still[key] = self.pair_bound(at, pair, above=above)[0]
-        return d - float(self._weight[pair] @ np.abs(q - at))
+        return d - float(weight @ np.abs(q - at))
 
     def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
                    direction: np.ndarray | None = None) -> tuple[float, bool]:
@@ -309,8 +293,8 @@ class CollisionWorld:
         distance (0.3-2 ms on CAD links). The flag says which (True: exact).
         ``direction``: as for :meth:`.HullBounds.bound`."""
         poses = self._poses_of(q)
-        a, b = self._pairs[pair]
-        d = self._hulls.bound(int(a), self._pose(poses, a), int(b), self._pose(poses, b),
+        a, b = self.table.pairs.index[pair]
+        d = self._hull_bounds.bound(int(a), self.body_pose(poses, a), int(b), self.body_pose(poses, b),
                               direction=direction)
         if d > above:
             return d, False
@@ -319,7 +303,7 @@ class CollisionWorld:
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
         (shape (dof,)), from the OBB trees alone (no FCL); at most 0.3 m."""
-        lb = self._tree_bounds(self._poses_of(q), list(map(tuple, self._pairs)))
+        lb = self._tree_bounds(self._poses_of(q), list(map(tuple, self.table.pairs.index)))
         return float(lb.min()) if len(lb) else _CLEARANCE_CAP
 
     def rigid_pairs(self, joints: Sequence[str]) -> tuple[tuple[str, str], ...]:
@@ -327,28 +311,29 @@ class CollisionWorld:
         move with them rigidly, or neither moves: a gripper's fingers in an arm motion)."""
         cols = [self.kin.joint_names.index(j) for j in joints]
         return tuple(self.pair_names[p] for p in range(len(self.pair_names))
-                     if self._weight[p, cols].max() < 1e-9)
+                     if self.table.pairs.weight[p, cols].max() < 1e-9)
 
     def _tree_bounds(self, poses: np.ndarray, pairs: list[tuple[int, int]]) -> np.ndarray:
         # OBB-tree lower bounds [m] of body pairs at link poses ``poses``, capped
-        f = self._forest
+        f = self.forest
+        w = self._work
         scratch = np.empty((8, 3, 3))
         lb = np.empty(len(pairs))
         for k, (a, b) in enumerate(pairs):
-            lb[k] = min(tree_lower_bound(self._pose(poses, a), f.root[a],
-                                         self._pose(poses, b), f.root[b], f.center, f.axes,
-                                         f.half, f.left, f.right, 0.0, _CLEARANCE_CAP,
-                                         self._stack, self._gaps, scratch), _CLEARANCE_CAP)
+            lb[k] = min(tree_lower_bound(self.body_pose(poses, a), f.root[a],
+                                         self.body_pose(poses, b), f.root[b], f.center,
+                                         f.axes, f.half, f.left, f.right, 0.0, _CLEARANCE_CAP,
+                                         w.stack, w.gaps, scratch), _CLEARANCE_CAP)
         return lb
 
     def check(self, q: ArrayLike, *, clearance: bool = False) -> StateCheck:
         """Every colliding pair at ``q``, and the minimum clearance if asked."""
         self.checks += 1
         poses = self._poses_of(q)
-        cand = np.zeros(len(self._pairs), dtype=np.int64)
+        cand = np.zeros(len(self.table.pair_names), dtype=np.int64)
         self._candidates(poses, cand)
         hits = self._state_hits(poses, cand, first=False)
-        pairs = self._fixed_hits + tuple(self.pair_names[p] for p in hits)
+        pairs = self.table.fixed_hits + tuple(self.pair_names[p] for p in hits)
         if not clearance:
             return StateCheck(valid=not pairs, pairs=pairs)
         dist, closest = self._clearance(poses) if not pairs else (0.0, pairs[0])
@@ -358,7 +343,7 @@ class CollisionWorld:
         # OBB-tree lower bounds per pair (capped: far pairs sort last at the cap); FCL's
         # exact distance only for pairs whose bound could beat the best distance so far.
         self._stamp += 1
-        allp = list(map(tuple, self._pairs)) + list(self._fixed_pairs)
+        allp = list(map(tuple, self.table.pairs.index)) + list(self.table.fixed)
         if not allp:
             return float("inf"), ("", "")
         lb = self._tree_bounds(poses, allp)
@@ -375,24 +360,21 @@ class CollisionWorld:
         return float(best), closest
 
     def _sweep(self, qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray,
-               budget: tuple[np.ndarray, np.ndarray, np.ndarray], out: np.ndarray) -> int:
-        f = self._forest
-        return sweep(qs, start, stop_early, cum, *budget, *self.kin._args(), self._frame,
-                     self._static_pose, self._pairs, self._mover, self._weight, f.root,
-                     f.center, f.axes, f.half, f.left, f.right, self.padding, self.horizon,
-                     self._sweep_poses, self._stack, self._gaps, out)
+               carry: SweepCarry, out: np.ndarray) -> int:
+        t = self.table
+        return sweep(qs, start, stop_early, cum, carry, self.chain, t.bodies, t.pairs,
+                     self.forest, self.padding, self.horizon, self._work, out)
 
-    def _budget(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _budget(self) -> SweepCarry:
         # the sweep's per-pair proof, carried between its resumed calls
-        n = len(self._pairs)
-        return np.empty(n), np.zeros(n, np.int64), np.empty((n, 2, self.dof))
+        return SweepCarry.of(len(self.table.pair_names), self.dof)
 
     def sweep_candidates(self, qs: ArrayLike) -> np.ndarray:
         """(state, pair) flags, shape (m, n_pairs) int8, for states ``qs`` (m, dof) walked
         in order: 0 where conservative advancement proves the pair apart (farther than
         the padding), 1 where the narrow phase must decide."""
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
-        out = np.zeros((len(qs), len(self._pairs)), dtype=np.int8)
+        out = np.zeros((len(qs), len(self.table.pair_names)), dtype=np.int8)
         self._sweep(qs, 0, False, np.empty_like(qs), self._budget(), out)
         return out
 
@@ -408,14 +390,14 @@ class CollisionWorld:
         m = len(qs)
         if m == 0:
             return -1
-        if self._fixed_hits:
+        if self.table.fixed_hits:
             return 0
-        out = np.zeros((m, len(self._pairs)), dtype=np.int8)
+        out = np.zeros((m, len(self.table.pair_names)), dtype=np.int8)
         cum, budget = np.empty_like(qs), self._budget()
         i = self._sweep(qs, 0, True, cum, budget, out)
         while i < m:
-            poses = self.kin.link_poses(qs[i], out=self._poses)
-            if self._state_hits(poses, out[i], first=True):
+            # the sweep stopped at state i with its link poses in its work buffer
+            if self._state_hits(self._work.poses, out[i], first=True):
                 return int(i)
             i = self._sweep(qs, i + 1, True, cum, budget, out)
         return -1
@@ -425,8 +407,8 @@ class CollisionWorld:
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)
         self.checks += len(qs)
         best, closest = float("inf"), ("", "")
-        if self._fixed_hits:
-            return 0.0, self._fixed_hits[0]
+        if self.table.fixed_hits:
+            return 0.0, self.table.fixed_hits[0]
         poses = self.kin.link_poses_batch(qs)
         for i in range(len(qs)):
             d, c = self._clearance(poses[i], best)

@@ -8,6 +8,7 @@ checks, and numpy's per-call overhead on 4x4 matrices alone would cost ~20x more
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -19,6 +20,30 @@ from ..errors import InvalidRequest
 
 # joint type codes of the kernels (shared with planner.kinematics.dynamics)
 FIXED, REVOLUTE, PRISMATIC = 0, 1, 2
+
+
+class Chain(NamedTuple):
+    """The flattened tree as the numba kernels take it (one argument, not seven).
+
+    Joint ``k`` carries link ``k + 1``; its value is ``scale[k] * q[src[k]] + offset[k]``
+    (``src`` -1: held at ``offset``).
+
+    Attributes:
+        parent: each joint's parent link index, shape (n_joints,) int64.
+        origin: each joint's origin, shape (n_joints, 4, 4).
+        jtype: FIXED, REVOLUTE or PRISMATIC, shape (n_joints,) int64.
+        axis: unit axes in the joint frame, shape (n_joints, 3).
+        src: the actuated joint each follows, or -1, shape (n_joints,) int64.
+        scale, offset: shape (n_joints,).
+    """
+
+    parent: np.ndarray
+    origin: np.ndarray
+    jtype: np.ndarray
+    axis: np.ndarray
+    src: np.ndarray
+    scale: np.ndarray
+    offset: np.ndarray
 
 
 @numba.njit(cache=True, nogil=True)
@@ -137,6 +162,8 @@ class Kinematics:
         codes = {"fixed": FIXED, "prismatic": PRISMATIC}
         self._jtype = np.array([codes.get(j.type, REVOLUTE) if d[0] >= 0 or j.type == "fixed"
                                 else FIXED for j, d in zip(joints, drive)], dtype=np.int64)
+        #: the same arrays bundled for the numba kernels (collision's among them)
+        self.chain = Chain(*self._args())
 
     @property
     def dof(self) -> int:
