@@ -68,6 +68,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="where to keep what is derived from the robot between starts, keyed "
                    "by content (default: $ARDUINOBOT_CACHE, else $XDG_CACHE_HOME/arduinobot, "
                    "else ~/.cache/arduinobot)")
+    p.add_argument("--scene-file", metavar="FILE",
+                   help="where this instance keeps the planning scene (arduinobot scene) "
+                   "between starts (default: $ARDUINOBOT_STATE, else "
+                   "$XDG_STATE_HOME/arduinobot, else ~/.local/state/arduinobot; "
+                   "scene-PREFIX.json)")
     p.add_argument("--no-cache", action="store_true",
                    help="keep nothing between starts (recompute at every start)")
     from .cmd_execute import add_serve_args
@@ -108,7 +113,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         multicast_scouting=ns.multicast_scouting, description=spec,
                         workers=ns.workers, queue_size=ns.queue, timeout=ns.timeout,
                         memory_cap=int(ns.memory_cap * 2**20) if ns.memory_cap > 0 else None,
-                        extensions=(execute_extension(robot_spec(ns)),))
+                        extensions=(execute_extension(robot_spec(ns)),),
+                        scene_file=ns.scene_file)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

@@ -35,6 +35,7 @@ class Code(str, Enum):
     RESOURCE_LIMIT = "RESOURCE_LIMIT"
     SHUTTING_DOWN = "SHUTTING_DOWN"
     INTERNAL = "INTERNAL"
+    SCENE_CONFLICT = "SCENE_CONFLICT"
     # the client's own, never sent: no reply at all, or a code it does not know
     UNAVAILABLE = "UNAVAILABLE"
     UNKNOWN = "UNKNOWN"
@@ -56,4 +57,5 @@ class Code(str, Enum):
 PLAN_SERVICE_CODES: tuple[Code, ...] = (
     Code.INVALID_REQUEST, Code.START_IN_COLLISION, Code.GOAL_IN_COLLISION,
     Code.GOAL_OUT_OF_REACH, Code.NO_PATH_FOUND, Code.TRAJECTORY_FAILED, Code.INVALID_LIMITS,
-    Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL)
+    Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL,
+    Code.SCENE_CONFLICT)
