@@ -90,10 +90,10 @@ def scale_of(value: object, field: str) -> tuple[float, float, float]:
     """A mesh's ``scale``: one number or three, each finite and > 0 (default 1)."""
     if value is None:
         return (1.0, 1.0, 1.0)
-    items = [value] * 3 if isinstance(value, (int, float)) and not isinstance(value, bool) \
+    items: Any = [value] * 3 if isinstance(value, (int, float)) and not isinstance(value, bool) \
         else value
     try:
-        vec = tuple(float(v) for v in items)  # type: ignore[union-attr]
+        vec = tuple(float(v) for v in items)
     except (TypeError, ValueError):
         raise InvalidRequest(f"{value!r} must be a number or 3 numbers", field=field) from None
     if len(vec) != 3 or not all(math.isfinite(v) and v > 0 for v in vec):
@@ -147,7 +147,7 @@ def _parse(raw: bytes, fmt: MeshFormat, field: str) -> tuple[np.ndarray, np.ndar
             raise InvalidRequest(f"{n} triangles, more than {MAX_MESH_TRIANGLES}",
                                  field=field, details={"limit": MAX_MESH_TRIANGLES})
     try:
-        mesh = trimesh.load(io.BytesIO(raw), file_type=fmt, force="mesh", process=False)
+        mesh: Any = trimesh.load(io.BytesIO(raw), file_type=fmt, force="mesh", process=False)
         vertices = np.asarray(mesh.vertices, float).reshape(-1, 3)
         faces = np.asarray(mesh.faces, np.int64).reshape(-1, 3)
     except Exception as e:  # noqa: BLE001 -- any parser failure on user bytes is a refusal
@@ -191,6 +191,6 @@ def _validated(vertices: np.ndarray, faces: np.ndarray, scale: np.ndarray,
                              "plane); give it a thickness", field=field)
     keep = areas > 0.0  # zero-area triangles add nothing to collide with
     mesh = trimesh.Trimesh(vertices=vertices, faces=faces[keep], process=False)
-    stl = mesh.export(file_type="stl")
+    stl: Any = mesh.export(file_type="stl")  # binary STL: bytes
     return MeshGeometry(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64),
                         stl, hashlib.sha256(stl).hexdigest())

@@ -28,6 +28,7 @@ import concurrent.futures
 import logging
 import os
 import threading
+import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -87,7 +88,7 @@ def decode_apply(payload: bytes) -> dict[str, Any]:
 
 
 def _check_depth(value: Any) -> None:
-    stack = [(value, (), 1)]
+    stack: list[tuple[Any, tuple[Any, ...], int]] = [(value, (), 1)]
     while stack:
         node, path, depth = stack.pop()
         if not isinstance(node, (dict, list)):
@@ -223,11 +224,7 @@ class SceneService:
     # -- writing -----------------------------------------------------------------------
     def leader(self) -> str:
         """The live instance with the smallest id (this one counts, live or not yet)."""
-        ids = {self.instance}
-        for reply in self.session.liveliness().get(f"{self.prefix}/alive/*", timeout=2.0):
-            if reply.ok is not None:
-                ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
-        return min(ids)
+        return min(self._live() | {self.instance})
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
@@ -242,7 +239,7 @@ class SceneService:
                 r = replies[0]
                 if r.ok is not None:
                     query.reply(query.key_expr, r.ok.payload.to_bytes(), encoding=JSON)
-                else:
+                elif r.err is not None:
                     query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
                 return None
             _log.warning("scene: leader %s did not answer an apply; asking again", lead)
@@ -312,17 +309,22 @@ class SceneService:
         return None
 
     def _catch_up(self) -> None:
-        """Take the newest scene among the live instances' if it is newer than the file's."""
-        best: dict[str, Any] | None = None
-        for reply in self.session.get(f"{self.prefix}/instance/*/scene",
-                                      target=zenoh.QueryTarget.ALL,
-                                      consolidation=zenoh.ConsolidationMode.NONE,
-                                      timeout=CATCH_UP_TIMEOUT):
-            if reply.ok is None:
-                continue
-            data = orjson.loads(reply.ok.payload.to_bytes())
-            if best is None or data.get("revision", -1) > best.get("revision", -1):
-                best = data
+        """Take the newest scene among the live instances' if it is newer than the file's.
+        Every instance with a liveliness token is asked until it answers (its queryables
+        may reach this new session a moment after the session opens), for at most
+        :data:`CATCH_UP_TIMEOUT`."""
+        deadline = time.monotonic() + CATCH_UP_TIMEOUT
+        scenes = self._scenes("*")
+        missing = self._live() - set(scenes) - {self.instance}
+        while missing and time.monotonic() < deadline:
+            time.sleep(0.1)
+            for inst in sorted(missing):
+                scenes.update(self._scenes(inst))
+            missing = self._live() - set(scenes) - {self.instance}
+        if missing:
+            _log.warning("scene: instances %s did not answer; starting from the newest "
+                         "scene of the others and the file", ", ".join(sorted(missing)))
+        best = max(scenes.values(), key=lambda d: d.get("revision", -1), default=None)
         if best is not None and best.get("revision", -1) > self._state.revision:
             new = restore(best, self.builder)
             with self._lock:
@@ -330,6 +332,26 @@ class SceneService:
                     self.file.save(new)
                     self._state = new
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
+
+    def _live(self) -> set[str]:
+        """The ids of the instances with a liveliness token."""
+        ids = set()
+        for reply in self.session.liveliness().get(f"{self.prefix}/alive/*", timeout=2.0):
+            if reply.ok is not None:
+                ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+        return ids
+
+    def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
+        """The scenes of the instances ``instance`` matches (``*``: all), by id."""
+        out = {}
+        for reply in self.session.get(f"{self.prefix}/instance/{instance}/scene",
+                                      target=zenoh.QueryTarget.ALL,
+                                      consolidation=zenoh.ConsolidationMode.NONE,
+                                      timeout=CATCH_UP_TIMEOUT):
+            if reply.ok is not None:
+                inst = str(reply.ok.key_expr).split("/instance/", 1)[1].split("/", 1)[0]
+                out[inst] = orjson.loads(reply.ok.payload.to_bytes())
+        return out
 
 
 class _Unavailable(PlanningError):

@@ -14,10 +14,17 @@ import trimesh
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError, SceneConflict
 from service import wire
-from service.scene_mesh import (MAX_MESH_BASE64, MAX_MESH_BYTES, MAX_MESH_TRIANGLES,
-                                decode_mesh)
-from service.scene_store import (MAX_SCENE_OBJECTS, SceneBuilder, SceneFile, SceneSnapshot,
-                                 SceneState, apply, restore, with_scene)
+from service.scene_mesh import MAX_MESH_BASE64, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, decode_mesh
+from service.scene_store import (
+    MAX_SCENE_OBJECTS,
+    SceneBuilder,
+    SceneFile,
+    SceneSnapshot,
+    SceneState,
+    apply,
+    restore,
+    with_scene,
+)
 from service.scene_sync import MAX_APPLY_PAYLOAD, decode_apply
 
 LINKS = ("base_link", "claw_support")
