@@ -127,6 +127,11 @@ class SceneService:
         self._syncs = concurrent.futures.ThreadPoolExecutor(1, "scene-sync")
         self._entities: list[Any] = []
         self._publisher: Any = None
+        # the live instances, kept by a liveliness subscriber: a liveliness get per apply
+        # sometimes missed a token under load, and an instance that misses the leader's
+        # leads too (two leaders lose changes; measured with bench/scene.py)
+        self._alive: set[str] = set()
+        self._alive_lock = threading.Lock()
 
     @property
     def state(self) -> SceneState:
@@ -142,6 +147,8 @@ class SceneService:
             _log.info("scene: revision %d, %d objects from %s", self._state.revision,
                       len(self._state.objects), self.file.path)
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
+        self._entities.append(self.session.liveliness().declare_subscriber(
+            f"{p}/alive/*", self._on_alive, history=True))
         self._declare(f"{me}/scene/sync", self._on_sync, complete=False)
         self._catch_up()
         self._publisher = self.session.declare_publisher(f"{p}/scene/changes")
@@ -230,6 +237,7 @@ class SceneService:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
         for _ in range(3):
             lead = self.leader()
+            _log.debug("scene: apply, leader %s", lead[:8])
             if lead == self.instance:
                 return self._lead_change(query, change)
             replies = list(self.session.get(f"{self.prefix}/instance/{lead}/scene/lead",
@@ -291,8 +299,12 @@ class SceneService:
                 if state.revision == msg["base"]:
                     new = apply(state, msg["change"], self.builder)
                 elif state.revision < msg["revision"]:  # missed some: take it all
+                    _log.info("scene: at revision %d, %s sent %d -> %d: fetching its scene",
+                              state.revision, sender, msg["base"], msg["revision"])
                     new = self._fetch(sender) or state
                 else:
+                    _log.warning("scene: at revision %d, %s sent %d -> %d: ignored",
+                                 state.revision, sender, msg["base"], msg["revision"])
                     new = state
                 if new is not state:
                     self.file.save(new)
@@ -333,12 +345,24 @@ class SceneService:
                     self._state = new
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
 
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        inst = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self._alive_lock:
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._alive.add(inst)
+            else:
+                self._alive.discard(inst)
+
     def _live(self) -> set[str]:
-        """The ids of the instances with a liveliness token."""
-        ids = set()
-        for reply in self.session.liveliness().get(f"{self.prefix}/alive/*", timeout=2.0):
-            if reply.ok is not None:
-                ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+        """The ids of the instances with a liveliness token (the subscriber's view, and
+        a get's while it may not have heard of them all yet)."""
+        with self._alive_lock:
+            ids = set(self._alive)
+        if not ids - {self.instance}:  # just started, or alone: ask as well
+            for reply in self.session.liveliness().get(f"{self.prefix}/alive/*",
+                                                       timeout=2.0):
+                if reply.ok is not None:
+                    ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
         return ids
 
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:

@@ -1,0 +1,238 @@
+"""Kept-scene benchmark: concurrent writers with if_revision through two instances, and
+plans against a kept scene against the same obstacles sent in every request.
+
+Starts a Zenoh router (in this process) and two `arduinobot serve` instances on free
+loopback ports, each with its own scene file in a temporary folder. Prints figures, then
+one line of JSON.
+
+- writers: W writers (half through each instance) x N applies, each replacing its own
+  object with ``if_revision``; every acknowledged apply must be one revision and the
+  scene must end with each writer's last acknowledged object (``lost`` counts those
+  missing), every refusal SCENE_CONFLICT (``other_errors`` counts the rest).
+- plans: the same R plan requests (seeded) with 20 objects (17 primitives and 3 stand-in
+  boxes) sent in each request, with the same 20 kept in the scene, and with 17
+  primitives plus 3 meshes of ~10k triangles kept: median and p95 of the latency a
+  client sees [ms].
+
+    ./dev bench scene [--writers 4] [--applies 250] [--plans 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import math
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+import trimesh  # noqa: E402 -- after the sys.path line
+import zenoh  # noqa: E402 -- after the sys.path line
+
+from clients import errors  # noqa: E402 -- after the sys.path line
+from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
+from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path line
+
+# a base swing from reach_right to reach_left (bench/service.py's), several seeds
+REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
+           "goal": {"named": "reach_left"}, "velocity_scaling": 0.2,
+           "acceleration_scaling": 0.13, "sample_rate": 100}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def stop(proc: subprocess.Popen) -> None:
+    proc.send_signal(signal.SIGINT)
+    proc.wait(30)
+
+
+def serve(endpoint: str, scene_file: Path, workers: int) -> subprocess.Popen:
+    proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--connect", endpoint,
+                             "--listen", f"tcp/127.0.0.1:{free_port()}", "--workers",
+                             str(workers), "--scene-file", str(scene_file)], cwd=REPO,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    for line in proc.stderr:  # type: ignore[union-attr]
+        if "service ready" in line:
+            break
+    else:
+        raise SystemExit("arduinobot serve did not start")
+    log = scene_file.with_suffix(".log")
+
+    def pump() -> None:
+        with open(log, "a") as f:
+            for line in proc.stderr:  # type: ignore[union-attr]
+                f.write(line)
+    threading.Thread(target=pump, daemon=True).start()
+    return proc
+
+
+def ms(values: list[float]) -> dict[str, float]:
+    s = sorted(values)
+    return {"median": round(1e3 * statistics.median(s), 2),
+            "p95": round(1e3 * s[min(len(s) - 1, math.ceil(0.95 * len(s)) - 1)], 2)}
+
+
+def writers(endpoint: str, instances: list[str], n_writers: int, applies: int) -> dict:
+    acked: dict[int, list[str]] = {k: [] for k in range(n_writers)}
+    conflicts = [0] * n_writers
+    other: list[str] = []
+    latencies: list[float] = []
+    with PlannerClient(endpoint, timeout=60) as c:
+        start = c.request("scene/apply", {"clear": True})["revision"]
+
+    def run(k: int) -> None:
+        inst = instances[k % len(instances)]
+        with PlannerClient(endpoint, timeout=60) as c:
+            i = 0
+            while len(acked[k]) < applies:
+                rev = c.request("scene", instance=inst)["revision"]
+                change = {"add": [{"id": f"w{k}-{i}", "shape": "sphere", "radius": 0.01,
+                                   "xyz": [3, k, 3]}], "if_revision": rev}
+                if acked[k]:
+                    change["remove"] = [acked[k][-1]]
+                t0 = time.perf_counter()
+                try:
+                    c.request("scene/apply", change, instance=inst)
+                except errors.SceneConflict:
+                    conflicts[k] += 1
+                    i += 1
+                    continue
+                except errors.ServiceError as e:
+                    other.append(f"{e.code}: {e.message}")
+                    return
+                latencies.append(time.perf_counter() - t0)
+                acked[k].append(f"w{k}-{i}")
+                i += 1
+
+    t0 = time.perf_counter()
+    threads = [threading.Thread(target=run, args=(k,)) for k in range(n_writers)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    wall = time.perf_counter() - t0
+    total = sum(len(v) for v in acked.values())
+    lost = 0
+    with PlannerClient(endpoint, timeout=60) as c:
+        for inst in instances:
+            scene = c.request("scene", instance=inst)
+            want = {v[-1] for v in acked.values() if v}
+            have = {o["id"] for o in scene["objects"]}
+            lost += len(want - have) + abs(scene["revision"] - (start + total))
+    return {"writers": n_writers, "applies_each": applies, "acknowledged": total,
+            "conflicts": sum(conflicts), "other_errors": len(other), "lost": lost,
+            "apply_ms": ms(latencies), "wall_s": round(wall, 1),
+            "errors": other[:3]}
+
+
+def objects(*, meshes: bool) -> list[dict]:
+    """17 primitives and 3 more objects (meshes of ~10k triangles, or boxes) in a ring
+    around the arm, out of its way."""
+    out: list[dict] = []
+    for i in range(17):
+        a = 2 * math.pi * i / 20
+        xyz = [round(2.0 * math.cos(a), 4), round(2.0 * math.sin(a), 4), 0.5]
+        shape = ("box", "sphere", "cylinder")[i % 3]
+        o: dict = {"id": f"p{i}", "shape": shape, "xyz": xyz}
+        if shape == "box":
+            o["size"] = [0.3, 0.2, 0.4]
+        elif shape == "sphere":
+            o["radius"] = 0.15
+        else:
+            o["radius"], o["length"] = 0.1, 0.5
+        out.append(o)
+    for j in range(3):
+        a = 2 * math.pi * (17 + j) / 20
+        xyz = [round(2.0 * math.cos(a), 4), round(2.0 * math.sin(a), 4), 0.5]
+        if meshes:
+            torus = trimesh.creation.torus(0.2, 0.05, major_sections=100, minor_sections=50)
+            data = base64.b64encode(torus.export(file_type="stl")).decode()
+            out.append({"id": f"m{j}", "shape": "mesh", "xyz": xyz,
+                        "mesh": {"format": "stl", "data": data}})
+        else:
+            out.append({"id": f"m{j}", "shape": "box", "size": [0.5, 0.5, 0.1], "xyz": xyz})
+    return out
+
+
+def plans(endpoint: str, instance: str, n: int) -> dict:
+    prims = objects(meshes=False)
+    runs: dict = {}
+    first: list[float] = []  # the first plan of each: its world is built [ms]
+    with PlannerClient(endpoint, timeout=120) as c:
+        def timed(req: dict) -> list[float]:
+            t0 = time.perf_counter()
+            c.plan({**REQUEST, **req, "seed": 10_000}, instance=instance)  # builds the world
+            first.append(round(1e3 * (time.perf_counter() - t0), 1))
+            out = []
+            for seed in range(n):
+                t0 = time.perf_counter()
+                c.plan({**REQUEST, **req, "seed": seed}, instance=instance)
+                out.append(time.perf_counter() - t0)
+            return out
+        c.request("scene/apply", {"clear": True})
+        runs["per_request_20_primitives"] = ms(timed({"obstacles": prims}))
+        c.request("scene/apply", {"clear": True, "add": prims})
+        runs["kept_20_primitives"] = ms(timed({}))
+        c.request("scene/apply", {"clear": True, "add": objects(meshes=True)})
+        runs["kept_17_primitives_3_meshes_10k"] = ms(timed({}))
+        c.request("scene/apply", {"clear": True})
+        runs["no_obstacles"] = ms(timed({}))
+    for name, t in zip(list(runs), first):
+        runs[name]["first_ms"] = t
+    return runs
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--writers", type=int, default=4)
+    p.add_argument("--applies", type=int, default=250)
+    p.add_argument("--plans", type=int, default=30)
+    p.add_argument("--keep", metavar="DIR", help="keep the scene files and the instances' "
+                   "logs (<x>.log) in DIR")
+    ns = p.parse_args()
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = zenoh.open(zenoh_config(mode="router", listen=[endpoint]))
+    procs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        d = ns.keep or tmp
+        try:
+            procs = [serve(endpoint, Path(d) / f"{x}.json", 1) for x in "ab"]
+            with PlannerClient(endpoint, timeout=60) as c:
+                deadline = time.monotonic() + 30
+                while len(live := c.instances(refresh=True)) < 2:
+                    if time.monotonic() > deadline:
+                        raise SystemExit("the instances did not come up")
+                    time.sleep(0.1)
+            w = writers(endpoint, list(live), ns.writers, ns.applies)
+            print(f"writers: {w['writers']} x {w['applies_each']} applies through 2 "
+                  f"instances: {w['acknowledged']} acknowledged, {w['conflicts']} "
+                  f"SCENE_CONFLICT, {w['other_errors']} other errors, {w['lost']} lost; "
+                  f"apply median {w['apply_ms']['median']} ms, p95 {w['apply_ms']['p95']} "
+                  f"ms; {w['wall_s']} s")
+            pl = plans(endpoint, live[0], ns.plans)
+            for name, fig in pl.items():
+                print(f"plan {name}: median {fig['median']} ms, p95 {fig['p95']} ms "
+                      f"(the first, building its world: {fig['first_ms']} ms)")
+        finally:
+            for proc in procs:
+                stop(proc)
+            router.close()
+    print(json.dumps({"writers": w, "plans": pl}))
+
+
+if __name__ == "__main__":
+    main()
