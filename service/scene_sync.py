@@ -126,6 +126,7 @@ class SceneService:
         self._writes = concurrent.futures.ThreadPoolExecutor(1, "scene-apply")
         self._syncs = concurrent.futures.ThreadPoolExecutor(1, "scene-sync")
         self._entities: list[Any] = []
+        self._shared: list[Any] = []  # held until the session closes
         self._publisher: Any = None
         # the live instances, kept by a liveliness subscriber: a liveliness get per apply
         # sometimes missed a token under load, and an instance that misses the leader's
@@ -153,9 +154,10 @@ class SceneService:
         self._catch_up()
         self._publisher = self.session.declare_publisher(f"{p}/scene/changes")
         for key in (f"{p}/scene", f"{me}/scene"):
-            self._declare(key, self._on_get)
+            self._declare(key, self._on_get, shared=key.startswith(f"{p}/scene"))
         for key in (f"{p}/scene/apply", f"{me}/scene/apply"):
-            self._declare(key, self._queued(self._writes, self._apply_or_forward))
+            self._declare(key, self._queued(self._writes, self._apply_or_forward),
+                          shared=key.startswith(f"{p}/scene"))
         self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead))
 
     def close(self) -> None:
@@ -175,14 +177,17 @@ class SceneService:
             self._publisher = None
 
     def _declare(self, key: str, handler: Callable[[zenoh.Query], None], *,
-                 complete: bool = True) -> None:
+                 complete: bool = True, shared: bool = False) -> None:
+        """A queryable on ``key``; a ``shared`` one (on a key every instance declares) is
+        never undeclared, only closed with the session: see PlannerService.close."""
         def on_query(query: zenoh.Query) -> None:
             try:
                 handler(query)
             except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
                 _log.exception("%s: unexpected failure", key)
                 _reply_error(query, Failure(Code.INTERNAL, "unexpected failure in the scene"))
-        self._entities.append(self.session.declare_queryable(key, on_query, complete=complete))
+        q = self.session.declare_queryable(key, on_query, complete=complete)
+        (self._shared if shared else self._entities).append(q)
 
     def _queued(self, pool: concurrent.futures.Executor,
                 work: Callable[[zenoh.Query, bytes], None]) -> Callable[[zenoh.Query], None]:

@@ -293,3 +293,86 @@ def test_a_plan_avoids_the_scene_and_names_its_revision(description, builder):
         mesh_obj("far", stl_box(), xyz=[2, 2, 2])]}, builder)
     body = h.plan({"goal": {"named": "reach_left"}, "seed": 1}, scene=away.snapshot)
     assert body["scene_revision"] == 2 and body["duration"] > 0
+
+
+# -- fuzz: whatever arrives, a coded refusal or a new scene, never another exception -----
+
+def _mutate(r, value):
+    """One random change somewhere in a JSON value."""
+    if isinstance(value, dict) and value and r.random() < 0.8:
+        k = r.choice(sorted(value))
+        return {**value, k: _mutate(r, value[k])} if r.random() < 0.7 else \
+            {kk: v for kk, v in value.items() if kk != k}
+    if isinstance(value, list) and value and r.random() < 0.8:
+        i = r.randrange(len(value))
+        return [*value[:i], _mutate(r, value[i]), *value[i + 1:]]
+    return r.choice([None, True, -1, 0, 1e308, -1e-320, 2**63, "", "x" * 70, "world",
+                     "claw_support", [], {}, [1, 2, 3], [0.0] * 3, {"format": "obj"},
+                     "mesh", "box", [1e9, 0, 0], _junk_mesh(r), {"a": {"b": [[[]]]}}])
+
+
+def _junk_mesh(r) -> str:
+    kind = r.randrange(5)
+    if kind == 0:  # random bytes
+        raw = bytes(r.getrandbits(8) for _ in range(r.randrange(0, 300)))
+    elif kind == 1:  # a binary STL cut short, or claiming more triangles than it has
+        raw = stl_box()[:r.randrange(0, 700)]
+    elif kind == 2:  # OBJ with indices out of range, negative, or non-numbers
+        raw = r.choice([b"v 0 0 0\nf 1 2 99\n", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -5 2 3\n",
+                        b"v nan 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n",
+                        b"v a b c\nf x y z\n", b"f 1 2 3\n" * 50])
+    elif kind == 3:
+        raw = b"solid x\n" + bytes(r.getrandbits(8) for _ in range(200))
+    else:
+        raw = _binary_stl(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32),
+                          r.choice([0, 2, 2**31]))
+    return b64(raw)
+
+
+def test_fuzzed_applies_are_coded_and_leave_the_scene_as_it_was(builder):
+    import random
+    r = random.Random(28)
+    seed_state = applied(SceneState(), {"add": [TABLE_OBJ, mesh_obj("bin", stl_box())]},
+                         builder)
+    seeds = [{"add": [mesh_obj("m", stl_box(), scale=[1, 2, 3], rpy=[0, 0, 1])]},
+             {"add": [mesh_obj("o", trimesh.creation.icosphere(1).export(file_type="obj"),
+                               fmt="obj")], "remove": ["table"], "if_revision": 1},
+             {"clear": True, "add": [{"id": "c", "shape": "cylinder", "radius": 0.1,
+                                      "length": 1, "frame": "world"}]},
+             {"remove": ["bin"], "attach": [], "detach": []}]
+    before = seed_state.to_json()
+    outcomes: dict[str, int] = {}
+    for _ in range(3000):
+        change = seeds[r.randrange(len(seeds))]
+        for _ in range(r.randrange(1, 4)):
+            change = _mutate(r, change)
+        try:
+            new = apply(seed_state, decode_apply(json.dumps(change).encode()), builder)
+        except PlanningError as e:  # every refusal coded, naming where when it can
+            assert e.code in (Code.INVALID_REQUEST, Code.SCENE_CONFLICT), e
+            outcomes[e.code] = outcomes.get(e.code, 0) + 1
+        else:
+            assert new.revision == 2
+            wire.validator("scene_response").validate(json.loads(wire.encode(new.to_json())))
+            outcomes["applied"] = outcomes.get("applied", 0) + 1
+        assert seed_state.to_json() == before
+    assert outcomes.get("applied", 0) > 100 and outcomes[Code.INVALID_REQUEST] > 500, outcomes
+
+
+def test_fuzzed_mesh_bytes_are_refused_or_read_never_crash():
+    import random
+    r = random.Random(5)
+    refused = 0
+    for _ in range(1500):
+        fmt = r.choice(["stl", "obj"])
+        try:
+            m = decode_mesh({"format": fmt, "data": _junk_mesh(r)}, field="add[0].mesh")
+        except InvalidRequest as e:
+            assert e.field.startswith("add[0].mesh")
+            refused += 1
+        else:  # what is read is a bounded, finite solid
+            assert np.isfinite(m.vertices).all() and 0 < len(m.faces) <= MAX_MESH_TRIANGLES
+    assert refused > 1000
+
+
+TABLE_OBJ = {"id": "table", "shape": "box", "size": [1, 1, 0.1], "xyz": [0, 1, 0.5]}
