@@ -60,6 +60,9 @@ MAX_APPLY_DEPTH = 8
 REPLICATE_TIMEOUT = 10.0
 #: How long a forwarded apply may take at the leader [s] (mesh decoding included).
 FORWARD_TIMEOUT = 30.0
+#: How long an apply waits for a leader that answers (one that died hands over once its
+#: liveliness token is gone) [s].
+LEADER_WAIT = 10.0
 #: How long a starting instance waits for the live instances' scenes [s].
 CATCH_UP_TIMEOUT = 5.0
 JSON = "application/json"
@@ -240,7 +243,8 @@ class SceneService:
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
-        for _ in range(3):
+        give_up = time.monotonic() + LEADER_WAIT
+        while True:
             lead = self.leader()
             _log.debug("scene: apply, leader %s", lead[:8])
             if lead == self.instance:
@@ -255,8 +259,11 @@ class SceneService:
                 elif r.err is not None:
                     query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
                 return None
+            if time.monotonic() > give_up:
+                raise _Unavailable("the scene's leading instance did not answer; retry")
+            # it has just gone: its liveliness token goes too, and the next one leads
             _log.warning("scene: leader %s did not answer an apply; asking again", lead)
-        raise _Unavailable("the scene's leading instance did not answer; retry")
+            time.sleep(0.2)
 
     def _lead(self, query: zenoh.Query, raw: bytes) -> None:
         self._lead_change(query, decode_apply(raw))

@@ -205,30 +205,42 @@ def test_concurrent_writers_with_if_revision_lose_nothing(cluster):
     assert sum(conflicts) > 0  # they did race
 
 
-def test_a_late_instance_catches_up_and_kill_9_loses_nothing(cluster):
+def test_a_late_instance_catches_up_the_leader_fails_over_and_kill_9_loses_nothing(cluster):
     endpoint, (a, b), files, d = cluster
+    late_file = str(d / "late" / "scene.json")
     with PlannerClient(endpoint, timeout=60) as c:
         rev = c.request("scene/apply", {"clear": True, "add": [TABLE, _mesh("bin")]}
                         )["revision"]
         late = start_servers([["--workers", "1", "--connect", endpoint, "--scene-file",
-                               str(d / "late" / "scene.json")]])[0]
+                               late_file]])[0]
+        by_file = {a.instance: files[0], b.instance: files[1], late.instance: late_file}
+        servers = {s.instance: s for s in (a, b, late)}
         try:
             # ready means caught up: its first plan already uses the scene
             assert c.plan(GOAL, instance=late.instance).raw["scene_revision"] == rev
             assert c.request("scene", instance=late.instance)["objects"][0]["id"] == "table"
-            # an apply acknowledged, then every instance killed at once
             rev = c.request("scene/apply", {"remove": ["table"]})["revision"]
+            # kill -9 the leader (the smallest id); the next one leads
+            leader = min(servers)
+            _kill_tree(servers.pop(leader))
+            left = sorted(servers)
+            after = c.request("scene/apply", {"add": [TABLE | {"id": "after"}],
+                                              "if_revision": rev}, instance=left[-1])
+            assert after["revision"] == rev + 1
+            for inst in left:
+                assert c.plan(GOAL, instance=inst).raw["scene_revision"] == rev + 1
         finally:
-            for srv in (a, b, late):
+            for srv in servers.values():  # right after an acknowledged apply
                 _kill_tree(srv)
-    # each restarted alone (no other instance to catch up from): its own file has it
-    for f in (*files, str(d / "late" / "scene.json")):
+    # each restarted alone (no other instance to catch up from): its own file has every
+    # change it acknowledged or took
+    for inst, f in by_file.items():
         srv = start_servers([["--workers", "1", "--scene-file", f]])[0]
         try:
             with PlannerClient(srv.endpoint, timeout=60) as c:
                 scene = c.request("scene")
-                assert scene["revision"] == rev, f
-                assert [o["id"] for o in scene["objects"]] == ["bin"]
+            want = (rev, ["bin"]) if inst == leader else (rev + 1, ["bin", "after"])
+            assert (scene["revision"], [o["id"] for o in scene["objects"]]) == want, f
         finally:
             srv.stop()
 
