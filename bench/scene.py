@@ -9,20 +9,24 @@ one line of JSON.
   object with ``if_revision``; every acknowledged apply must be one revision and the
   scene must end with each writer's last acknowledged object (``lost`` counts those
   missing), every refusal SCENE_CONFLICT (``other_errors`` counts the rest).
+- fuzz: hostile applies (mutations, junk meshes, raw bytes) through both instances:
+  every reply coded, 0 INTERNAL, 0 missing, the instances' scenes equal after.
 - plans: the same R plan requests (seeded) with 20 objects (17 primitives and 3 stand-in
   boxes) sent in each request, with the same 20 kept in the scene, and with 17
   primitives plus 3 meshes of ~10k triangles kept: median and p95 of the latency a
   client sees [ms].
 
-    ./dev bench scene [--writers 4] [--applies 250] [--plans 30]
+    ./dev bench scene [--writers 4] [--applies 250] [--fuzz 2000] [--plans 30]
 """
 
 from __future__ import annotations
 
 import argparse
 import base64
+import collections
 import json
 import math
+import random
 import signal
 import socket
 import statistics
@@ -42,6 +46,7 @@ import zenoh  # noqa: E402 -- after the sys.path line
 from clients import errors  # noqa: E402 -- after the sys.path line
 from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
 from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path line
+from tests.helpers.scene_fuzz import b64, mutate  # noqa: E402 -- after the sys.path line
 
 # a base swing from reach_right to reach_left (bench/service.py's), several seeds
 REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
@@ -139,6 +144,52 @@ def writers(endpoint: str, instances: list[str], n_writers: int, applies: int) -
             "errors": other[:3]}
 
 
+def fuzz(endpoint: str, instances: list[str], cases: int, seed: int = 28) -> dict:
+    """Hostile applies (mutated valid ones, junk meshes, raw bytes) through both
+    instances; every 10th a valid one that must succeed. Counts replies by code."""
+    r = random.Random(seed)
+    box = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
+    seeds = [
+        {"add": [{"id": "m", "shape": "mesh", "xyz": [2, 2, 2], "scale": [1, 2, 3],
+                  "mesh": {"format": "stl", "data": b64(box.export(file_type="stl"))}}]},
+        {"add": [{"id": "o", "shape": "mesh", "xyz": [2, -2, 2], "mesh": {
+            "format": "obj", "data": b64(box.export(file_type="obj").encode())}}],
+         "remove": ["keep"], "if_revision": 1},
+        {"add": [{"id": "c", "shape": "cylinder", "radius": 0.1, "length": 1,
+                  "frame": "world", "xyz": [3, 0, 0]}], "attach": [], "detach": []}]
+    counts: collections.Counter[str] = collections.Counter()
+    valid_failed = 0
+    with PlannerClient(endpoint, timeout=60) as c:
+        for i in range(cases):
+            inst = instances[i % len(instances)]
+            if i % 10 == 0:
+                try:
+                    c.request("scene/apply", {"clear": True, "add": [
+                        {"id": "keep", "shape": "sphere", "radius": 0.05, "xyz": [3, 3, 3]}]},
+                              instance=inst)
+                except errors.ServiceError:
+                    valid_failed += 1
+                continue
+            if r.random() < 0.1:
+                payload: bytes = bytes(r.getrandbits(8) for _ in range(r.randrange(200)))
+            else:
+                change = seeds[r.randrange(len(seeds))]
+                for _ in range(r.randrange(1, 4)):
+                    change = mutate(r, change)
+                payload = json.dumps(change).encode()
+            try:
+                c.request("scene/apply", payload, instance=inst)
+                counts["ok"] += 1
+            except errors.ServiceUnavailable:
+                counts["missing"] += 1
+            except errors.ServiceError as e:
+                counts[str(e.code)] += 1
+        scenes = [c.request("scene", instance=inst) for inst in instances]
+    return {"cases": cases, "replies": dict(counts), "internal": counts.get("INTERNAL", 0),
+            "missing": counts.get("missing", 0), "valid_failed": valid_failed,
+            "instances_agree": all(sc == scenes[0] for sc in scenes)}
+
+
 def objects(*, meshes: bool) -> list[dict]:
     """17 primitives and 3 more objects (meshes of ~10k triangles, or boxes) in a ring
     around the arm, out of its way."""
@@ -201,6 +252,8 @@ def main() -> None:
     p.add_argument("--writers", type=int, default=4)
     p.add_argument("--applies", type=int, default=250)
     p.add_argument("--plans", type=int, default=30)
+    p.add_argument("--fuzz", type=int, default=2000, metavar="CASES",
+                   help="hostile applies through the instances (default 2000)")
     p.add_argument("--keep", metavar="DIR", help="keep the scene files and the instances' "
                    "logs (<x>.log) in DIR")
     ns = p.parse_args()
@@ -223,6 +276,10 @@ def main() -> None:
                   f"SCENE_CONFLICT, {w['other_errors']} other errors, {w['lost']} lost; "
                   f"apply median {w['apply_ms']['median']} ms, p95 {w['apply_ms']['p95']} "
                   f"ms; {w['wall_s']} s")
+            fz = fuzz(endpoint, list(live), ns.fuzz)
+            print(f"fuzz: {fz['cases']} hostile applies: {fz['replies']}; INTERNAL "
+                  f"{fz['internal']}, missing {fz['missing']}, valid failed "
+                  f"{fz['valid_failed']}, instances agree: {fz['instances_agree']}")
             pl = plans(endpoint, live[0], ns.plans)
             for name, fig in pl.items():
                 print(f"plan {name}: median {fig['median']} ms, p95 {fig['p95']} ms "
@@ -231,7 +288,7 @@ def main() -> None:
             for proc in procs:
                 stop(proc)
             router.close()
-    print(json.dumps({"writers": w, "plans": pl}))
+    print(json.dumps({"writers": w, "fuzz": fz, "plans": pl}))
 
 
 if __name__ == "__main__":

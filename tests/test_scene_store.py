@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import base64
 import json
-import struct
 
 import numpy as np
 import pytest
@@ -26,6 +25,10 @@ from service.scene_store import (
     with_scene,
 )
 from service.scene_sync import MAX_APPLY_PAYLOAD, decode_apply
+
+from .helpers.scene_fuzz import binary_stl as _binary_stl
+from .helpers.scene_fuzz import junk_mesh as _junk_mesh
+from .helpers.scene_fuzz import mutate as _mutate
 
 LINKS = ("base_link", "claw_support")
 
@@ -79,12 +82,6 @@ def test_binary_and_ascii_stl_and_obj_decode_scaled_and_content_keyed(builder):
     path = binary.write(builder.mesh_dir)
     assert path.name == f"{binary.sha256}.stl" and path.read_bytes() == binary.stl
     assert binary.write(builder.mesh_dir) == path  # once
-
-
-def _binary_stl(triangles: np.ndarray, count: int | None = None) -> bytes:
-    head = b"\0" * 80 + struct.pack("<I", len(triangles) if count is None else count)
-    body = b"".join(struct.pack("<12fH", 0, 0, 0, *t.ravel(), 0) for t in triangles)
-    return head + body
 
 
 FLAT = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n"
@@ -296,38 +293,6 @@ def test_a_plan_avoids_the_scene_and_names_its_revision(description, builder):
 
 
 # -- fuzz: whatever arrives, a coded refusal or a new scene, never another exception -----
-
-def _mutate(r, value):
-    """One random change somewhere in a JSON value."""
-    if isinstance(value, dict) and value and r.random() < 0.8:
-        k = r.choice(sorted(value))
-        return {**value, k: _mutate(r, value[k])} if r.random() < 0.7 else \
-            {kk: v for kk, v in value.items() if kk != k}
-    if isinstance(value, list) and value and r.random() < 0.8:
-        i = r.randrange(len(value))
-        return [*value[:i], _mutate(r, value[i]), *value[i + 1:]]
-    return r.choice([None, True, -1, 0, 1e308, -1e-320, 2**63, "", "x" * 70, "world",
-                     "claw_support", [], {}, [1, 2, 3], [0.0] * 3, {"format": "obj"},
-                     "mesh", "box", [1e9, 0, 0], _junk_mesh(r), {"a": {"b": [[[]]]}}])
-
-
-def _junk_mesh(r) -> str:
-    kind = r.randrange(5)
-    if kind == 0:  # random bytes
-        raw = bytes(r.getrandbits(8) for _ in range(r.randrange(0, 300)))
-    elif kind == 1:  # a binary STL cut short, or claiming more triangles than it has
-        raw = stl_box()[:r.randrange(0, 700)]
-    elif kind == 2:  # OBJ with indices out of range, negative, or non-numbers
-        raw = r.choice([b"v 0 0 0\nf 1 2 99\n", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -5 2 3\n",
-                        b"v nan 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n",
-                        b"v a b c\nf x y z\n", b"f 1 2 3\n" * 50])
-    elif kind == 3:
-        raw = b"solid x\n" + bytes(r.getrandbits(8) for _ in range(200))
-    else:
-        raw = _binary_stl(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32),
-                          r.choice([0, 2, 2**31]))
-    return b64(raw)
-
 
 def test_fuzzed_applies_are_coded_and_leave_the_scene_as_it_was(builder):
     import random
