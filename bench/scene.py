@@ -49,8 +49,10 @@ from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path lin
 from tests.helpers.scene_fuzz import b64, mutate  # noqa: E402 -- after the sys.path line
 
 # a base swing from reach_right to reach_left (bench/service.py's), several seeds
+# (reach_left as joint values: the course workspace's SRDF names only home, open, closed)
 REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
-           "goal": {"named": "reach_left"}, "velocity_scaling": 0.2,
+           "goal": {"joints": {"joint_1": 1.2, "joint_2": 0.5, "joint_3": 0.9}},
+           "velocity_scaling": 0.2,
            "acceleration_scaling": 0.13, "sample_rate": 100}
 
 
@@ -65,10 +67,10 @@ def stop(proc: subprocess.Popen) -> None:
     proc.wait(30)
 
 
-def serve(endpoint: str, scene_file: Path, workers: int) -> subprocess.Popen:
+def serve(endpoint: str, scene_file: Path, workers: int, model: list[str]) -> subprocess.Popen:
     proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--connect", endpoint,
                              "--listen", f"tcp/127.0.0.1:{free_port()}", "--workers",
-                             str(workers), "--scene-file", str(scene_file)], cwd=REPO,
+                             str(workers), "--scene-file", str(scene_file), *model], cwd=REPO,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     for line in proc.stderr:  # type: ignore[union-attr]
         if "service ready" in line:
@@ -254,6 +256,9 @@ def main() -> None:
     p.add_argument("--plans", type=int, default=30)
     p.add_argument("--fuzz", type=int, default=2000, metavar="CASES",
                    help="hostile applies through the instances (default 2000)")
+    p.add_argument("--course", action="store_true",
+                   help="serve the course workspace (CAD meshes of 20k-54k triangles, "
+                   "tests/helpers/course_workspace.py) instead of the shipped arm")
     p.add_argument("--keep", metavar="DIR", help="keep the scene files and the instances' "
                    "logs (<x>.log) in DIR")
     ns = p.parse_args()
@@ -263,7 +268,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         d = ns.keep or tmp
         try:
-            procs = [serve(endpoint, Path(d) / f"{x}.json", 1) for x in "ab"]
+            model: list[str] = []
+            if ns.course:
+                from tests.helpers.course_workspace import make_course_workspace
+                ws = make_course_workspace(Path(d) / "ws")
+                model = [str(ws.xacro), "--package-dir", str(ws.src), "--moveit-config",
+                         str(ws.moveit_pkg), "--cache-dir", str(Path(d) / "cache")]
+            procs = [serve(endpoint, Path(d) / f"{x}.json", 1, model) for x in "ab"]
             with PlannerClient(endpoint, timeout=60) as c:
                 deadline = time.monotonic() + 30
                 while len(live := c.instances(refresh=True)) < 2:
@@ -288,7 +299,8 @@ def main() -> None:
             for proc in procs:
                 stop(proc)
             router.close()
-    print(json.dumps({"writers": w, "fuzz": fz, "plans": pl}))
+    print(json.dumps({"robot": "course workspace" if ns.course else "shipped arm",
+                      "writers": w, "fuzz": fz, "plans": pl}))
 
 
 if __name__ == "__main__":
