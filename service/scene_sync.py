@@ -9,13 +9,15 @@ Keys (``<p>`` the prefix, ``<id>`` an instance's Zenoh id):
   kept on disk and replicated, or refused with a coded error and nothing changed;
 - ``<p>/scene/changes`` (publication): ``{"revision", "added", "removed", "cleared"}``
   per applied revision, for whoever watches;
-- ``<p>/instance/<id>/scene/lead`` and ``.../scene/sync``: between instances only.
+- ``<p>/instance/<id>/scene/lead`` and ``.../scene/sync``, liveliness
+  ``<p>/scene/member/<id>``: between instances only.
 
 One writer at a time: every instance sends an apply to the leader, the live instance
 (liveliness ``<p>/alive/<id>``) with the smallest id, on its ``scene/lead`` key; the
 leader applies changes one after another (so ``if_revision`` means what it says), writes
-its file, queries every other instance's ``scene/sync`` with the change and waits for
-their answers, and only then acknowledges. So a change acknowledged through any instance
+its file, sends the change to every other member's ``scene/sync`` (one exact query each)
+and waits for their answers, and only then acknowledges. The keys that change the scene
+answer exact queries only, as the work keys do (:mod:`service.keyguard`). So a change acknowledged through any instance
 is on the leader's disk and in every live instance's scene: the next plan through any of
 them uses it, and killing any instance loses nothing. An instance that missed changes
 (down, or late) fetches the whole scene from the sender; a new instance takes the newest
@@ -39,6 +41,7 @@ from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
 
 from . import wire
+from .keyguard import addressed_exactly
 from .messages import Failure
 from .scene_store import (
     SceneBuilder,
@@ -135,6 +138,9 @@ class SceneService:
         # sometimes missed a token under load, and an instance that misses the leader's
         # leads too (two leaders lose changes; measured with bench/scene.py)
         self._alive: set[str] = set()
+        #: the instances holding the scene (``<p>/scene/member/<id>``): the leader sends
+        #: each change to each of them
+        self._members: set[str] = set()
         self._alive_lock = threading.Lock()
 
     @property
@@ -151,17 +157,25 @@ class SceneService:
             _log.info("scene: revision %d, %d objects from %s", self._state.revision,
                       len(self._state.objects), self.file.path)
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
-        self._entities.append(self.session.liveliness().declare_subscriber(
-            f"{p}/alive/*", self._on_alive, history=True))
-        self._declare(f"{me}/scene/sync", self._on_sync, complete=False)
+        liveliness = self.session.liveliness()
+        self._entities.append(liveliness.declare_subscriber(
+            f"{p}/alive/*", self._on_token(self._alive), history=True))
+        self._entities.append(liveliness.declare_subscriber(
+            f"{p}/scene/member/*", self._on_token(self._members), history=True))
+        # takes changes from now on (the leader sends them to every member), then asks
+        # for the scene: no change falls between the two
+        self._declare(f"{me}/scene/sync", self._on_sync, complete=False, exact=True)
+        self._entities.append(liveliness.declare_token(f"{p}/scene/member/{self.instance}"))
         self._catch_up()
         self._publisher = self.session.declare_publisher(f"{p}/scene/changes")
-        for key in (f"{p}/scene", f"{me}/scene"):
-            self._declare(key, self._on_get, shared=key.startswith(f"{p}/scene"))
-        for key in (f"{p}/scene/apply", f"{me}/scene/apply"):
-            self._declare(key, self._queued(self._writes, self._apply_or_forward),
-                          shared=key.startswith(f"{p}/scene"))
-        self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead))
+        self._declare(f"{p}/scene", self._on_get, shared=True)
+        self._declare(f"{me}/scene", self._on_get)
+        # changes only on their exact keys, as the work keys (see service.keyguard): a
+        # wildcard query passes an ACL rule written for the key, and would fan out
+        apply_ = self._queued(self._writes, self._apply_or_forward)
+        self._declare(f"{p}/scene/apply", apply_, shared=True, exact=True)
+        self._declare(f"{me}/scene/apply", apply_, exact=True)
+        self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead), exact=True)
 
     def close(self) -> None:
         self._writes.shutdown(wait=True, cancel_futures=True)
@@ -180,10 +194,13 @@ class SceneService:
             self._publisher = None
 
     def _declare(self, key: str, handler: Callable[[zenoh.Query], None], *,
-                 complete: bool = True, shared: bool = False) -> None:
+                 complete: bool = True, shared: bool = False, exact: bool = False) -> None:
         """A queryable on ``key``; a ``shared`` one (on a key every instance declares) is
-        never undeclared, only closed with the session: see PlannerService.close."""
+        never undeclared, only closed with the session: see PlannerService.close; an
+        ``exact`` one answers only queries naming ``key`` itself (service.keyguard)."""
         def on_query(query: zenoh.Query) -> None:
+            if exact and not addressed_exactly(key, query):
+                return
             try:
                 handler(query)
             except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
@@ -289,14 +306,18 @@ class SceneService:
         disk too), before the apply is acknowledged."""
         payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
                                 "change": change})
-        replies = self.session.get(f"{self.prefix}/instance/*/scene/sync", payload=payload,
-                                   target=zenoh.QueryTarget.ALL,
-                                   consolidation=zenoh.ConsolidationMode.NONE,
-                                   timeout=REPLICATE_TIMEOUT, encoding=JSON)
-        for reply in replies:
-            if reply.err is not None:
-                _log.warning("scene: an instance did not take revision %d: %s", revision,
-                             reply.err.payload.to_bytes()[:300])
+        with self._alive_lock:
+            members = sorted(self._members - {self.instance})
+        # one exact query per member, all sent before any answer is awaited
+        pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
+                                        payload=payload, timeout=REPLICATE_TIMEOUT,
+                                        encoding=JSON)) for m in members]
+        for member, replies in pending:
+            got = list(replies)
+            if not got or got[0].err is not None:
+                why = got[0].err.payload.to_bytes()[:300] if got and got[0].err else "no reply"
+                _log.warning("scene: instance %s did not take revision %d (%s): it fetches "
+                             "the scene on the next change", member, revision, why)
 
     def _on_sync(self, query: zenoh.Query) -> None:
         raw = query.payload.to_bytes() if query.payload is not None else b""
@@ -357,13 +378,16 @@ class SceneService:
                     self._state = new
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
 
-    def _on_alive(self, sample: zenoh.Sample) -> None:
-        inst = str(sample.key_expr).rsplit("/", 1)[-1]
-        with self._alive_lock:
-            if sample.kind == zenoh.SampleKind.PUT:
-                self._alive.add(inst)
-            else:
-                self._alive.discard(inst)
+    def _on_token(self, ids: set[str]) -> Callable[[zenoh.Sample], None]:
+        """Keeps ``ids`` as the ids of the liveliness tokens a subscriber sees."""
+        def on_sample(sample: zenoh.Sample) -> None:
+            inst = str(sample.key_expr).rsplit("/", 1)[-1]
+            with self._alive_lock:
+                if sample.kind == zenoh.SampleKind.PUT:
+                    ids.add(inst)
+                else:
+                    ids.discard(inst)
+        return on_sample
 
     def _live(self) -> set[str]:
         """The ids of the instances with a liveliness token (the subscriber's view, and

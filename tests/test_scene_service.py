@@ -149,6 +149,16 @@ def test_every_bad_apply_is_coded_names_the_field_and_changes_nothing(cluster):
                 assert (e.value.code, e.value.details.get("field")) == (code, field), change
         with pytest.raises(errors.InvalidRequest):
             c.request("scene/apply", b"{not json")
+        # a wildcard reaches no key that changes the scene (service.keyguard): not even
+        # an error comes back from one
+        clear = json.dumps({"clear": True}).encode()
+        for key in ("arduinobot/**", "arduinobot/scene/*", "arduinobot/scene/app$*",
+                    f"arduinobot/instance/{a.instance}/scene/*",
+                    "arduinobot/instance/*/scene/lead", "arduinobot/instance/*/scene/sync"):
+            got = [(str(r.ok.key_expr) if r.ok else "err") for r in
+                   c.session.get(key, payload=clear, timeout=5)]
+            assert not [k for k in got if k == "err" or k.endswith(("/apply", "/lead",
+                                                                     "/sync"))], (key, got)
         after = [c.request("scene", instance=i) for i in (a.instance, b.instance)]
         assert after == before
 
