@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Iterator, Sequence
@@ -20,6 +21,10 @@ import pytest
 from .helpers.procs import stop_process
 
 REPO = Path(__file__).resolve().parents[1]
+#: where the servers the tests start keep their planning scene unless told
+#: (--scene-file), one folder each: never the user's own (~/.local/state/arduinobot),
+#: which a test's applies would change and whose objects would be in every test's plans
+_STATE = tempfile.TemporaryDirectory(prefix="arduinobot-test-state-")
 
 
 def free_port() -> int:
@@ -70,7 +75,9 @@ def launch_serves(arg_lists: Sequence[Sequence[str]], *, endpoints: Sequence[str
     launched = []
     for args, endpoint in zip(arg_lists, endpoints or [""] * len(arg_lists)):
         argv = [sys.executable, "-m", "clients.cli", "serve", *args]
-        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        # each its own (a test that means to share a scene file passes --scene-file)
+        state = tempfile.mkdtemp(dir=_STATE.name)
+        env = {**os.environ, "PYTHONUNBUFFERED": "1", "ARDUINOBOT_STATE": state}
         proc = subprocess.Popen(argv, cwd=REPO, env=env, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.PIPE, text=True)
         lines: list[str] = []

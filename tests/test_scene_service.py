@@ -24,6 +24,7 @@ from service.zconfig import zenoh_config
 
 from .conftest import REPO, free_port, start_servers
 from .helpers.procs import process_tree
+from .test_service_security import secured  # noqa: F401 -- a fixture used below
 
 TABLE = {"id": "table", "shape": "box", "size": [1, 1, 0.1], "xyz": [0, 1, 0.5]}
 GOAL = {"goal": {"named": "reach_left"}, "seed": 3}
@@ -301,3 +302,31 @@ def test_the_scene_command_as_a_user_types_it(tmp_path):
     assert body["scene_revision"] == 7 and ["base_link", "wall"] in body["pairs"]
     out = _cli("check-state", "--scene", str(tmp_path / "wall.json"))
     assert out.returncode == 2 and "--scene is for --local" in out.stderr
+
+
+def test_through_the_shipped_acl_viewers_read_the_scene_planners_change_it(secured):  # noqa: F811
+    """The shipped router template: a viewer reads the scene (and may not change it), a
+    planner changes it; no user reaches the keys between instances."""
+    from .test_service_security import _replies, _session, client_config
+    tmp, pki, endpoint, _, srv = secured
+    viewer = _session(client_config(tmp, pki, "viewer"), endpoint)
+    planner = _session(client_config(tmp, pki, "planner"), endpoint)
+    add = json.dumps({"add": [TABLE | {"id": "acl"}]}).encode()
+    try:
+        assert _replies(viewer, "arduinobot/scene", b"") == ["ok arduinobot/scene"]
+        own = f"arduinobot/instance/{srv.instance}/scene"
+        assert _replies(viewer, own, b"") == [f"ok {own}"]
+        assert _replies(viewer, "arduinobot/scene/apply", add) == []
+        assert _replies(planner, "arduinobot/scene/apply", add) == \
+            ["ok arduinobot/scene/apply"]
+        sync = json.dumps({"from": "x", "base": 0, "revision": 1, "change": {}}).encode()
+        for user in (viewer, planner):
+            for key in (f"arduinobot/instance/{srv.instance}/scene/lead",
+                        f"arduinobot/instance/{srv.instance}/scene/sync"):
+                assert _replies(user, key, sync) == [], key
+        reply = next(iter(viewer.get("arduinobot/scene", timeout=5)))
+        assert [o["id"] for o in json.loads(reply.ok.payload.to_bytes())["objects"]] == ["acl"]
+    finally:
+        _replies(planner, "arduinobot/scene/apply", json.dumps({"clear": True}).encode())
+        viewer.close()
+        planner.close()
