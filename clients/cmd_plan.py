@@ -14,6 +14,7 @@ import numpy as np
 
 from .applied_limits import AppliedLimits
 from .argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
+from .cmd_scene import add_scene_arg
 from .common import EXIT_OK, add_service_args, connect, joints_by_name, planned_by, wrote
 from .replies import PlanReply
 
@@ -74,6 +75,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                      "the MuJoCo twin (needs mujoco): tracking error, peak actuator force "
                      "vs the effort limit, contacts")
     add_service_args(p)
+    add_scene_arg(p)
     p.set_defaults(func=cmd_plan)
 
 

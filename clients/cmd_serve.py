@@ -77,6 +77,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="where to keep what is derived from the robot between starts, keyed "
                    "by content (default: $ARDUINOBOT_CACHE, else $XDG_CACHE_HOME/arduinobot, "
                    "else ~/.cache/arduinobot)")
+    p.add_argument("--scene-file", metavar="FILE",
+                   help="where this instance keeps the planning scene (arduinobot scene) "
+                   "between starts (default: $ARDUINOBOT_STATE, else "
+                   "$XDG_STATE_HOME/arduinobot, else ~/.local/state/arduinobot; "
+                   "scene-PREFIX.json)")
     p.add_argument("--no-cache", action="store_true",
                    help="keep nothing between starts (recompute at every start)")
     from .cmd_execute import add_ros2_args, add_serve_args
@@ -129,7 +134,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         memory_cap=int(ns.memory_cap * 2**20) if ns.memory_cap > 0 else None,
                         extensions=(execute_extension(robot_spec(
                             ns, progress=logging.getLogger("service.execution").info),
-                            tick_sink=None if ros is None else _joint_states(ros)),))
+                            tick_sink=None if ros is None else _joint_states(ros)),),
+                        scene_file=ns.scene_file)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

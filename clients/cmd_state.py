@@ -9,6 +9,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from .argtypes import add_obstacle_arg, joint_values, numbers
+from .cmd_scene import add_scene_arg
 from .common import EXIT_FAIL, EXIT_OK, Service, add_service_args, connect, joints_by_name
 from .replies import CheckReply, FkReply, IkReply
 
@@ -50,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_obstacle_arg(p)
     p.add_argument("--padding", type=float, metavar="M", help="safety margin [m]")
     _add_common(p, cmd_check_state)
+    add_scene_arg(p)
 
 
 def _add_common(p: argparse.ArgumentParser, fn: Callable[[argparse.Namespace], int]) -> None:

@@ -146,10 +146,14 @@ def connect(ns: argparse.Namespace, *, model_drives_robot: bool = False) -> Iter
         UsageError: model options given without --local for a command where they only
             choose what --local plans for.
     """
+    scene = getattr(ns, "scene", None)
     if ns.local:
         from service.local import LocalService
-        yield LocalService(load_from_args(ns))
+        yield LocalService(load_from_args(ns), scene_file=scene)
         return
+    if scene is not None:
+        raise UsageError("--scene is for --local: the service plans against the scene it "
+                         "keeps (`arduinobot scene load FILE.json` puts a saved one there)")
     if not model_drives_robot and (getattr(ns, "file", None) or any(model_options(ns).values())):
         raise UsageError("FILE, --package-dir, --arg, --moveit-config, --srdf and "
                          "--joint-limits choose the model for --local; the service plans "

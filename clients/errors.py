@@ -99,6 +99,13 @@ class InternalError(ServiceError):
     code: str = Code.INTERNAL
 
 
+class SceneConflict(ServiceError):
+    """The scene is not at the revision the request named (``details.field``:
+    ``if_revision`` or ``scene_revision``); ``details.current_revision`` is where it is:
+    read the scene again and retry."""
+    code: str = Code.SCENE_CONFLICT
+
+
 class MalformedReply(ServiceError):
     """A reply this client cannot read: a field its schema requires is missing or of the
     wrong type (``details.field``, ``details.reply``: plan, fk, ik or check). The service

@@ -136,3 +136,17 @@ class ShuttingDown(PlanningError):
     """The service instance is stopping and did not take (or finish) the request."""
 
     code: Code = Code.SHUTTING_DOWN
+
+
+class SceneConflict(PlanningError):
+    """The scene is not at the revision a request names (``field``: ``if_revision`` of a
+    scene apply, ``scene_revision`` of a plan or check); ``details.current_revision``
+    says where it is."""
+
+    code: Code = Code.SCENE_CONFLICT
+
+    def __init__(self, message: str, *, field: str, current_revision: int,
+                 details: Mapping[str, object] | None = None) -> None:
+        self.field, self.current_revision = field, current_revision
+        super().__init__(f"{field}: {message}", details={
+            **dict(details or {}), "field": field, "current_revision": current_revision})

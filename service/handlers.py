@@ -25,6 +25,7 @@ from planner.kinematics.ik import position_ik
 from planner.planning.goals import JointGoal, tcp_joints
 
 from .requests import joint_values, obstacles
+from .scene_store import SceneSnapshot, with_scene
 
 _log = logging.getLogger(__name__)
 
@@ -86,9 +87,13 @@ class Handlers:
         vals = joint_values(self.description, values, field=field)
         return np.array([vals[n] for n in self.kin.joint_names])
 
-    def handle(self, kind: str, data: Mapping[str, Any]) -> dict[str, Any]:
-        """Dispatch one request of ``kind`` (``fk``, ``ik``, ``check``, ``plan``)."""
-        fn = {"fk": self.fk, "ik": self.ik, "check": self.check, "plan": self.plan}.get(kind)
+    def handle(self, kind: str, data: Mapping[str, Any], *,
+               scene: SceneSnapshot | None = None) -> dict[str, Any]:
+        """Dispatch one request of ``kind`` (``fk``, ``ik``, ``check``, ``plan``); plans and
+        checks add the kept ``scene``'s objects to their own obstacles."""
+        if kind in ("check", "plan"):
+            return (self.check if kind == "check" else self.plan)(data, scene=scene)
+        fn = {"fk": self.fk, "ik": self.ik}.get(kind)
         if fn is None:
             raise InvalidRequest(f"unknown request kind '{kind}'")
         return fn(data)
@@ -123,18 +128,21 @@ class Handlers:
         return {"solutions": [{"joints": dict(zip(self.kin.joint_names, map(float, s.q))),
                                "branch": s.branch} for s in sols]}
 
-    def check(self, data: Mapping[str, Any]) -> dict[str, Any]:
+    def check(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
+              ) -> dict[str, Any]:
         """Validity of one state: colliding pairs, clearance [m] and the closest pair."""
         q = self._q(data.get("joints"), "joints")
-        world = self._scene(obstacles(self.description, data.get("obstacles")),
-                            float(data.get("padding", 0.0)))
+        obs, revision = with_scene(scene, data, obstacles(self.description,
+                                                          data.get("obstacles")))
+        world = self._scene(obs, float(data.get("padding", 0.0)))
         res = world.check(q, clearance=True)
         clearance = res.clearance if res.clearance is not None and math.isfinite(
             res.clearance) else None
         return {"valid": bool(res.valid), "pairs": [list(p) for p in res.pairs],
                 "clearance": clearance,
                 "closest": list(res.closest) if res.closest else None,
-                "joints": dict(zip(self.kin.joint_names, map(float, q)))}
+                "joints": dict(zip(self.kin.joint_names, map(float, q))),
+                "scene_revision": revision}
 
     def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
         if padding == 0.0:
@@ -144,8 +152,10 @@ class Handlers:
     def _padded(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
         return self._motion_planner().world(()).with_scene(obs, padding=padding)
 
-    def plan(self, data: Mapping[str, Any]) -> dict[str, Any]:
+    def plan(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
+             ) -> dict[str, Any]:
         """A v1 plan request (validated by the schema) -> the v1 response body."""
         from .plan_io import plan_request, plan_response
-        req = plan_request(self.description, data)
-        return plan_response(self._motion_planner().solve(req))
+        req = plan_request(self.description, data, scene=scene)
+        return {**plan_response(self._motion_planner().solve(req)),
+                "scene_revision": scene.revision if scene is not None else 0}

@@ -34,6 +34,8 @@ class Job:
     request_id: str
     base_deadline: float
     respond: Callable[[Outcome], None] | None
+    #: the kept scene when the request arrived (a SceneSnapshot; plans and checks)
+    scene: Any = None
     deadline: float = field(init=False)
     waiting: bool = False  # in the queue, counted against queue_size
     # times handed back after a worker died before taking it (at most once per worker:

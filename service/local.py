@@ -16,7 +16,9 @@ from planner.errors import InvalidRequest
 
 from . import wire
 from .bodies import description_body
+from .disk_cache import DiskCache
 from .handlers import Handlers
+from .scene_store import SceneBuilder, SceneFile, SceneSnapshot, restore
 
 #: the ``request_id`` of every local reply (a worker puts its job id there)
 LOCAL_REQUEST_ID = "local"
@@ -25,9 +27,12 @@ LOCAL_REQUEST_ID = "local"
 class LocalService:
     """One robot's request handlers in this process, answering as the service would."""
 
-    def __init__(self, description: Description) -> None:
+    def __init__(self, description: Description, *, scene_file: str | None = None) -> None:
         self._description = description
         self._handlers = Handlers(description)
+        #: a saved scene (``arduinobot scene save``) that plans and checks use, as the
+        #: service uses its kept one
+        self.scene = None if scene_file is None else load_scene(description, scene_file)
 
     def request(self, kind: wire.Kind, req: Mapping[str, Any]) -> dict[str, Any]:
         """The reply body to ``req`` (a JSON object) of ``kind`` (``plan``, ``fk``, ``ik``,
@@ -41,8 +46,31 @@ class LocalService:
             raise InvalidRequest(f"{kind!r} is not a request kind "
                                  f"({', '.join(get_args(wire.Kind))})", field="kind")
         data = wire.decode(kind, wire.encode(req))
-        return {**self._handlers.handle(kind, data), "request_id": LOCAL_REQUEST_ID}
+        return {**self._handlers.handle(kind, data, scene=self.scene),
+                "request_id": LOCAL_REQUEST_ID}
 
     def description(self) -> dict[str, Any]:
         """The ``<p>/description`` reply the service would give."""
         return description_body(self._description)
+
+
+def load_scene(description: Description, path: str) -> SceneSnapshot:
+    """The scene in ``path`` (as ``<prefix>/scene`` answers and ``arduinobot scene save``
+    writes), every object validated as an apply would; meshes go to the user's cache
+    folder, by content.
+
+    Raises:
+        InvalidRequest: no such file, not a scene, or an object the service would refuse
+            (the message names the file).
+    """
+    try:
+        data = SceneFile(path).load()
+    except InvalidRequest as e:
+        raise InvalidRequest(f"--scene {e.message}") from None
+    if data is None:
+        raise InvalidRequest(f"no scene file {path}", field="scene")
+    builder = SceneBuilder(tuple(description.robot.links), DiskCache().root / "meshes")
+    try:
+        return restore(data, builder).snapshot
+    except InvalidRequest as e:
+        raise InvalidRequest(f"scene file {path}: {e.message}", details=e.details) from None

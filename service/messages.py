@@ -68,6 +68,8 @@ class JobMsg:
     kind: str
     payload: bytes | str | Mapping[str, Any]
     base_deadline: float
+    #: the kept scene the request is answered against (:class:`service.scene_store.SceneSnapshot`)
+    scene: Any = None
 
 
 @dataclass(frozen=True)

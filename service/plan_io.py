@@ -20,6 +20,7 @@ from planner.timing.trajectory import check_sample_count
 
 from .caps import MAX_SAMPLES
 from .requests import obstacles
+from .scene_store import SceneSnapshot, with_scene
 from .wire import check_finite
 
 #: a plan request's options, each as :class:`~planner.planning.pipeline.MotionRequest` takes it
@@ -56,15 +57,18 @@ def goal(description: Description, data: Mapping[str, Any]) -> Goal:
     return PoseGoal(position=position, orientation=tuple(quat), **options)  # type: ignore[arg-type]
 
 
-def plan_request(description: Description, data: Mapping[str, Any]) -> MotionRequest:
+def plan_request(description: Description, data: Mapping[str, Any], *,
+                 scene: SceneSnapshot | None = None) -> MotionRequest:
     """A validated v1 plan request (see ``service/schema/plan_request.json``) as a
-    :class:`planner.planning.motion.MotionRequest`. A missing start is all actuated joints
-    at 0."""
+    :class:`planner.planning.motion.MotionRequest` whose obstacles are the kept
+    ``scene``'s plus the request's own (see :func:`service.scene_store.with_scene`). A
+    missing start is all actuated joints at 0."""
     opts = {k: convert(data[k]) for k, convert in _OPTIONS.items() if k in data}
+    obs, _ = with_scene(scene, data, obstacles(description, data.get("obstacles")))
     return MotionRequest(
         goal=goal(description, data["goal"]),
         start=data.get("start"),  # names and limits: checked by the planner, once
-        obstacles=obstacles(description, data.get("obstacles")),
+        obstacles=obs,
         max_samples=MAX_SAMPLES,  # refused before sampling, not after
         **opts)
 

@@ -29,6 +29,8 @@ from .keyguard import addressed_exactly
 from .memtrace import MemTrace, count_live
 from .messages import Failure, Outcome, Success
 from .pool import WorkerPool
+from .scene_store import SceneSnapshot
+from .scene_sync import SceneService
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
 
@@ -79,6 +81,8 @@ class ServeOptions:
     #: ``make(session, prefix, description, submit_plan) -> object with close()``
     #: (``arduinobot serve`` adds ``<prefix>/execute``); closed first on shutdown
     extensions: Sequence[Extension] = ()
+    #: where this instance keeps the scene (None: service.scene_store.default_scene_file)
+    scene_file: str | None = None
 
 
 def _package_version() -> str:
@@ -109,6 +113,7 @@ class PlannerService:
         self._config: dict[str, str | None] = {}
         self._extensions: list[Any] = []
         self._memtrace: MemTrace | None = None
+        self.scene: SceneService | None = None
 
     def start(self) -> None:
         o = self.options
@@ -131,6 +136,10 @@ class PlannerService:
             self.session = zenoh.open(cfg)
             self.instance = str(self.session.zid())
             p = o.prefix
+            # the kept scene first: caught up with the other instances before any plan
+            self.scene = SceneService(self.session, p, self.instance,
+                                      tuple(desc.robot.links), scene_file=o.scene_file)
+            self.scene.start()
             for kind in (*WORK_KINDS, *INFO_KINDS):
                 for key, held in ((f"{p}/{kind}", self._shared),
                                   (f"{p}/instance/{self.instance}/{kind}", self._entities)):
@@ -172,6 +181,9 @@ class PlannerService:
         if self.pool is not None:
             self.pool.close(grace=self.options.grace)
             self.pool = None
+        if self.scene is not None:
+            self.scene.close()
+            self.scene = None
         if self.session is not None:
             # The shared queryables are NOT undeclared one by one: with zenoh 1.10, an
             # explicit undeclare of a complete queryable makes a router drop its route to
@@ -239,7 +251,7 @@ class PlannerService:
             query.drop()  # the reply is final: let the querier's get finish now
 
         pool.submit(Job(kind, raw, request_id, time.monotonic() + self.options.timeout,
-                        respond))
+                        respond, scene=self._scene_now()))
 
     def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
                      ) -> None:
@@ -248,7 +260,12 @@ class PlannerService:
         if pool is None:  # closed: as _on_query answers a query that arrives then
             raise ShuttingDown(SHUTTING_DOWN)
         pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
-                        time.monotonic() + self.options.timeout, respond))
+                        time.monotonic() + self.options.timeout, respond,
+                        scene=self._scene_now()))
+
+    def _scene_now(self) -> SceneSnapshot | None:
+        """The kept scene a request arriving now is answered against."""
+        return self.scene.state.snapshot if self.scene is not None else None
 
     def _held(self) -> dict[str, int]:
         """Live jobs and what the pool holds (the memory probe's numbers)."""

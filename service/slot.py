@@ -213,7 +213,8 @@ class Slot:
         t0 = time.monotonic()
         taken, outcome, stop = False, None, None
         try:
-            w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline))
+            w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline,
+                                job.scene))
             while outcome is None and (stop := self._why_stop(job, w)) is None:
                 if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
                     continue

@@ -33,10 +33,14 @@ __all__ = ["MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite",
 Kind = Literal["plan", "fk", "ik", "check", "execute"]
 SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_response",
                 "ik_request", "ik_response", "check_request", "check_response",
-                "execute_request")
+                "execute_request", "scene_apply_request", "scene_apply_response",
+                "scene_response")
 #: Requests whose element counts are not capped: an execute request carries a whole
 #: trajectory (thousands of points), bounded by the payload cap and read point by point.
 _UNCOUNTED: frozenset[str] = frozenset({"execute"})
+#: what :func:`validate` takes beyond the work kinds: the scene's apply request
+#: (decoded by :func:`service.scene_sync.decode_apply`, under its own size caps)
+OtherKind = Literal["scene_apply"]
 #: Schema keywords whose figure is a cap or a bound: their refusals carry it as
 #: ``details.limit``.
 _LIMIT_KEYWORDS = ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum", "maxItems",
@@ -174,7 +178,7 @@ def check_finite(value: Any, path: tuple[Any, ...] = ()) -> None:
             check_finite(v, (*path, i))
 
 
-def validate(kind: Kind, value: Any) -> dict[str, Any]:
+def validate(kind: Kind | OtherKind, value: Any) -> dict[str, Any]:
     """Validate a decoded request against ``<kind>_request.json``; returns it.
 
     Raises:

@@ -95,7 +95,7 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers) -> tuple[Success 
         data = wire.decode(job.kind, job.payload) \
             if isinstance(job.payload, (bytes, str)) else job.payload
         conn.send(Deadline(job.job_id, job_deadline(job.kind, data, job.base_deadline)))
-        body = handlers.handle(job.kind, data)
+        body = handlers.handle(job.kind, data, scene=job.scene)
         # encoded here, in parallel across workers, not in the serving process
         return Success(wire.encode({**body, "request_id": job.job_id},
                                    finite=job.kind == "plan")), False

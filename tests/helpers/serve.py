@@ -11,6 +11,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -20,6 +21,16 @@ __all__ = ["REPO", "Server", "free_port", "launch_serves", "start_server", "star
 
 #: what `arduinobot serve` logs once its workers are ready and its keys are declared
 READY = "service ready"
+#: where the servers the tests start keep their planning scene unless told
+#: (--scene-file), one file each: never the user's own (~/.local/state/arduinobot),
+#: which a test's applies would change and whose objects would be in every test's plans
+_STATE = tempfile.TemporaryDirectory(prefix="arduinobot-test-state-")
+
+
+def _scene_file() -> str:
+    """A scene file of its own for one server (a test that means to share one passes
+    --scene-file)."""
+    return str(tempfile.mkdtemp(dir=_STATE.name)) + "/scene.json"
 
 
 def free_port() -> int:
@@ -74,7 +85,9 @@ def launch_serves(arg_lists: Sequence[Sequence[str]], *, endpoints: Sequence[str
     Raises:
         procs.LaunchError: one exited or was not ready within ``timeout`` [s].
     """
-    argvs = [[sys.executable, "-m", "clients.cli", "serve", *args] for args in arg_lists]
+    argvs = [[sys.executable, "-m", "clients.cli", "serve", *args,
+              *([] if "--scene-file" in args else ["--scene-file", _scene_file()])]
+             for args in arg_lists]
     launched = launch_all(argvs, ready=READY, what="arduinobot serve", env=env,
                           timeout=timeout)
     return [Server(p.proc, endpoint, p.ready_line, p.lines)
