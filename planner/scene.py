@@ -133,3 +133,41 @@ def validate_obstacles(obstacles: Sequence[Obstacle], *,
             raise InvalidRequest(f"id '{o.id}' is also a link name", field=f"obstacles[{i}].id")
         seen.add(o.id)
     return tuple(obstacles)
+
+
+@dataclass(frozen=True)
+class AttachedObject:
+    """An object the robot carries: ``shape`` posed in ``link``'s frame (its ``xyz``/``rpy``
+    are relative to the link, not the world), moving with the link.
+
+    It is checked against the scene and every robot link except ``touch_links`` (empty:
+    the links of the group that holds it, e.g. the gripper's), and its ``mass`` [kg] at
+    ``com`` (in the link's frame [m]; None: the shape's centroid) enters the inverse
+    dynamics of the effort-limited timing and the verifier.
+    """
+
+    shape: Obstacle
+    link: str
+    touch_links: tuple[str, ...] = ()
+    mass: float = 0.0
+    com: tuple[float, float, float] | None = None
+    where: str = "attached"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.shape, Obstacle):
+            raise InvalidRequest("must be an Obstacle", field=f"{self.where}.shape")
+        if not isinstance(self.link, str) or not self.link:
+            raise InvalidRequest(f"{self.link!r} is not a link name", field=f"{self.where}.link")
+        if not isinstance(self.touch_links, tuple) or \
+                not all(isinstance(t, str) for t in self.touch_links):
+            raise InvalidRequest("must be a tuple of link names", field=f"{self.where}.touch_links")
+        if isinstance(self.mass, bool) or not isinstance(self.mass, (int, float)) \
+                or not math.isfinite(self.mass) or self.mass < 0:
+            raise InvalidRequest(f"{self.mass!r} must be a finite mass >= 0 [kg]",
+                                 field=f"{self.where}.mass")
+        if self.com is not None:
+            object.__setattr__(self, "com", _finite_vec(self.com, 3, f"{self.where}.com"))
+
+    @property
+    def id(self) -> str:
+        return self.shape.id

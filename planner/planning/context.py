@@ -183,6 +183,9 @@ class PlanningContext:
         ids = [o.id for o in req.obstacles]
         if len(set(ids)) != len(ids):
             raise InvalidRequest("obstacle ids must be unique", field="obstacles")
+        if req.attached:  # never plan as if an object the robot holds were not there
+            raise InvalidRequest("carried objects are not supported yet", field="attached",
+                                 details={"unsupported": "attached"})
         if not isinstance(req.planner, str) or not req.planner:
             raise InvalidRequest(f"{req.planner!r} is not a planner name", field="planner")
         check_range(req.planning_time, "planning_time")

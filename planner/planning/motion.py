@@ -12,7 +12,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..scene import Obstacle
+from ..scene import AttachedObject, Obstacle
 from ..timing.trajectory import JointTrajectory
 from ..timing.verify import VerificationReport
 from .goals import JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal, check_goal
@@ -38,6 +38,8 @@ class MotionRequest:
     start: Mapping[str, float] | None = None
     group: str | None = None
     obstacles: tuple[Obstacle, ...] = ()
+    # objects the robot carries for this request (each posed in its link's frame)
+    attached: tuple[AttachedObject, ...] = ()
     planner: str = "RRTConnect"
     planning_time: float = 1.0          # [s], (0, 60]
     velocity_scaling: float | None = None       # [0.01, 1]
