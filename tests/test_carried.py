@@ -258,3 +258,30 @@ def test_a_start_where_the_carried_box_is_in_the_table_is_refused(shipped):
     with pytest.raises(StartInCollision) as e:
         shipped.mp.solve(req)
     assert {frozenset(p) for p in e.value.pairs} >= {frozenset(("carried_box", "table"))}
+
+
+def test_a_plan_request_on_the_wire_carries_attached_for_itself(shipped):
+    import json
+
+    from service import wire
+    from service.plan_io import plan_request, plan_response
+
+    t = shipped.table
+    item = shipped.attached(PAYLOAD).to_mapping()
+    data = {"start": {"joint_1": -0.8}, "goal": {"joints": {"joint_1": 0.8}}, "seed": 3,
+            "planning_time": 5.0,
+            "obstacles": [{"id": t.id, "shape": "box", "size": list(t.size), "xyz": list(t.xyz)}],
+            "attached": [item]}
+    req = plan_request(shipped.d, wire.decode("plan", json.dumps(data)))
+    (a,) = req.attached
+    assert a.link == shipped.link and a.mass == PAYLOAD and a.id == "carried_box"
+    assert set(a.touch_links) == {"claw_support", "gripper_right", "gripper_left"}
+    body = plan_response(shipped.mp.solve(req))
+    qs = np.array([p["positions"] for p in body["trajectory"]["points"]])
+    assert _box_hits(shipped.d, shipped.names, qs, shipped.box, shipped.link, t) == 0
+    bad = {**data, "attached": [{**item, "link": "no_such_link"}]}
+    with pytest.raises(InvalidRequest) as e:
+        plan_request(shipped.d, wire.decode("plan", json.dumps(bad)))
+    assert e.value.field == "attached[0].link"
+    with pytest.raises(InvalidRequest) as e:  # the schema: unknown keys are refused
+        wire.decode("plan", json.dumps({**data, "attached": [{**item, "weight": 1}]}))
