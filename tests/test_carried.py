@@ -285,3 +285,25 @@ def test_a_plan_request_on_the_wire_carries_attached_for_itself(shipped):
     assert e.value.field == "attached[0].link"
     with pytest.raises(InvalidRequest) as e:  # the schema: unknown keys are refused
         wire.decode("plan", json.dumps({**data, "attached": [{**item, "weight": 1}]}))
+
+
+def test_a_check_reports_the_carried_box_pose_and_its_contact(shipped):
+    import json
+
+    from service import wire
+    from service.handlers import Handlers
+
+    t = shipped.table
+    h = Handlers(shipped.d)
+    data = {"joints": {"joint_1": 0.0},
+            "obstacles": [{"id": t.id, "shape": "box", "size": list(t.size), "xyz": list(t.xyz)}],
+            "attached": [shipped.attached().to_mapping()]}
+    reply = h.check(wire.decode("check", json.dumps(data)))
+    assert not reply["valid"]
+    assert ["carried_box", "table"] in reply["pairs"] or ["table", "carried_box"] in reply["pairs"]
+    pose = np.array(reply["carried"]["carried_box"]["matrix"])
+    want = _link_pose(shipped.d.robot, shipped.link, shipped.names,
+                      np.zeros(len(shipped.names))) @ shipped.box.pose()
+    assert np.allclose(pose, want, atol=1e-9)
+    free = h.check(wire.decode("check", json.dumps({**data, "joints": {"joint_1": -0.8}})))
+    assert free["valid"] and "carried_box" in free["carried"]
