@@ -102,12 +102,7 @@ class PlannerClient:
         Raises:
             ServiceError subclasses for error replies; ServiceUnavailable for none.
         """
-        if isinstance(body, Mapping):
-            payload: bytes | None = json.dumps(body, allow_nan=False).encode()
-        elif isinstance(body, str):
-            payload = body.encode()
-        else:
-            payload = body
+        payload = encode_body(body)
         wait = float(timeout) if timeout is not None else \
             self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
         if instance is not None:
@@ -259,6 +254,15 @@ class PlannerClient:
 
     def schema(self) -> dict[str, Any]:
         return self.request("schema")
+
+
+def encode_body(body: Mapping[str, Any] | bytes | str | None) -> bytes | None:
+    """A request's payload: a mapping as strict JSON (NaN refused), bytes/str as they are."""
+    if isinstance(body, Mapping):
+        return json.dumps(body, allow_nan=False).encode()
+    if isinstance(body, str):
+        return body.encode()
+    return body
 
 
 def _planning_time(req: object) -> float:

@@ -16,6 +16,7 @@ from typing import Any, Protocol
 
 from planner.codes import Code
 
+from . import hoptrace
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
 from .messages import Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
 from .messages import Stop as StopMsg
@@ -208,8 +209,13 @@ class Slot:
         q.set_busy(self, job)
         t0 = time.monotonic()
         taken, outcome, stop = False, None, None
+        trace = job.trace
+        if trace is not None:
+            trace["slot"] = t0
         try:
             w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline))
+            if trace is not None:
+                trace["sent"] = hoptrace.now()
             while outcome is None and (stop := self._why_stop(job, w)) is None:
                 if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
                     continue
@@ -222,6 +228,9 @@ class Slot:
                     job.deadline = msg.deadline
                 elif isinstance(msg, Done):
                     outcome = msg.outcome
+                    if trace is not None:
+                        trace["done"] = hoptrace.now()
+                        trace.update(zip(hoptrace.WORKER_STAMPS, msg.trace))
         except OSError:
             pass  # the worker died: neither an outcome nor a stop, handled below
         finally:
