@@ -98,13 +98,25 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
             if isinstance(job.payload, (bytes, str)) else job.payload
         if stamps is not None:
             stamps.append(hoptrace.now())
-        conn.send(Deadline(job.job_id, job_deadline(job.kind, data, job.base_deadline)))
-        body = handlers.handle(job.kind, data)
-        if stamps is not None:
-            stamps.append(hoptrace.now())
+        deadline = job_deadline(job.kind, data, job.base_deadline)
+        if deadline != job_deadline(job.kind, {}, job.base_deadline):
+            # the pool's provisional deadline is another: say it (one message, and one
+            # wake of the pool's thread, fewer for a request at the default)
+            conn.send(Deadline(job.job_id, deadline))
         # encoded here, in parallel across workers, not in the serving process
-        out = Success(wire.encode({**body, "request_id": job.job_id},
-                                  finite=job.kind == "plan"))
+        if job.kind == "plan":
+            # from the sample arrays to bytes, no Python object per sample (imported here:
+            # the serving process imports this module, and never the planner)
+            from .plan_io import plan_reply
+            result = handlers.solve(data)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+            out = Success(plan_reply(result, job.job_id))
+        else:
+            body = handlers.handle(job.kind, data)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+            out = Success(wire.encode({**body, "request_id": job.job_id}))
         if stamps is not None:
             stamps.append(hoptrace.now())
         return out, False
