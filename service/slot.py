@@ -160,6 +160,7 @@ class Slot:
         self.index, self._workers, self._queue = index, workers, queue
         self.name = f"worker {index}"
         self.worker: WorkerProcess | None = None
+        self._rss_due = 0.0  # when the busy worker's memory is read next [monotonic s]
 
     def live_pid(self) -> int | None:
         """The pid of this slot's worker while it runs (call with the pool's lock held)."""
@@ -209,6 +210,7 @@ class Slot:
         q.set_busy(self, job)
         t0 = time.monotonic()
         taken, outcome, stop = False, None, None
+        self._rss_due = t0 + _POLL  # not as it starts: the worker is reading the job
         trace = job.trace
         if trace is not None:
             trace["slot"] = t0
@@ -278,6 +280,10 @@ class Slot:
             return "shutdown"
         if now >= job.deadline:
             return "deadline"
-        if q.memory_cap is not None and rss_bytes(w.pid) > q.memory_cap:
-            return "memory"
+        if q.memory_cap is not None and now >= self._rss_due:
+            # read every _POLL, not on each message the worker sends (a file read of
+            # /proc on the pool's side while the worker starts on a request)
+            self._rss_due = now + _POLL
+            if rss_bytes(w.pid) > q.memory_cap:
+                return "memory"
         return None
