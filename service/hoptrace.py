@@ -9,7 +9,7 @@ appends one JSON line per answered work request to that file::
 Each stamp is :func:`time.monotonic` [s] (CLOCK_MONOTONIC: one clock for every process of
 the host, so a client on the same host can put its own stamps beside them). In order:
 
-- ``callback``: Zenoh called the queryable; ``queued``: the job is in the pool;
+- ``callback``: Zenoh called the queryable; ``queued``: the job goes to the pool;
 - ``slot``: a slot thread took it; ``sent``: its JobMsg is on the worker's socket;
 - ``w_recv``, ``w_decoded``, ``w_handled``, ``w_encoded``: the worker received it,
   decoded and validated it, the handler returned, the reply is encoded;

@@ -246,10 +246,10 @@ class PlannerService:
                 hoptrace.write(request_id, kind, trace)
 
         job = Job(kind, raw, request_id, time.monotonic() + self.options.timeout, respond)
-        job.trace = trace
-        pool.submit(job)
         if trace is not None:
-            trace.setdefault("queued", hoptrace.now())
+            job.trace = trace
+            trace["queued"] = hoptrace.now()
+        pool.submit(job)
 
     def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
                      ) -> None:
