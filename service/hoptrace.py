@@ -49,5 +49,5 @@ def write(request_id: str, kind: str, stamps: dict[str, float]) -> None:
     try:
         with _lock, open(PATH, "a", encoding="utf-8") as f:
             f.write(line + "\n")
-    except OSError as e:  # a probe must not fail a request: say it once per failure
+    except OSError as e:  # a probe must not fail a request: logged, the reply is sent
         _log.warning("hop trace: cannot write %s: %s", PATH, e)

@@ -210,7 +210,7 @@ class Slot:
         q.set_busy(self, job)
         t0 = time.monotonic()
         taken, outcome, stop = False, None, None
-        self._rss_due = t0 + _POLL  # not as it starts: the worker is reading the job
+        self._rss_due = t0  # a first look as it starts (a worker already over the cap)
         trace = job.trace
         if trace is not None:
             trace["slot"] = t0
