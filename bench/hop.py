@@ -12,7 +12,9 @@ Python client's own steps, stamping the client's side too. Per request, in order
   has it; ``pipe``: until the worker has read it; ``decode``: the worker's decode and
   validation;
 - ``handler_outside_total``: the handler's time beyond the reply's ``timing.total``
-  (building the planner's request, the reply body); ``encode``: the reply to bytes;
+  (building the planner's request); ``encode``: the reply built from the sample arrays
+  and encoded (:func:`service.plan_io.plan_reply`; before it, the reply's dict was built
+  in the handler: compare the two pieces' sum);
 - ``back_to_slot``: until the slot thread has the outcome; ``reply``: until
   ``query.reply`` returned; ``final``: the query finalised;
 - ``zenoh_out``: from the reply until the client's get returned (reply and finalisation
