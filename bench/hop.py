@@ -97,7 +97,8 @@ def one(c: PlannerClient, body: dict[str, Any]) -> tuple[dict[str, float], PlanR
     st["c_decoded"] = hoptrace.now()
     reply = PlanReply.parse(decoded)
     st["c_parsed"] = hoptrace.now()
-    return st, reply, len(replies[0].ok.payload)
+    ok = replies[0].ok
+    return st, reply, 0 if ok is None else len(ok.payload)
 
 
 def zenoh_floor(reply: bytes, repeats: int) -> dict[str, float | None]:

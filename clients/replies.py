@@ -71,11 +71,11 @@ _sample_rows = operator.itemgetter(*_SAMPLE_KEYS)
 _sample_time = operator.itemgetter("time_from_start")
 
 
-def _samples(points: Sequence[Mapping[str, Any]], width: int
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """The times (m,) and the sample arrays, shape (4, m, width) in :data:`_SAMPLE_KEYS`
-    order, of schema-valid ``points``: in one pass, each value read once (not an array per
-    key from nested lists: ~2x faster).
+def _samples(points: Sequence[Any], width: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The times (m,) and the sample arrays (m, width) in :data:`_SAMPLE_KEYS` order of
+    schema-valid ``points``: in one pass, each value read once (not an array per key from
+    nested lists: ~2x faster).
 
     Raises:
         MalformedReply: a row that does not hold ``width`` values, one per joint (the
@@ -89,7 +89,8 @@ def _samples(points: Sequence[Mapping[str, Any]], width: int
             _rows("plan", points, width, "trajectory.points", key)
     flat = np.fromiter(chain.from_iterable(rows), float, len(rows) * width)
     times = np.fromiter(map(_sample_time, points), float, m)
-    return times, flat.reshape(m, len(_SAMPLE_KEYS), width).transpose(1, 0, 2).copy()
+    q, qd, qdd, tau = flat.reshape(m, len(_SAMPLE_KEYS), width).transpose(1, 0, 2).copy()
+    return times, q, qd, qdd, tau
 
 
 def _number(v: float | None) -> float | None:
@@ -157,9 +158,9 @@ class PlanReply:
         b = _validated("plan", body)
         names, points = b["trajectory"]["joint_names"], b["trajectory"]["points"]
         n = len(names)
-        times, samples = _samples(points, n)
+        times, q, qd, qdd, tau = _samples(points, n)
         v = b["verification"]
-        return cls(tuple(names), times, *samples,
+        return cls(tuple(names), times, q, qd, qdd, tau,
                    float(b["duration"]), _rows("plan", b["path"], n, "path"),
                    {k: float(t) for k, t in b["timing"].items()},
                    Verification(v["ok"], v["certified"], v["collision_free"],
