@@ -48,7 +48,7 @@ def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
     return body
 
 
-def _rows(reply: Reply, rows: Sequence[Sequence[float]], width: int, where: str,
+def _rows(reply: Reply, rows: Sequence[Any], width: int, where: str,
           key: str = "") -> np.ndarray:
     """``rows`` (each ``row[key]`` if ``key``) as an array (m, width).
 
@@ -133,9 +133,10 @@ class PlanReply:
         names, points = b["trajectory"]["joint_names"], b["trajectory"]["points"]
         n, where = len(names), "trajectory.points"
         v = b["verification"]
+        pos, vel, acc, eff = (_rows("plan", points, n, where, k)
+                              for k in ("positions", "velocities", "accelerations", "effort"))
         return cls(tuple(names), np.array([p["time_from_start"] for p in points], float),
-                   *(_rows("plan", points, n, where, k)
-                     for k in ("positions", "velocities", "accelerations", "effort")),
+                   pos, vel, acc, eff,
                    float(b["duration"]), _rows("plan", b["path"], n, "path"),
                    {k: float(t) for k, t in b["timing"].items()},
                    Verification(v["ok"], v["certified"], v["collision_free"],
@@ -185,7 +186,7 @@ class FkReply:
         return cls(dict(b["joints"]),
                    {k: Pose(tuple(p["xyz"]), tuple(p["rpy"]), np.array(p["matrix"], float))
                     for k, p in b["links"].items()},
-                   None if tcp is None else tuple(tcp), b["request_id"])  # type: ignore[arg-type]
+                   None if tcp is None else tuple(tcp), b["request_id"])
 
 
 @dataclass(frozen=True)
@@ -229,7 +230,7 @@ class CheckReply:
         """Raises: MalformedReply naming the first field that breaks the schema."""
         b = _validated("check", body)
         closest = b.get("closest")
-        return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),  # type: ignore[misc]
+        return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),
                    _number(b["clearance"]),
-                   None if closest is None else tuple(closest),  # type: ignore[arg-type]
+                   None if closest is None else tuple(closest),
                    dict(b["joints"]), b["request_id"])
