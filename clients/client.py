@@ -289,7 +289,7 @@ _ORJSON_REQUEST = orjson.OPT_NON_STR_KEYS
 
 def _planning_time(req: object) -> float:
     v = req.get("planning_time", 1.0) if isinstance(req, Mapping) else 1.0
-    return float(v) if v in RANGES["planning_time"] else 1.0  # type: ignore[arg-type]
+    return float(v) if v in RANGES["planning_time"] else 1.0
 
 
 def decode_reply(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
@@ -301,6 +301,7 @@ def decode_reply(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
     if reply.ok is not None:
         return orjson.loads(reply.ok.payload.to_bytes())  # strict JSON, ~3x json's speed
     err = reply.err
+    assert err is not None  # a reply is either ok or an error
     text = err.payload.to_bytes().decode("utf-8", "replace")
     if str(err.encoding).startswith("application/json"):
         try:

@@ -182,14 +182,14 @@ def summary(res: PlanReply, limits: AppliedLimits) -> str:
                  f"min clearance {gap}")
     if res.line is not None:
         ln, peak = res.line, res.line.get("peak", {})
-        lim = ln.get("limits", {})
+        cart = ln.get("limits", {})
         lines.append(f"line: {ln['length']:.4f} m, largest deviation "
                      f"{1000 * ln['max_deviation']:.3f} mm; tcp peak "
-                     f"{peak.get('velocity', 0):.3f} m/s (limit {lim.get('max_trans_vel', 0):.3g}),"
+                     f"{peak.get('velocity', 0):.3f} m/s (limit {cart.get('max_trans_vel', 0):.3g}),"
                      f" {peak.get('acceleration', 0):.3f} m/s^2 (limits "
-                     f"{lim.get('max_trans_acc', 0):.3g} / {lim.get('max_trans_dec', 0):.3g}), "
+                     f"{cart.get('max_trans_acc', 0):.3g} / {cart.get('max_trans_dec', 0):.3g}), "
                      f"{peak.get('angular_velocity', 0):.3f} rad/s (limit "
-                     f"{lim.get('max_rot_vel', 0):.3g}); limits from {lim.get('source', '?')}")
+                     f"{cart.get('max_rot_vel', 0):.3g}); limits from {cart.get('source', '?')}")
     if res.reached is not None and "position" in res.reached:
         r, resid = res.reached, res.reached.get("residuals", {})
         parts = [f"tcp {[round(v, 4) for v in r['position']]} m, "

@@ -50,7 +50,7 @@ def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
     return body
 
 
-def _rows(reply: Reply, rows: Sequence[Sequence[float]], width: int, where: str,
+def _rows(reply: Reply, rows: Sequence[Any], width: int, where: str,
           key: str = "") -> np.ndarray:
     """``rows`` (each ``row[key]`` if ``key``) as an array (m, width).
 
@@ -214,7 +214,7 @@ class FkReply:
         return cls(dict(b["joints"]),
                    {k: Pose(tuple(p["xyz"]), tuple(p["rpy"]), np.array(p["matrix"], float))
                     for k, p in b["links"].items()},
-                   None if tcp is None else tuple(tcp), b["request_id"])  # type: ignore[arg-type]
+                   None if tcp is None else tuple(tcp), b["request_id"])
 
 
 @dataclass(frozen=True)
@@ -258,7 +258,7 @@ class CheckReply:
         """Raises: MalformedReply naming the first field that breaks the schema."""
         b = _validated("check", body)
         closest = b.get("closest")
-        return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),  # type: ignore[misc]
+        return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),
                    _number(b["clearance"]),
-                   None if closest is None else tuple(closest),  # type: ignore[arg-type]
+                   None if closest is None else tuple(closest),
                    dict(b["joints"]), b["request_id"])

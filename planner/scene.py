@@ -10,7 +10,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, SupportsFloat, SupportsIndex
+from typing import Literal, SupportsFloat, SupportsIndex, cast
 
 import numpy as np
 
@@ -147,13 +147,15 @@ def _unit_inertia(o: Obstacle) -> tuple[np.ndarray, np.ndarray]:
     if o.shape == "box":
         return np.zeros(3), _box_unit(np.asarray(o.size))
     if o.shape == "sphere":
-        return np.zeros(3), np.eye(3) * 0.4 * float(o.radius) ** 2
+        assert o.radius is not None  # Obstacle checks every shape's dimensions
+        return np.zeros(3), np.eye(3) * 0.4 * o.radius ** 2
     if o.shape == "cylinder":
-        r2, l2 = float(o.radius) ** 2, float(o.length) ** 2
+        assert o.radius is not None and o.length is not None
+        r2, l2 = o.radius ** 2, o.length ** 2
         return np.zeros(3), np.diag([(3 * r2 + l2) / 12, (3 * r2 + l2) / 12, r2 / 2])
     import trimesh  # only a mesh needs it
 
-    mesh = trimesh.load(o.mesh_path, force="mesh")
+    mesh = cast(trimesh.Trimesh, trimesh.load(o.mesh_path, force="mesh"))
     if mesh.is_watertight and mesh.volume > 0:
         return (np.asarray(mesh.center_mass, float),
                 np.asarray(mesh.moment_inertia, float) / float(mesh.mass))
@@ -208,8 +210,9 @@ class AttachedObject:
         com = np.asarray(self.com, float) if self.com is not None \
             else rot @ centroid + pose[:3, 3]
         tensor = self.mass * (rot @ inertia @ rot.T)
-        return Payload(self.link, float(self.mass), tuple(map(float, com)),
-                       tuple(tuple(map(float, r)) for r in tensor))
+        c = [float(v) for v in com]
+        t = [(float(r[0]), float(r[1]), float(r[2])) for r in tensor]
+        return Payload(self.link, float(self.mass), (c[0], c[1], c[2]), (t[0], t[1], t[2]))
 
     def shape_key(self) -> tuple:
         """What its geometry and placement are (``where`` only names fields in errors)."""

@@ -332,11 +332,11 @@ def detect_control_msgs(session: zenoh.Session, controller: Controller, *, domai
     from .names import fully_qualified
     name = action_endpoints(fully_qualified(controller.action, namespace))["feedback"]
     for version in ("jazzy", "rolling"):
-        types = control_msgs_types(version)  # type: ignore[arg-type]
+        types = control_msgs_types(version)
         fb = f"{FOLLOW_JOINT_TRAJECTORY}_FeedbackMessage"
         sel = endpoint_selector(domain_id, "MP", name, types.dds_name(fb), types.type_hash(fb))
         if query_graph(session, sel, timeout=timeout):
-            return version  # type: ignore[return-value]
+            return version
     return None
 
 

@@ -98,7 +98,7 @@ def scale_of(value: object, field: str) -> tuple[float, float, float]:
         raise InvalidRequest(f"{value!r} must be a number or 3 numbers", field=field) from None
     if len(vec) != 3 or not all(math.isfinite(v) and v > 0 for v in vec):
         raise InvalidRequest(f"{value!r} must be 1 or 3 finite numbers > 0", field=field)
-    return vec  # type: ignore[return-value]
+    return vec
 
 
 def decode_mesh(spec: Mapping[str, Any], *, scale: Sequence[float] = (1.0, 1.0, 1.0),

@@ -54,7 +54,7 @@ def schema(name: str) -> dict[str, Any]:
     """The JSON Schema ``service/schema/<name>.json`` as a dict."""
     if name not in SCHEMA_NAMES:
         raise KeyError(name)
-    text = resources.files("service").joinpath("schema", f"{name}.json").read_text("utf-8")
+    text = (resources.files("service") / "schema" / f"{name}.json").read_text("utf-8")
     return json.loads(text)
 
 

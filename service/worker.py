@@ -13,7 +13,7 @@ import traceback
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
-from typing import Any
+from typing import Any, cast
 
 from description import load_description
 from planner.codes import Code
@@ -94,7 +94,8 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
     """The job's outcome, and whether this worker must end after sending it (``stamps``:
     the hop trace's, appended to when tracing)."""
     try:
-        data = wire.decode(job.kind, job.payload) \
+        # the pool carries only work kinds (the server answers the others itself)
+        data = wire.decode(cast("wire.Kind", job.kind), job.payload) \
             if isinstance(job.payload, (bytes, str)) else job.payload
         if stamps is not None:
             stamps.append(hoptrace.now())

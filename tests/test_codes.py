@@ -25,6 +25,8 @@ NOT_CODES = frozenset({
     # environment and sysconf names, __all__ entries
     "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME", "SC_PAGE_SIZE", "MAX_PAYLOAD", "SCHEMA_NAMES",
     "INSTALL_HINT",
+    # the model's file format, named in `arduinobot limits` (clients/applied_limits.py)
+    "URDF",
     # the kept scene (service/scene_store.py): its state folder and its object cap
     "ARDUINOBOT_STATE", "XDG_STATE_HOME", "MAX_SCENE_OBJECTS",
     # `arduinobot check` outcomes (printed, never on the wire)

@@ -53,6 +53,7 @@ def course_service(course_model):
     srv.stop()
 
 
+@pytest.mark.slow
 def test_plan_simulate_through_a_service_replays_on_the_services_robot(
         course_service, course_model):
     goal = ["--goal", "joint_1=0.5,joint_2=0.3,joint_3=0.2", "--seed", "3", "--simulate"]

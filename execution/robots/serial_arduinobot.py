@@ -238,8 +238,8 @@ class SerialArduinobot(Robot):
 
     def close(self) -> None:
         s = getattr(self, "_serial", None)
-        if s is not None and s.is_open:  # type: ignore[attr-defined]
-            s.close()  # type: ignore[attr-defined]
+        if s is not None and s.is_open:
+            s.close()
 
 
 def initial_positions(description: Description, names: Sequence[str]) -> np.ndarray:

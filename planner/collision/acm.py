@@ -67,7 +67,7 @@ class AllowedCollisionMatrix:
         """Joint-connected and rigidly attached links, then the SRDF's pairs."""
         robot = description.robot
         bodies = [n for n, link in robot.links.items() if link.collisions]
-        adjacent = sorted(tuple(sorted(p)) for p in adjacent_pairs(robot, bodies))
+        adjacent = sorted((min(p), max(p)) for p in adjacent_pairs(robot, bodies))
         return cls.from_pairs(adjacent, reason="Adjacent").with_entries(
             cls.from_srdf(description.srdf).entries)
 

@@ -69,7 +69,7 @@ def compute_acm(description: Description, *, samples: int = 10000, seed: int = 0
     adjacent = adjacent_pairs(description.robot, bodies)
     # adjacent pairs touch by construction: sampling them only costs narrow-phase calls
     world = CollisionWorld(description, acm=AllowedCollisionMatrix.from_pairs(
-        tuple(tuple(sorted(p)) for p in adjacent), reason="Adjacent"))
+        tuple((min(p), max(p)) for p in adjacent), reason="Adjacent"))
     lim = description.robot.position_limits(world.kin.joint_names)
     rng = np.random.default_rng(seed)
     qs = rng.uniform(lim[:, 0], lim[:, 1], size=(samples, world.kin.dof))

@@ -109,7 +109,7 @@ def joint_reach(robot: Robot, link: str, points: np.ndarray) -> dict[str, float]
             c = _rigid(chain[i + 1:nxt + 1])[:3, 3]
             travel = 0.0
             if below.type == "prismatic" and below.limit is not None:
-                travel = max(abs(below.limit.lower), abs(below.limit.upper))
+                travel = max(abs(below.limit.lower or 0.0), abs(below.limit.upper or 0.0))
             r = float(np.linalg.norm(c - (c @ u) * u)) + travel + rho
             rho_i = float(np.linalg.norm(c)) + travel + rho
         out[j.name] = 1.0 if j.type == "prismatic" else r

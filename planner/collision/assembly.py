@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import combinations
+from typing import cast
 
 import fcl
 import numpy as np
@@ -22,14 +23,18 @@ from .table import BodyKind, checked_kinds
 
 
 def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hull]:
+    # Obstacle checked that its shape's dimensions (or mesh file) are set
     if o.shape == "box":
+        assert o.size is not None
         return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
     if o.shape == "sphere":
+        assert o.radius is not None
         return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
     if o.shape == "cylinder":
+        assert o.radius is not None and o.length is not None
         return (fcl.Cylinder(o.radius, o.length),
                 box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
-    mesh = trimesh.load(o.mesh_path, force="mesh")
+    mesh = cast("trimesh.Trimesh", trimesh.load(o.mesh_path, force="mesh"))  # force: one mesh
     return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
             mesh_hull(np.asarray(mesh.vertices, float)))
 
@@ -138,7 +143,8 @@ class SceneBodies:
         and those of two bodies that never move (decided once). Skipped: pairs whose
         kinds never matter (:func:`.table.checked_kinds`), the allowed ones and a
         carried object with its ``touch`` links ((object, link) pairs)."""
-        moving, fixed = [], []
+        moving: list[tuple[int, int]] = []
+        fixed: list[tuple[int, int]] = []
         skip = {frozenset(p) for p in touch}
         for a, b in combinations(range(len(self.names)), 2):
             if not checked_kinds(self.kinds[a], self.kinds[b]):

@@ -5,6 +5,7 @@ OBB tree (:mod:`.obbtree`), an FCL BVH and a convex hull (:mod:`.hulls`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import fcl
 import numpy as np
@@ -65,7 +66,9 @@ class RobotBodies:
             if not shapes:
                 continue
             meshes = [shape_mesh(s, element=f"link '{link}' collision") for s in shapes]
-            mesh = meshes[0] if len(meshes) == 1 else trimesh.util.concatenate(meshes)
+            # concatenate is annotated as returning any Geometry: of meshes it is a mesh
+            mesh = meshes[0] if len(meshes) == 1 else cast(
+                "trimesh.Trimesh", trimesh.util.concatenate(meshes))
             names.append(link)
             frames.append(kin.link_index[link])
             trees.append(cached_tree(mesh.vertices, mesh.faces, cache))

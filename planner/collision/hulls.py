@@ -122,13 +122,17 @@ def mesh_hull(vertices: np.ndarray, cache: ArtifactCache | None = None) -> Hull:
 def primitive_hull(o: Obstacle) -> Hull:
     """A box, sphere or cylinder obstacle as its own convex set (a cylinder's
     circumscribed prism for the support)."""
+    # Obstacle checked that its shape's dimensions are set
     if o.shape == "box":
+        assert o.size is not None
         half = np.asarray(o.size, float) / 2
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
         return Hull(corners * half, 0.0, fcl.Box(*o.size))
     if o.shape == "sphere":
+        assert o.radius is not None
         return Hull(np.zeros((1, 3)), float(o.radius), fcl.Sphere(o.radius))
     if o.shape == "cylinder":
+        assert o.radius is not None and o.length is not None
         ang = 2 * np.pi * np.arange(_PRISM_SIDES) / _PRISM_SIDES
         r = o.radius / np.cos(np.pi / _PRISM_SIDES)
         ring = np.column_stack([r * np.cos(ang), r * np.sin(ang)])

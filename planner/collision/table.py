@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
+import numpy.typing as npt
 
 
 class BodyKind(IntEnum):
@@ -72,13 +73,15 @@ class Pairs(NamedTuple):
             its steps too, :mod:`.body_speed`), or -1, shape (n_pairs,) int64.
     """
 
-    index: np.ndarray
+    # numba takes the pairs as one NamedTuple; the field shadows tuple.index (a method
+    # no code calls on Pairs), which mypy reports as an incompatible override
+    index: np.ndarray  # type: ignore[assignment]
     weight: np.ndarray
     mover: np.ndarray
 
 
-def _frozen(a: np.ndarray, dtype: type) -> np.ndarray:
-    out = np.array(a, dtype=dtype, order="C")  # a copy: never freezes the caller's array
+def _frozen(a: npt.ArrayLike, dtype: type) -> np.ndarray:
+    out: np.ndarray = np.array(a, dtype=dtype, order="C")  # a copy: never freezes the caller's array
     out.flags.writeable = False
     return out
 

@@ -23,7 +23,7 @@ import math
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal, TypedDict
 
 import numpy as np
 
@@ -48,6 +48,9 @@ from ..kinematics.rotations import (
     unit_quaternion,
 )
 
+if TYPE_CHECKING:
+    from ..kinematics.ik_numeric import Chain
+
 Axis = Literal["x", "y", "z"]
 AXES: tuple[Axis, ...] = ("x", "y", "z")
 
@@ -67,7 +70,7 @@ def _point(value: object, where: str) -> tuple[float, float, float]:
         p = ()
     if len(p) != 3 or not all(math.isfinite(v) for v in p):
         raise InvalidRequest(f"{value!r} must be 3 finite numbers [m]", field=where)
-    return p  # type: ignore[return-value]
+    return p
 
 
 @dataclass(frozen=True)
@@ -451,14 +454,14 @@ def _pose_candidates(goal: PoseGoal, *, world: CollisionWorld, description: Desc
     goal_r = matrix_of_quaternion(goal.orientation)
     limits = goal.limits
     if len(ik_joints) <= POSITION_JOINTS:
-        sols = _position_candidates(goal, world=world, description=description,
-                                    start=start, group_joints=group_joints)
-        _, rots, _, jw = tool_jacobian(world.kin, tcp, chain, sols)
+        cands = _position_candidates(goal, world=world, description=description,
+                                     start=start, group_joints=group_joints)
+        _, rots, _, jw = tool_jacobian(world.kin, tcp, chain, cands)
         err = rotation_error(goal_r, rots)
         ok = np.all(np.abs(err) <= limits + 1e-9, axis=1)
         if ok.any():
-            return sols[ok]
-        raise _not_controllable(goal, chain, sols[0], rots[0], err[0], jw[0], limits)
+            return cands[ok]
+        raise _not_controllable(goal, chain, cands[0], rots[0], err[0], jw[0], limits)
     sols = pose_ik(world.kin, tcp, chain, start, np.asarray(goal.position, float), goal_r,
                    limits=limits, position_tolerance=goal.tolerance)
     if not sols:
@@ -481,8 +484,17 @@ def _pose_candidates(goal: PoseGoal, *, world: CollisionWorld, description: Desc
     return np.array(free)
 
 
+class ControllableAxis(TypedDict):
+    """A world direction the chain turns the tool about, with the (parallel) joints that
+    do, named when it is a world axis."""
+
+    direction: list[float]
+    joints: list[str]
+    about: str
+
+
 def controllable_axes(chain_names: Sequence[str], jw: np.ndarray
-                      ) -> list[dict[str, object]]:
+                      ) -> list[ControllableAxis]:
     """The axes (world directions) the chain's joints turn the tool about, parallel
     joints together: from the angular Jacobian ``jw`` (3, n) at a state."""
     groups: list[tuple[np.ndarray, list[str]]] = []
@@ -497,7 +509,7 @@ def controllable_axes(chain_names: Sequence[str], jw: np.ndarray
                 break
         else:
             groups.append((u, [name]))
-    out = []
+    out: list[ControllableAxis] = []
     for axis, members in groups:
         named = next((lbl for lbl, e in (("world x", (1, 0, 0)), ("world y", (0, 1, 0)),
                                          ("world z", (0, 0, 1)))
@@ -507,10 +519,10 @@ def controllable_axes(chain_names: Sequence[str], jw: np.ndarray
     return out
 
 
-def _not_controllable(goal: PoseGoal, chain: object, q: np.ndarray, rot: np.ndarray,
+def _not_controllable(goal: PoseGoal, chain: Chain, q: np.ndarray, rot: np.ndarray,
                       err: np.ndarray, jw: np.ndarray, limits: np.ndarray
                       ) -> OrientationNotControllable:
-    names = tuple(chain.joint_names)  # type: ignore[attr-defined]
+    names = tuple(chain.joint_names)
     axes = controllable_axes(names, jw)
     over = [a for a, e, b in zip(AXES, err, limits) if abs(e) > b + 1e-9]
     turns = "; ".join(f"about {a['about']} ({', '.join(a['joints'])})" for a in axes)

@@ -116,6 +116,7 @@ class MotionPlanner:
 
     def _tool(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         tcp = self.description.tcp
+        assert tcp is not None  # only for a line goal, which planned only with a tcp
         t = self.context.world(()).kin.link_pose(q, tcp.parent_link)
         return t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3], t[:3, :3]
 

@@ -33,6 +33,7 @@ import time
 
 import numpy as np
 
+from description import Tcp
 from description.moveit_config import CartesianLimits, read_cartesian_limits
 
 from ..collision.certify import Certificate, Certifier, combine
@@ -147,7 +148,7 @@ class StraightLine:
         t3 = time.perf_counter()
         vs, as_ = context.scaling(request)
         traj, report, motion, t_param, t_verify = self._time(
-            context, request, curve, line, world, chain, cert, vs, as_)
+            context, request, curve, line, world, d.tcp, chain, cert, vs, as_)
         timing = {"validate": t1 - t0, "plan": t2 - t1, "simplify": 0.0,
                   "recheck": t3 - t2, "parameterise": t_param, "verify": t_verify}
         timing["total"] = time.perf_counter() - t0
@@ -169,8 +170,8 @@ class StraightLine:
                             verification=report, planner=self.name, line=report_line)
 
     def _time(self, context: PlanningContext, request: MotionRequest, curve: Curve,
-              line: LinePath, world: CollisionWorld, chain: Chain, cert: Certificate,
-              vs: float, as_: float
+              line: LinePath, world: CollisionWorld, tcp: Tcp, chain: Chain,
+              cert: Certificate, vs: float, as_: float
               ) -> tuple[JointTrajectory, VerificationReport, TcpMotion, float, float]:
         """Time ``curve`` until the verifier and the tcp check pass: the trajectory, its
         report, the tcp's motion and the seconds spent timing and verifying."""
@@ -178,7 +179,6 @@ class StraightLine:
         # tightened by each ratio the verifier or the tcp check finds over 1
         lim = context.limits(vs, as_)
         cart = self.cartesian_limits(context)
-        tcp = context.description.tcp
         sec = curve.sections
         dq = np.concatenate([c(np.linspace(0, c.length, 64), 1) for c in sec])
         qs = np.concatenate([c(np.linspace(0, c.length, 64)) for c in sec])
