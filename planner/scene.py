@@ -10,14 +10,16 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, SupportsFloat, SupportsIndex, cast
+from typing import TYPE_CHECKING, Literal, SupportsFloat, SupportsIndex, cast
 
 import numpy as np
 
 from description.model import Origin
 
 from .errors import InvalidRequest
-from .kinematics.dynamics import Payload
+
+if TYPE_CHECKING:  # numba: not for a client that only parses obstacles
+    from .kinematics.dynamics import Payload
 
 ShapeKind = Literal["box", "sphere", "cylinder", "mesh"]
 _KINDS = ("box", "sphere", "cylinder", "mesh")
@@ -204,6 +206,8 @@ class AttachedObject:
         """Its mass at its centre of mass (``com``, else the shape's centroid) with the
         shape's inertia as a uniform solid (a mesh that is not closed: its bounding
         box's), all in the link's frame, for :meth:`.InverseDynamics.with_payloads`."""
+        from .kinematics.dynamics import Payload
+
         centroid, inertia = _unit_inertia(self.shape)
         pose = self.shape.pose()
         rot = pose[:3, :3]
