@@ -23,7 +23,8 @@ NOT_CODES = frozenset({
     # structure caps named in an error's details.cap (service/caps.py, plan_io.py)
     "MAX_DEPTH", "MAX_ITEMS", "MAX_ELEMENTS", "MAX_STRING", "MAX_SAMPLES",
     # environment and sysconf names, __all__ entries
-    "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME", "SC_PAGE_SIZE", "MAX_PAYLOAD", "SCHEMA_NAMES",
+    "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME",
+    "ARDUINOBOT_HOPTRACE", "SC_PAGE_SIZE", "MAX_PAYLOAD", "SCHEMA_NAMES",
     "INSTALL_HINT",
     # the model's file format, named in `arduinobot limits` (clients/applied_limits.py)
     "URDF",
