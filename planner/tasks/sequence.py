@@ -16,6 +16,7 @@ import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,7 +26,6 @@ from ..errors import InvalidRequest, PlanningError
 from ..kinematics.rotations import rpy_of_matrix
 from ..planning.goals import Goal, JointGoal, NamedGoal
 from ..planning.motion import MotionRequest, MotionResult
-from ..planning.pipeline import MotionPlanner
 from ..scene import AttachedObject, Obstacle
 from .steps import (
     AttachStep,
@@ -38,6 +38,9 @@ from .steps import (
     Task,
     WaitStep,
 )
+
+if TYPE_CHECKING:  # the service imports this module before it plans anything
+    from ..planning.pipeline import MotionPlanner
 
 _log = logging.getLogger(__name__)
 
