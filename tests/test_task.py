@@ -173,3 +173,71 @@ def test_the_course_task_by_number_through_the_service(course_service):
     replies = _task_query(course_service.endpoint, {"number": 1})
     assert replies[0]["error"]["code"] == "INVALID_REQUEST"
     assert replies[0]["error"]["details"]["field"] == "number"
+
+
+@pytest.mark.slow
+def test_a_task_is_cancelled_smoothly_mid_step(course_service):
+    import zenoh
+
+    from service.zconfig import zenoh_config
+    replies: list[dict[str, Any]] = []
+    body = {"task": pick_and_place(attach=False), "execute": True, "trajectories": False}
+    with zenoh.open(zenoh_config(mode="client", connect=[course_service.endpoint],
+                                 listen=[])) as s:
+        got = s.get("arduinobot/task", payload=wire.encode(body),
+                    consolidation=zenoh.ConsolidationMode.NONE, timeout=300.0)
+        for r in got:
+            raw = r.ok.payload if r.ok is not None else r.err.payload
+            replies.append(orjson.loads(raw.to_bytes()))
+            ev = replies[-1]
+            if ev.get("event") == "progress" and ev["time"] >= 2.0 and not any(
+                    x.get("cancelled") for x in replies):
+                # mid-task: the second step (above the box) runs from 0 to ~3 s
+                c = list(s.get("arduinobot/execute/cancel",
+                               payload=wire.encode({"execution": ev["execution"]}),
+                               timeout=10.0))
+                replies.append(orjson.loads(c[0].ok.payload.to_bytes()))
+    planned = replies[0]
+    assert planned["event"] == "planned", planned
+    report = replies[-1]["report"]
+    assert report["outcome"] == "cancelled"
+    assert 2.0 <= report["cancelled_at"] < planned["duration"] - 1.0
+    assert report["stop_time"] > 0  # stopped along a jerk-limited ramp, not at once
+
+
+@pytest.mark.slow
+def test_the_task_command_runs_a_course_task_by_number_on_the_twin(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    from .conftest import REPO
+    out = tmp_path / "report.json"
+    run = subprocess.run([sys.executable, "-m", "clients.cli", "task", "2", "--sim", "--fast",
+                          "--report", str(out)], capture_output=True, text=True, cwd=REPO,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert "sleep: 2 steps" in run.stdout and "certified, verified" in run.stdout
+    r = json.loads(out.read_text())
+    assert r["execution"]["outcome"] == "completed"
+    end = r["planned"]["steps"][-1]["end"]
+    assert [end["joint_1"], end["joint_2"], end["joint_3"]] == pytest.approx([-1.57, 0, -0.9])
+
+
+@pytest.mark.slow
+def test_the_task_command_runs_a_task_file_on_the_services_robot(course_service, tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    from .conftest import REPO
+    f = tmp_path / "pick_place.json"
+    f.write_text(json.dumps(pick_and_place(attach=False)))
+    out = tmp_path / "report.json"
+    run = subprocess.run([sys.executable, "-m", "clients.cli", "task", str(f), "--remote",
+                          "--connect", course_service.endpoint, "--report", str(out)],
+                         capture_output=True, text=True, cwd=REPO, timeout=600)
+    assert run.returncode == 0, run.stderr
+    r = json.loads(out.read_text())
+    assert len(r["planned"]["steps"]) == 9 and r["execution"]["outcome"] == "completed"
+    assert "step" not in run.stderr
