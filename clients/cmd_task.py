@@ -40,8 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot task my_task.yaml --sim --report out.json\n"
         "  arduinobot task 2 --remote    # planned and run by `serve`",
         formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("task", metavar="NAME|NUMBER|FILE", help="a named task, its number, or "
-                   "a task file (.json, .yaml)")
+    p.add_argument("task", nargs="?", metavar="NAME|NUMBER|FILE", help="a named task, its "
+                   "number, or a task file (.json, .yaml); without it, list the named tasks")
     add_model_args(p)
     p.add_argument("--tasks", metavar="FILE", help="the named tasks (default: the MoveIt "
                    "config's tasks.yaml)")
@@ -116,7 +116,26 @@ def _print_plan(body: dict[str, Any]) -> None:
               f"{s['duration']:6.3f} s{ok}{carried}")
 
 
+def _list(ns: argparse.Namespace) -> int:
+    from description.moveit_config import read_tasks
+    desc = load_from_args(ns)
+    tasks_file = Path(ns.tasks) if ns.tasks else desc.config.tasks
+    if tasks_file is None:
+        print(f"no tasks.yaml for '{desc.robot.name}' (give --tasks FILE)")
+        return EXIT_OK
+    print(f"tasks of {tasks_file}:")
+    for t in read_tasks(tasks_file).values():
+        num = f"{t.number:3d}" if t.number is not None else "  -"
+        print(f"  {num} {t.name:<16s} {t.description}")
+    return EXIT_OK
+
+
 def cmd_task(ns: argparse.Namespace) -> int:
+    if ns.task is None:
+        if ns.sim or ns.serial is not None or ns.remote:
+            raise UsageError("give the task to run: NAME, NUMBER or FILE (without one, "
+                             "`arduinobot task` lists the named tasks)")
+        return _list(ns)
     if ns.remote:
         return _remote(ns)
     if not ns.realtime and not ns.sim:

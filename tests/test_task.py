@@ -241,3 +241,34 @@ def test_the_task_command_runs_a_task_file_on_the_services_robot(course_service,
     r = json.loads(out.read_text())
     assert len(r["planned"]["steps"]) == 9 and r["execution"]["outcome"] == "completed"
     assert "step" not in run.stderr
+
+
+@pytest.mark.slow
+def test_serve_takes_its_named_tasks_from_a_file(tmp_path):
+    (tmp_path / "tasks.yaml").write_text(
+        "tasks:\n  nod:\n    number: 7\n    steps:\n"
+        "      - move: {joints: {joint_2: 0.3}}\n      - wait: 0.2\n"
+        "      - move: {named: home}\n")
+    srv = start_server(["--workers", "1", "--no-robot", "--tasks",
+                        str(tmp_path / "tasks.yaml")])
+    try:
+        replies = _task_query(srv.endpoint, {"number": 7, "trajectories": False})
+        planned = replies[0]
+        assert planned["name"] == "nod", planned
+        assert [s["kind"] for s in planned["steps"]] == ["move", "wait", "move"]
+        wait = planned["steps"][1]
+        assert wait["duration"] == 0.2 and wait["start"] == wait["end"]
+        assert planned["steps"][2]["start_time"] == pytest.approx(
+            planned["steps"][0]["duration"] + 0.2)
+        missing = _task_query(srv.endpoint, {"name": "pick"})[0]["error"]
+        assert missing["code"] == "INVALID_REQUEST" and missing["details"]["known"] == ["nod"]
+        # no robot: no state to start from, refused before planning
+        unrun = _task_query(srv.endpoint, {"number": 7, "execute": True})
+        assert unrun[0]["error"]["details"]["field"] == "task.start", unrun
+        # given a start, planned, then refused by the robot that is not there
+        body = {"task": {"start": {"joint_1": 0.0}, "steps": [{"wait": 0.1}]},
+                "execute": True}
+        refused = _task_query(srv.endpoint, body)
+        assert refused[0]["event"] == "planned" and "error" in refused[-1], refused
+    finally:
+        srv.stop()
