@@ -25,8 +25,33 @@ BOX = 0.08  # [m] the box's edge
 ABOVE = 0.61  # [m] the tcp (claw_support's origin) above the box's top before the
 #: descent: the course gripper's fingers reach ~0.55 m below it (the 10x model)
 DROP = 0.05  # [m] each straight-line descent and ascent
+#: [m] the box's bottom above the table: resting on it exactly, the carried box would
+#: touch the table at its first lift (MoveIt allows that contact; we keep a gap)
+GAP = 0.002
+BIN_INNER = 0.2  # [m] the bin's inside, square
+BIN_FLOOR = 0.06  # [m] the bin's floor below the box's bottom at its lowest
+BIN_RIM = 0.02  # [m] the bin's walls above it
+WALL = 0.01  # [m]
 BOX_XY = (0.52, 0.80)  # [m] the box's nominal place on the table
 BIN_XY = (-0.55, 0.78)  # [m] the bin's nominal place
+
+
+def bin_walls(cx: float, cy: float) -> list[dict[str, Any]]:
+    """A bin (a floor and four walls) centred at (cx, cy): the box is lowered into it
+    until its bottom is at the table's height and let go (it drops onto the floor)."""
+    floor = TABLE_TOP - BIN_FLOOR
+    top = TABLE_TOP + BIN_RIM
+    h = top - floor
+    out = [{"id": "bin_floor", "shape": "box", "size": [BIN_INNER + 2 * WALL] * 2 + [WALL],
+            "xyz": [cx, cy, floor - WALL / 2]}]
+    off = BIN_INNER / 2 + WALL / 2
+    for name, dx, dy, sx, sy in (("bin_n", 0, off, BIN_INNER + 2 * WALL, WALL),
+                                 ("bin_s", 0, -off, BIN_INNER + 2 * WALL, WALL),
+                                 ("bin_e", off, 0, WALL, BIN_INNER),
+                                 ("bin_w", -off, 0, WALL, BIN_INNER)):
+        out.append({"id": name, "shape": "box", "size": [sx, sy, h],
+                    "xyz": [cx + dx, cy + dy, floor + h / 2]})
+    return out
 
 
 def pick_and_place(box_xy: tuple[float, float] = BOX_XY,
@@ -37,15 +62,14 @@ def pick_and_place(box_xy: tuple[float, float] = BOX_XY,
     steps (the gripper closes and opens on nothing the planner carries)."""
     bx, by = box_xy
     cx, cy = bin_xy
-    box_z = TABLE_TOP + BOX / 2
+    box_z = TABLE_TOP + GAP + BOX / 2
     above_box = [bx, by, TABLE_TOP + BOX + ABOVE]
     above_bin = [cx, cy, TABLE_TOP + BOX + ABOVE]
     obstacles = [
         {"id": "table", "shape": "box", "size": [0.5, 0.5, 0.05],
          "xyz": [bx, by, TABLE_TOP - 0.025]},
-        {"id": "bin", "shape": "box", "size": [0.25, 0.25, 0.1],
-         "xyz": [cx, cy, TABLE_TOP - 0.05]},
         {"id": "box", "shape": "box", "size": [BOX, BOX, BOX], "xyz": [bx, by, box_z]},
+        *bin_walls(cx, cy),
     ]
     down = {"line": {"offset": [0.0, 0.0, -DROP]}}
     up = {"line": {"offset": [0.0, 0.0, DROP]}}
