@@ -158,7 +158,8 @@ def cmd_task(ns: argparse.Namespace) -> int:
             from execution.executor import plan_start
             task = replace(task, start=plan_start(robot, desc))
         result = plan_task(MotionPlanner(desc), task)
-        body = planned_body(result, name=task.name, trajectories=False)
+        # with --report, each step's plan too: `arduinobot view --task OUT.json` plays it
+        body = planned_body(result, name=task.name, trajectories=bool(ns.report))
         _print_plan(body)
         out: dict[str, Any] = {"planned": body}
         code = EXIT_OK
@@ -217,7 +218,7 @@ def _remote(ns: argparse.Namespace) -> int:
     else:
         req = {"name": ns.task}
     req.update(execute=True, start_tolerance=ns.start_tolerance,
-               move_to_start=ns.move_to_start, trajectories=False)
+               move_to_start=ns.move_to_start, trajectories=bool(ns.report))
     out: dict[str, Any] = {}
     cancel = threading.Event()
     execution: list[str] = []

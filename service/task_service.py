@@ -28,6 +28,7 @@ from description import Description
 from description.moveit_config import NamedTask, find_task, read_tasks
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
+from planner.scene import Obstacle
 from planner.tasks import Task, TaskResult, plan_task, task_from_mapping
 
 from . import wire
@@ -56,6 +57,8 @@ def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = T
             "index": s.index, "kind": s.kind, "label": s.label, "group": s.group,
             "start_time": t0, "duration": s.duration, "start": dict(s.start),
             "end": dict(s.end), "carried": list(s.carried)}
+        if s.object is not None:
+            item["object"], item["link"] = s.object, s.link
         if s.result is not None:
             item["certified"] = bool(s.result.verification.certified)
             item["verified"] = bool(s.result.verification.ok)
@@ -64,7 +67,19 @@ def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = T
         steps.append(item)
     return {"event": "planned", "name": name, "duration": result.duration,
             "planning_time": result.planning_time, "joint_names": list(result.joint_names),
+            "obstacles": [obstacle_json(o) for o in result.start_obstacles],
             "steps": steps}
+
+
+def obstacle_json(o: Obstacle) -> dict[str, Any]:
+    """An obstacle in the requests' form (plan_request.json's ``obstacles``)."""
+    body: dict[str, Any] = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz),
+                            "rpy": list(o.rpy)}
+    for k in ("size", "radius", "length", "mesh_path"):
+        v = getattr(o, k)
+        if v is not None:
+            body[k] = list(v) if isinstance(v, tuple) else v
+    return body
 
 
 def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str, Any]:

@@ -66,6 +66,9 @@ class StepResult:
     result: MotionResult | None
     carried: tuple[str, ...]
     group: str | None = None
+    # attach, detach: the object and the link that holds it
+    object: str | None = None
+    link: str | None = None
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,7 @@ class TaskResult:
     duration: float
     planning_time: float
     obstacles: tuple[Obstacle, ...]  # the scene as the last step leaves it
+    start_obstacles: tuple[Obstacle, ...] = ()  # the scene the task starts in
 
     def boundaries(self) -> list[float]:
         """Each step's start time in the task [s]."""
@@ -229,6 +233,7 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
     obstacles = list(task.obstacles)
     attached: list[AttachedObject] = []
     done: list[StepResult] = []
+    held: tuple[str | None, str | None] = (None, None)  # an attach/detach step's object, link
 
     def vec(state: Mapping[str, float]) -> np.ndarray:
         return np.array([state[n] for n in names], float)
@@ -266,6 +271,7 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
                 attached.append(AttachedObject(shape=shape, link=link,
                                                touch_links=step.touch_links, mass=step.mass,
                                                where=f"steps[{i}]"))
+                held = (step.object, link)
             elif isinstance(step, DetachStep):
                 k = next((j for j, a in enumerate(attached) if a.id == step.object), None)
                 if k is None:
@@ -273,20 +279,23 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
                         f"the robot carries no '{step.object}' (carried: "
                         f"{', '.join(a.id for a in attached) or 'nothing'})",
                         field=f"steps[{i}].detach")
-                held = attached.pop(k)
-                world = kin.link_pose(vec(q), held.link) @ held.shape.pose()
+                carried = attached.pop(k)
+                world = kin.link_pose(vec(q), carried.link) @ carried.shape.pose()
                 xyz, rpy = _pose(world)
-                obstacles.append(replace(held.shape, xyz=xyz, rpy=rpy,
+                obstacles.append(replace(carried.shape, xyz=xyz, rpy=rpy,
                                          where=f"steps[{i}].detach"))
+                held = (step.object, carried.link)
             done.append(StepResult(i, step.kind, step.label, start, dict(q),
                                    step.seconds if isinstance(step, WaitStep) else 0.0,
-                                   None, tuple(a.id for a in attached)))
+                                   None, tuple(a.id for a in attached), object=held[0],
+                                   link=held[1]))
+            held = (None, None)
         except PlanningError as e:
             _log.info("task %s: step %d (%s) failed: %s", task.name or "", i, step.kind,
                       e.message)
             raise TaskStepFailed(i, step, e, planned=tuple(done)) from e
     return TaskResult(tuple(done), names, float(sum(s.duration for s in done)),
-                      time.perf_counter() - t_start, tuple(obstacles))
+                      time.perf_counter() - t_start, tuple(obstacles), tuple(task.obstacles))
 
 
 def _request(task: Task, options: MotionOptions, goal: Goal, group: str | None,
