@@ -27,26 +27,21 @@ import collections
 import json
 import math
 import random
-import signal
-import socket
 import statistics
-import subprocess
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+import trimesh
+import zenoh
 
-import trimesh  # noqa: E402 -- after the sys.path line
-import zenoh  # noqa: E402 -- after the sys.path line
-
-from clients import errors  # noqa: E402 -- after the sys.path line
-from clients.client import PlannerClient  # noqa: E402 -- after the sys.path line
-from service.zconfig import zenoh_config  # noqa: E402 -- after the sys.path line
-from tests.helpers.scene_fuzz import b64, mutate  # noqa: E402 -- after the sys.path line
+from bench._lib.report import emit
+from clients import errors
+from clients.client import PlannerClient
+from service.zconfig import zenoh_config
+from tests.helpers.scene_fuzz import b64, mutate
+from tests.helpers.serve import Server, free_port, launch_serves
 
 # a base swing from reach_right to reach_left (bench/service.py's), several seeds
 # (reach_left as joint values: the course workspace's SRDF names only home, open, closed)
@@ -56,35 +51,17 @@ REQUEST = {"start": {"joint_1": -1.2, "joint_2": 0.5, "joint_3": 0.9},
            "acceleration_scaling": 0.13, "sample_rate": 100}
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def serve(endpoint: str, scene_files: list[Path], workers: int, model: list[str]
+          ) -> list[Server]:
+    """One instance per scene file, each connected to the router at ``endpoint``."""
+    return launch_serves([["--connect", endpoint, "--listen", f"tcp/127.0.0.1:{free_port()}",
+                           "--workers", str(workers), "--scene-file", str(f), *model]
+                          for f in scene_files])
 
 
-def stop(proc: subprocess.Popen) -> None:
-    proc.send_signal(signal.SIGINT)
-    proc.wait(30)
-
-
-def serve(endpoint: str, scene_file: Path, workers: int, model: list[str]) -> subprocess.Popen:
-    proc = subprocess.Popen([sys.executable, "-m", "clients.cli", "serve", "--connect", endpoint,
-                             "--listen", f"tcp/127.0.0.1:{free_port()}", "--workers",
-                             str(workers), "--scene-file", str(scene_file), *model], cwd=REPO,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    for line in proc.stderr:  # type: ignore[union-attr]
-        if "service ready" in line:
-            break
-    else:
-        raise SystemExit("arduinobot serve did not start")
-    log = scene_file.with_suffix(".log")
-
-    def pump() -> None:
-        with open(log, "a") as f:
-            for line in proc.stderr:  # type: ignore[union-attr]
-                f.write(line)
-    threading.Thread(target=pump, daemon=True).start()
-    return proc
+def stop(server: Server, log: Path) -> None:
+    server.stop()
+    log.write_text("\n".join(server.stderr_lines) + "\n")
 
 
 def ms(values: list[float]) -> dict[str, float]:
@@ -274,7 +251,8 @@ def main() -> None:
                 ws = make_course_workspace(Path(d) / "ws")
                 model = [str(ws.xacro), "--package-dir", str(ws.src), "--moveit-config",
                          str(ws.moveit_pkg), "--cache-dir", str(Path(d) / "cache")]
-            procs = [serve(endpoint, Path(d) / f"{x}.json", 1, model) for x in "ab"]
+            files = [Path(d) / f"{x}.json" for x in "ab"]
+            procs = list(zip(serve(endpoint, files, 1, model), files))
             with PlannerClient(endpoint, timeout=60) as c:
                 deadline = time.monotonic() + 30
                 while len(live := c.instances(refresh=True)) < 2:
@@ -296,11 +274,11 @@ def main() -> None:
                 print(f"plan {name}: median {fig['median']} ms, p95 {fig['p95']} ms "
                       f"(the first, building its world: {fig['first_ms']} ms)")
         finally:
-            for proc in procs:
-                stop(proc)
+            for server, f in procs:
+                stop(server, f.with_suffix(".log"))
             router.close()
-    print(json.dumps({"robot": "course workspace" if ns.course else "shipped arm",
-                      "writers": w, "fuzz": fz, "plans": pl}))
+    emit("scene", {"robot": "course workspace" if ns.course else "shipped arm",
+                   "writers": w, "fuzz": fz, "plans": pl})
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ import numpy as np
 from description.model import Origin
 
 from .errors import InvalidRequest
+from .kinematics.dynamics import Payload
 
 ShapeKind = Literal["box", "sphere", "cylinder", "mesh"]
 _KINDS = ("box", "sphere", "cylinder", "mesh")
@@ -135,6 +136,31 @@ def validate_obstacles(obstacles: Sequence[Obstacle], *,
     return tuple(obstacles)
 
 
+def _box_unit(size: np.ndarray) -> np.ndarray:
+    x, y, z = np.asarray(size, float) ** 2
+    return np.diag([y + z, x + z, x + y]) / 12.0
+
+
+def _unit_inertia(o: Obstacle) -> tuple[np.ndarray, np.ndarray]:
+    """A shape's centroid (its frame) and its inertia per kg about it [m^2], as a uniform
+    solid."""
+    if o.shape == "box":
+        return np.zeros(3), _box_unit(np.asarray(o.size))
+    if o.shape == "sphere":
+        return np.zeros(3), np.eye(3) * 0.4 * float(o.radius) ** 2
+    if o.shape == "cylinder":
+        r2, l2 = float(o.radius) ** 2, float(o.length) ** 2
+        return np.zeros(3), np.diag([(3 * r2 + l2) / 12, (3 * r2 + l2) / 12, r2 / 2])
+    import trimesh  # only a mesh needs it
+
+    mesh = trimesh.load(o.mesh_path, force="mesh")
+    if mesh.is_watertight and mesh.volume > 0:
+        return (np.asarray(mesh.center_mass, float),
+                np.asarray(mesh.moment_inertia, float) / float(mesh.mass))
+    lo, hi = mesh.bounds
+    return (lo + hi) / 2, _box_unit(hi - lo)
+
+
 @dataclass(frozen=True)
 class AttachedObject:
     """An object the robot carries: ``shape`` posed in ``link``'s frame (its ``xyz``/``rpy``
@@ -171,3 +197,124 @@ class AttachedObject:
     @property
     def id(self) -> str:
         return self.shape.id
+
+    def payload(self) -> Payload:
+        """Its mass at its centre of mass (``com``, else the shape's centroid) with the
+        shape's inertia as a uniform solid (a mesh that is not closed: its bounding
+        box's), all in the link's frame, for :meth:`.InverseDynamics.with_payloads`."""
+        centroid, inertia = _unit_inertia(self.shape)
+        pose = self.shape.pose()
+        rot = pose[:3, :3]
+        com = np.asarray(self.com, float) if self.com is not None \
+            else rot @ centroid + pose[:3, 3]
+        tensor = self.mass * (rot @ inertia @ rot.T)
+        return Payload(self.link, float(self.mass), tuple(map(float, com)),
+                       tuple(tuple(map(float, r)) for r in tensor))
+
+    def shape_key(self) -> tuple:
+        """What its geometry and placement are (``where`` only names fields in errors)."""
+        o = self.shape
+        return (o.id, o.shape, o.size, o.radius, o.length, o.mesh_path, o.xyz, o.rpy,
+                self.link, self.touch_links)
+
+    def payload_key(self) -> tuple:
+        """What its inverse dynamics depends on."""
+        o = self.shape
+        return (self.link, self.mass, self.com, o.shape, o.size, o.radius, o.length,
+                o.mesh_path, o.xyz, o.rpy)
+
+    @classmethod
+    def from_mapping(cls, data: object, *, where: str = "attached") -> AttachedObject:
+        """Build from the wire format ``{"object": {obstacle...}, "link": name,
+        "touch_links": [...], "mass": kg, "com": [x, y, z]}``; the object's pose is in
+        the link's frame."""
+        if not isinstance(data, Mapping):
+            raise InvalidRequest("must be an object", field=where)
+        extra = sorted(set(data) - {"object", "link", "touch_links", "mass", "com"})
+        if extra:
+            raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+        for key in ("object", "link"):
+            if key not in data:
+                raise InvalidRequest("is required", field=f"{where}.{key}")
+        touch = data.get("touch_links", [])
+        if not isinstance(touch, (list, tuple)) or not all(isinstance(t, str) for t in touch):
+            raise InvalidRequest("must be a list of link names", field=f"{where}.touch_links")
+        mass = data.get("mass", 0.0)
+        if isinstance(mass, bool) or not isinstance(mass, (int, float)):
+            raise InvalidRequest(f"{mass!r} must be a finite mass >= 0 [kg]",
+                                 field=f"{where}.mass")
+        return cls(Obstacle.from_mapping(data["object"], where=f"{where}.object"),
+                   data["link"], tuple(touch), float(mass), data.get("com"), where=where)
+
+    def to_mapping(self) -> dict:
+        """The wire format (see :meth:`from_mapping`)."""
+        o = self.shape
+        obj: dict = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz), "rpy": list(o.rpy)}
+        for k in ("size", "radius", "length", "mesh_path"):
+            v = getattr(o, k)
+            if v is not None:
+                obj[k] = list(v) if isinstance(v, tuple) else v
+        out: dict = {"object": obj, "link": self.link, "touch_links": list(self.touch_links),
+                     "mass": self.mass}
+        if self.com is not None:
+            out["com"] = list(self.com)
+        return out
+
+
+def default_touch_links(description: object, link: str) -> tuple[str, ...]:
+    """The links an object held by ``link`` may touch: ``link`` and, when it belongs to
+    an SRDF end effector (its group's links or its parent link), every link of that end
+    effector (the gripper's claw support and fingers); without one, ``link`` and every
+    link below it (what holds an object is its link's subtree)."""
+    robot = description.robot  # type: ignore[attr-defined]
+    srdf = getattr(description, "srdf", None)
+    touch = [link]
+    if srdf is not None:
+        for e in srdf.end_effectors:
+            group = srdf.groups.get(e.group)
+            members = (e.parent_link, *(group.links if group else ()))
+            if link in members:
+                touch += [m for m in members if m not in touch]
+        if len(touch) > 1:
+            return tuple(touch)
+    stack = [link]
+    while stack:
+        for j in robot.child_joints.get(stack.pop(), ()):
+            if j.child not in touch:
+                touch.append(j.child)
+                stack.append(j.child)
+    return tuple(touch)
+
+
+def resolve_attached(description: object, attached: Sequence[AttachedObject], *,
+                     obstacles: Sequence[Obstacle] = (), field: str = "attached"
+                     ) -> tuple[AttachedObject, ...]:
+    """Check ``attached`` against the robot (each link exists, touch links exist, ids
+    unique and unlike any link or obstacle) and give each without touch links the
+    default ones (:func:`default_touch_links`). Errors name ``field[i]...``."""
+    robot = description.robot  # type: ignore[attr-defined]
+    if not isinstance(attached, (tuple, list)):
+        raise InvalidRequest("must be a list of carried objects", field=field)
+    seen = {o.id for o in obstacles}
+    out = []
+    for i, a in enumerate(attached):
+        where = f"{field}[{i}]"
+        if not isinstance(a, AttachedObject):
+            raise InvalidRequest(f"expected an AttachedObject, got {type(a).__name__}",
+                                 field=where)
+        if a.link not in robot.links:
+            raise InvalidRequest(f"'{a.link}' is not a link of the robot", field=f"{where}.link",
+                                 details={"links": sorted(robot.links)})
+        for t in a.touch_links:
+            if t not in robot.links:
+                raise InvalidRequest(f"'{t}' is not a link of the robot",
+                                     field=f"{where}.touch_links")
+        if a.id in robot.links:
+            raise InvalidRequest(f"id '{a.id}' is also a link name", field=f"{where}.object.id")
+        if a.id in seen:
+            raise InvalidRequest(f"duplicate id '{a.id}'", field=f"{where}.object.id")
+        seen.add(a.id)
+        touch = a.touch_links or default_touch_links(description, a.link)
+        out.append(a if touch == a.touch_links else
+                   AttachedObject(a.shape, a.link, touch, a.mass, a.com, where=a.where))
+    return tuple(out)

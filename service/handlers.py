@@ -134,7 +134,12 @@ class Handlers:
         q = self._q(data.get("joints"), "joints")
         obs, revision = with_scene(scene, data, obstacles(self.description,
                                                           data.get("obstacles")))
+        from .plan_io import attached
+        carried = attached(self.description, data.get("attached"), scene=scene,
+                           obstacles=obs)
         world = self._scene(obs, float(data.get("padding", 0.0)))
+        if carried:  # the scene's and the request's carried objects, contacts and poses
+            world = world.with_scene(obs, attached=carried)
         res = world.check(q, clearance=True)
         clearance = res.clearance if res.clearance is not None and math.isfinite(
             res.clearance) else None
@@ -142,7 +147,18 @@ class Handlers:
                 "clearance": clearance,
                 "closest": list(res.closest) if res.closest else None,
                 "joints": dict(zip(self.kin.joint_names, map(float, q))),
-                "scene_revision": revision}
+                "scene_revision": revision,
+                **({"carried": self._carried_poses(q, carried)} if carried else {})}
+
+    def _carried_poses(self, q: Any, carried: tuple[Any, ...]) -> dict[str, Any]:
+        # each carried object's world pose: its link's times its pose in that link
+        poses = self.kin.link_poses(q)
+        out = {}
+        for a in carried:
+            t = poses[self.kin.link_index[a.link]] @ a.shape.pose()
+            out[a.id] = {"link": a.link, "xyz": [float(v) for v in t[:3, 3]],
+                         "rpy": _rpy(t[:3, :3]), "matrix": t.tolist()}
+        return out
 
     def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
         if padding == 0.0:

@@ -16,6 +16,7 @@ from planner.errors import PlanningError
 from planner.kinematics.rotations import quaternion_of_rpy
 from planner.planning.goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal
 from planner.planning.pipeline import MotionRequest
+from planner.scene import AttachedObject, resolve_attached
 from planner.timing.trajectory import check_sample_count
 
 from .caps import MAX_SAMPLES
@@ -57,18 +58,31 @@ def goal(description: Description, data: Mapping[str, Any]) -> Goal:
     return PoseGoal(position=position, orientation=tuple(quat), **options)  # type: ignore[arg-type]
 
 
+def attached(description: Description, items: Any, *, scene: SceneSnapshot | None = None,
+             obstacles: tuple = ()) -> tuple[AttachedObject, ...]:
+    """The carried objects of a request: the kept ``scene``'s (if it holds any), then the
+    request's own ``attached`` items (the wire format of
+    :meth:`planner.scene.AttachedObject.from_mapping`), checked against the robot."""
+    kept = tuple(getattr(scene, "attached", ()) or ()) if scene is not None else ()
+    own = tuple(AttachedObject.from_mapping(a, where=f"attached[{i}]")
+                for i, a in enumerate(items or ()))
+    return resolve_attached(description, kept + own, obstacles=obstacles)
+
+
 def plan_request(description: Description, data: Mapping[str, Any], *,
                  scene: SceneSnapshot | None = None) -> MotionRequest:
     """A validated v1 plan request (see ``service/schema/plan_request.json``) as a
     :class:`planner.planning.motion.MotionRequest` whose obstacles are the kept
-    ``scene``'s plus the request's own (see :func:`service.scene_store.with_scene`). A
-    missing start is all actuated joints at 0."""
+    ``scene``'s plus the request's own (see :func:`service.scene_store.with_scene`), and
+    whose carried objects are the scene's plus the request's ``attached`` (for it
+    alone). A missing start is all actuated joints at 0."""
     opts = {k: convert(data[k]) for k, convert in _OPTIONS.items() if k in data}
     obs, _ = with_scene(scene, data, obstacles(description, data.get("obstacles")))
     return MotionRequest(
         goal=goal(description, data["goal"]),
         start=data.get("start"),  # names and limits: checked by the planner, once
         obstacles=obs,
+        attached=attached(description, data.get("attached"), scene=scene, obstacles=obs),
         max_samples=MAX_SAMPLES,  # refused before sampling, not after
         **opts)
 

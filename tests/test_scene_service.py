@@ -26,6 +26,8 @@ from .conftest import REPO, free_port, start_servers
 from .helpers.procs import process_tree
 from .test_service_security import secured  # noqa: F401 -- a fixture used below
 
+pytestmark = pytest.mark.slow  # every test here starts serve processes
+
 TABLE = {"id": "table", "shape": "box", "size": [1, 1, 0.1], "xyz": [0, 1, 0.5]}
 GOAL = {"goal": {"named": "reach_left"}, "seed": 3}
 

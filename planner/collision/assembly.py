@@ -1,5 +1,5 @@
-"""Assembling a world's bodies: the robot's links (shared, :mod:`.bodies`) and the
-scene's obstacles, in the body table's order, with what each needs (OBB tree, FCL
+"""Assembling a world's bodies: the robot's links (shared, :mod:`.bodies`), the objects
+it carries and the scene's obstacles, in the body table's order, with what each needs (OBB tree, FCL
 object, convex hull, the points its motion bounds read), and the pairs worth checking.
 """
 
@@ -13,7 +13,7 @@ import fcl
 import numpy as np
 import trimesh
 
-from ..scene import Obstacle
+from ..scene import AttachedObject, Obstacle
 from .acm import AllowedCollisionMatrix
 from .bodies import RobotBodies, bvh
 from .hulls import Hull, mesh_hull, primitive_hull
@@ -34,13 +34,29 @@ def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hul
             mesh_hull(np.asarray(mesh.vertices, float)))
 
 
+def _enclosing_points(tree: ObbTree) -> np.ndarray:
+    """The corners of a tree's root box (the shape's frame), which holds the whole
+    shape: a point's greatest distance from an axis (what a motion bound reads,
+    :func:`.advance.joint_reach`) is convex, so these corners bound every point of it."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    return tree.center[0] + (signs * tree.half[0]) @ tree.axes[0].T
+
+
+def carried_touch(attached: Sequence[AttachedObject]) -> tuple[tuple[str, str], ...]:
+    """The (object, link) pairs never checked: each carried object and its touch links
+    (already resolved, :func:`planner.scene.resolve_attached`)."""
+    return tuple((a.id, t) for a in attached for t in a.touch_links)
+
+
 @dataclass(frozen=True, eq=False)
 class SceneBodies:
-    """Every body of a world, in the table's order (the links, then the obstacles).
+    """Every body of a world, in the table's order (the links, the carried objects, then
+    the obstacles).
 
     Attributes:
         names, kinds: each body's name and :class:`.table.BodyKind`.
-        links: the link index that moves each, -1 for an obstacle.
+        links: the link index that moves each (a carried object's: its holder's), -1
+            for an obstacle.
         trees: OBB trees (body frame).
         objects: FCL objects (an obstacle's placed, a link's moved per state).
         surfaces: a box obstacle's surface as 12 triangles, by body index, for distances
@@ -49,7 +65,8 @@ class SceneBodies:
         statics: whether a body never moves.
         points: (link name or None, vertices in its frame) for the motion bounds.
         hulls: convex hulls (body frame).
-        poses: shape (n, 4, 4): an obstacle's world pose, identity for a link.
+        poses: shape (n, 4, 4): an obstacle's world pose, a carried object's pose in
+            its link's frame, identity for a link.
     """
 
     names: tuple[str, ...]
@@ -64,8 +81,12 @@ class SceneBodies:
     poses: np.ndarray
 
     @classmethod
-    def assemble(cls, robot: RobotBodies, obstacles: Sequence[Obstacle]) -> SceneBodies:
-        """The robot's links (geometry shared, FCL objects new) and ``obstacles``."""
+    def assemble(cls, robot: RobotBodies, obstacles: Sequence[Obstacle],
+                 attached: Sequence[AttachedObject] = (), *,
+                 link_index: dict[str, int] | None = None) -> SceneBodies:
+        """The robot's links (geometry shared, FCL objects new), the ``attached`` objects
+        (each on its link, ``link_index`` its index in ``Kinematics.link_names``) and
+        ``obstacles``."""
         names, links = list(robot.names), list(robot.frames)
         kinds = [BodyKind.LINK] * len(names)
         trees, statics = list(robot.trees), list(robot.statics)
@@ -73,7 +94,24 @@ class SceneBodies:
         hulls = list(robot.hulls)
         objs = [fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
         surfaces: dict[int, fcl.CollisionObject] = {}
-        poses = np.tile(np.eye(4), (len(names) + len(obstacles), 1, 1))
+        poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles), 1, 1))
+        static_link = dict(zip(robot.names, robot.statics))
+        for a in attached:
+            if link_index is None or a.link not in link_index:
+                raise ValueError(f"carried object '{a.id}' on unknown link '{a.link}'")
+            geom, tree, hull = _obstacle_geometry(a.shape)
+            offset = a.shape.pose()  # in the link's frame
+            poses[len(names)] = offset
+            names.append(a.id)
+            links.append(link_index[a.link])
+            kinds.append(BodyKind.CARRIED)
+            trees.append(tree)
+            objs.append(fcl.CollisionObject(geom, fcl.Transform()))  # moved per state
+            statics.append(static_link.get(a.link, False))
+            # its motion bound is its link's, over its own extent in that link's frame
+            local = _enclosing_points(tree)
+            points.append((a.link, local @ offset[:3, :3].T + offset[:3, 3]))
+            hulls.append(hull)
         for o in obstacles:
             geom, tree, hull = _obstacle_geometry(o)
             pose = o.pose()
@@ -93,16 +131,20 @@ class SceneBodies:
         return cls(tuple(names), tuple(kinds), tuple(links), tuple(trees), tuple(objs),
                    surfaces, tuple(statics), tuple(points), tuple(hulls), poses)
 
-    def checked_pairs(self, acm: AllowedCollisionMatrix
+    def checked_pairs(self, acm: AllowedCollisionMatrix,
+                      touch: Sequence[tuple[str, str]] = ()
                       ) -> tuple[np.ndarray, tuple[tuple[int, int], ...]]:
         """The pairs to check, (a, b) with a < b: those some motion moves, shape (m, 2),
         and those of two bodies that never move (decided once). Skipped: pairs whose
-        kinds never matter (:func:`.table.checked_kinds`) and the allowed ones."""
+        kinds never matter (:func:`.table.checked_kinds`), the allowed ones and a
+        carried object with its ``touch`` links ((object, link) pairs)."""
         moving, fixed = [], []
+        skip = {frozenset(p) for p in touch}
         for a, b in combinations(range(len(self.names)), 2):
             if not checked_kinds(self.kinds[a], self.kinds[b]):
                 continue
-            if acm.allowed(self.names[a], self.names[b]):
+            if acm.allowed(self.names[a], self.names[b]) or \
+                    frozenset((self.names[a], self.names[b])) in skip:
                 continue
             (fixed if self.statics[a] and self.statics[b] else moving).append((a, b))
         return np.array(moving, dtype=np.int64).reshape(-1, 2), tuple(fixed)

@@ -150,7 +150,7 @@ class BodyTable:
                           _frozen(links, np.int64),
                           _frozen(np.asarray(poses).reshape(n, 4, 4), np.float64),
                           _frozen(carried, np.int64).reshape(-1)),
-                   Pairs(index, _frozen(np.asarray(weight).reshape(len(index), -1), np.float64),
+                   Pairs(index, _frozen(_rows(weight, len(index)), np.float64),
                          _frozen(mover, np.int64)),
                    tuple((names[a], names[b]) for a, b in index),
                    tuple((int(a), int(b)) for a, b in fixed), tuple(fixed_hits), n_links)
@@ -172,3 +172,10 @@ class BodyTable:
         """The kinds of checked pair ``pair``'s two bodies."""
         a, b = self.pairs.index[pair]
         return self.kinds[a], self.kinds[b]
+
+
+def _rows(values: object, m: int) -> np.ndarray:
+    """``values`` as ``m`` rows; no pairs (a robot whose every pair is adjacent or
+    disabled) is an empty (0, 0) block rather than numpy's "cannot reshape size 0"."""
+    a = np.asarray(values, np.float64)
+    return a.reshape(m, -1) if m else a.reshape(0, a.shape[-1] if a.ndim == 2 else 0)

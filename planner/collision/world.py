@@ -1,6 +1,7 @@
-"""The collision world: the robot's link meshes and the scene's obstacles in python-fcl.
+"""The collision world: the robot's link meshes, the objects it carries and the scene's
+obstacles in python-fcl.
 
-Built once per (description, obstacles, padding) and reused for every check; the
+Built once per (description, obstacles, carried objects, padding) and reused for every check; the
 robot's geometry (:mod:`.bodies`) is shared by every world of it. A check is fast FK
 (numba), an OBB-tree broad phase over every checked pair (numba,
 :mod:`planner.collision.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
@@ -22,10 +23,10 @@ from description import Description
 from ..cache import ArtifactCache
 from ..errors import InvalidRequest
 from ..kinematics.chain import Kinematics
-from ..scene import Obstacle, validate_obstacles
+from ..scene import AttachedObject, Obstacle, resolve_attached, validate_obstacles
 from .acm import AllowedCollisionMatrix
 from .advance import SweepCarry, Work, pair_weights, sweep, tree_lower_bound
-from .assembly import SceneBodies
+from .assembly import SceneBodies, carried_touch
 from .bodies import RobotBodies
 from .body_speed import moving_by_static
 from .hulls import HullBounds
@@ -67,6 +68,10 @@ class CollisionWorld:
     Args:
         description: the loaded robot.
         obstacles: scene obstacles (ids must be unique and differ from link names).
+        attached: objects the robot carries, each posed in its link's frame: checked
+            against the obstacles and every link but its touch links (none given: the
+            defaults of :func:`planner.scene.default_touch_links`), certified as the
+            links are (a carried body's motion bound is its link's over its extent).
         padding: a state is invalid when a checked pair is closer than this [m].
         acm: pairs to skip; default: joint-connected and rigidly attached links plus
             the SRDF's disabled pairs (:meth:`AllowedCollisionMatrix.for_description`).
@@ -82,7 +87,8 @@ class CollisionWorld:
     def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
                  padding: float = 0.0, acm: AllowedCollisionMatrix | None = None,
                  bodies: RobotBodies | None = None, cache: ArtifactCache | None = None,
-                 narrow_phase: bool = True) -> None:
+                 narrow_phase: bool = True,
+                 attached: Sequence[AttachedObject] = ()) -> None:
         if not np.isfinite(padding) or padding < 0:
             raise InvalidRequest(f"{padding!r} must be a finite number >= 0 [m]",
                                  field="padding")
@@ -92,6 +98,8 @@ class CollisionWorld:
         self.narrow_phase = narrow_phase
         self.acm = acm if acm is not None else AllowedCollisionMatrix.for_description(description)
         self.obstacles = validate_obstacles(obstacles, link_names=self.kin.link_names)
+        self.attached = resolve_attached(description, tuple(attached),
+                                         obstacles=self.obstacles)
         self.checks = 0
         robot = description.robot
         if bodies is None:
@@ -99,7 +107,8 @@ class CollisionWorld:
         elif bodies.description is not description:
             raise InvalidRequest("bodies were built for another description", field="bodies")
         self.bodies = bodies
-        scene = SceneBodies.assemble(bodies, self.obstacles)
+        scene = SceneBodies.assemble(bodies, self.obstacles, self.attached,
+                                     link_index=dict(self.kin.link_index))
         names = scene.names
         self._objs = scene.objects
         self._surfaces = scene.surfaces
@@ -110,7 +119,7 @@ class CollisionWorld:
         self.hulls = self._hull_bounds.pack
         #: the kinematic chain, for the kernels
         self.chain = self.kin.chain
-        index, fixed = scene.checked_pairs(self.acm)
+        index, fixed = scene.checked_pairs(self.acm, carried_touch(self.attached))
         # [m/rad] how fast each pair can close in per joint, for conservative advancement
         weight = pair_weights(robot, self.kin.joint_names, list(scene.points), index)
         # per pair, the body that moves by a static one (its local speed bounds the pair's
@@ -130,7 +139,7 @@ class CollisionWorld:
         self._link_of = scene.links
         self._carried = frozenset(self.table.of_kind(BodyKind.CARRIED))
         # Pairs of bodies that never move are decided once, here.
-        poses0 = self.kin.link_poses(np.zeros(self.kin.dof))
+        poses0 = self._poses_of(np.zeros(self.kin.dof), np.empty((self.table.slots, 4, 4)))
         hits = tuple((names[a], names[b]) for a, b in fixed
                      if self._narrow(poses0, a, b, exact=True))
         self.table = replace(self.table, fixed_hits=hits)
@@ -167,15 +176,17 @@ class CollisionWorld:
     def with_scene(self, obstacles: Sequence[Obstacle] = (), *,
                    padding: float | None = None,
                    acm: AllowedCollisionMatrix | None = None,
-                   narrow_phase: bool | None = None) -> CollisionWorld:
-        """A world for other obstacles (and padding [m], allowed pairs or narrow phase),
-        sharing this one's robot geometry (and by default its other settings):
-        milliseconds instead of a rebuild."""
+                   narrow_phase: bool | None = None,
+                   attached: Sequence[AttachedObject] | None = None) -> CollisionWorld:
+        """A world for other obstacles (and padding [m], allowed pairs, narrow phase or
+        carried objects), sharing this one's robot geometry (and by default its other
+        settings, its carried objects too): milliseconds instead of a rebuild."""
         return CollisionWorld(self.description, obstacles=obstacles,
                               padding=self.padding if padding is None else padding,
                               acm=self.acm if acm is None else acm, bodies=self.bodies,
                               narrow_phase=self.narrow_phase if narrow_phase is None
-                              else narrow_phase)
+                              else narrow_phase,
+                              attached=self.attached if attached is None else attached)
 
     def _place(self, poses: np.ndarray, b: int) -> None:
         # move body b's FCL object once per state (stamped), never for obstacles
@@ -225,9 +236,9 @@ class CollisionWorld:
                     break
         return hits
 
-    def _poses_of(self, q: ArrayLike) -> np.ndarray:
+    def _poses_of(self, q: ArrayLike, out: np.ndarray | None = None) -> np.ndarray:
         # the kernels' pose slots: the links', then the carried objects'
-        poses = self.kin.link_poses(q, out=self._poses)
+        poses = self.kin.link_poses(q, out=self._poses if out is None else out)
         for b in self._carried:
             poses[self.table.bodies.frame[b]] = self.body_pose(poses, b)
         return poses
@@ -409,9 +420,10 @@ class CollisionWorld:
         best, closest = float("inf"), ("", "")
         if self.table.fixed_hits:
             return 0.0, self.table.fixed_hits[0]
-        poses = self.kin.link_poses_batch(qs)
+        batch = None if self._carried else self.kin.link_poses_batch(qs)
         for i in range(len(qs)):
-            d, c = self._clearance(poses[i], best)
+            # a carried object's pose slot is filled per state
+            d, c = self._clearance(self._poses_of(qs[i]) if batch is None else batch[i], best)
             if d < best:
                 best, closest = d, c
         return best, closest

@@ -1,8 +1,9 @@
 """What every planning strategy plans with, built once per robot.
 
 :class:`PlanningContext` keeps everything that is slow to build (one
-:class:`CollisionWorld` and path planner per obstacle set, the scaled joint limits per
-scaling pair, the inverse dynamics, one instance of every timing profile) and the stages
+:class:`CollisionWorld` and path planner per obstacle set and carried objects, the scaled
+joint limits per scaling pair, the inverse dynamics and one instance of every timing
+profile, per payload carried) and the stages
 every strategy shares: checking a request (:meth:`~PlanningContext.validate`) and timing
 a blended path until the verifier passes it (:meth:`~PlanningContext.time_path`).
 
@@ -38,7 +39,7 @@ from ..kinematics.dynamics import InverseDynamics
 from ..kinematics.limits import JointLimits
 from ..path_limits import ActiveLimits, Derating
 from ..ranges import check_range
-from ..scene import Obstacle
+from ..scene import AttachedObject, Obstacle, resolve_attached
 from ..timing.curve import Curve, build_curve
 from ..timing.profiles import TimingProfile, build_profiles
 from ..timing.trajectory import CurveTiming, JointTrajectory
@@ -56,6 +57,12 @@ def _obstacle_key(obstacles: tuple[Obstacle, ...]) -> tuple:
     # ``where`` only names the field in errors; the geometry is what matters
     return tuple((o.id, o.shape, o.size, o.radius, o.length, o.mesh_path, o.xyz, o.rpy)
                  for o in obstacles)
+
+
+def _attached_key(attached: tuple[AttachedObject, ...]) -> tuple:
+    # the payload too: a world's carried objects decide the dynamics its motions are
+    # timed and verified with (time_path reads them from the world)
+    return tuple(a.shape_key() + a.payload_key() for a in attached)
 
 
 class _CurveProofs:
@@ -105,6 +112,9 @@ class PlanningContext:
         self.padding = padding
         self.max_worlds = max_worlds
         self._worlds: dict[tuple, tuple[CollisionWorld, PathPlanner]] = {}
+        # payload key -> (dynamics, profiles) with those payloads (least recently used
+        # dropped past max_worlds)
+        self._payloads: dict[tuple, tuple[InverseDynamics, dict[str, TimingProfile]]] = {}
         self._robot_world: CollisionWorld | None = None
         base = self.world(())
         self.joint_names: tuple[str, ...] = tuple(base.kin.joint_names)
@@ -119,22 +129,47 @@ class PlanningContext:
             profile.prepare(ActiveLimits.from_limits(full))
 
     # -- caches -----------------------------------------------------------------------
-    def world(self, obstacles: tuple[Obstacle, ...]) -> CollisionWorld:
-        """The collision world for ``obstacles``, built once per distinct obstacle set."""
-        return self.scene(obstacles)[0]
+    def world(self, obstacles: tuple[Obstacle, ...],
+              attached: tuple[AttachedObject, ...] = ()) -> CollisionWorld:
+        """The collision world for ``obstacles`` and the ``attached`` objects carried,
+        built once per distinct set of both."""
+        return self.scene(obstacles, attached)[0]
 
-    def scene(self, obstacles: tuple[Obstacle, ...]
+    def scene(self, obstacles: tuple[Obstacle, ...],
+              attached: tuple[AttachedObject, ...] = ()
               ) -> tuple[CollisionWorld, PathPlanner]:
-        """The collision world for ``obstacles`` and the path planner in it, built once
-        per distinct obstacle set."""
-        key = _obstacle_key(obstacles)
+        """The collision world for ``obstacles`` and the ``attached`` objects carried, and
+        the path planner in it, built once per distinct set of both."""
+        key = (_obstacle_key(obstacles), _attached_key(attached))
         found = self._worlds.pop(key, None)
         if found is None:
-            w = self._base_world().with_scene(obstacles)
+            w = self._base_world().with_scene(obstacles, attached=attached)
             found = (w, PathPlanner(w, self.description))
         self._worlds[key] = found  # most recently used last
         while len(self._worlds) > self.max_worlds:
             self._worlds.pop(next(iter(self._worlds)))
+        return found
+
+    def payload(self, attached: tuple[AttachedObject, ...] = ()
+                ) -> tuple[InverseDynamics, dict[str, TimingProfile]]:
+        """The inverse dynamics with the ``attached`` objects' masses on their links, and
+        the timing profiles built on it (the robot's own without a payload): what the
+        verifier and the effort-limited timing of a motion carrying them use."""
+        payloads = tuple(a.payload() for a in attached if a.mass > 0)
+        if not payloads:
+            return self.dynamics, self.profiles
+        key = tuple(a.payload_key() for a in attached if a.mass > 0)
+        found = self._payloads.pop(key, None)
+        if found is None:
+            dyn = self.dynamics.with_payloads(payloads)
+            profiles = build_profiles(dyn)
+            full = ActiveLimits.from_limits(self.limits(1.0, 1.0))
+            for profile in profiles.values():
+                profile.prepare(full)
+            found = (dyn, profiles)
+        self._payloads[key] = found
+        while len(self._payloads) > self.max_worlds:
+            self._payloads.pop(next(iter(self._payloads)))
         return found
 
     def _base_world(self) -> CollisionWorld:
@@ -183,9 +218,8 @@ class PlanningContext:
         ids = [o.id for o in req.obstacles]
         if len(set(ids)) != len(ids):
             raise InvalidRequest("obstacle ids must be unique", field="obstacles")
-        if req.attached:  # never plan as if an object the robot holds were not there
-            raise InvalidRequest("carried objects are not supported yet", field="attached",
-                                 details={"unsupported": "attached"})
+        # never plan as if an object the robot holds were not there: each checked here
+        resolve_attached(self.description, req.attached, obstacles=req.obstacles)
         if not isinstance(req.planner, str) or not req.planner:
             raise InvalidRequest(f"{req.planner!r} is not a planner name", field="planner")
         check_range(req.planning_time, "planning_time")
@@ -233,8 +267,10 @@ class PlanningContext:
 
         Returns the trajectory, its report and the seconds spent timing and verifying.
         """
-        timer = self.profiles[profile]
-        verifier = Verifier(limits, self.dynamics, world,
+        # the carried objects' masses enter the timing and the verifier alike
+        dynamics, profiles = self.payload(world.attached)
+        timer = profiles[profile]
+        verifier = Verifier(limits, dynamics, world,
                             clearance_states=self.clearance_states)
         proofs = _CurveProofs(world, certificate)
         derating = Derating()
@@ -244,7 +280,7 @@ class PlanningContext:
             t_a = time.perf_counter()
             timing = timer.parameterise(curve, path,
                                         ActiveLimits.from_limits(limits, derating))
-            traj = JointTrajectory.sample(timing, self.dynamics.torques_batch,
+            traj = JointTrajectory.sample(timing, dynamics.torques_batch,
                                           joint_names=self.joint_names,
                                           sample_rate=sample_rate, profile=profile,
                                           max_samples=max_samples)

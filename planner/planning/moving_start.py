@@ -104,15 +104,17 @@ class BlendTiming:
 
 
 def _effort_safe_brake(context: PlanningContext, q0: np.ndarray, v0: np.ndarray,
-                       a0: np.ndarray, lim: JointLimits) -> Trajectory:
+                       a0: np.ndarray, lim: JointLimits, request: MotionRequest
+                       ) -> Trajectory:
     """The brake with the largest acceleration and jerk scale (never below the
     acceleration the arm already has) whose torques fit the effort limits
-    (:func:`planner.timing.braking.effort_safe`)."""
+    (:func:`planner.timing.braking.effort_safe`), with what the arm carries."""
+    dynamics = context.payload(context.world(request.obstacles, request.attached).attached)[0]
     tr, ratio = effort_safe(
         lambda f: brake_to_rest(q0, v0, a0, velocity=lim.velocity,
                                 acceleration=np.maximum(f * lim.acceleration, np.abs(a0)),
                                 jerk=f * lim.jerk),
-        context.dynamics.torques_batch, lim.effort, tries=30)
+        dynamics.torques_batch, lim.effort, tries=30)
     if ratio > EFFORT_MARGIN:
         raise TrajectoryError("no brake from the moving start within the effort limits",
                               details={"stage": "brake", "effort_ratio": ratio})
@@ -148,7 +150,7 @@ def _brake(context: PlanningContext, request: MotionRequest, q0: np.ndarray,
     """The effort-safe brake from (q0, v0, a0), refused if it cannot stop within the
     position limits (InvalidRequest naming the joint's start velocity)."""
     lim = _moving_limits(context, request, v0, a0)
-    brake = _effort_safe_brake(context, q0, v0, a0, lim)
+    brake = _effort_safe_brake(context, q0, v0, a0, lim, request)
     ext = brake.position_extrema
     lo, hi = np.array([e.min for e in ext]), np.array([e.max for e in ext])
     if np.any(lo < lim.lower - 1e-9) or np.any(hi > lim.upper + 1e-9):
@@ -167,15 +169,17 @@ def _blend(context: PlanningContext, request: MotionRequest, brake: _Brake,
     """The brake and ``plan`` (from rest at ``brake.rest``) superposed at the earliest
     shift of :data:`SHIFTS` whose trajectory passes the verifier."""
     new = plan.trajectory.timing
-    verifier = Verifier(brake.limits, context.dynamics, context.world(request.obstacles),
+    world = context.world(request.obstacles, request.attached)
+    dynamics, profiles = context.payload(world.attached)  # with what it carries
+    verifier = Verifier(brake.limits, dynamics, world,
                         clearance_states=context.clearance_states)
-    enforce_jerk = context.profiles[request.profile].enforce_jerk
+    enforce_jerk = profiles[request.profile].enforce_jerk
     duration = float(brake.trajectory.duration)
     t1 = time.perf_counter()
     report = None
     for frac in SHIFTS:
         timing = BlendTiming(brake.trajectory, brake.rest, new, frac * duration)
-        traj = JointTrajectory.sample(timing, context.dynamics.torques_batch,
+        traj = JointTrajectory.sample(timing, dynamics.torques_batch,
                                       joint_names=context.joint_names,
                                       sample_rate=request.sample_rate,
                                       profile=request.profile,

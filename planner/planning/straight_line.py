@@ -114,7 +114,7 @@ class StraightLine:
         t0 = time.perf_counter()
         d = context.description
         start = context.validate(request)
-        world, paths = context.scene(request.obstacles)
+        world, paths = context.scene(request.obstacles, request.attached)
         chk = world.check(start)
         if not chk.valid:
             raise StartInCollision("the start state collides", pairs=chk.pairs,
@@ -191,15 +191,16 @@ class StraightLine:
             acceleration=min(min(cart.max_trans_acc, -cart.max_trans_dec) * as_ / rate,
                              float(np.min(lim.acceleration)) / joint),
             jerk=float(np.min(lim.jerk)) / joint)
-        timer = context.profiles[request.profile]
-        verifier = Verifier(lim, context.dynamics, world,
+        dynamics, profiles = context.payload(world.attached)  # with what it carries
+        timer = profiles[request.profile]
+        verifier = Verifier(lim, dynamics, world,
                             clearance_states=context.clearance_states)
         t_param = t_verify = 0.0
         last = None
         for attempt in range(1, MAX_ATTEMPTS + 1):
             ta = time.perf_counter()
             timing = line_timing(curve, bounds)
-            traj = JointTrajectory.sample(timing, context.dynamics.torques_batch,
+            traj = JointTrajectory.sample(timing, dynamics.torques_batch,
                                           joint_names=context.joint_names,
                                           sample_rate=request.sample_rate,
                                           profile=request.profile,
