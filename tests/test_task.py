@@ -133,38 +133,71 @@ def _task_query(endpoint: str, body: dict[str, Any], timeout: float = 300.0
 
 
 @pytest.mark.slow
-def test_pick_and_place_is_planned_as_one_task_through_the_service(course_service):
-    replies = _task_query(course_service.endpoint, {"task": pick_and_place()})
-    assert len(replies) == 1
-    err = replies[0].get("error")
-    # carried objects are refused by the planner until h-carry lands: the refusal names
-    # the first step that moves with the box attached, the attach step before it planned
-    assert err is not None, replies[0]
-    assert err["details"]["step"] == 5 and err["details"]["kind"] == "line"
-    assert err["details"]["error"]["details"]["field"] == "attached"
-    assert err["details"]["planned_steps"] == 5
-
-
-@pytest.mark.slow
-def test_pick_and_place_without_attach_is_planned_and_executed_on_the_twin(course_service):
-    body = {"task": pick_and_place(attach=False), "execute": True}
+def test_pick_and_place_is_planned_as_one_task_and_run_on_the_twin(course_service, course_ws):
+    from bench.task import BIN_INNER, BIN_XY, GAP, TABLE_TOP
+    body = {"task": pick_and_place(), "execute": True}
     replies = _task_query(course_service.endpoint, body)
     assert replies and "error" not in replies[0], replies[0]
     planned = replies[0]
     assert planned["event"] == "planned"
     kinds = [s["kind"] for s in planned["steps"]]
-    assert kinds == ["gripper", "move", "line", "gripper", "line", "move", "line", "gripper",
-                     "line"]
+    assert kinds == ["gripper", "move", "line", "gripper", "attach", "line", "move", "line",
+                     "gripper", "detach", "line"]
     for s in planned["steps"]:
-        assert s["certified"] and s["verified"], s
-        assert s["plan"]["verification"]["certified"]
+        if s["kind"] not in ("attach", "detach"):
+            assert s["certified"] and s["verified"], s
+            assert s["plan"]["verification"]["ok"] and s["plan"]["verification"]["certified"]
+    # the box is part of the robot from the attach up to the detach, not before or after
+    assert [s["index"] for s in planned["steps"] if s["carried"] == ["box"]] == [4, 5, 6, 7, 8]
+    attach = planned["steps"][4]
+    assert attach["object"] == "box" and attach["link"] == "claw_support"
     lines = [s for s in planned["steps"] if s["kind"] == "line"]
     assert all(s["plan"]["line"]["max_deviation"] <= 1e-3 for s in lines)
+    assert all(s["plan"]["line"]["length"] == pytest.approx(0.05, abs=1e-4) for s in lines)
     total = sum(s["duration"] for s in planned["steps"])
     assert planned["duration"] == pytest.approx(total)
+    # each step starts where the last one ended
+    for a, b in zip(planned["steps"], planned["steps"][1:]):
+        assert a["end"] == pytest.approx(b["start"], abs=1e-9)
     events = [r.get("event") for r in replies[1:]]
     assert events[0] == "started" and events[-1] == "finished", replies[-1]
     assert replies[-1]["report"]["outcome"] == "completed"
+    # where the planner let the box go: inside the bin's walls, its bottom at the table's
+    # height (the viewer's forward kinematics, from the reply alone)
+    from clients.viewer.task_view import TaskPlayback
+    from planner.kinematics.chain import Kinematics
+    course = load_description(course_ws.xacro, package_dirs=[course_ws.src],
+                              moveit_config=course_ws.moveit_pkg)
+    kin = Kinematics(course.robot)
+    play = TaskPlayback.from_reply(planned, kin)
+    end = play.object_pose("box", planned["duration"], kin)
+    assert np.all(np.abs(end[:2, 3] - BIN_XY) < BIN_INNER / 2)
+    assert end[2, 3] == pytest.approx(TABLE_TOP + GAP + 0.04, abs=2e-3)
+
+
+@pytest.mark.slow
+def test_the_box_s_mass_is_in_the_verified_efforts(course_service):
+    efforts = {}
+    for mass in (0.0, 2.0):
+        body = {"task": pick_and_place(mass=mass, seed=3)}
+        planned = _task_query(course_service.endpoint, body)[0]
+        up = planned["steps"][5]  # the first motion with the box
+        assert up["carried"] == ["box"] and up["verified"], up
+        efforts[mass] = np.array([p["effort"] for p in up["plan"]["trajectory"]["points"]])
+    # the payload hangs off joint_2 and joint_3: it takes more effort to hold it up
+    heavy, light = (np.abs(efforts[m][:, 1]).max() for m in (2.0, 0.0))
+    assert heavy > light + 1e-3
+
+
+@pytest.mark.slow
+def test_a_step_that_fails_in_the_service_names_itself(course_service):
+    body = pick_and_place()
+    body["steps"][2] = {"line": {"offset": [0.0, 0.0, -0.6]}, "label": "through the table"}
+    err = _task_query(course_service.endpoint, {"task": body})[0]["error"]
+    assert err["code"] == "LINE_INTERRUPTED" == err["details"]["error"]["code"]
+    assert err["details"]["step"] == 2 and err["details"]["label"] == "through the table"
+    assert 0.0 < err["details"]["error"]["details"]["fraction"] < 1.0
+    assert err["details"]["planned_steps"] == 2
 
 
 @pytest.mark.slow
@@ -181,7 +214,7 @@ def test_a_task_is_cancelled_smoothly_mid_step(course_service):
 
     from service.zconfig import zenoh_config
     replies: list[dict[str, Any]] = []
-    body = {"task": pick_and_place(attach=False), "execute": True, "trajectories": False}
+    body = {"task": pick_and_place(), "execute": True, "trajectories": False}
     with zenoh.open(zenoh_config(mode="client", connect=[course_service.endpoint],
                                  listen=[])) as s:
         got = s.get("arduinobot/task", payload=wire.encode(body),
@@ -232,14 +265,14 @@ def test_the_task_command_runs_a_task_file_on_the_services_robot(course_service,
 
     from .conftest import REPO
     f = tmp_path / "pick_place.json"
-    f.write_text(json.dumps(pick_and_place(attach=False)))
+    f.write_text(json.dumps(pick_and_place()))
     out = tmp_path / "report.json"
     run = subprocess.run([sys.executable, "-m", "clients.cli", "task", str(f), "--remote",
                           "--connect", course_service.endpoint, "--report", str(out)],
                          capture_output=True, text=True, cwd=REPO, timeout=600)
     assert run.returncode == 0, run.stderr
     r = json.loads(out.read_text())
-    assert len(r["planned"]["steps"]) == 9 and r["execution"]["outcome"] == "completed"
+    assert len(r["planned"]["steps"]) == 11 and r["execution"]["outcome"] == "completed"
     assert "step" not in run.stderr
 
 

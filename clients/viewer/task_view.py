@@ -145,7 +145,7 @@ def show_task(viewer: Any, playback: Any, task: TaskPlayback) -> Callable[[float
     for i, (a, b) in enumerate(task.lines):
         viewer.server.scene.add_line_segments(
             f"/task/line_{i}", np.array([[a, b]], np.float32),
-            colors=(255, 40, 200), line_width=3.0)
+            colors=(255, 40, 200), thickness=3.0, thickness_units="screen")
     handles = viewer._obstacle_handles
 
     def move_carried(t: float) -> None:

@@ -55,7 +55,7 @@ MIMIC_TOLERANCE = 1e-6  # [rad] a mimic value must agree with its leader's withi
 class StepResult:
     """One planned step: its joint state [rad] at start and end, its duration [s], its
     verified trajectory (None for attach, detach, wait) and the objects the robot
-    carried while it ran."""
+    carries at its end (while it ran, for a motion step)."""
 
     index: int
     kind: StepKind
