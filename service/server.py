@@ -153,7 +153,8 @@ class PlannerService:
             for make in o.extensions:
                 self._extensions.append(make(self.session, p, desc, self._submit_plan))
             # <prefix>/task: plans tasks itself, executes through <prefix>/execute
-            self._extensions.append(task_extension(tasks_file=o.tasks_file)(
+            self._extensions.append(task_extension(tasks_file=o.tasks_file,
+                                                   scene=self._scene_now)(
                 self.session, p, desc, self._submit_plan))
         except Exception:
             self.close()

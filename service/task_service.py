@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,7 @@ from planner.tasks import Task, TaskResult, plan_task, task_from_mapping
 from . import wire
 from .keyguard import addressed_exactly
 from .plan_io import plan_response
+from .scene_store import SceneSnapshot, with_scene
 
 _log = logging.getLogger(__name__)
 
@@ -94,8 +96,10 @@ class TaskService:
     """The ``<prefix>/task`` queryable; plans with its own planner, built on first use."""
 
     def __init__(self, session: zenoh.Session, prefix: str, description: Description, *,
-                 tasks_file: Path | None = None) -> None:
+                 tasks_file: Path | None = None,
+                 scene: Callable[[], SceneSnapshot | None] | None = None) -> None:
         self.session, self.prefix, self.description = session, prefix, description
+        self.scene = scene  # the kept scene now: a task starts in it, plus its own obstacles
         self.tasks_file = tasks_file if tasks_file is not None else description.config.tasks
         self._planner: Any = None
         self._lock = threading.Lock()  # one task planned at a time: one planner
@@ -164,6 +168,9 @@ class TaskService:
         zb = query.payload
         body = wire.decode("task", zb.to_bytes() if zb is not None else b"")
         task = self.task(body)
+        if self.scene is not None:
+            obstacles, _ = with_scene(self.scene(), body.get("task", {}), task.obstacles)
+            task = replace(task, obstacles=obstacles)
         execute = bool(body.get("execute", False))
         if execute and task.start is None:
             task = _with_start(task, self._robot_start())
@@ -214,17 +221,18 @@ class TaskService:
 
 
 def _with_start(task: Task, start: Mapping[str, float]) -> Task:
-    from dataclasses import replace
     return replace(task, start=dict(start))
 
 
-def task_extension(*, tasks_file: str | Path | None = None
+def task_extension(*, tasks_file: str | Path | None = None,
+                   scene: Callable[[], SceneSnapshot | None] | None = None
                    ) -> Callable[..., TaskService]:
-    """A :class:`service.server.ServeOptions` extension serving ``<prefix>/task``."""
+    """A :class:`service.server.ServeOptions` extension serving ``<prefix>/task``;
+    ``scene()`` gives the kept scene every task starts in."""
     def make(session: zenoh.Session, prefix: str, description: Description,
              submit_plan: object) -> TaskService:
         svc = TaskService(session, prefix, description,
-                          tasks_file=Path(tasks_file) if tasks_file else None)
+                          tasks_file=Path(tasks_file) if tasks_file else None, scene=scene)
         svc.start()
         return svc
     return make

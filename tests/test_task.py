@@ -305,3 +305,41 @@ def test_serve_takes_its_named_tasks_from_a_file(tmp_path):
         assert refused[0]["event"] == "planned" and "error" in refused[-1], refused
     finally:
         srv.stop()
+
+
+@pytest.mark.slow
+def test_a_task_starts_in_the_kept_scene(course_service):
+    import zenoh
+
+    from service.zconfig import zenoh_config
+
+    def apply(body: dict[str, Any]) -> dict[str, Any]:
+        with zenoh.open(zenoh_config(mode="client", connect=[course_service.endpoint],
+                                     listen=[])) as s:
+            r = list(s.get("arduinobot/scene/apply", payload=wire.encode(body),
+                           timeout=30.0))
+            return orjson.loads((r[0].ok or r[0].err).payload.to_bytes())
+
+    # a post behind the arm, kept by the service: in every task's scene
+    post = {"id": "post", "shape": "box", "size": [0.05, 0.05, 0.6],
+            "xyz": [0.0, -0.8, 0.3]}
+    assert "revision" in apply({"add": [post]})
+    try:
+        planned = _task_query(course_service.endpoint,
+                              {"task": pick_and_place(), "trajectories": False})[0]
+        assert "error" not in planned, planned
+        assert "post" in [o["id"] for o in planned["obstacles"]]
+        # a task obstacle may not take a kept object's id
+        clash = pick_and_place()
+        clash["obstacles"].append({**post, "xyz": [0.0, 0.0, 3.0]})
+        err = _task_query(course_service.endpoint, {"task": clash})[0]["error"]
+        assert err["code"] == "INVALID_REQUEST" and "post" in err["message"]
+        # a kept wall through the arm where the task starts: its first step is refused
+        wall = {"id": "wall", "shape": "box", "size": [0.05, 0.05, 0.6],
+                "xyz": [0.0, 0.6, 1.2]}
+        assert "revision" in apply({"add": [wall]})
+        err = _task_query(course_service.endpoint, {"task": pick_and_place()})[0]["error"]
+        assert err["code"] == "START_IN_COLLISION" and err["details"]["step"] == 0
+        assert any("wall" in p for p in err["details"]["error"]["details"]["pairs"])
+    finally:
+        apply({"remove": ["post", "wall"]})
