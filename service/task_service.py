@@ -20,7 +20,7 @@ import threading
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import orjson
 import zenoh
@@ -30,12 +30,13 @@ from description.moveit_config import NamedTask, find_task, read_tasks
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
 from planner.scene import Obstacle
-from planner.tasks import Task, TaskResult, plan_task, task_from_mapping
 
 from . import wire
 from .keyguard import addressed_exactly
-from .plan_io import plan_response
 from .scene_store import SceneSnapshot, with_scene
+
+if TYPE_CHECKING:  # the planner (OMPL) loads with the first task, not with `serve`
+    from planner.tasks import Task, TaskResult
 
 _log = logging.getLogger(__name__)
 
@@ -53,6 +54,7 @@ def _reply_err(query: zenoh.Query, code: str, message: str,
 def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = True
                  ) -> dict[str, Any]:
     """The ``planned`` reply of a task (see ``task_response.json``)."""
+    from .plan_io import plan_response
     steps = []
     for s, t0 in zip(result.steps, result.boundaries()):
         item: dict[str, Any] = {
@@ -145,6 +147,7 @@ class TaskService:
 
     def task(self, body: Mapping[str, Any]) -> Task:
         """The request's task (given, or named in tasks.yaml)."""
+        from planner.tasks import task_from_mapping
         if "task" in body:
             return task_from_mapping(body["task"], where="task")
         key = body.get("name", body.get("number"))
@@ -174,6 +177,7 @@ class TaskService:
         execute = bool(body.get("execute", False))
         if execute and task.start is None:
             task = _with_start(task, self._robot_start())
+        from planner.tasks import plan_task
         with self._lock:
             result = plan_task(self.planner(), task)
         key = f"{self.prefix}/task"
