@@ -1,150 +1,63 @@
 """Task planning time: a pick and place on the course's workspace (its CAD meshes; a
-table, a bin and a box on the table), planned as one task (above, LIN down 5 cm, close,
-attach, LIN up, across, down, open, detach, up), over 20 seeded variants of the box's
-and the bin's positions. Prints each variant's planning time and the median, then
-``{"bench": "task", ...}``.
+table, a bin with walls and a box on the table: tests/helpers/pick_place.py), planned
+as one task (above, LIN down 5 cm, close, attach, LIN up, across, down, open, detach,
+up) in-process, over N seeded variants of the box's and the bin's positions (each moved
+up to 4 cm). Prints each variant's planning time, then one JSON line: the median and
+largest planning time [s] (a first, unmeasured task builds the caches), the variants
+refused (their step and code) and the task's median duration [s].
 
-    ./dev bench task [--variants 20] [--no-attach]
+Usage: ./dev bench task [N]   (default 20 variants)
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-TABLE_TOP = 0.35  # [m] the table's top, under the course arm's reach (10x scale model)
-BOX = 0.08  # [m] the box's edge
-ABOVE = 0.61  # [m] the tcp (claw_support's origin) above the box's top before the
-#: descent: the course gripper's fingers reach ~0.55 m below it (the 10x model)
-DROP = 0.05  # [m] each straight-line descent and ascent
-#: [m] the box's bottom above the table: resting on it exactly, the carried box would
-#: touch the table at its first lift (MoveIt allows that contact; we keep a gap)
-GAP = 0.002
-BIN_INNER = 0.2  # [m] the bin's inside, square
-BIN_FLOOR = 0.06  # [m] the bin's floor below the box's bottom at its lowest
-BIN_RIM = 0.02  # [m] the bin's walls above it
-WALL = 0.01  # [m]
-BOX_XY = (0.52, 0.80)  # [m] the box's nominal place on the table
-BIN_XY = (-0.55, 0.78)  # [m] the bin's nominal place
+from bench._lib.args import problems_per_scene
+from bench._lib.report import emit
+from description import load_description
+from planner.planning.pipeline import MotionPlanner
+from planner.tasks import TaskStepFailed, plan_task, task_from_mapping
+from tests.helpers.course_workspace import make_course_workspace
+from tests.helpers.pick_place import pick_and_place, variants
 
 
-def bin_walls(cx: float, cy: float) -> list[dict[str, Any]]:
-    """A bin (a floor and four walls) centred at (cx, cy): the box is lowered into it
-    until its bottom is at the table's height and let go (it drops onto the floor)."""
-    floor = TABLE_TOP - BIN_FLOOR
-    top = TABLE_TOP + BIN_RIM
-    h = top - floor
-    out = [{"id": "bin_floor", "shape": "box", "size": [BIN_INNER + 2 * WALL] * 2 + [WALL],
-            "xyz": [cx, cy, floor - WALL / 2]}]
-    off = BIN_INNER / 2 + WALL / 2
-    for name, dx, dy, sx, sy in (("bin_n", 0, off, BIN_INNER + 2 * WALL, WALL),
-                                 ("bin_s", 0, -off, BIN_INNER + 2 * WALL, WALL),
-                                 ("bin_e", off, 0, WALL, BIN_INNER),
-                                 ("bin_w", -off, 0, WALL, BIN_INNER)):
-        out.append({"id": name, "shape": "box", "size": [sx, sy, h],
-                    "xyz": [cx + dx, cy + dy, floor + h / 2]})
-    return out
-
-
-def pick_and_place(box_xy: tuple[float, float] = BOX_XY,
-                   bin_xy: tuple[float, float] = BIN_XY, *, attach: bool = True,
-                   mass: float = 0.05, seed: int = 1) -> dict[str, Any]:
-    """The pick and place task's JSON form (``<prefix>/task``'s ``task``): a table under
-    the box, a low bin beside it; ``attach`` False leaves out the attach and detach
-    steps (the gripper closes and opens on nothing the planner carries)."""
-    bx, by = box_xy
-    cx, cy = bin_xy
-    box_z = TABLE_TOP + GAP + BOX / 2
-    above_box = [bx, by, TABLE_TOP + BOX + ABOVE]
-    above_bin = [cx, cy, TABLE_TOP + BOX + ABOVE]
-    obstacles = [
-        {"id": "table", "shape": "box", "size": [0.5, 0.5, 0.05],
-         "xyz": [bx, by, TABLE_TOP - 0.025]},
-        {"id": "box", "shape": "box", "size": [BOX, BOX, BOX], "xyz": [bx, by, box_z]},
-        *bin_walls(cx, cy),
-    ]
-    down = {"line": {"offset": [0.0, 0.0, -DROP]}}
-    up = {"line": {"offset": [0.0, 0.0, DROP]}}
-    steps: list[dict[str, Any]] = [
-        {"gripper": "open", "label": "open"},
-        {"move": {"position": above_box}, "label": "above the box"},
-        {**down, "label": "down"},
-        {"gripper": "close", "label": "grip"},
-        *([{"attach": "box", "mass": mass, "label": "pick"}] if attach else []),
-        {**up, "label": "up"},
-        {"move": {"position": above_bin}, "label": "above the bin"},
-        {**down, "label": "down"},
-        {"gripper": "open", "label": "release"},
-        *([{"detach": "box", "label": "place"}] if attach else []),
-        {**up, "label": "up"},
-    ]
-    return {"obstacles": obstacles, "steps": steps, "seed": seed}
-
-
-def variants(n: int, *, seed: int = 7, attach: bool = True) -> list[dict[str, Any]]:
-    """``n`` pick and place tasks, the box and the bin moved up to 4 cm (seeded)."""
-    rng = np.random.default_rng(seed)
-    out = []
-    for i in range(n):
-        db, dc = rng.uniform(-0.04, 0.04, 2), rng.uniform(-0.04, 0.04, 2)
-        out.append(pick_and_place((BOX_XY[0] + db[0], BOX_XY[1] + db[1]),
-                                  (BIN_XY[0] + dc[0], BIN_XY[1] + dc[1]),
-                                  attach=attach, seed=i + 1))
-    return out
-
-
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--variants", type=int, default=20)
-    ap.add_argument("--no-attach", action="store_true",
-                    help="leave out attach and detach (while carried objects are refused)")
-    ns = ap.parse_args(argv)
-    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-    from description import load_description
-    from planner.planning.pipeline import MotionPlanner
-    from planner.tasks import TaskStepFailed, plan_task, task_from_mapping
-    from tests.helpers.course_workspace import make_course_workspace
-
-    ws = make_course_workspace(Path(tempfile.mkdtemp(prefix="bench_task_")))
-    desc = load_description(ws.xacro, package_dirs=[ws.src], moveit_config=ws.moveit_pkg)
-    planner = MotionPlanner(desc)
-    try:  # warm: numba's kernels, the worlds of the scene
-        plan_task(planner, task_from_mapping(pick_and_place(attach=not ns.no_attach)))
-    except TaskStepFailed as e:
-        print(f"warm-up: step {e.index} failed: {e.message}")
-    times, durations, failed = [], [], []
-    for i, body in enumerate(variants(ns.variants, attach=not ns.no_attach)):
-        t0 = time.perf_counter()
-        try:
-            r = plan_task(planner, task_from_mapping(body))
-        except TaskStepFailed as e:
-            failed.append({"variant": i, "step": e.index, "code": str(e.code)})
-            print(f"variant {i:2d}: step {e.index} failed: {e.message}")
-            continue
-        dt = time.perf_counter() - t0
-        times.append(dt)
-        durations.append(r.duration)
-        print(f"variant {i:2d}: planned in {dt * 1e3:7.1f} ms, task {r.duration:.2f} s, "
-              f"{len(r.steps)} steps")
-    med = statistics.median(times) if times else None
-    print(f"median planning time {med * 1e3:.1f} ms over {len(times)} variants"
-          if med is not None else "no variant planned")
-    print(json.dumps({"bench": "task", "variants": ns.variants, "planned": len(times),
-                      "failed": failed, "attach": not ns.no_attach,
-                      "median_planning_s": med,
-                      "max_planning_s": max(times) if times else None,
+def main() -> None:
+    n = problems_per_scene(__doc__ or "", 20)
+    with tempfile.TemporaryDirectory(prefix="bench_task_") as tmp:
+        ws = make_course_workspace(Path(tmp))
+        desc = load_description(ws.xacro, package_dirs=[ws.src],
+                                moveit_config=ws.moveit_pkg)
+        planner = MotionPlanner(desc)
+        plan_task(planner, task_from_mapping(pick_and_place()))  # the caches, unmeasured
+        times: list[float] = []
+        durations: list[float] = []
+        failed: list[dict[str, Any]] = []
+        for i, body in enumerate(variants(n)):
+            t0 = time.perf_counter()
+            try:
+                r = plan_task(planner, task_from_mapping(body))
+            except TaskStepFailed as e:
+                failed.append({"variant": i, "step": e.index, "code": str(e.code)})
+                print(f"variant {i:2d}: step {e.index} failed: {e.message}")
+                continue
+            dt = time.perf_counter() - t0
+            times.append(dt)
+            durations.append(r.duration)
+            print(f"variant {i:2d}: planned in {dt * 1e3:7.1f} ms, task {r.duration:.2f} s, "
+                  f"{len(r.steps)} steps")
+        med = statistics.median(times) if times else None
+        if med is not None:
+            print(f"median planning time {med * 1e3:.1f} ms over {len(times)} variants")
+        emit("task", {"variants": n, "planned": len(times), "failed": failed,
+                      "median_planning_s": med, "max_planning_s": max(times, default=None),
                       "median_task_duration_s": statistics.median(durations)
-                      if durations else None}))
-    return 0 if not failed else 1
+                      if durations else None})
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    main()

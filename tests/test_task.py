@@ -10,7 +10,6 @@ import numpy as np
 import orjson
 import pytest
 
-from bench.task import pick_and_place
 from description import load_description
 from description.moveit_config import find_task, read_tasks
 from planner.errors import InvalidRequest
@@ -18,6 +17,7 @@ from planner.tasks import TaskStepFailed, plan_task, task_from_mapping
 from service import wire
 
 from .conftest import start_server
+from .helpers.pick_place import pick_and_place
 
 COURSE_GOALS = {0: ((0.0, 0.0, 0.0), -0.7), 1: ((-1.14, -0.6, -0.07), 0.0),
                 2: ((-1.57, 0.0, -0.9), 0.0)}
@@ -134,7 +134,7 @@ def _task_query(endpoint: str, body: dict[str, Any], timeout: float = 300.0
 
 @pytest.mark.slow
 def test_pick_and_place_is_planned_as_one_task_and_run_on_the_twin(course_service, course_ws):
-    from bench.task import BIN_INNER, BIN_XY, GAP, TABLE_TOP
+    from .helpers.pick_place import BIN_INNER, BIN_XY, GAP, TABLE_TOP
     body = {"task": pick_and_place(), "execute": True}
     replies = _task_query(course_service.endpoint, body)
     assert replies and "error" not in replies[0], replies[0]

@@ -8,12 +8,13 @@ import socket
 import numpy as np
 import pytest
 
-from bench.task import pick_and_place
 from clients.viewer.task_view import TaskPlayback
 from description import load_description
 from planner.kinematics.chain import Kinematics
 from planner.tasks import plan_task, task_from_mapping
 from service.task_service import planned_body
+
+from .helpers.pick_place import pick_and_place
 
 
 @pytest.fixture(scope="module")
