@@ -102,12 +102,7 @@ class PlannerClient:
         Raises:
             ServiceError subclasses for error replies; ServiceUnavailable for none.
         """
-        if isinstance(body, Mapping):
-            payload: bytes | None = json.dumps(body, allow_nan=False).encode()
-        elif isinstance(body, str):
-            payload = body.encode()
-        else:
-            payload = body
+        payload = encode_body(body)
         wait = float(timeout) if timeout is not None else \
             self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
         if instance is not None:
@@ -159,8 +154,13 @@ class PlannerClient:
             details={"key": key, "connected": False})
 
     def _get(self, key: str, payload: bytes | None, wait: float) -> list[zenoh.Reply]:
-        return list(self.session.get(key, payload=payload, timeout=wait,
-                                     encoding="application/json" if payload else None))
+        """The first reply to a get on ``key`` (none: an empty list). The first is the
+        answer: taken as it arrives, not once the query is finalised (a wake later)."""
+        replies = self.session.get(key, payload=payload, timeout=wait,
+                                   encoding="application/json" if payload else None)
+        for reply in replies:
+            return [reply]
+        return []
 
     def plan(self, request: Mapping[str, Any] | None = None, *,
              instance: str | None = None, **fields: Any) -> PlanReply:
@@ -259,6 +259,32 @@ class PlannerClient:
 
     def schema(self) -> dict[str, Any]:
         return self.request("schema")
+
+
+def encode_body(body: Mapping[str, Any] | bytes | str | None) -> bytes | None:
+    """A request's payload: a mapping as strict JSON (NaN refused: ValueError), bytes/str
+    as they are.
+
+    orjson first (~10x :mod:`json`); it writes NaN and infinities as ``null``, so a payload
+    holding ``null`` anywhere, or anything orjson refuses (an int over 64 bits, ...), is
+    encoded again by :func:`json.dumps`, which refuses them as it always has.
+    """
+    if isinstance(body, Mapping):
+        try:
+            out = orjson.dumps(body, option=_ORJSON_REQUEST)
+        except TypeError:  # orjson.JSONEncodeError is one
+            out = b"null"
+        if b"null" not in out:
+            return out
+        return json.dumps(body, allow_nan=False).encode()
+    if isinstance(body, str):
+        return body.encode()
+    return body
+
+
+#: keys as :mod:`json` takes them (ints, floats, bools, None); a numpy scalar, which
+#: :mod:`json` writes as the float it subclasses, goes to :mod:`json`
+_ORJSON_REQUEST = orjson.OPT_NON_STR_KEYS
 
 
 def _planning_time(req: object) -> float:

@@ -12,8 +12,10 @@ leaves open (the verification's other figures) stays in :attr:`PlanReply.raw`.
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import chain
 from typing import TYPE_CHECKING, Any, Literal
 
 import jsonschema_rs
@@ -61,6 +63,34 @@ def _rows(reply: Reply, rows: Sequence[Sequence[float]], width: int, where: str,
             at = f"{where}[{i}]" + (f".{key}" if key else "")
             raise MalformedReply(reply, at, f"holds {len(row)} values for {width} joints")
     return np.array(values, float).reshape(len(values), width)
+
+
+#: the sample arrays of a plan reply's points, in PlanReply's order
+_SAMPLE_KEYS = ("positions", "velocities", "accelerations", "effort")
+_sample_rows = operator.itemgetter(*_SAMPLE_KEYS)
+_sample_time = operator.itemgetter("time_from_start")
+
+
+def _samples(points: Sequence[Any], width: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The times (m,) and the sample arrays (m, width) in :data:`_SAMPLE_KEYS` order of
+    schema-valid ``points``: in one pass, each value read once (not an array per key from
+    nested lists: ~2x faster).
+
+    Raises:
+        MalformedReply: a row that does not hold ``width`` values, one per joint (the
+            first one, key by key, as :func:`_rows` names it).
+    """
+    m = len(points)
+    rows = list(chain.from_iterable(map(_sample_rows, points)))
+    lengths = set(map(len, rows))
+    if lengths and lengths != {width}:
+        for key in _SAMPLE_KEYS:  # raises for the row at fault
+            _rows("plan", points, width, "trajectory.points", key)
+    flat = np.fromiter(chain.from_iterable(rows), float, len(rows) * width)
+    times = np.fromiter(map(_sample_time, points), float, m)
+    q, qd, qdd, tau = flat.reshape(m, len(_SAMPLE_KEYS), width).transpose(1, 0, 2).copy()
+    return times, q, qd, qdd, tau
 
 
 def _number(v: float | None) -> float | None:
@@ -131,11 +161,10 @@ class PlanReply:
         """Raises: MalformedReply naming the first field that breaks the contract."""
         b = _validated("plan", body)
         names, points = b["trajectory"]["joint_names"], b["trajectory"]["points"]
-        n, where = len(names), "trajectory.points"
+        n = len(names)
+        times, q, qd, qdd, tau = _samples(points, n)
         v = b["verification"]
-        return cls(tuple(names), np.array([p["time_from_start"] for p in points], float),
-                   *(_rows("plan", points, n, where, k)
-                     for k in ("positions", "velocities", "accelerations", "effort")),
+        return cls(tuple(names), times, q, qd, qdd, tau,
                    float(b["duration"]), _rows("plan", b["path"], n, "path"),
                    {k: float(t) for k, t in b["timing"].items()},
                    Verification(v["ok"], v["certified"], v["collision_free"],

@@ -171,7 +171,13 @@ class Handlers:
     def plan(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
              ) -> dict[str, Any]:
         """A v1 plan request (validated by the schema) -> the v1 response body."""
-        from .plan_io import plan_request, plan_response
-        req = plan_request(self.description, data, scene=scene)
-        return {**plan_response(self._motion_planner().solve(req)),
+        from .plan_io import plan_response
+        return {**plan_response(self.solve(data, scene=scene)),
                 "scene_revision": scene.revision if scene is not None else 0}
+
+    def solve(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None) -> Any:
+        """A v1 plan request (validated) against ``scene`` -> the planner's MotionResult,
+        which :func:`service.plan_io.plan_response` (or, encoded at once, ``plan_reply``)
+        answers."""
+        from .plan_io import plan_request
+        return self._motion_planner().solve(plan_request(self.description, data, scene=scene))

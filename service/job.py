@@ -41,6 +41,8 @@ class Job:
     # times handed back after a worker died before taking it (at most once per worker:
     # all of them may have been killed while idle, their reports not yet in)
     redispatched: int = 0
+    #: the hop's stamps by stage when tracing (:mod:`service.hoptrace`), else None
+    trace: dict[str, float] | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def __post_init__(self) -> None:

@@ -90,10 +90,12 @@ class Deadline:
 
 @dataclass(frozen=True)
 class Done:
-    """The job's outcome."""
+    """The job's outcome; ``trace``: the worker's stamps when tracing the hop
+    (:data:`service.hoptrace.WORKER_STAMPS`), else empty."""
 
     job_id: str
     outcome: Outcome
+    trace: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

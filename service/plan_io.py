@@ -10,6 +10,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
+import orjson
 
 from description import Description
 from planner.errors import PlanningError
@@ -96,6 +97,64 @@ def plan_response(result: Any) -> dict[str, Any]:
         InvalidRequest: more than :data:`service.caps.MAX_SAMPLES` samples (field
             ``sample_rate``), before any of the reply is built.
     """
+    traj = _checked(result)
+    # from the sample arrays (m, dof): much faster than per-point objects
+    columns = zip(traj.positions.tolist(), traj.velocities.tolist(),
+                  traj.accelerations.tolist(), traj.efforts.tolist(), traj.times.tolist())
+    points = [{"positions": q, "velocities": qd, "accelerations": qdd, "effort": tau,
+               "time_from_start": t} for q, qd, qdd, tau, t in columns]
+    body = _body(result, points)
+    body["path"] = np.asarray(result.path, float).tolist()
+    return body  # every number finite: wire.encode(..., finite=True) may take it
+
+
+def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0) -> bytes:
+    """:func:`plan_response`'s body with ``request_id``, encoded: the same JSON (keys,
+    order and numbers; orjson writes a float64 of an array as it writes the float), built
+    from the sample arrays without a Python object per sample (what a worker sends).
+
+    Raises:
+        InvalidRequest: as :func:`plan_response`.
+    """
+    traj = _checked(result)
+    body = _body(result, orjson.Fragment(_points_json(traj)))
+    body["path"] = np.ascontiguousarray(result.path, dtype=np.float64)
+    body["scene_revision"] = scene_revision
+    body["request_id"] = request_id
+    return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)
+
+
+#: what joins the parts of one sample: its row of each array, then its time
+_POINT_KEYS = (b'{"positions":[', b'],"velocities":[', b'],"accelerations":[',
+               b'],"effort":[', b'],"time_from_start":')
+
+
+def _points_json(traj: Any) -> bytes:
+    """``trajectory.points`` as JSON text: each (m, dof) array and the times written by
+    orjson at once, cut into rows, and interleaved with the keys by numpy (no loop in
+    Python over the samples)."""
+    m = len(traj.times)
+    if m == 0:
+        return b"[]"
+    parts = np.empty((m, 11), dtype=object)
+    parts[:, 0:10:2] = _POINT_KEYS
+    parts[:, 10] = b"},"
+    parts[-1, 10] = b"}"
+    for col, a in enumerate((traj.positions, traj.velocities, traj.accelerations,
+                             traj.efforts)):
+        text = orjson.dumps(np.ascontiguousarray(a, dtype=np.float64),
+                            option=orjson.OPT_SERIALIZE_NUMPY)
+        # b"[[r0],[r1],...]": rows hold numbers only, so "],[" is exactly where they meet
+        parts[:, 2 * col + 1] = text[2:-2].split(b"],[")
+    times = orjson.dumps(np.ascontiguousarray(traj.times, dtype=np.float64),
+                         option=orjson.OPT_SERIALIZE_NUMPY)
+    parts[:, 9] = times[1:-1].split(b",")
+    return b"[" + b"".join(parts.ravel().tolist()) + b"]"
+
+
+def _checked(result: Any) -> Any:
+    """``result.trajectory`` once its sample count is within the cap and every array of
+    the reply is finite."""
     traj = result.trajectory
     # the planner refuses before sampling too (max_samples): this guards the reply itself
     check_sample_count(len(traj.times), duration=float(traj.duration),
@@ -106,15 +165,16 @@ def plan_response(result: Any) -> dict[str, Any]:
     for name, a in arrays.items():
         if not np.isfinite(np.asarray(a, float)).all():
             raise PlanningError(f"the planner returned non-finite {name}")
-    # from the sample arrays (m, dof): much faster than per-point objects
-    columns = zip(traj.positions.tolist(), traj.velocities.tolist(),
-                  traj.accelerations.tolist(), traj.efforts.tolist(), traj.times.tolist())
-    points = [{"positions": q, "velocities": qd, "accelerations": qdd, "effort": tau,
-               "time_from_start": t} for q, qd, qdd, tau, t in columns]
+    return traj
+
+
+def _body(result: Any, points: Any) -> dict[str, Any]:
+    """The response's fields in their order, ``path`` still to fill."""
+    traj = result.trajectory
     body = {
         "trajectory": {"joint_names": list(traj.joint_names), "points": points},
         "duration": float(traj.duration),
-        "path": np.asarray(result.path, float).tolist(),
+        "path": None,
         "timing": {str(k): float(v) for k, v in dict(result.timing).items()},
         "verification": result.verification.to_dict(),
         "planner": str(result.planner),

@@ -22,7 +22,7 @@ import zenoh
 from planner.codes import Code
 from planner.errors import PlanningError, ShuttingDown
 
-from . import wire
+from . import hoptrace, wire
 from .bodies import description_body
 from .job import SHUTTING_DOWN, Job
 from .keyguard import addressed_exactly
@@ -225,6 +225,7 @@ class PlannerService:
         return on_query
 
     def _on_query(self, kind: str, key: str, query: zenoh.Query) -> None:
+        t_in = hoptrace.now() if hoptrace.ON else 0.0
         if kind in self._static:
             query.reply(key, self._static[kind], encoding=JSON)
             return
@@ -249,16 +250,26 @@ class PlannerService:
         # thread: Zenoh calls every queryable's callback on one thread, so a request
         # slow to validate would hold every other; a worker is held only to its deadline.
         raw = zb.to_bytes() if zb is not None else b""
+        trace = {"callback": t_in} if hoptrace.ON else None
 
         def respond(outcome: Outcome, query: zenoh.Query = query) -> None:
             if isinstance(outcome, Success):  # the worker encoded it, request_id included
                 query.reply(key, outcome.body, encoding=JSON)
             else:
                 _reply_error(query, outcome)
+            if trace is not None:
+                trace["replied"] = hoptrace.now()
             query.drop()  # the reply is final: let the querier's get finish now
+            if trace is not None:
+                trace["final"] = hoptrace.now()
+                hoptrace.write(request_id, kind, trace)
 
-        pool.submit(Job(kind, raw, request_id, time.monotonic() + self.options.timeout,
-                        respond, scene=self._scene_now()))
+        job = Job(kind, raw, request_id, time.monotonic() + self.options.timeout, respond,
+                  scene=self._scene_now())
+        if trace is not None:
+            job.trace = trace
+            trace["queued"] = hoptrace.now()
+        pool.submit(job)
 
     def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
                      ) -> None:

@@ -16,6 +16,7 @@ from typing import Any, Protocol
 
 from planner.codes import Code
 
+from . import hoptrace
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
 from .messages import Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
 from .messages import Stop as StopMsg
@@ -163,6 +164,7 @@ class Slot:
         self.index, self._workers, self._queue = index, workers, queue
         self.name = f"worker {index}"
         self.worker: WorkerProcess | None = None
+        self._rss_due = 0.0  # when the busy worker's memory is read next [monotonic s]
 
     def live_pid(self) -> int | None:
         """The pid of this slot's worker while it runs (call with the pool's lock held)."""
@@ -212,9 +214,15 @@ class Slot:
         q.set_busy(self, job)
         t0 = time.monotonic()
         taken, outcome, stop = False, None, None
+        self._rss_due = t0  # a first look as it starts (a worker already over the cap)
+        trace = job.trace
+        if trace is not None:
+            trace["slot"] = t0
         try:
             w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline,
                                 job.scene))
+            if trace is not None:
+                trace["sent"] = hoptrace.now()
             while outcome is None and (stop := self._why_stop(job, w)) is None:
                 if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
                     continue
@@ -227,6 +235,9 @@ class Slot:
                     job.deadline = msg.deadline
                 elif isinstance(msg, Done):
                     outcome = msg.outcome
+                    if trace is not None:
+                        trace["done"] = hoptrace.now()
+                        trace.update(zip(hoptrace.WORKER_STAMPS, msg.trace))
         except OSError:
             pass  # the worker died: neither an outcome nor a stop, handled below
         finally:
@@ -274,6 +285,10 @@ class Slot:
             return "shutdown"
         if now >= job.deadline:
             return "deadline"
-        if q.memory_cap is not None and rss_bytes(w.pid) > q.memory_cap:
-            return "memory"
+        if q.memory_cap is not None and now >= self._rss_due:
+            # read every _POLL, not on each message the worker sends (a file read of
+            # /proc on the pool's side while the worker starts on a request)
+            self._rss_due = now + _POLL
+            if rss_bytes(w.pid) > q.memory_cap:
+                return "memory"
         return None

@@ -19,7 +19,7 @@ from description import load_description
 from planner.codes import Code
 from planner.errors import PlanningError
 
-from . import wire
+from . import hoptrace, wire
 from .disk_cache import DiskCache
 from .handlers import Handlers
 from .messages import Deadline, Done, Failure, JobMsg, Success, Taken, receive
@@ -81,24 +81,46 @@ def serve_jobs(conn: Connection, handlers: Handlers) -> None:
     while (job := receive(conn)) is not None:
         if not isinstance(job, JobMsg):
             raise TypeError(f"a worker takes JobMsg, not {type(job).__name__}")
+        stamps: list[float] | None = [hoptrace.now()] if hoptrace.ON else None
         conn.send(Taken(job.job_id))
-        outcome, last = _answer(conn, job, handlers)
-        conn.send(Done(job.job_id, outcome))
+        outcome, last = _answer(conn, job, handlers, stamps)
+        conn.send(Done(job.job_id, outcome, tuple(stamps or ())))
         if last:
             return
 
 
-def _answer(conn: Connection, job: JobMsg, handlers: Handlers) -> tuple[Success | Failure,
-                                                                         bool]:
-    """The job's outcome, and whether this worker must end after sending it."""
+def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
+            stamps: list[float] | None = None) -> tuple[Success | Failure, bool]:
+    """The job's outcome, and whether this worker must end after sending it (``stamps``:
+    the hop trace's, appended to when tracing)."""
     try:
         data = wire.decode(job.kind, job.payload) \
             if isinstance(job.payload, (bytes, str)) else job.payload
-        conn.send(Deadline(job.job_id, job_deadline(job.kind, data, job.base_deadline)))
-        body = handlers.handle(job.kind, data, scene=job.scene)
+        if stamps is not None:
+            stamps.append(hoptrace.now())
+        deadline = job_deadline(job.kind, data, job.base_deadline)
+        if deadline != job_deadline(job.kind, {}, job.base_deadline):
+            # the pool's provisional deadline is another: say it (one message, and one
+            # wake of the pool's thread, fewer for a request at the default)
+            conn.send(Deadline(job.job_id, deadline))
         # encoded here, in parallel across workers, not in the serving process
-        return Success(wire.encode({**body, "request_id": job.job_id},
-                                   finite=job.kind == "plan")), False
+        if job.kind == "plan":
+            # from the sample arrays to bytes, no Python object per sample (imported here:
+            # the serving process imports this module, and never the planner)
+            from .plan_io import plan_reply
+            result = handlers.solve(data, scene=job.scene)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+            out = Success(plan_reply(result, job.job_id, scene_revision=0 if job.scene is None
+                                                 else job.scene.revision))
+        else:
+            body = handlers.handle(job.kind, data, scene=job.scene)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+            out = Success(wire.encode({**body, "request_id": job.job_id}))
+        if stamps is not None:
+            stamps.append(hoptrace.now())
+        return out, False
     except PlanningError as e:
         return Failure.of(e), False
     except MemoryError:

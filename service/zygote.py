@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import gc
 import itertools
 import logging
 import os
@@ -80,6 +81,11 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     except Exception as e:  # noqa: BLE001 -- reported to the pool, which refuses to start
         conn.send(StartFailed(f"{type(e).__name__}: {e}"))
         return
+    # What the model holds lives as long as every worker: out of the collector's sight
+    # (a full collection in a worker would walk it all, on a request's time, and write
+    # to every page of it that the forks share copy-on-write)
+    gc.collect()
+    gc.freeze()
     wake_r, wake_w = os.pipe()
     os.set_blocking(wake_w, False)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # the wakeup fd carries it

@@ -9,13 +9,14 @@ import subprocess
 import sys
 import threading
 
+import numpy as np
 import pytest
 import zenoh
 
 from clients import errors
 from clients.argtypes import UsageError, joint_map, joint_values, obstacle
 from clients.cli import build_parser, main
-from clients.client import PlannerClient
+from clients.client import PlannerClient, encode_body
 from clients.replies import PlanReply
 from service.zconfig import zenoh_config
 
@@ -275,3 +276,21 @@ def test_spread_picks_by_reported_load_then_own_in_flight_then_in_turn(fake_inst
                 assert {c.balancer.pick() for _ in range(4)} == {"a", "b"}
         assert c.balancer.pick(exclude=("a", "b")) == "c"
         assert c.balancer.pick(exclude=("a", "b", "c")) is None
+
+
+def test_request_payloads_are_strict_json_whichever_encoder_writes_them():
+    """orjson writes them; what it would get wrong (NaN as null) or refuses (numpy
+    scalars, ints over 64 bits) goes to json, which refuses non-finite numbers."""
+    body = {"goal": {"joints": {"joint_1": 0.5}}, 7: [1, 2.25, True], "s": "é"}
+    fast = encode_body(body)
+    assert b" " not in fast  # orjson's compact form: it took this one
+    assert json.loads(fast) == json.loads(json.dumps(body))
+    for odd in ({"x": None}, {"x": np.float64(0.25)}, {"x": 2**70}, {None: 1}):
+        assert json.loads(encode_body(odd)) == json.loads(json.dumps(odd))
+    for bad in (float("nan"), float("inf"), -float("inf"), np.float64("nan")):
+        with pytest.raises(ValueError, match="not JSON compliant"):
+            encode_body({"joints": {"joint_1": bad}})
+    with pytest.raises(TypeError):
+        encode_body({"x": {1, 2}})
+    assert encode_body(b"{}") == b"{}" and encode_body("{}") == b"{}"
+    assert encode_body(None) is None

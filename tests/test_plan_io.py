@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import pytest
 
-from planner.errors import InvalidRequest
+from planner.errors import InvalidRequest, PlanningError
 from planner.timing.trajectory import check_sample_count
 from service import caps, wire
-from service.plan_io import plan_request, plan_response
+from service.plan_io import plan_reply, plan_request, plan_response
 
 #: the cap plan_response's guard on its reply passes
 CAP = {"limit": caps.MAX_SAMPLES, "cap": "MAX_SAMPLES"}
@@ -67,3 +68,41 @@ def test_an_integral_float_seed_is_an_int(planner):
     d, _ = planner
     req = plan_request(d, wire.decode("plan", b'{"goal": {"named": "home"}, "seed": 7.0}'))
     assert req.seed == 7 and isinstance(req.seed, int)
+
+
+def _result(planner, rate: float = 100.0):
+    d, mp = planner
+    return mp.solve(plan_request(d, wire.decode("plan", json.dumps(
+        {"start": {"joint_1": -1.2, "joint_2": 0.5}, "goal": {"named": "reach_left"},
+         "seed": 3, "sample_rate": rate}))))
+
+
+def test_the_encoded_reply_is_the_dict_reply_byte_for_byte(planner):
+    """plan_reply (what a worker sends, built from the sample arrays) writes exactly what
+    encoding plan_response's dict writes: same keys, order and numbers."""
+    for rate in (100.0, 7.0):
+        result = _result(planner, rate)
+        assert len(result.trajectory.times) > 2  # several points, so rows are cut apart
+        encoded = plan_reply(result, "r-1")
+        assert encoded == wire.encode(
+            {**plan_response(result), "scene_revision": 0, "request_id": "r-1"}, finite=True)
+        body = json.loads(encoded)
+        wire.validator("plan_response").validate(body)
+        assert body["trajectory"]["points"][-1]["positions"] == \
+            result.trajectory.positions[-1].tolist()
+
+
+def test_the_encoded_reply_of_one_sample_and_a_non_finite_one(planner):
+    result = _result(planner)
+    traj = result.trajectory
+    one = replace(result, trajectory=replace(
+        traj, times=traj.times[:1], positions=traj.positions[:1],
+        velocities=traj.velocities[:1], accelerations=traj.accelerations[:1],
+        efforts=traj.efforts[:1]))
+    assert plan_reply(one, "r") == wire.encode(
+        {**plan_response(one), "scene_revision": 0, "request_id": "r"}, finite=True)
+    assert len(json.loads(plan_reply(one, "r"))["trajectory"]["points"]) == 1
+    bad = traj.velocities.copy()
+    bad[1, 0] = float("nan")
+    with pytest.raises(PlanningError, match="non-finite velocities"):
+        plan_reply(replace(result, trajectory=replace(traj, velocities=bad)), "r")

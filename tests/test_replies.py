@@ -183,3 +183,21 @@ def test_replies_through_a_real_service_validate_and_parse(client):
         PARSERS[kind].parse(body)
     res = client.plan(REQUESTS["plan"])
     assert isinstance(res, PlanReply) and np.all(np.diff(res.times) > 0)
+
+
+def test_plan_samples_land_in_their_own_arrays(replies):
+    """Each array holds its own key's rows, in order, C-contiguous; and a reply of no
+    samples parses to empty arrays of the joints' width."""
+    body = replies["plan"]
+    pts = body["trajectory"]["points"]
+    plan = PlanReply.parse(body)
+    for attr, key in (("positions", "positions"), ("velocities", "velocities"),
+                      ("accelerations", "accelerations"), ("efforts", "effort")):
+        a = getattr(plan, attr)
+        assert a.tolist() == [p[key] for p in pts], attr
+        assert a.flags.c_contiguous and a.dtype == np.float64
+    assert len({plan.positions[1, 0], plan.velocities[1, 0], plan.accelerations[1, 0]}) == 3
+    empty = copy.deepcopy(body)
+    empty["trajectory"]["points"] = []
+    parsed = PlanReply.parse(empty)
+    assert parsed.positions.shape == (0, len(plan.joint_names)) and parsed.times.shape == (0,)

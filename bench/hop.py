@@ -1,0 +1,217 @@
+"""The service hop: where a plan request's time goes outside the planner, piece by piece.
+
+Starts a real ``arduinobot serve`` (127.0.0.1 on a free port, multicast scouting off) with
+the hop probe on (:mod:`service.hoptrace`: the service stamps each stage of every work
+request on CLOCK_MONOTONIC, the clock of every process on this host) and sends the bench
+scenes' seeded problems (bench/_lib/scenes.py, as ``./dev bench peer`` does) through the
+Python client's own steps, stamping the client's side too. Per request, in order:
+
+- ``client_encode``: the request to JSON (:func:`clients.client.encode_body`);
+- ``zenoh_in``: the get until the queryable's callback runs;
+- ``callback``: the callback (checks, the job queued); ``to_slot``: until a slot thread
+  has it; ``pipe``: until the worker has read it; ``decode``: the worker's decode and
+  validation;
+- ``handler_outside_total``: the handler's time beyond the reply's ``timing.total``
+  (building the planner's request); ``encode``: the reply built from the sample arrays
+  and encoded (:func:`service.plan_io.plan_reply`; before it, the reply's dict was built
+  in the handler: compare the two pieces' sum);
+- ``back_to_slot``: until the slot thread has the outcome; ``reply``: until
+  ``query.reply`` returned; ``final``: the query finalised;
+- ``zenoh_out``: from the reply until the client's get returned (reply and finalisation
+  on the wire);
+- ``client_decode``, ``client_parse``: the reply's JSON, then the typed, checked
+  :class:`~clients.replies.PlanReply`;
+- ``hop``: end to end (encode to typed reply) minus the reply's ``timing.total``.
+
+Also the floor: a bare Zenoh get/reply on loopback (two sessions in this process, a
+queryable replying with a plan reply's bytes), and the reply's size.
+
+Usage: ./dev bench hop [--n 40] [--model course|shipped] [--scene self] [--workers 2]
+Prints the split (median and p95 per piece, in ms), then one JSON line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import orjson
+import zenoh
+
+from bench._lib.peer_models import make_model
+from bench._lib.report import emit
+from bench._lib.scenes import SCENES, obstacle_dicts, problems
+from clients.client import PlannerClient, decode_reply, encode_body
+from clients.replies import PlanReply
+from planner.planning.pipeline import MotionPlanner
+from service import hoptrace
+from service.disk_cache import DiskCache
+from service.zconfig import zenoh_config
+from tests.helpers.serve import free_port, start_server
+
+ARM = ("joint_1", "joint_2", "joint_3")
+#: (piece, from stamp, to stamp); client stamps: c_start, c_sent, c_got, c_decoded, c_parsed
+PIECES = (("client_encode", "c_start", "c_sent"), ("zenoh_in", "c_sent", "callback"),
+          ("callback", "callback", "queued"), ("to_slot", "queued", "slot"),
+          ("pipe", "slot", "w_recv"), ("decode", "w_recv", "w_decoded"),
+          ("encode", "w_handled", "w_encoded"), ("back_to_slot", "w_encoded", "done"),
+          ("reply", "done", "replied"), ("final", "replied", "final"),
+          ("zenoh_out", "replied", "c_got"), ("client_decode", "c_got", "c_decoded"),
+          ("client_parse", "c_decoded", "c_parsed"))
+
+
+def stats(xs: list[float]) -> dict[str, float | None]:
+    """Median and p95 of seconds, in ms."""
+    if not xs:
+        return {"median_ms": None, "p95_ms": None}
+    return {"median_ms": round(1e3 * statistics.median(xs), 4),
+            "p95_ms": round(1e3 * float(np.percentile(xs, 95)), 4)}
+
+
+def plan_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: list[dict],
+              seed: int) -> dict[str, Any]:
+    """bench/peer.py's request: start of every joint, an arm goal, scaling 1.0."""
+    return {"start": dict(zip(names, map(float, a))),
+            "goal": {"joints": dict(zip(ARM, map(float, b[:3])))},
+            "obstacles": obstacles, "planning_time": 1.0, "velocity_scaling": 1.0,
+            "acceleration_scaling": 1.0, "seed": seed}
+
+
+def one(c: PlannerClient, body: dict[str, Any]) -> tuple[dict[str, float], PlanReply, int]:
+    """One plan through the client's own steps (:meth:`PlannerClient.plan`), stamped; and
+    the reply's size [bytes]."""
+    st = {"c_start": hoptrace.now()}
+    payload = encode_body(body)
+    key = f"{c.prefix}/plan"
+    st["c_sent"] = hoptrace.now()
+    replies = c._get(key, payload, c.timeout + 1.0)
+    st["c_got"] = hoptrace.now()
+    decoded = decode_reply(replies[0], key, c.timeout)
+    st["c_decoded"] = hoptrace.now()
+    reply = PlanReply.parse(decoded)
+    st["c_parsed"] = hoptrace.now()
+    ok = replies[0].ok
+    return st, reply, 0 if ok is None else len(ok.payload)
+
+
+def zenoh_floor(reply: bytes, repeats: int) -> dict[str, float | None]:
+    """A bare get/reply on loopback with ``reply`` as the answer: Zenoh's own cost."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    srv = zenoh.open(zenoh_config(mode="peer", listen=[endpoint], connect=None))
+    cli = zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[]))
+
+    def on_query(q: zenoh.Query) -> None:
+        q.reply("hop/floor", reply, encoding="application/json")
+        q.drop()
+    qbl = srv.declare_queryable("hop/floor", on_query, complete=True)
+    try:
+        times = []
+        for i in range(repeats + 20):
+            t = time.perf_counter()
+            got = list(cli.get("hop/floor", payload=b'{"x":1}', timeout=5.0))
+            if i >= 20 and got and got[0].ok is not None:
+                times.append(time.perf_counter() - t)
+        return stats(times)
+    finally:
+        qbl.undeclare()
+        cli.close()
+        srv.close()
+
+
+def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
+    model = make_model(args.model, folder / args.model)
+    cache = folder / "cache"
+    mp = MotionPlanner(model.description, cache=DiskCache(cache))
+    names = mp.joint_names
+    obs = obstacle_dicts(list(SCENES[args.scene]))
+    probs = problems(mp.world(tuple(SCENES[args.scene])), args.n,
+                     np.random.default_rng(args.seed))
+    trace = folder / "hop.jsonl"
+    srv = start_server(["--workers", str(args.workers), *model.serve_args,
+                        "--cache-dir", str(cache)], timeout=600,
+                       env={**os.environ, hoptrace.ENV: str(trace)})
+    rows: list[tuple[dict[str, float], PlanReply, int]] = []
+    try:
+        with PlannerClient(srv.endpoint, timeout=120) as c:
+            for k, (a, b, _) in enumerate(probs[:args.workers * 2]):  # warm: not counted
+                one(c, plan_body(names, a, b, obs, 10_000 + k))
+            for i, (a, b, _) in enumerate(probs):
+                rows.append(one(c, plan_body(names, a, b, obs, i)))
+    finally:
+        srv.stop()
+    served = {}
+    for line in trace.read_text().splitlines():
+        rec = orjson.loads(line)
+        served[rec["request_id"]] = rec["stamps"]
+    pieces: dict[str, list[float]] = {p: [] for p, _, _ in PIECES}
+    outside, hop, totals = [], [], []
+    for st, reply, _ in rows:
+        s = {**st, **served[reply.request_id]}
+        for p, a, b in PIECES:
+            pieces[p].append(s[b] - s[a])
+        total = reply.timing["total"]
+        outside.append(s["w_handled"] - s["w_decoded"] - total)
+        hop.append(s["c_parsed"] - s["c_start"] - total)
+        totals.append(total)
+    split = {p: stats(v) for p, v in pieces.items()}
+    split["handler_outside_total"] = stats(outside)
+    big = max(rows, key=lambda r: r[2])[1]
+    return {"model": args.model, "scene": args.scene, "problems": len(rows),
+            "workers": args.workers, "hop": stats(hop), "total": stats(totals),
+            "split": split, "reply_bytes_median": statistics.median(n for _, _, n in rows),
+            "points_median": statistics.median(len(r.times) for _, r, _ in rows),
+            "zenoh_floor": zenoh_floor(orjson.dumps(dict(big.raw)), args.floor_repeats),
+            "load_average": round(os.getloadavg()[0], 2)}
+
+
+def report(res: dict[str, Any]) -> None:
+    print(f"{res['model']} / {res['scene']}: {res['problems']} plans, "
+          f"{res['points_median']:.0f} samples and {res['reply_bytes_median']:.0f} reply bytes "
+          f"(medians), load average {res['load_average']}")
+    order = ["client_encode", "zenoh_in", "callback", "to_slot", "pipe", "decode",
+             "handler_outside_total", "encode", "back_to_slot", "reply", "final",
+             "zenoh_out", "client_decode", "client_parse"]
+    for p in order:
+        s = res["split"][p]
+        print(f"  {p:22s} median {s['median_ms']:7.3f} ms   p95 {s['p95_ms']:7.3f} ms")
+    h, f = res["hop"], res["zenoh_floor"]
+    print(f"  hop (end to end - timing.total): median {h['median_ms']:.3f} ms, p95 "
+          f"{h['p95_ms']:.3f} ms (target: median <= 1 ms)")
+    print(f"  bare Zenoh get/reply of the largest reply: median {f['median_ms']:.3f} ms, "
+          f"p95 {f['p95_ms']:.3f} ms")
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=40, help="problems (default 40)")
+    ap.add_argument("--model", default="course", choices=("course", "shipped"))
+    ap.add_argument("--scene", default="self", choices=tuple(SCENES))
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--seed", type=int, default=7, help="problem draws (7: bench/peer's)")
+    ap.add_argument("--floor-repeats", type=int, default=200)
+    ap.add_argument("--keep", metavar="DIR",
+                    help="generate the model and its cache here and keep them (faster reruns)")
+    args = ap.parse_args(argv)
+    from planner.planning.paths import set_ompl_log_level
+    set_ompl_log_level("none")
+    folder = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench-hop-"))
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "hop.jsonl").unlink(missing_ok=True)
+    try:
+        res = run(args, folder)
+    finally:
+        if not args.keep:
+            shutil.rmtree(folder, ignore_errors=True)
+    report(res)
+    emit("hop", res)
+
+
+if __name__ == "__main__":
+    main()
