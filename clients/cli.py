@@ -11,14 +11,24 @@ import sys
 from collections.abc import Iterable, Sequence
 from typing import Any, NoReturn, TypeVar, overload
 
-from . import cmd_execute, cmd_model, cmd_plan, cmd_scene, cmd_serve, cmd_srdf, cmd_state, cmd_view
+from . import (
+    cmd_execute,
+    cmd_model,
+    cmd_plan,
+    cmd_scene,
+    cmd_serve,
+    cmd_srdf,
+    cmd_state,
+    cmd_task,
+    cmd_view,
+)
 from .common import run_guarded
 
 # Commands that run OMPL in this process (the second set with --local only), whose own log
 # follows -v (quiet by default); a remote plan must not import OMPL (~1 s).
-_OMPL_ALWAYS, _OMPL_LOCAL = {"serve", "srdf", "view"}, {"plan", "ik", "execute"}
+_OMPL_ALWAYS, _OMPL_LOCAL = {"serve", "srdf", "view", "task"}, {"plan", "ik", "execute"}
 _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_execute,
-             cmd_scene]
+             cmd_scene, cmd_task]
 
 #: what a value that starts with '-' but is no option looks like: a number, or a list of
 #: them ('-1.14,-0.6,-0.07', '-.5'). The pattern of our Python's argparse (3.11) is one

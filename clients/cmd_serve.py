@@ -77,6 +77,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="where to keep what is derived from the robot between starts, keyed "
                    "by content (default: $ARDUINOBOT_CACHE, else $XDG_CACHE_HOME/arduinobot, "
                    "else ~/.cache/arduinobot)")
+    p.add_argument("--tasks", metavar="FILE", help="the named tasks of <prefix>/task "
+                   "(default: the MoveIt config's tasks.yaml)")
     p.add_argument("--scene-file", metavar="FILE",
                    help="where this instance keeps the planning scene (arduinobot scene) "
                    "between starts (default: $ARDUINOBOT_STATE, else "
@@ -135,7 +137,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         extensions=(execute_extension(robot_spec(
                             ns, progress=logging.getLogger("service.execution").info),
                             tick_sink=None if ros is None else _joint_states(ros)),),
-                        scene_file=ns.scene_file)
+                        scene_file=ns.scene_file, tasks_file=ns.tasks)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

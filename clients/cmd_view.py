@@ -19,6 +19,7 @@ from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 if TYPE_CHECKING:  # the viewer's modules need the view extra: imported when it runs
     from description import Description
 
+    from .viewer.task_view import TaskPlayback
     from .viewer.trajectory import PlaybackTrajectory
 
 
@@ -51,6 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "{\"obstacles\": [...]}")
     p.add_argument("--trajectory", metavar="FILE.json",
                    help="a trajectory to play, as written by 'arduinobot plan --json'")
+    p.add_argument("--task", metavar="FILE.json",
+                   help="a planned task to play (`arduinobot task ... --report FILE.json`): "
+                   "its steps marked on the scrubber, its scene, what it carries")
     p.add_argument("--plot-png", metavar="PATH",
                    help="write the --trajectory's plots to PATH as PNG and exit")
     src = p.add_mutually_exclusive_group()
@@ -103,19 +107,36 @@ def cmd_view(ns: argparse.Namespace) -> int:
         obstacles = read_obstacles(ns.obstacle, ns.scene)
         traj = PlaybackTrajectory.from_file(ns.trajectory) if ns.trajectory else None
         d = load_from_args(ns)
+        task = None
+        if ns.task:
+            if traj is not None:
+                raise UsageError("give --trajectory or --task, not both")
+            task = _read_task(ns.task, d)
+            traj, obstacles = task.trajectory, (*obstacles, *task.obstacles)
         if ns.plot_png:
             return _write_png(ns, d, traj)
-        return _serve(ns, d, obstacles, traj)
+        return _serve(ns, d, obstacles, traj, task)
     except ViewerUnavailable as e:
         print(f"arduinobot: {e}", file=sys.stderr)
         return EXIT_FAIL
+
+
+def _read_task(path: str, d: Description) -> TaskPlayback:
+    from planner.kinematics.chain import Kinematics
+
+    from .viewer.task_view import TaskPlayback
+    try:
+        body = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise UsageError(f"--task {path}: unreadable ({e})") from None
+    return TaskPlayback.from_reply(body, Kinematics(d.robot))
 
 
 def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory | None) -> int:
     from .viewer.plots import joint_limits, plot_panels, plot_png
 
     if traj is None:
-        raise UsageError("--plot-png needs --trajectory FILE.json")
+        raise UsageError("--plot-png needs --trajectory FILE.json or --task FILE.json")
     panels = plot_panels(traj, joint_limits(d, traj.joint_names))
     Path(ns.plot_png).write_bytes(plot_png(panels, title=str(ns.trajectory)))
     wrote(ns.plot_png, f"plots of {len(traj.times)} samples")
@@ -123,7 +144,7 @@ def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory 
 
 
 def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ...],
-           traj: PlaybackTrajectory | None) -> int:
+           traj: PlaybackTrajectory | None, task: TaskPlayback | None = None) -> int:
     from .viewer.app import RobotViewer
     from .viewer.plan_panel import PlanningPanel
     from .viewer.planning import LocalBackend, RemoteBackend
@@ -135,7 +156,10 @@ def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ..
     viewer = RobotViewer(d, obstacles=obstacles, host=ns.host, port=ns.port)
     playback = PlaybackPanel(viewer)
     PlanningPanel(viewer, playback, backend)
-    if traj is not None:
+    if task is not None:
+        from .viewer.task_view import show_task
+        show_task(viewer, playback, task)
+    elif traj is not None:
         playback.load(traj, source=Path(ns.trajectory).name)
     follower = None
     if ns.follow:

@@ -35,6 +35,7 @@ class ConfigFiles:
             reports before its first command).
         cartesian_limits: MoveIt's ``pilz_cartesian_limits.yaml`` (the tcp's limits in
             straight-line moves, :func:`read_cartesian_limits`).
+        tasks: our ``tasks.yaml`` (named tasks, :mod:`planner.tasks.named`).
         moveit_package: the MoveIt config package folder, when one is used.
         found_by: how the folder was chosen, for humans.
     """
@@ -44,6 +45,7 @@ class ConfigFiles:
     tcp: Path | None = None
     initial_positions: Path | None = None
     cartesian_limits: Path | None = None
+    tasks: Path | None = None
     moveit_package: Path | None = None
     found_by: str = "no configuration found"
 
@@ -52,7 +54,7 @@ class ConfigFiles:
             return None if p is None else str(p)
         return {"srdf": s(self.srdf), "joint_limits": s(self.joint_limits), "tcp": s(self.tcp),
                 "initial_positions": s(self.initial_positions),
-                "cartesian_limits": s(self.cartesian_limits),
+                "cartesian_limits": s(self.cartesian_limits), "tasks": s(self.tasks),
                 "moveit_package": s(self.moveit_package), "found_by": self.found_by}
 
     def lines(self) -> list[str]:
@@ -60,12 +62,15 @@ class ConfigFiles:
         out = [f"config: {self.found_by}"]
         for label, p in (("srdf", self.srdf), ("joint_limits", self.joint_limits),
                          ("tcp", self.tcp), ("initial_positions", self.initial_positions),
-                         ("cartesian_limits", self.cartesian_limits)):
+                         ("cartesian_limits", self.cartesian_limits),
+                         ("tasks", self.tasks)):
             out.append(f"  {label}: {p if p is not None else '(none)'}")
         return out
 
 
 CARTESIAN_LIMITS_FILE = "pilz_cartesian_limits.yaml"
+#: named tasks (ours, not MoveIt's): read by planner.tasks.named
+TASKS_FILE = "tasks.yaml"
 
 
 @dataclass(frozen=True)
@@ -242,6 +247,7 @@ def resolve_config(
         tcp=first("tcp.yaml"),
         initial_positions=first("initial_positions.yaml"),
         cartesian_limits=first(CARTESIAN_LIMITS_FILE),
+        tasks=first(TASKS_FILE),
         moveit_package=pkg, found_by=how)
     for label, override in (("srdf", srdf), ("joint_limits", joint_limits)):
         if override is None:
@@ -253,3 +259,65 @@ def resolve_config(
         files = (replace(files, srdf=p, found_by=found_by) if label == "srdf"
                  else replace(files, joint_limits=p, found_by=found_by))
     return files
+
+
+@dataclass(frozen=True)
+class NamedTask:
+    """One entry of a ``tasks.yaml``: its name, its number (the course's
+    ``task_number``; None without one), a description for humans, and its body (the
+    task's JSON form, :func:`planner.tasks.task_from_mapping` reads it)."""
+
+    name: str
+    number: int | None
+    description: str
+    body: dict[str, object]
+
+
+def read_tasks(path: Path) -> dict[str, NamedTask]:
+    """The named tasks of a ``tasks.yaml``: ``tasks: {NAME: {number, description,
+    steps, ...}}`` (a list of steps alone is a task too), by name, in file order.
+
+    Raises:
+        DescriptionError: unreadable YAML, no ``tasks`` mapping, an entry that is not a
+            mapping or list, a number that is not an integer >= 0 or is used twice.
+    """
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+    except (yaml.YAMLError, OSError, UnicodeDecodeError) as e:
+        raise DescriptionError(f"unreadable: {e}", file=Path(path)) from None
+    block = data.get("tasks") if isinstance(data, dict) else None
+    if not isinstance(block, dict):
+        raise DescriptionError("expected a mapping 'tasks:' of task names to their steps",
+                               file=Path(path))
+    out: dict[str, NamedTask] = {}
+    numbers: dict[int, str] = {}
+    for name, entry in block.items():
+        if isinstance(entry, list):
+            entry = {"steps": entry}
+        if not isinstance(entry, dict):
+            raise DescriptionError(f"tasks.{name}: expected a mapping with steps",
+                                   file=Path(path))
+        body = dict(entry)
+        number = body.pop("number", None)
+        if number is not None and (isinstance(number, bool) or not isinstance(number, int)
+                                   or number < 0):
+            raise DescriptionError(f"tasks.{name}.number must be an integer >= 0, got "
+                                   f"{number!r}", file=Path(path))
+        if number is not None and number in numbers:
+            raise DescriptionError(f"tasks.{name}.number {number} is also "
+                                   f"tasks.{numbers[number]}'s", file=Path(path))
+        if number is not None:
+            numbers[number] = str(name)
+        text = str(body.pop("description", "") or "")
+        out[str(name)] = NamedTask(str(name), number, text, body)
+    return out
+
+
+def find_task(tasks: dict[str, NamedTask], key: str | int) -> NamedTask | None:
+    """The task named ``key``, or numbered ``key`` (an int or a string of digits)."""
+    if isinstance(key, str) and key in tasks:
+        return tasks[key]
+    if isinstance(key, int) or (isinstance(key, str) and key.isdigit()):
+        n = int(key)
+        return next((t for t in tasks.values() if t.number == n), None)
+    return None

@@ -31,6 +31,7 @@ from .messages import Failure, Outcome, Success
 from .pool import WorkerPool
 from .scene_store import SceneSnapshot
 from .scene_sync import SceneService
+from .task_service import task_extension
 from .worker import DescriptionSpec
 from .zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
 
@@ -83,6 +84,8 @@ class ServeOptions:
     extensions: Sequence[Extension] = ()
     #: where this instance keeps the scene (None: service.scene_store.default_scene_file)
     scene_file: str | None = None
+    #: the named tasks of <prefix>/task (None: the MoveIt config's tasks.yaml)
+    tasks_file: str | None = None
 
 
 def _package_version() -> str:
@@ -149,6 +152,10 @@ class PlannerService:
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
             for make in o.extensions:
                 self._extensions.append(make(self.session, p, desc, self._submit_plan))
+            # <prefix>/task: plans tasks itself, executes through <prefix>/execute
+            self._extensions.append(task_extension(tasks_file=o.tasks_file,
+                                                   scene=self._scene_now)(
+                self.session, p, desc, self._submit_plan))
         except Exception:
             self.close()
             raise

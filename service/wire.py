@@ -30,11 +30,11 @@ __all__ = ["MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite",
            "decode", "encode", "field_path", "parse_json", "schema", "validate",
            "validator"]
 
-Kind = Literal["plan", "fk", "ik", "check", "execute"]
+Kind = Literal["plan", "fk", "ik", "check", "execute", "task"]
 SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_response",
                 "ik_request", "ik_response", "check_request", "check_response",
                 "execute_request", "scene_apply_request", "scene_apply_response",
-                "scene_response")
+                "scene_response", "task_request", "task_response")
 #: Requests whose element counts are not capped: an execute request carries a whole
 #: trajectory (thousands of points), bounded by the payload cap and read point by point.
 _UNCOUNTED: frozenset[str] = frozenset({"execute"})

@@ -9,7 +9,8 @@ from __future__ import annotations
 import json
 import threading
 import time
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,17 +34,18 @@ class PlaybackPanel:
         self.viewer = viewer
         self.trajectory: PlaybackTrajectory | None = None
         self.playing = False
+        #: called with every shown time [s] after the robot moved (a task's carried objects)
+        self.on_show: list[Callable[[float], None]] = []
         self._stop = threading.Event()
         gui = viewer.server.gui
-        with gui.add_folder("Playback"):
+        self._folder = gui.add_folder("Playback")
+        with self._folder:
             self._info = gui.add_markdown("No trajectory loaded.")
             self._upload = gui.add_upload_button(
                 "Load trajectory JSON", mime_type="application/json",
                 hint="a file written by `arduinobot plan --json`")
             self._upload.on_upload(self._uploaded)
-            self._scrub = gui.add_slider("time [s]", min=0.0, max=1.0, step=0.01,
-                                         initial_value=0.0, disabled=True)
-            self._scrub.on_update(lambda _e: self._show(float(self._scrub.value)))
+            self._scrub = self._scrubber(1.0, disabled=True)
             self._play = gui.add_button("Play", disabled=True)
             self._play.on_click(lambda _e: self.toggle())
             self._speed = gui.add_dropdown("Speed", _SPEEDS, initial_value="1")
@@ -107,6 +109,32 @@ class PlaybackPanel:
         if traj is None:
             return
         self.viewer.set_joints(dict(zip(traj.joint_names, traj.at(t))))
+        for fn in self.on_show:
+            fn(t)
+
+    def _scrubber(self, top: float, *, disabled: bool = False,
+                  marks: tuple[tuple[float, str], ...] | None = None,
+                  order: float | None = None) -> Any:
+        # Any, as add_slider's own return is to mypy (its decorator): viser's handle types
+        # its value read-only, though assigning it is how a slider moves
+        h = self.viewer.server.gui.add_slider("time [s]", min=0.0, max=top, step=0.01,
+                                              initial_value=0.0, disabled=disabled,
+                                              marks=marks, order=order)
+        h.on_update(lambda _e: self._show(float(h.value)))
+        return h
+
+    def mark(self, marks: Sequence[tuple[float, str]]) -> None:
+        """Mark times on the scrubber (a task's steps, by index), their labels listed.
+        viser sets a slider's marks when it is made: the scrubber is made again, in
+        place."""
+        old = self._scrub
+        with self._folder:
+            self._scrub = self._scrubber(
+                float(old.max), disabled=old.disabled, order=old.order,
+                marks=tuple((float(t), label.split(" ", 1)[0]) for t, label in marks))
+        old.remove()
+        self._info.content += "\n\n" + "\n".join(f"- {t:.2f} s: {label}"
+                                                  for t, label in marks)
 
     def _run(self) -> None:
         last = time.monotonic()

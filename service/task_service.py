@@ -1,0 +1,242 @@
+"""``<prefix>/task``: plan a task as a whole and optionally run it on the service's robot.
+
+A request (``service/schema/task_request.json``) names a task of the service's
+``tasks.yaml`` (``name`` or ``number``) or gives one (``task``). The service plans every
+step in order (:func:`planner.tasks.plan_task`, in this process, one task at a time)
+before anything moves and replies ``{"event": "planned", ...}`` (each step's start time,
+duration, start and end states, what the robot carried, its plan reply); a step that
+fails answers its own error code with ``details.step`` and ``details.error``. With
+``"execute": true`` the whole task, joined into one trajectory, then goes to the
+service's own ``<prefix>/execute``, whose stream (``started``, ``progress``,
+``finished``) is relayed on the same query: ``<prefix>/execute/cancel`` stops it
+smoothly mid-step, like any execution. A task without ``start`` starts, when executed,
+from the robot's state (``<prefix>/robot_state``).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import orjson
+import zenoh
+
+from description import Description
+from description.moveit_config import NamedTask, find_task, read_tasks
+from planner.codes import Code
+from planner.errors import InvalidRequest, PlanningError
+from planner.scene import Obstacle
+
+from . import wire
+from .keyguard import addressed_exactly
+from .scene_store import SceneSnapshot, with_scene
+
+if TYPE_CHECKING:  # the planner (OMPL) loads with the first task, not with `serve`
+    from planner.tasks import Task, TaskResult
+
+_log = logging.getLogger(__name__)
+
+JSON = "application/json"
+#: how long the relayed execute stream may last [s] (progress arrives every 0.1 s)
+STREAM_LIMIT = 24 * 3600.0
+
+
+def _reply_err(query: zenoh.Query, code: str, message: str,
+               details: Mapping[str, Any] | None = None) -> None:
+    query.reply_err(wire.encode({"error": {"code": str(code), "message": message,
+                                           "details": dict(details or {})}}), encoding=JSON)
+
+
+def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = True
+                 ) -> dict[str, Any]:
+    """The ``planned`` reply of a task (see ``task_response.json``)."""
+    from .plan_io import plan_response
+    steps = []
+    for s, t0 in zip(result.steps, result.boundaries()):
+        item: dict[str, Any] = {
+            "index": s.index, "kind": s.kind, "label": s.label, "group": s.group,
+            "start_time": t0, "duration": s.duration, "start": dict(s.start),
+            "end": dict(s.end), "carried": list(s.carried)}
+        if s.object is not None:
+            item["object"], item["link"] = s.object, s.link
+        if s.result is not None:
+            item["certified"] = bool(s.result.verification.certified)
+            item["verified"] = bool(s.result.verification.ok)
+            if trajectories:
+                item["plan"] = plan_response(s.result)
+        steps.append(item)
+    return {"event": "planned", "name": name, "duration": result.duration,
+            "planning_time": result.planning_time, "joint_names": list(result.joint_names),
+            "obstacles": [obstacle_json(o) for o in result.start_obstacles],
+            "steps": steps}
+
+
+def obstacle_json(o: Obstacle) -> dict[str, Any]:
+    """An obstacle in the requests' form (plan_request.json's ``obstacles``)."""
+    body: dict[str, Any] = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz),
+                            "rpy": list(o.rpy)}
+    for k in ("size", "radius", "length", "mesh_path"):
+        v = getattr(o, k)
+        if v is not None:
+            body[k] = list(v) if isinstance(v, tuple) else v
+    return body
+
+
+def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str, Any]:
+    """The whole task as one ``{joint_names, points}`` trajectory (execute's form)."""
+    ts, q, qd, qdd = result.samples(sample_rate)
+    points = [{"positions": a, "velocities": b, "accelerations": c, "time_from_start": t}
+              for a, b, c, t in zip(q.tolist(), qd.tolist(), qdd.tolist(), ts.tolist())]
+    return {"joint_names": list(result.joint_names), "points": points}
+
+
+class TaskService:
+    """The ``<prefix>/task`` queryable; plans with its own planner, built on first use."""
+
+    def __init__(self, session: zenoh.Session, prefix: str, description: Description, *,
+                 tasks_file: Path | None = None,
+                 scene: Callable[[], SceneSnapshot | None] | None = None) -> None:
+        self.session, self.prefix, self.description = session, prefix, description
+        self.scene = scene  # the kept scene now: a task starts in it, plus its own obstacles
+        self.tasks_file = tasks_file if tasks_file is not None else description.config.tasks
+        self._planner: Any = None
+        self._lock = threading.Lock()  # one task planned at a time: one planner
+        self._entities: list[zenoh.Queryable] = []
+
+    def start(self) -> None:
+        key = f"{self.prefix}/task"
+
+        def handle(query: zenoh.Query) -> None:
+            try:
+                self._on_task(query)
+            except PlanningError as e:
+                _reply_err(query, e.code, e.message, e.details)
+            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
+                _log.exception("%s: unexpected failure", key)
+                _reply_err(query, Code.INTERNAL, "unexpected failure in the task service")
+            query.drop()
+
+        def on_query(query: zenoh.Query) -> None:
+            if addressed_exactly(key, query):  # a wildcard must not move the arm
+                threading.Thread(target=handle, args=(query,), daemon=True,
+                                 name="task").start()
+        self._entities.append(self.session.declare_queryable(key, on_query, complete=True))
+        _log.info("task: key %s (named tasks: %s)", key, self.tasks_file or "none")
+
+    def close(self) -> None:
+        for e in self._entities:
+            try:
+                e.undeclare()
+            except zenoh.ZError as err:  # the session's end drops it too
+                _log.warning("undeclaring %s failed: %s", e, err)
+        self._entities.clear()
+
+    def named(self) -> dict[str, NamedTask]:
+        """The service's named tasks (read at each request: edit the file, ask again)."""
+        if self.tasks_file is None:
+            return {}
+        from description.errors import DescriptionError
+        try:
+            return read_tasks(self.tasks_file)
+        except DescriptionError as e:
+            raise InvalidRequest(str(e), field="name") from None
+
+    def task(self, body: Mapping[str, Any]) -> Task:
+        """The request's task (given, or named in tasks.yaml)."""
+        from planner.tasks import task_from_mapping
+        if "task" in body:
+            return task_from_mapping(body["task"], where="task")
+        key = body.get("name", body.get("number"))
+        named = self.named()
+        found = find_task(named, key)
+        if found is None:
+            field = "name" if "name" in body else "number"
+            raise InvalidRequest(
+                f"no task {key!r} in {self.tasks_file or 'the service (no tasks.yaml)'} "
+                f"(tasks: {', '.join(f'{t.number}: {t.name}' if t.number is not None else t.name for t in named.values()) or 'none'})",
+                field=field, details={"known": [t.name for t in named.values()]})
+        return task_from_mapping(found.body, where=f"tasks.{found.name}", name=found.name)
+
+    def planner(self) -> Any:
+        if self._planner is None:
+            from planner.planning.pipeline import MotionPlanner
+            self._planner = MotionPlanner(self.description)
+        return self._planner
+
+    def _on_task(self, query: zenoh.Query) -> None:
+        zb = query.payload
+        body = wire.decode("task", zb.to_bytes() if zb is not None else b"")
+        task = self.task(body)
+        if self.scene is not None:
+            obstacles, _ = with_scene(self.scene(), body.get("task", {}), task.obstacles)
+            task = replace(task, obstacles=obstacles)
+        execute = bool(body.get("execute", False))
+        if execute and task.start is None:
+            task = _with_start(task, self._robot_start())
+        from planner.tasks import plan_task
+        with self._lock:
+            result = plan_task(self.planner(), task)
+        key = f"{self.prefix}/task"
+        query.reply(key, wire.encode(planned_body(
+            result, name=task.name, trajectories=bool(body.get("trajectories", True)))),
+            encoding=JSON)
+        if execute:
+            self._execute(query, result, body)
+
+    def _robot_start(self) -> dict[str, float]:
+        for reply in self.session.get(f"{self.prefix}/robot_state", timeout=30.0):
+            if reply.ok is None:
+                raise InvalidRequest("the service's robot did not answer its state: give "
+                                     "the task a start", field="task.start")
+            state = orjson.loads(reply.ok.payload.to_bytes())
+            measured = dict(zip(state["name"], map(float, state["position"])))
+            # the actuated joints only (mimics follow), clipped into their limits as
+            # execute's plan_start does: a servo a hair past its limit is at it
+            actuated = self.description.robot.actuated_joints
+            lim = self.description.robot.position_limits(actuated)
+            return {n: min(max(measured[n], float(lo)), float(hi))
+                    for n, (lo, hi) in zip(actuated, lim)}
+        raise InvalidRequest("this service drives no robot to start the task from: give "
+                             "the task a start", field="task.start")
+
+    def _execute(self, query: zenoh.Query, result: TaskResult, body: Mapping[str, Any]
+                 ) -> None:
+        """Relay ``<prefix>/execute``'s stream for the joined task to ``query``."""
+        req = {"trajectory": task_trajectory(result),
+               "start_tolerance": body.get("start_tolerance", 0.01),
+               "move_to_start": bool(body.get("move_to_start", False))}
+        key = f"{self.prefix}/task"
+        got = False
+        for reply in self.session.get(f"{self.prefix}/execute", payload=wire.encode(req),
+                                      consolidation=zenoh.ConsolidationMode.NONE,
+                                      timeout=STREAM_LIMIT):
+            got = True
+            if reply.ok is not None:
+                query.reply(key, reply.ok.payload.to_bytes(), encoding=JSON)
+            else:
+                query.reply_err(reply.err.payload.to_bytes(), encoding=JSON)
+        if not got:
+            _reply_err(query, Code.ROBOT_ERROR, "the service's <prefix>/execute did not "
+                       "answer (serve --no-robot?)")
+
+
+def _with_start(task: Task, start: Mapping[str, float]) -> Task:
+    return replace(task, start=dict(start))
+
+
+def task_extension(*, tasks_file: str | Path | None = None,
+                   scene: Callable[[], SceneSnapshot | None] | None = None
+                   ) -> Callable[..., TaskService]:
+    """A :class:`service.server.ServeOptions` extension serving ``<prefix>/task``;
+    ``scene()`` gives the kept scene every task starts in."""
+    def make(session: zenoh.Session, prefix: str, description: Description,
+             submit_plan: object) -> TaskService:
+        svc = TaskService(session, prefix, description,
+                          tasks_file=Path(tasks_file) if tasks_file else None, scene=scene)
+        svc.start()
+        return svc
+    return make

@@ -1,0 +1,91 @@
+"""A pick and place on the course-like workspace (tests/helpers/course_workspace.py): a
+table with a box on it, a bin with walls beside it, and the task that moves the box into
+the bin (above, LIN down 5 cm, close, attach, LIN up, across, down, open, detach, up),
+in the task's JSON form (``<prefix>/task``'s ``task``). Shared by tests/test_task*.py and
+bench/task.py."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+TABLE_TOP = 0.35  # [m] the table's top, under the course arm's reach (10x scale model)
+BOX = 0.08  # [m] the box's edge
+ABOVE = 0.61  # [m] the tcp (claw_support's origin) above the box's top before the
+#: descent: the course gripper's fingers reach ~0.55 m below it (the 10x model)
+DROP = 0.05  # [m] each straight-line descent and ascent
+#: [m] the box's bottom above the table: resting on it exactly, the carried box would
+#: touch the table at its first lift (MoveIt allows that contact; we keep a gap)
+GAP = 0.002
+BIN_INNER = 0.2  # [m] the bin's inside, square
+BIN_FLOOR = 0.06  # [m] the bin's floor below the box's bottom at its lowest
+BIN_RIM = 0.02  # [m] the bin's walls above it
+WALL = 0.01  # [m]
+BOX_XY = (0.52, 0.80)  # [m] the box's nominal place on the table
+BIN_XY = (-0.55, 0.78)  # [m] the bin's nominal place
+
+
+def bin_walls(cx: float, cy: float) -> list[dict[str, Any]]:
+    """A bin (a floor and four walls) centred at (cx, cy): the box is lowered into it
+    until its bottom is at the table's height and let go (it drops onto the floor)."""
+    floor = TABLE_TOP - BIN_FLOOR
+    top = TABLE_TOP + BIN_RIM
+    h = top - floor
+    out = [{"id": "bin_floor", "shape": "box", "size": [BIN_INNER + 2 * WALL] * 2 + [WALL],
+            "xyz": [cx, cy, floor - WALL / 2]}]
+    off = BIN_INNER / 2 + WALL / 2
+    for name, dx, dy, sx, sy in (("bin_n", 0, off, BIN_INNER + 2 * WALL, WALL),
+                                 ("bin_s", 0, -off, BIN_INNER + 2 * WALL, WALL),
+                                 ("bin_e", off, 0, WALL, BIN_INNER),
+                                 ("bin_w", -off, 0, WALL, BIN_INNER)):
+        out.append({"id": name, "shape": "box", "size": [sx, sy, h],
+                    "xyz": [cx + dx, cy + dy, floor + h / 2]})
+    return out
+
+
+def pick_and_place(box_xy: tuple[float, float] = BOX_XY,
+                   bin_xy: tuple[float, float] = BIN_XY, *, attach: bool = True,
+                   mass: float = 0.05, seed: int = 1) -> dict[str, Any]:
+    """The pick and place task's JSON form (``<prefix>/task``'s ``task``): a table under
+    the box, a low bin beside it; ``attach`` False leaves out the attach and detach
+    steps (the gripper closes and opens on nothing the planner carries)."""
+    bx, by = box_xy
+    cx, cy = bin_xy
+    box_z = TABLE_TOP + GAP + BOX / 2
+    above_box = [bx, by, TABLE_TOP + BOX + ABOVE]
+    above_bin = [cx, cy, TABLE_TOP + BOX + ABOVE]
+    obstacles = [
+        {"id": "table", "shape": "box", "size": [0.5, 0.5, 0.05],
+         "xyz": [bx, by, TABLE_TOP - 0.025]},
+        {"id": "box", "shape": "box", "size": [BOX, BOX, BOX], "xyz": [bx, by, box_z]},
+        *bin_walls(cx, cy),
+    ]
+    down = {"line": {"offset": [0.0, 0.0, -DROP]}}
+    up = {"line": {"offset": [0.0, 0.0, DROP]}}
+    steps: list[dict[str, Any]] = [
+        {"gripper": "open", "label": "open"},
+        {"move": {"position": above_box}, "label": "above the box"},
+        {**down, "label": "down"},
+        {"gripper": "close", "label": "grip"},
+        *([{"attach": "box", "mass": mass, "label": "pick"}] if attach else []),
+        {**up, "label": "up"},
+        {"move": {"position": above_bin}, "label": "above the bin"},
+        {**down, "label": "down"},
+        {"gripper": "open", "label": "release"},
+        *([{"detach": "box", "label": "place"}] if attach else []),
+        {**up, "label": "up"},
+    ]
+    return {"obstacles": obstacles, "steps": steps, "seed": seed}
+
+
+def variants(n: int, *, seed: int = 7, attach: bool = True) -> list[dict[str, Any]]:
+    """``n`` pick and place tasks, the box and the bin moved up to 4 cm (seeded)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        db, dc = rng.uniform(-0.04, 0.04, 2), rng.uniform(-0.04, 0.04, 2)
+        out.append(pick_and_place((BOX_XY[0] + db[0], BOX_XY[1] + db[1]),
+                                  (BIN_XY[0] + dc[0], BIN_XY[1] + dc[1]),
+                                  attach=attach, seed=i + 1))
+    return out
