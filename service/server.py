@@ -138,7 +138,8 @@ class PlannerService:
             p = o.prefix
             # the kept scene first: caught up with the other instances before any plan
             self.scene = SceneService(self.session, p, self.instance,
-                                      tuple(desc.robot.links), scene_file=o.scene_file)
+                                      tuple(desc.robot.links), scene_file=o.scene_file,
+                                      description=desc)
             self.scene.start()
             for kind in (*WORK_KINDS, *INFO_KINDS):
                 for key, held in ((f"{p}/{kind}", self._shared),
