@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from description import load_description
+from planner.codes import Code
 from planner.errors import InvalidRequest, JointLimitViolation, PlanningError
 from service import wire
 from service.handlers import Handlers
@@ -19,6 +20,7 @@ from service.scene_carry import RobotFrames
 from service.scene_store import SceneBuilder, SceneFile, SceneState, apply, restore
 from service.scene_sync import decode_apply
 
+from .helpers.scene_fuzz import carry_seeds, mutate
 from .test_carried import _link_pose
 
 BOX = {"id": "box", "shape": "box", "size": [0.02, 0.02, 0.05]}
@@ -199,3 +201,33 @@ def test_fk_check_and_plan_carry_the_scene_attachment(desc, builder):
         h.handle("check", wire.decode("check", json.dumps(
             {"joints": state, "obstacles": [{**BOX, "xyz": [1, 1, 1]}]})), scene=s.snapshot)
     assert e.value.details["field"] == "obstacles[0].id"
+
+
+def test_fuzzed_attach_and_detach_are_coded_and_leave_the_scene_as_it_was(desc, builder):
+    import random
+    r = random.Random(28)
+    link, world = _at_tool(desc, {})
+    base = applied(SceneState(), {"add": [{"id": "keep", "shape": "sphere", "radius": 0.01,
+                                           "xyz": world[:3, 3].tolist()}],
+                                  "attach": [{"object": {**BOX, "id": "held",
+                                                         "xyz": world[:3, 3].tolist()},
+                                              "link": link}]}, builder)
+    before = base.to_json()
+    seeds = carry_seeds(link)
+    outcomes: dict[str, int] = {}
+    for _ in range(1500):
+        change = seeds[r.randrange(len(seeds))]
+        for _ in range(r.randrange(0, 3)):
+            change = mutate(r, change)
+        try:
+            new = apply(base, decode_apply(json.dumps(change).encode()), builder)
+        except PlanningError as e:  # every refusal coded
+            assert e.code in (Code.INVALID_REQUEST, Code.SCENE_CONFLICT), e
+            outcomes[e.code] = outcomes.get(e.code, 0) + 1
+        else:
+            wire.validator("scene_response").validate(json.loads(wire.encode(new.to_json())))
+            back = restore(new.to_json(), builder)  # what is kept can be read again
+            assert back.to_json() == new.to_json()
+            outcomes["applied"] = outcomes.get("applied", 0) + 1
+        assert base.to_json() == before
+    assert outcomes.get("applied", 0) > 30 and outcomes[Code.INVALID_REQUEST] > 100, outcomes
