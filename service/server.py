@@ -149,7 +149,10 @@ class PlannerService:
             self._entities.append(
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
             for make in o.extensions:
-                self._extensions.append(make(self.session, p, desc, self._submit_plan))
+                ext = make(self.session, p, desc, self._submit_plan)
+                if hasattr(ext, "scene_source"):  # the twin puts the kept scene in its world
+                    ext.scene_source = self._scene_now
+                self._extensions.append(ext)
         except Exception:
             self.close()
             raise
