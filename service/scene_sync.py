@@ -316,26 +316,37 @@ class SceneService:
         return {**change, "state": {}}, "zero"
 
     def _robot_state(self) -> dict[str, float] | None:
-        """The executing robot's actuated joints, or None if no robot answers."""
+        """The executing robot's actuated joints, or None if no robot serves its state.
+
+        Raises:
+            _Unavailable: a robot serves its state but did not give it (an error, or no
+                answer in :data:`ROBOT_STATE_TIMEOUT`): never guessed as all zeros.
+        """
         robot = self.builder.robot
         if robot is None:
             return None
+        began = time.monotonic()
         try:
             replies = list(self.session.get(f"{self.prefix}/robot_state",
                                             timeout=ROBOT_STATE_TIMEOUT))
         except zenoh.ZError:
-            return None
+            replies = []
+        actuated = set(robot.description.robot.actuated_joints)
+        failed = False
         for r in replies:
             if r.ok is None:
+                failed = failed or not _no_robot(r)
                 continue
             try:
                 body = orjson.loads(r.ok.payload.to_bytes())
-                actuated = set(robot.description.robot.actuated_joints)
                 return {str(n): float(v) for n, v in zip(body["name"], body["position"])
                         if n in actuated}
             except (orjson.JSONDecodeError, KeyError, TypeError, ValueError):
                 _log.warning("scene: a robot_state reply is not a state: ignored")
-        return None
+        if failed or time.monotonic() - began >= 0.9 * ROBOT_STATE_TIMEOUT:
+            raise _Unavailable("the executing robot did not give its state (where the link "
+                               "holds the object): retry, or give the apply a state")
+        return None  # nothing serves a robot state: all joints 0
 
     def _lead(self, query: zenoh.Query, raw: bytes) -> None:
         self._lead_change(query, decode_apply(raw))
@@ -473,6 +484,15 @@ class SceneService:
                 inst = str(reply.ok.key_expr).split("/instance/", 1)[1].split("/", 1)[0]
                 out[inst] = orjson.loads(reply.ok.payload.to_bytes())
         return out
+
+
+def _no_robot(reply: zenoh.Reply) -> bool:
+    """An error reply of an instance that drives no robot (``serve --no-robot``)."""
+    try:
+        body = orjson.loads(reply.err.payload.to_bytes())
+        return body["error"]["details"].get("robot") == "none"
+    except (orjson.JSONDecodeError, KeyError, TypeError, AttributeError):
+        return False
 
 
 class _Unavailable(PlanningError):
