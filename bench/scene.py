@@ -40,7 +40,7 @@ from bench._lib.report import emit
 from clients import errors
 from clients.client import PlannerClient
 from service.zconfig import zenoh_config
-from tests.helpers.scene_fuzz import b64, mutate
+from tests.helpers.scene_fuzz import b64, carry_seeds, mutate
 from tests.helpers.serve import Server, free_port, launch_serves
 
 # a base swing from reach_right to reach_left (bench/service.py's), several seeds
@@ -135,7 +135,8 @@ def fuzz(endpoint: str, instances: list[str], cases: int, seed: int = 28) -> dic
             "format": "obj", "data": b64(box.export(file_type="obj").encode())}}],
          "remove": ["keep"], "if_revision": 1},
         {"add": [{"id": "c", "shape": "cylinder", "radius": 0.1, "length": 1,
-                  "frame": "world", "xyz": [3, 0, 0]}], "attach": [], "detach": []}]
+                  "frame": "world", "xyz": [3, 0, 0]}], "attach": [], "detach": []},
+        *carry_seeds()]  # attach, detach and state (issue 28)
     counts: collections.Counter[str] = collections.Counter()
     valid_failed = 0
     with PlannerClient(endpoint, timeout=60) as c:

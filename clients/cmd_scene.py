@@ -9,11 +9,14 @@ import json
 from pathlib import Path
 from typing import Any
 
-from .argtypes import UsageError, json_object, numbers, obstacle
-from .common import EXIT_OK, add_connection_args, client, wrote
+from .argtypes import UsageError, joint_values, json_object, numbers, obstacle
+from .common import EXIT_OK, add_connection_args, client, joints_by_name, wrote
 
 _POSE_HELP = "X,Y,Z or X,Y,Z,ROLL,PITCH,YAW in the world frame [m, rad] (default 0)"
 _MESH_FORMATS = {".stl": "stl", ".obj": "obj"}
+_STATE_HELP = ("the robot's state where it takes or puts down the object: J1,J2,... in "
+               "the robot's joint order, or NAME=V,...; missing joints 0 (default: the "
+               "executing robot's state if the service has one, else all joints 0)")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,6 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n"
         "  arduinobot scene add box:table:1,1,0.1@0,1,0.5\n"
         "  arduinobot scene add-mesh bin bin.stl --pose 0.3,0.8,0.6 --scale 0.001\n"
+        "  arduinobot scene attach cup --link claw_support --mass 0.2 --state 0.3,0.5\n"
+        "  arduinobot scene detach cup --state -0.4,0.5\n"
         "  arduinobot scene show\n"
         "  arduinobot scene save cell.json && arduinobot scene load cell.json\n"
         "  arduinobot plan --local --scene cell.json --named home   # a saved scene, no "
@@ -60,7 +65,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     a = action("remove", "remove objects by id")
     a.add_argument("ids", nargs="+", metavar="ID")
     _if_revision(a)
-    a = action("clear", "remove every object")
+    a = action("attach", "the gripper takes an object of the scene: it is carried in the "
+               "link's frame from where it is now (checked with the link in every plan, "
+               "its mass in the effort check)")
+    a.add_argument("id", metavar="ID", help="an object of the scene")
+    a.add_argument("--link", required=True, metavar="L", help="the link that holds it")
+    a.add_argument("--mass", type=float, metavar="KG", help="its mass [kg] (default 0)")
+    a.add_argument("--com", type=numbers(3), metavar="X,Y,Z",
+                   help="its centre of mass in the link's frame [m] (default: its centroid)")
+    a.add_argument("--touch", type=_names, metavar="L1,L2",
+                   help="links it may touch (default: the end effector's holding it)")
+    a.add_argument("--state", type=joint_values, metavar="Q", help=_STATE_HELP)
+    _if_revision(a)
+    a = action("detach", "put a carried object down: it stays in the scene where the link "
+               "holds it")
+    a.add_argument("ids", nargs="+", metavar="ID")
+    a.add_argument("--state", type=joint_values, metavar="Q", help=_STATE_HELP)
+    _if_revision(a)
+    a = action("clear", "remove every object (carried ones too)")
     _if_revision(a)
     a = action("load", "replace the scene by one saved with `scene save`")
     a.add_argument("file", metavar="FILE.json", type=json_object)
@@ -80,6 +102,13 @@ def add_scene_arg(p: argparse.ArgumentParser) -> None:
 def _if_revision(a: argparse.ArgumentParser) -> None:
     a.add_argument("--if-revision", type=int, metavar="N",
                    help="apply only if the scene is at revision N")
+
+
+def _names(text: str) -> list[str]:
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("give one or more link names: L1,L2")
+    return names
 
 
 def numbers_pose(text: str) -> list[float]:
@@ -122,12 +151,31 @@ def change_of(ns: argparse.Namespace) -> dict[str, Any]:
         change = {"remove": ns.ids}
     elif a == "clear":
         change = {"clear": True}
+    elif a == "attach":
+        item: dict[str, Any] = {"object": ns.id, "link": ns.link}
+        if ns.touch:
+            item["touch_links"] = ns.touch
+        if ns.mass is not None:
+            item["mass"] = ns.mass
+        if ns.com is not None:
+            item["com"] = ns.com
+        change = {"attach": [item]}
+    elif a == "detach":
+        change = {"detach": ns.ids}
     else:  # load
         objects = ns.file.get("objects")
         if not isinstance(objects, list):
             raise UsageError("the file holds no scene (a JSON object with an 'objects' "
                              "list, as `arduinobot scene save` writes)")
         change = {"clear": True, "add": objects}
+        # carried objects as saved: already in their link's frame
+        carried = ns.file.get("attached") or []
+        if not isinstance(carried, list) or not all(
+                isinstance(c, dict) and isinstance(c.get("object"), dict) for c in carried):
+            raise UsageError("the file's 'attached' is not a list of carried objects")
+        if carried:
+            change["attach"] = [{**c, "object": {**c["object"], "frame": c.get("link")}}
+                                for c in carried]
     if ns.if_revision is not None:
         change["if_revision"] = ns.if_revision
     return change
@@ -149,23 +197,41 @@ def cmd_scene(ns: argparse.Namespace) -> int:
             else:
                 _print(scene)
             return EXIT_OK
-        reply = c.request("scene/apply", change_of(ns))
-    print(f"scene at revision {reply['revision']} ({reply.get('objects', '?')} objects)")
+        change = change_of(ns)
+        if getattr(ns, "state", None):
+            change["state"] = joints_by_name(c.request("description"), ns.state, group="all",
+                                             flag="--state")
+        reply = c.request("scene/apply", change)
+    carried = f", {reply['attached']} carried" if reply.get("attached") else ""
+    source = {"request": "at --state", "robot": "at the robot's state",
+              "zero": "at all joints 0 (no --state, no executing robot)"}.get(
+                  reply.get("state_source", ""), "")
+    print(f"scene at revision {reply['revision']} ({reply.get('objects', '?')} objects"
+          f"{carried})" + (f", {source}" if source else ""))
     return EXIT_OK
 
 
 def _print(scene: dict[str, Any]) -> None:
     objects = scene.get("objects", [])
-    print(f"scene revision {scene['revision']}: {len(objects)} object(s)")
+    carried = scene.get("attached", [])
+    print(f"scene revision {scene['revision']}: {len(objects)} object(s)"
+          + (f", {len(carried)} carried" if carried else ""))
     for o in objects:
-        if o["shape"] == "box":
-            dims = "size " + ",".join(f"{v:g}" for v in o["size"])
-        elif o["shape"] == "sphere":
-            dims = f"radius {o['radius']:g}"
-        elif o["shape"] == "cylinder":
-            dims = f"radius {o['radius']:g} length {o['length']:g}"
-        else:
-            size = len(base64.b64decode(o["mesh"]["data"]))
-            dims = f"{o['mesh']['format']} mesh, {size} bytes, scale {o.get('scale', 1)}"
-        xyz = ",".join(f"{v:g}" for v in o.get("xyz", (0, 0, 0)))
-        print(f"  {o['id']:<20} {o['shape']:<8} {dims}  @ {xyz}")
+        print(f"  {_line(o)}")
+    for c in carried:
+        print(f"  {_line(c['object'])} in {c['link']}'s frame, carried, "
+              f"{c.get('mass', 0):g} kg")
+
+
+def _line(o: dict[str, Any]) -> str:
+    if o["shape"] == "box":
+        dims = "size " + ",".join(f"{v:g}" for v in o["size"])
+    elif o["shape"] == "sphere":
+        dims = f"radius {o['radius']:g}"
+    elif o["shape"] == "cylinder":
+        dims = f"radius {o['radius']:g} length {o['length']:g}"
+    else:
+        size = len(base64.b64decode(o["mesh"]["data"]))
+        dims = f"{o['mesh']['format']} mesh, {size} bytes, scale {o.get('scale', 1)}"
+    xyz = ",".join(f"{v:g}" for v in o.get("xyz", (0, 0, 0)))
+    return f"{o['id']:<20} {o['shape']:<8} {dims}  @ {xyz}"

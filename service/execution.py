@@ -29,7 +29,7 @@ import itertools
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
@@ -140,6 +140,10 @@ class ExecuteService:
         self._ids = itertools.count(1)
         self._publisher: zenoh.Publisher | None = None
         self._entities: list[zenoh.Publisher | zenoh.Queryable] = []
+        #: the kept scene now (the server sets it): a twin takes its objects and carried
+        #: objects before each execution (SimArduinobot.set_scene)
+        self.scene_source: Callable[[], Any] | None = None
+        self._twin_scene: Any = (0, b"[]")  # (revision, own obstacles) the twin holds
 
     def start(self) -> None:
         if self.spec.kind == "serial":
@@ -265,6 +269,7 @@ class ExecuteService:
             self._current = execution
             self._cancel.clear()
             run = _Run(self, query, execution, req)
+            self._scene_to_twin(robot, (req.plan or {}).get("obstacles") or ())
             if req.trajectory is not None:
                 run.start_with(SampledTrajectory.from_json(req.trajectory))
                 return
@@ -275,6 +280,19 @@ class ExecuteService:
         except BaseException:
             self._finish()
             raise
+
+    def _scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]]) -> None:
+        """Give a twin (a robot with ``set_scene``) the kept scene's objects, the plan's
+        own obstacles and the carried objects, when they changed since the last time."""
+        set_scene = getattr(robot, "set_scene", None)
+        snap = self.scene_source() if self.scene_source is not None else None
+        if set_scene is None:
+            return
+        key = (getattr(snap, "revision", 0), wire.encode(list(own)))
+        if key == self._twin_scene:
+            return
+        set_scene([*getattr(snap, "obstacles", ()), *own], getattr(snap, "attached", ()))
+        self._twin_scene = key
 
     def _plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
         """Hand the plan ``request`` to the pool (checked first); ``respond`` gets its outcome."""

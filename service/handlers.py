@@ -90,16 +90,20 @@ class Handlers:
     def handle(self, kind: str, data: Mapping[str, Any], *,
                scene: SceneSnapshot | None = None) -> dict[str, Any]:
         """Dispatch one request of ``kind`` (``fk``, ``ik``, ``check``, ``plan``); plans and
-        checks add the kept ``scene``'s objects to their own obstacles."""
-        if kind in ("check", "plan"):
-            return (self.check if kind == "check" else self.plan)(data, scene=scene)
-        fn = {"fk": self.fk, "ik": self.ik}.get(kind)
+        checks add the kept ``scene``'s objects to their own obstacles, fk reports where
+        its carried objects are."""
+        if kind in ("check", "plan", "fk"):
+            return {"check": self.check, "plan": self.plan, "fk": self.fk}[kind](
+                data, scene=scene)
+        fn = {"ik": self.ik}.get(kind)
         if fn is None:
             raise InvalidRequest(f"unknown request kind '{kind}'")
         return fn(data)
 
-    def fk(self, data: Mapping[str, Any]) -> dict[str, Any]:
-        """Link poses in the world frame: xyz [m], rpy [rad], 4x4 matrix; tcp position [m]."""
+    def fk(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
+           ) -> dict[str, Any]:
+        """Link poses in the world frame: xyz [m], rpy [rad], 4x4 matrix; tcp position [m];
+        and the world pose of each object the kept ``scene`` carries (``carried``)."""
         q = self._q(data.get("joints"), "joints")
         links = list(data.get("links") or self.kin.link_names)
         for i, link in enumerate(links):
@@ -113,8 +117,10 @@ class Handlers:
         tcp = self.description.tcp
         tcp_xyz = None if tcp is None else [
             float(v) for v in self.kin.point_position(q, tcp.parent_link, tcp.xyz)]
+        carried = tuple(scene.attached) if scene is not None else ()
         return {"joints": dict(zip(self.kin.joint_names, map(float, q))), "links": out,
-                "tcp": tcp_xyz}
+                "tcp": tcp_xyz,
+                **({"carried": self._carried_poses(q, carried)} if carried else {})}
 
     def ik(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """Every tcp position IK branch within the joint limits (GOAL_OUT_OF_REACH if none)."""

@@ -18,6 +18,7 @@ from . import wire
 from .bodies import description_body
 from .disk_cache import DiskCache
 from .handlers import Handlers
+from .scene_carry import RobotFrames
 from .scene_store import SceneBuilder, SceneFile, SceneSnapshot, restore
 
 #: the ``request_id`` of every local reply (a worker puts its job id there)
@@ -69,7 +70,8 @@ def load_scene(description: Description, path: str) -> SceneSnapshot:
         raise InvalidRequest(f"--scene {e.message}") from None
     if data is None:
         raise InvalidRequest(f"no scene file {path}", field="scene")
-    builder = SceneBuilder(tuple(description.robot.links), DiskCache().root / "meshes")
+    builder = SceneBuilder(tuple(description.robot.links), DiskCache().root / "meshes",
+                           robot=RobotFrames(description))  # a saved scene may carry objects
     try:
         return restore(data, builder).snapshot
     except InvalidRequest as e:

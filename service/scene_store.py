@@ -13,15 +13,21 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    from .scene_carry import RobotFrames
+
+import numpy as np
 
 from planner.errors import InvalidRequest, SceneConflict
-from planner.scene import Obstacle
+from planner.scene import AttachedObject, Obstacle
 
 from .scene_mesh import decode_mesh, scale_of
 
@@ -29,12 +35,11 @@ _log = logging.getLogger(__name__)
 
 #: Most objects a scene holds (as many as a plan request's own obstacles).
 MAX_SCENE_OBJECTS = 256
-#: The frame every object is placed in today: objects in a link's frame need the
-#: collision world to move them with the link, which it cannot yet.
+#: The frame every free object is placed in (a carried one is in its link's frame, see
+#: ``attach``).
 WORLD = "world"
-#: An apply's fields that are part of the format but not yet served (issue 28, item 2):
-#: refused, never stored, so no plan can ignore an attachment.
-NOT_YET = ("attach", "detach")
+#: Where an apply's robot state came from (``state_source`` in its reply).
+StateSource = Literal["request", "robot", "zero"]
 
 
 @dataclass(frozen=True)
@@ -47,12 +52,24 @@ class SceneObject:
 
 
 @dataclass(frozen=True)
+class SceneAttached:
+    """One carried object: ``data`` its wire form (``{"object", "link", "touch_links",
+    "mass", "com"}``, the object's xyz/rpy in the link's frame), ``attached`` what plans
+    and checks carry."""
+
+    id: str
+    data: Mapping[str, Any]
+    attached: AttachedObject
+
+
+@dataclass(frozen=True)
 class SceneSnapshot:
-    """What a plan or check needs of the scene: its revision and obstacles (small: a
-    mesh is a file path), sent with each job to a worker."""
+    """What a plan or check needs of the scene: its revision, obstacles (small: a mesh is
+    a file path) and carried objects, sent with each job to a worker."""
 
     revision: int
     obstacles: tuple[Obstacle, ...] = ()
+    attached: tuple[AttachedObject, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -61,28 +78,36 @@ class SceneState:
 
     revision: int = 0
     objects: tuple[SceneObject, ...] = ()
+    attached: tuple[SceneAttached, ...] = ()
     snapshot: SceneSnapshot = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "snapshot", SceneSnapshot(
-            self.revision, tuple(o.obstacle for o in self.objects)))
+            self.revision, tuple(o.obstacle for o in self.objects),
+            tuple(a.attached for a in self.attached)))
 
     def to_json(self) -> dict[str, Any]:
         """The ``<prefix>/scene`` reply (and the scene file)."""
         return {"revision": self.revision, "objects": [dict(o.data) for o in self.objects],
-                "attached": []}
+                "attached": [dict(a.data) for a in self.attached]}
 
     def ids(self) -> tuple[str, ...]:
         return tuple(o.id for o in self.objects)
 
+    def attached_ids(self) -> tuple[str, ...]:
+        return tuple(a.id for a in self.attached)
+
 
 class SceneBuilder:
     """Turns wire objects into :class:`SceneObject` for one robot (its link names may not
-    be object ids or frames) and one folder for mesh files."""
+    be object ids or frames) and one folder for mesh files; with ``robot`` (its link
+    poses and collision checks) it can attach and detach too."""
 
-    def __init__(self, link_names: Sequence[str], mesh_dir: str | os.PathLike[str]) -> None:
+    def __init__(self, link_names: Sequence[str], mesh_dir: str | os.PathLike[str], *,
+                 robot: RobotFrames | None = None) -> None:
         self.link_names = frozenset(link_names)
         self.mesh_dir = Path(mesh_dir)
+        self.robot = robot
 
     def build(self, data: Mapping[str, Any], where: str) -> SceneObject:
         """One object (schema-valid, see ``scene_apply_request.json``) at field ``where``.
@@ -123,44 +148,155 @@ class SceneBuilder:
 def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *,
           max_objects: int = MAX_SCENE_OBJECTS) -> SceneState:
     """The scene after ``change`` (a schema-valid apply request), all or nothing: the
-    whole scene is cleared (``clear``), then ``remove``'s ids go, then ``add``'s objects
-    come, and the revision goes up by one.
+    whole scene is cleared (``clear``: carried objects too), then ``remove``'s ids go,
+    ``add``'s objects come, ``detach``'s objects are put down in the world where their
+    link holds them, ``attach``'s are taken into their link's frame where they are, and
+    the revision goes up by one. The robot's state for attach and detach is
+    ``change["state"]`` (all joints 0 without it: the service fills it in, see
+    :mod:`service.scene_sync`).
 
     Raises:
         SceneConflict: ``if_revision`` is not ``state.revision``.
-        InvalidRequest: ``attach``/``detach`` (not yet supported), removing an id the scene
-            does not hold (or one twice), a duplicate id, an object the builder refuses,
-            more than ``max_objects`` objects; each naming its field.
+        InvalidRequest: removing an id the scene does not hold (or one twice, or one that
+            is carried), a duplicate id, an object the builder refuses, more than
+            ``max_objects`` objects, detaching what is not carried, attaching to an unknown
+            link or an unknown object, or one that already touches a link that is not a
+            touch link (``details.pairs``); each naming its field.
     """
-    for key in NOT_YET:
-        if change.get(key):
-            raise InvalidRequest(f"carried objects are not yet supported ({key} comes with "
-                                 "the body table that checks them): nothing was applied",
-                                 field=key, details={"unsupported": key})
     if "if_revision" in change and change["if_revision"] != state.revision:
         raise SceneConflict(f"the scene is at revision {state.revision}, not "
                             f"{change['if_revision']}: read it and apply again",
                             field="if_revision", current_revision=state.revision)
-    objects = {} if change.get("clear") else {o.id: o for o in state.objects}
+    cleared = bool(change.get("clear"))
+    objects = {} if cleared else {o.id: o for o in state.objects}
+    carried = {} if cleared else {a.id: a for a in state.attached}
     for i, oid in enumerate(change.get("remove") or ()):
+        if oid in carried:
+            raise InvalidRequest(f"'{oid}' is carried by '{carried[oid].attached.link}': "
+                                 "detach it first (in the same apply, if you like)",
+                                 field=f"remove[{i}]")
         if oid not in objects:
             raise InvalidRequest(f"no object '{oid}' in the scene"
-                                 + (" (cleared first)" if change.get("clear") else ""),
+                                 + (" (cleared first)" if cleared else ""),
                                  field=f"remove[{i}]")
         del objects[oid]
     for i, item in enumerate(change.get("add") or ()):
         where = f"add[{i}]"
         oid = item.get("id") if isinstance(item, Mapping) else None
-        if oid in objects:
+        if oid in objects or oid in carried:
             raise InvalidRequest(f"duplicate id '{oid}': the scene already holds it (remove "
                                  "it in the same apply to replace it)", field=f"{where}.id")
         obj = builder.build(item, where)
         objects[obj.id] = obj
-    if len(objects) > max_objects:
-        raise InvalidRequest(f"the scene would hold {len(objects)} objects, more than its "
-                             f"cap of {max_objects}", field="add",
+    if change.get("attach") or change.get("detach"):
+        _carry(change, objects, carried, builder)
+    if len(objects) + len(carried) > max_objects:
+        raise InvalidRequest(f"the scene would hold {len(objects) + len(carried)} objects, "
+                             f"more than its cap of {max_objects}", field="add",
                              details={"limit": max_objects, "cap": "MAX_SCENE_OBJECTS"})
-    return SceneState(state.revision + 1, tuple(objects.values()))
+    return SceneState(state.revision + 1, tuple(objects.values()), tuple(carried.values()))
+
+
+def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
+           carried: dict[str, SceneAttached], builder: SceneBuilder) -> None:
+    """``change``'s detach, then attach, on ``objects`` and ``carried`` (in place)."""
+    robot = builder.robot
+    if robot is None:
+        raise InvalidRequest("this scene cannot carry objects (no robot model)",
+                             field="attach" if change.get("attach") else "detach")
+    q = robot.state(change.get("state"), field="state")
+    for i, oid in enumerate(change.get("detach") or ()):
+        where = f"detach[{i}]"
+        held = carried.pop(oid, None)
+        if held is None:
+            raise InvalidRequest(f"'{oid}' is not carried"
+                                 + (" (it is a free object of the scene)"
+                                    if oid in objects else ""), field=where,
+                                 details={"attached": sorted(carried)})
+        world = robot.link_pose(q, held.attached.link) @ held.attached.shape.pose()
+        objects[oid] = builder.build(_posed(held.data["object"], world), where)
+    for i, item in enumerate(change.get("attach") or ()):
+        where = f"attach[{i}]"
+        link = item.get("link")
+        if link not in builder.link_names:
+            raise InvalidRequest(f"'{link}' is not a link of the robot", field=f"{where}.link",
+                                 details={"links": sorted(builder.link_names)})
+        for t in item.get("touch_links") or ():
+            if t not in builder.link_names:
+                raise InvalidRequest(f"'{t}' is not a link of the robot",
+                                     field=f"{where}.touch_links")
+        ref = item.get("object")
+        link_pose = robot.link_pose(q, link)
+        if isinstance(ref, str):
+            if ref in carried:
+                raise InvalidRequest(f"'{ref}' is already carried by "
+                                     f"'{carried[ref].attached.link}'", field=f"{where}.object")
+            if ref not in objects:
+                raise InvalidRequest(f"no object '{ref}' in the scene", field=f"{where}.object",
+                                     details={"objects": sorted(objects)})
+            free = objects.pop(ref)
+            data = _posed(free.data, np.linalg.inv(link_pose) @ free.obstacle.pose())
+        else:
+            oid = ref.get("id") if isinstance(ref, Mapping) else None
+            if oid in objects or oid in carried:
+                raise InvalidRequest(f"duplicate id '{oid}': the scene already holds it "
+                                     "(attach it by its id)", field=f"{where}.object.id")
+            frame = ref.get("frame", WORLD)
+            if frame not in (WORLD, link):
+                raise InvalidRequest(f"a carried object is given in 'world' or in its link's "
+                                     f"frame ('{link}'), not '{frame}'",
+                                     field=f"{where}.object.frame")
+            given = {k: v for k, v in ref.items() if k != "frame"}
+            built = builder.build(given, f"{where}.object")  # validated as given
+            data = given if frame == link else _posed(
+                given, np.linalg.inv(link_pose) @ built.obstacle.pose())
+        held = _held(data, item, builder, f"{where}.object")
+        pairs = robot.link_contacts(held.attached, q)
+        if pairs:
+            raise InvalidRequest(
+                f"'{held.id}' already touches {', '.join(sorted({b for _, b in pairs}))} of "
+                f"the robot, not among its touch links {list(held.attached.touch_links)}: "
+                "move the arm, or name the link in touch_links", field=where,
+                details={"pairs": [list(p) for p in pairs]})
+        carried[held.id] = held
+
+
+def _held(obj: Mapping[str, Any], item: Mapping[str, Any], builder: SceneBuilder,
+          where: str) -> SceneAttached:
+    """A carried object from its wire object (pose in the link's frame) and the rest of
+    its attach item (link, touch_links, mass, com), with its default touch links."""
+    built = builder.build(obj, where)
+    robot = builder.robot
+    assert robot is not None  # only an attach or a restore with a robot gets here
+    a = robot.resolve(AttachedObject(built.obstacle, item["link"],
+                                     tuple(item.get("touch_links") or ()),
+                                     float(item.get("mass", 0.0)), item.get("com"),
+                                     where=where.removesuffix(".object")))
+    data: dict[str, Any] = {"object": dict(obj), "link": a.link,
+                            "touch_links": list(a.touch_links), "mass": a.mass}
+    if a.com is not None:
+        data["com"] = list(a.com)
+    return SceneAttached(a.id, data, a)
+
+
+def _posed(data: Mapping[str, Any], pose: np.ndarray) -> dict[str, Any]:
+    """``data`` (a wire object) at ``pose`` (4x4), rounded to 1e-12 so a value that is 0
+    reads 0; no ``frame``: the caller knows which it is."""
+    out = {k: v for k, v in data.items() if k != "frame"}
+    out["xyz"] = [round(float(v), 12) + 0.0 for v in pose[:3, 3]]
+    out["rpy"] = [round(v, 12) + 0.0 for v in rpy_of(pose[:3, :3])]
+    return out
+
+
+def rpy_of(m: np.ndarray) -> list[float]:
+    """URDF roll-pitch-yaw [rad] of a rotation matrix, shape (3, 3)."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(m[2, 0]))))
+    if abs(math.cos(pitch)) > 1e-9:
+        roll = math.atan2(float(m[2, 1]), float(m[2, 2]))
+        yaw = math.atan2(float(m[1, 0]), float(m[0, 0]))
+    else:  # gimbal lock: put it all in yaw
+        roll, yaw = 0.0, math.atan2(-float(m[0, 1]), float(m[1, 1]))
+    return [roll, pitch, yaw]
 
 
 def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
@@ -170,14 +306,29 @@ def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
     if isinstance(revision, bool) or not isinstance(revision, int) or revision < 0:
         raise InvalidRequest(f"{revision!r} is not a revision (an integer >= 0)",
                              field="revision")
-    if data.get("attached"):
-        raise InvalidRequest("carried objects are not yet supported", field="attached",
-                             details={"unsupported": "attached"})
     objects = data.get("objects") or []
     if not isinstance(objects, list):
         raise InvalidRequest("must be a list of objects", field="objects")
+    items = data.get("attached") or []
+    if not isinstance(items, list):
+        raise InvalidRequest("must be a list of carried objects", field="attached")
+    if items and builder.robot is None:
+        raise InvalidRequest("this scene cannot carry objects (no robot model)",
+                             field="attached")
     state = apply(SceneState(), {"add": objects}, builder)
-    return SceneState(revision, state.objects)
+    ids = set(state.ids())
+    held = []
+    for i, item in enumerate(items):
+        where = f"attached[{i}]"
+        if not isinstance(item, Mapping) or not isinstance(item.get("object"), Mapping) \
+                or item.get("link") not in builder.link_names:
+            raise InvalidRequest("must be {object, link (of the robot), ...}", field=where)
+        a = _held(item["object"], item, builder, f"{where}.object")
+        if a.id in ids:
+            raise InvalidRequest(f"duplicate id '{a.id}'", field=f"{where}.object.id")
+        ids.add(a.id)
+        held.append(a)
+    return SceneState(revision, state.objects, tuple(held))
 
 
 class SceneFile:
@@ -257,7 +408,7 @@ def with_scene(snapshot: SceneSnapshot | None, data: Mapping[str, Any],
     if pinned is not None and pinned != snap.revision:
         raise SceneConflict(f"the scene is at revision {snap.revision}, not {pinned}",
                             field="scene_revision", current_revision=snap.revision)
-    ids = {o.id for o in snap.obstacles}
+    ids = {o.id for o in snap.obstacles} | {a.id for a in snap.attached}
     for i, o in enumerate(own):
         if o.id in ids:
             raise InvalidRequest(f"id '{o.id}' is also an object of the kept scene (revision "

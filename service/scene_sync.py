@@ -5,10 +5,11 @@ Keys (``<p>`` the prefix, ``<id>`` an instance's Zenoh id):
 - ``<p>/scene`` and ``<p>/instance/<id>/scene`` (query, no payload): the scene,
   ``{"revision", "objects", "attached"}``;
 - ``<p>/scene/apply`` and ``<p>/instance/<id>/scene/apply`` (query): a change
-  (``scene_apply_request.json``), answered ``{"revision", "objects"}`` once applied,
-  kept on disk and replicated, or refused with a coded error and nothing changed;
-- ``<p>/scene/changes`` (publication): ``{"revision", "added", "removed", "cleared"}``
-  per applied revision, for whoever watches;
+  (``scene_apply_request.json``), answered ``{"revision", "objects", "attached"}`` (and
+  ``state_source`` for an attach or detach) once applied, kept on disk and replicated,
+  or refused with a coded error and nothing changed;
+- ``<p>/scene/changes`` (publication): ``{"revision", "added", "removed", "attached",
+  "detached", "cleared"}`` per applied revision, for whoever watches;
 - ``<p>/instance/<id>/scene/lead`` and ``.../scene/sync``, liveliness
   ``<p>/scene/member/<id>``: between instances only.
 
@@ -22,6 +23,12 @@ is on the leader's disk and in every live instance's scene: the next plan throug
 them uses it, and killing any instance loses nothing. An instance that missed changes
 (down, or late) fetches the whole scene from the sender; a new instance takes the newest
 scene among its file and the live instances' before it serves anything.
+
+An attach or detach needs the robot's state (where the link holds the object): the
+apply's ``state``, else the executing robot's (``<p>/robot_state``, if this service
+executes), else all joints at 0. The instance that takes the apply fills it in before
+the change goes to the leader, so every instance replays the same change to the same
+scene (``state_source`` in the reply says which it was).
 """
 
 from __future__ import annotations
@@ -37,16 +44,19 @@ from typing import Any
 import orjson
 import zenoh
 
+from description import Description
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
 
 from . import wire
 from .keyguard import addressed_exactly
 from .messages import Failure
+from .scene_carry import RobotFrames
 from .scene_store import (
     SceneBuilder,
     SceneFile,
     SceneState,
+    StateSource,
     apply,
     default_scene_file,
     mesh_dir_for,
@@ -68,6 +78,9 @@ FORWARD_TIMEOUT = 30.0
 LEADER_WAIT = 10.0
 #: How long a starting instance waits for the live instances' scenes [s].
 CATCH_UP_TIMEOUT = 5.0
+#: How long an attach or detach without a state waits for the executing robot's [s]
+#: (a twin opens on its first use, ~1.5 s); no robot answers at once.
+ROBOT_STATE_TIMEOUT = 5.0
 JSON = "application/json"
 
 
@@ -115,15 +128,17 @@ class SceneService:
         link_names: the robot's links (no object may take a link's name).
         scene_file: where this instance keeps the scene (default
             :func:`service.scene_store.default_scene_file`).
+        description: the robot (without it, attach and detach are refused).
     """
 
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
-                 link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None
-                 ) -> None:
+                 link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
+                 description: Description | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
         path = scene_file if scene_file is not None else default_scene_file(prefix)
         self.file = SceneFile(path)
-        self.builder = SceneBuilder(link_names, mesh_dir_for(path))
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=None if description
+                                    is None else RobotFrames(description))
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
         self._encoded: tuple[int, bytes] = (-1, b"")
@@ -260,19 +275,27 @@ class SceneService:
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
+        source = None
+        if change.get("attach") or change.get("detach"):
+            # the state here, once: the leader and every follower replay this one
+            change, source = self._with_state(change)
+            raw = orjson.dumps(change)
         give_up = time.monotonic() + LEADER_WAIT
         while True:
             lead = self.leader()
             _log.debug("scene: apply, leader %s", lead[:8])
             if lead == self.instance:
-                return self._lead_change(query, change)
+                return self._lead_change(query, change, source)
             replies = list(self.session.get(f"{self.prefix}/instance/{lead}/scene/lead",
                                             payload=raw, timeout=FORWARD_TIMEOUT,
                                             encoding=JSON))
             if replies:
                 r = replies[0]
                 if r.ok is not None:
-                    query.reply(query.key_expr, r.ok.payload.to_bytes(), encoding=JSON)
+                    body = r.ok.payload.to_bytes()
+                    if source is not None:
+                        body = orjson.dumps({**orjson.loads(body), "state_source": source})
+                    query.reply(query.key_expr, body, encoding=JSON)
                 elif r.err is not None:
                     query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
                 return None
@@ -282,10 +305,54 @@ class SceneService:
             _log.warning("scene: leader %s did not answer an apply; asking again", lead)
             time.sleep(0.2)
 
+    def _with_state(self, change: dict[str, Any]) -> tuple[dict[str, Any], StateSource]:
+        """``change`` with the robot's ``state`` for its attach or detach, and where the
+        state came from (see the module)."""
+        if "state" in change:
+            return change, "request"
+        state = self._robot_state()
+        if state is not None:
+            return {**change, "state": state}, "robot"
+        return {**change, "state": {}}, "zero"
+
+    def _robot_state(self) -> dict[str, float] | None:
+        """The executing robot's actuated joints, or None if no robot serves its state.
+
+        Raises:
+            _Unavailable: a robot serves its state but did not give it (an error, or no
+                answer in :data:`ROBOT_STATE_TIMEOUT`): never guessed as all zeros.
+        """
+        robot = self.builder.robot
+        if robot is None:
+            return None
+        began = time.monotonic()
+        try:
+            replies = list(self.session.get(f"{self.prefix}/robot_state",
+                                            timeout=ROBOT_STATE_TIMEOUT))
+        except zenoh.ZError:
+            replies = []
+        actuated = set(robot.description.robot.actuated_joints)
+        failed = False
+        for r in replies:
+            if r.ok is None:
+                failed = failed or not _no_robot(r)
+                continue
+            try:
+                body = orjson.loads(r.ok.payload.to_bytes())
+                return {str(n): float(v) for n, v in zip(body["name"], body["position"])
+                        if n in actuated}
+            except (orjson.JSONDecodeError, KeyError, TypeError, ValueError):
+                _log.warning("scene: a robot_state reply is not a state: ignored")
+        if failed or time.monotonic() - began >= 0.9 * ROBOT_STATE_TIMEOUT:
+            raise _Unavailable("the executing robot did not give its state (where the link "
+                               "holds the object): retry, or give the apply a state")
+        return None  # nothing serves a robot state: all joints 0
+
     def _lead(self, query: zenoh.Query, raw: bytes) -> None:
         self._lead_change(query, decode_apply(raw))
 
-    def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any]) -> None:
+    def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any],
+                     source: StateSource | None = None) -> None:
         with self._lock:
             new = apply(self._state, change, self.builder)
             self.file.save(new)  # on disk before anyone hears of it
@@ -293,13 +360,18 @@ class SceneService:
         self._replicate(old.revision, new.revision, change)
         added = [o.id for o in new.objects if o.id not in set(old.ids())]
         removed = [i for i in old.ids() if i not in set(new.ids())]
+        attached = [i for i in new.attached_ids() if i not in set(old.attached_ids())]
+        detached = [i for i in old.attached_ids() if i not in set(new.attached_ids())]
         self._publisher.put(orjson.dumps({"revision": new.revision, "added": added,
-                                          "removed": removed,
+                                          "removed": removed, "attached": attached,
+                                          "detached": detached,
                                           "cleared": bool(change.get("clear"))}),
                             encoding=JSON)
-        query.reply(query.key_expr, orjson.dumps({"revision": new.revision,
-                                                  "objects": len(new.objects)}),
-                    encoding=JSON)
+        reply: dict[str, Any] = {"revision": new.revision, "objects": len(new.objects),
+                                 "attached": len(new.attached)}
+        if source is not None:
+            reply["state_source"] = source
+        query.reply(query.key_expr, orjson.dumps(reply), encoding=JSON)
 
     def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> None:
         """Have every other live instance take the change (answered once it is on their
@@ -412,6 +484,18 @@ class SceneService:
                 inst = str(reply.ok.key_expr).split("/instance/", 1)[1].split("/", 1)[0]
                 out[inst] = orjson.loads(reply.ok.payload.to_bytes())
         return out
+
+
+def _no_robot(reply: zenoh.Reply) -> bool:
+    """An error reply of an instance that drives no robot (``serve --no-robot``)."""
+    err = reply.err
+    if err is None:
+        return False
+    try:
+        body = orjson.loads(err.payload.to_bytes())
+        return body["error"]["details"].get("robot") == "none"
+    except (orjson.JSONDecodeError, KeyError, TypeError, AttributeError):
+        return False
 
 
 class _Unavailable(PlanningError):

@@ -141,7 +141,8 @@ class PlannerService:
             p = o.prefix
             # the kept scene first: caught up with the other instances before any plan
             self.scene = SceneService(self.session, p, self.instance,
-                                      tuple(desc.robot.links), scene_file=o.scene_file)
+                                      tuple(desc.robot.links), scene_file=o.scene_file,
+                                      description=desc)
             self.scene.start()
             for kind in (*WORK_KINDS, *INFO_KINDS):
                 for key, held in ((f"{p}/{kind}", self._shared),
@@ -151,7 +152,10 @@ class PlannerService:
             self._entities.append(
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
             for make in o.extensions:
-                self._extensions.append(make(self.session, p, desc, self._submit_plan))
+                ext = make(self.session, p, desc, self._submit_plan)
+                if hasattr(ext, "scene_source"):  # the twin puts the kept scene in its world
+                    ext.scene_source = self._scene_now
+                self._extensions.append(ext)
             # <prefix>/task: plans tasks itself, executes through <prefix>/execute
             self._extensions.append(task_extension(tasks_file=o.tasks_file,
                                                    scene=self._scene_now)(

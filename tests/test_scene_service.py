@@ -125,7 +125,7 @@ BAD = [
     ({"if_revision": 0, "clear": True}, "if_revision", "SCENE_CONFLICT"),
     ({"add": [TABLE | {"id": "x", "frame": "claw_support"}]}, "add[0].frame",
      "INVALID_REQUEST"),
-    ({"attach": [{"object": "table", "link": "claw_support"}]}, "attach", "INVALID_REQUEST"),
+    ({"attach": [{"object": "table", "link": "no_link"}]}, "attach[0].link", "INVALID_REQUEST"),
     ({"add": [_mesh("m") | {"mesh": {"format": "stl", "data": "@@"}}]}, "add[0].mesh.data",
      "INVALID_REQUEST"),
     ({"add": [_mesh("m", extents=1.0, scale=101)]}, "add[0].mesh", "INVALID_REQUEST"),

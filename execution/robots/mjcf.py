@@ -9,7 +9,10 @@ touches what the part does not), and per actuated joint a position servo
 with velocity feed-forward (see :func:`servo_ctrl`) whose force is capped at the URDF
 effort. Contacts between a link and its parent, and the SRDF's disabled pairs (what the
 planner trusts never to touch), are excluded; every other pair is live, and so are
-obstacles (box, sphere, cylinder in the world frame).
+obstacles (box, sphere, cylinder, or a mesh file as convex pieces, in the world frame) and
+carried objects: each a body welded inside its link's (``carried:<id>``, its mass and
+inertia as :meth:`planner.scene.AttachedObject.payload` gives them), its contacts with its
+link and touch links excluded, as the planner excludes them.
 
 The physics is MuJoCo's semi-implicit Euler: unlike ``implicitfast``, the actuator force
 it reports is the force it applies (the implicit integrators fold part of the damping
@@ -164,35 +167,80 @@ def _size(kind: str, size: Any, radius: Any, length: Any) -> str | None:
     return None
 
 
-def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]]) -> list[str]:
-    """World geoms for plain obstacles (``{"id", "shape", "size"|"radius"|"length",
-    "xyz", "rpy"}``, the plan request's form) [m, rad]."""
+def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]], *,
+                   assets: list[str] | None = None, cache: ArtifactCache | None = None,
+                   progress: Progress | None = None, prefix: str = "obstacle",
+                   extra: str = "") -> list[str]:
+    """Geoms for plain obstacles (``{"id", "shape", "size"|"radius"|"length", "xyz",
+    "rpy"}``, the plan request's form, or a mesh file as ``"mesh_path"``, in metres: the
+    kept scene's form) [m, rad], named ``<prefix>:<id>``; a mesh's convex pieces go to
+    ``assets`` (needed for a mesh)."""
     out = []
     for o in obstacles:
         pose = (f'pos="{_f(o.get("xyz", (0, 0, 0)))}" '
                 f'quat="{_quat(rpy_matrix(tuple(o.get("rpy", (0, 0, 0)))))}"')
-        name = f'obstacle:{o["id"]}'
+        name = _esc(f'{prefix}:{o["id"]}')
+        common = f'{pose} contype="1" conaffinity="1" rgba="0.3 0.6 0.9 0.5"{extra}'
+        if o["shape"] == "mesh" and o.get("mesh_path") and assets is not None:
+            for i, vs in enumerate(mesh_parts(Path(o["mesh_path"]), (1.0, 1.0, 1.0),
+                                              COLLISION_PARTS, cache=cache, progress=progress)):
+                assets.append(f'<mesh name="{name}/{i}" vertex="{_f(vs)}"/>')
+                out.append(f'<geom name="{name}/{i}" type="mesh" mesh="{name}/{i}" {common}/>')
+            continue
         size = _size(o["shape"], o.get("size"), o.get("radius"), o.get("length"))
         if size is None:
-            raise ValueError(f"obstacle shape {o['shape']!r} is not box, sphere or cylinder")
-        out.append(f'<geom name="{_esc(name)}" type="{o["shape"]}" size="{size}" {pose} '
-                   'contype="1" conaffinity="1" rgba="0.3 0.6 0.9 0.5"/>')
+            raise ValueError(f"obstacle shape {o['shape']!r} is not box, sphere, cylinder "
+                             "or a mesh file")
+        out.append(f'<geom name="{name}" type="{o["shape"]}" size="{size}" {common}/>')
     return out
+
+
+def obstacle_form(o: Any) -> dict[str, Any]:
+    """A :class:`planner.scene.Obstacle` (or a mapping, kept) as :func:`obstacle_geoms`
+    takes it."""
+    if isinstance(o, Mapping):
+        return dict(o)
+    return {k: getattr(o, k) for k in ("id", "shape", "size", "radius", "length",
+                                       "mesh_path", "xyz", "rpy")}
+
+
+def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
+                 progress: Progress | None) -> list[str]:
+    """The MJCF lines of a carried object (a :class:`planner.scene.AttachedObject`): a
+    body in its link's frame, no joint (welded), its payload's mass and inertia, its
+    shape as contact geoms (massless: the inertial says the mass)."""
+    lines = [f'<body name="{_esc("carried:" + a.id)}">']
+    p = a.payload()
+    if p.mass > 0:
+        t = np.asarray(p.inertia, float)
+        lines.append(f'  <inertial pos="{_f(p.com)}" mass="{p.mass!r}" fullinertia="'
+                     f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
+    lines += ["  " + g for g in obstacle_geoms([obstacle_form(a.shape)], assets=assets,
+                                                cache=cache, progress=progress,
+                                                prefix="carried", extra=' mass="0"')]
+    lines.append("</body>")
+    return lines
 
 
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
             obstacles: Sequence[Mapping[str, Any]] = (),
+            attached: Sequence[Any] = (),
             cache: ArtifactCache | None = None, progress: Progress | None = None) -> str:
     """The MJCF text of ``robot`` (see the module doc).
 
     Args:
         gains: per actuated joint.
         excluded: link pairs whose contacts are ignored (besides parent/child pairs).
-        obstacles: world obstacles, as in a plan request.
+        obstacles: world obstacles, as in a plan request (or :func:`obstacle_form`'s).
+        attached: carried objects (:class:`planner.scene.AttachedObject`, touch links
+            resolved), each welded inside its link.
         cache, progress: the meshes' convex pieces (:func:`mesh_parts`).
     """
     assets: list[str] = []
+    held: dict[str, list[Any]] = {}
+    for a in attached:
+        held.setdefault(a.link, []).append(a)
 
     def body(link: str, indent: str) -> list[str]:
         out = []
@@ -208,6 +256,8 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             g = _geom(s, f"{link}/collision/{i}", assets, cache, progress)
             if g:
                 out.append(indent + g)
+        for a in held.get(link, ()):
+            out.extend(indent + line for line in carried_body(a, assets, cache, progress))
         for j in robot.child_joints[link]:
             out.append(f'{indent}<body name="{_esc(j.child)}" pos="{_f(j.origin.xyz)}" '
                        f'quat="{_quat(rpy_matrix(j.origin.rpy))}">')
@@ -233,6 +283,8 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     pairs = {frozenset((j.parent, j.child)) for j in robot.joints.values()
              if "world" not in (j.parent, j.child)}
     pairs |= {frozenset(p) for p in excluded if p[0] != p[1]}
+    for a in attached:  # what holds it may touch it, as in the planner
+        pairs |= {frozenset((f"carried:{a.id}", t)) for t in {a.link, *a.touch_links}}
     exclude = [f'    <exclude body1="{_esc(a)}" body2="{_esc(b)}"/>'
                for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
     eq = []
@@ -247,13 +299,15 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
         act.append(f'    <general name="{_esc(n)}" joint="{_esc(n)}" gainprm="{g.kp!r}" '
                    f'biastype="affine" biasprm="0 {-g.kp!r} {-g.kv!r}" ctrllimited="false" '
                    f'forcelimited="true" forcerange="{-effort!r} {effort!r}"/>')
+    world = obstacle_geoms([obstacle_form(o) for o in obstacles], assets=assets, cache=cache,
+                           progress=progress)
     parts = [f'<mujoco model="{_esc(robot.name)}">',
              '  <compiler angle="radian" inertiafromgeom="false" balanceinertia="false" '
              'boundmass="1e-6" boundinertia="1e-9"/>',
              f'  <option timestep="{TIMESTEP!r}" integrator="Euler" '
              'gravity="0 0 -9.81"/>',
              "  <asset>", *("    " + a for a in assets), "  </asset>",
-             "  <worldbody>", *("    " + g for g in obstacle_geoms(obstacles)), *tree,
+             "  <worldbody>", *("    " + g for g in world), *tree,
              "  </worldbody>",
              "  <contact>", *exclude, "  </contact>"]
     if eq:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -124,12 +124,23 @@ def controller_gains(path: Path, joints: Sequence[str]) -> dict[str, Gains]:
     return out
 
 
+def _resolved(description: Description, attached: Sequence[Any]) -> tuple[Any, ...]:
+    """Carried objects with their default touch links (what the planner excludes)."""
+    if not attached:
+        return ()
+    from planner.scene import resolve_attached
+    return resolve_attached(description, tuple(attached))
+
+
 class SimArduinobot(Robot):
     """The description in MuJoCo.
 
     Args:
         description: the robot.
-        obstacles: world obstacles (the plan request's form).
+        obstacles: world obstacles (the plan request's form, or the kept scene's
+            :class:`planner.scene.Obstacle`, meshes included).
+        attached: carried objects (:class:`planner.scene.AttachedObject`), each welded to
+            its link with its mass (:meth:`set_scene` changes both later).
         controllers: a controllers yaml (default: :func:`find_controllers_yaml`).
         initial: actuated positions [rad] to start at (default: initial_positions.yaml, else 0).
         bandwidth: [Hz] of the default servos.
@@ -140,6 +151,14 @@ class SimArduinobot(Robot):
         SimulationError: MuJoCo refused the model.
     """
 
+    # the simulation figures since the last reset (kept across a scene rebuild)
+    _peak: np.ndarray
+    _peak_ff: np.ndarray
+    _saturated: int
+    _contacts: set[tuple[str, str]]
+    _contact_steps: int
+    _steps: int
+
     realtime_only = False
     # the setpoint of the current tick [rad, rad/s, rad/s^2] and its jerk [rad/s^3]
     _q_ref: np.ndarray
@@ -147,14 +166,17 @@ class SimArduinobot(Robot):
     _qdd_ref: np.ndarray | None
     _jerk: np.ndarray | None
 
-    def __init__(self, description: Description, *, obstacles: Sequence[Mapping[str, Any]] = (),
-                 controllers: Path | None = None, initial: Sequence[float] | None = None,
+    def __init__(self, description: Description, *, obstacles: Sequence[Any] = (),
+                 attached: Sequence[Any] = (), controllers: Path | None = None, initial: Sequence[float] | None = None,
                  bandwidth: float = DEFAULT_BANDWIDTH, cache: ArtifactCache | None = None,
                  progress: Progress | None = None) -> None:
         import mujoco  # optional dependency (the `sim` extra)
 
         self._mj = mujoco
+        self._description = description
+        self._cache, self._progress = cache, progress
         robot = description.robot
+        attached = _resolved(description, attached)
         self.mimic = MimicMap.from_description(description)
         self.joint_names = self.mimic.actuated
         self.state_names = self.mimic.names
@@ -168,7 +190,7 @@ class SimArduinobot(Robot):
             else check_setpoint(initial, self.joint_names, "initial positions")
         for _ in range(2):
             self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded, obstacles=obstacles,
-                               cache=cache, progress=progress)
+                               attached=attached, cache=cache, progress=progress)
             self._build(robot.name)
             self._set_positions(q0)
             # MuJoCo collides meshes as convex hulls: hulls of concave links (fingers, an
@@ -181,6 +203,7 @@ class SimArduinobot(Robot):
             log.info("MuJoCo (convex hulls) sees %s touching in the initial pose; their "
                      "contacts are ignored", ", ".join(f"{a}/{b}" for a, b in touching))
             excluded = [*excluded, *touching]
+        self._excluded = excluded
         m = self.model
         self.effort = np.array([m.actuator_forcerange[a, 1] for a in self._act])
         # default gains: a critically damped servo of `bandwidth` Hz at each joint's inertia
@@ -196,9 +219,7 @@ class SimArduinobot(Robot):
                 g = Gains(inertia * w * w, 2.0 * inertia * w)
                 self.gain_source[n] = f"default: critically damped {bandwidth:g} Hz servo"
             self.gains.append(g)
-            a = self._act[i]
-            m.actuator_gainprm[a, 0] = g.kp
-            m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
+        self._apply_gains()
         self._tick = 0.0
         self._scratch = mujoco.MjData(m)
         self.reset(q0)
@@ -206,6 +227,35 @@ class SimArduinobot(Robot):
                  robot.name, m.nbody, m.ngeom, TIMESTEP,
                  {n: (round(g.kp, 1), round(g.kv, 1)) for n, g in zip(self.joint_names,
                                                                        self.gains)})
+
+    def _apply_gains(self) -> None:
+        m = self.model
+        for a, g in zip(self._act, self.gains):
+            m.actuator_gainprm[a, 0] = g.kp
+            m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
+
+    def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = ()) -> None:
+        """Put ``obstacles`` in the world and weld ``attached`` to their links instead of
+        what was there (the kept scene at a new revision, or a plan's own obstacles), the
+        arm at rest where it is now; the servo gains and figures stay.
+
+        Raises:
+            SimulationError: MuJoCo refused the model.
+        """
+        q = np.asarray(self.state().positions[:len(self.joint_names)], float)
+        robot = self._description.robot
+        gains = {n: g for n, g in zip(self.joint_names, self.gains)}
+        self.xml = to_mjcf(robot, gains=gains, excluded=self._excluded, obstacles=obstacles,
+                           attached=_resolved(self._description, attached),
+                           cache=self._cache, progress=self._progress)
+        stats = (self._peak, self._peak_ff, self._saturated, self._contacts,
+                 self._contact_steps, self._steps)
+        self._build(robot.name)
+        self._apply_gains()
+        self._scratch = self._mj.MjData(self.model)
+        self.reset(q)
+        (self._peak, self._peak_ff, self._saturated, self._contacts, self._contact_steps,
+         self._steps) = stats
 
     def _build(self, name: str) -> None:
         mujoco = self._mj
@@ -337,7 +387,7 @@ class SimArduinobot(Robot):
         self._peak = np.zeros(len(self.joint_names))
         self._peak_ff = np.zeros(len(self.joint_names))
         self._saturated = 0
-        self._contacts: set[tuple[str, str]] = set()
+        self._contacts = set()
         self._contact_steps = 0
         self._steps = 0
 

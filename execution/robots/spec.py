@@ -57,4 +57,6 @@ class RobotSpec:
             from .sim_arduinobot import SimArduinobot
             return SimArduinobot(description, obstacles=obstacles, cache=self.cache,
                                  progress=self.progress)
-        raise RobotError("this service drives no robot (serve --no-robot)")
+        # details.robot: what the kept scene reads as "no robot state" (all joints 0)
+        raise RobotError("this service drives no robot (serve --no-robot)",
+                         details={"robot": "none"})

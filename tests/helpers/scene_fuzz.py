@@ -1,5 +1,6 @@
-"""Hostile scene inputs, seeded: mutations of apply requests and junk mesh bytes (for
-tests/test_scene_store.py and bench/scene.py)."""
+"""Hostile scene inputs, seeded: mutations of apply requests (attach and detach too) and
+junk mesh bytes (for tests/test_scene_store.py, tests/test_scene_carry.py and
+bench/scene.py)."""
 
 from __future__ import annotations
 
@@ -42,6 +43,21 @@ def junk_mesh(r: random.Random) -> str:
     return b64(raw)
 
 
+def carry_seeds(link: str = "claw_support") -> list[dict[str, Any]]:
+    """Valid-looking applies with attach, detach and state, for :func:`mutate` (``keep``:
+    a scene object, ``held``: one the seeds attach; a real scene may hold neither)."""
+    box = {"id": "held", "shape": "box", "size": [0.02, 0.02, 0.05], "xyz": [0, 0, -0.05]}
+    return [
+        {"attach": [{"object": "keep", "link": link, "mass": 0.2, "com": [0, 0, 0.01]}],
+         "state": {"joint_1": 0.3}},
+        {"attach": [{"object": {**box, "frame": link}, "link": link,
+                     "touch_links": [link, "gripper_left"]}], "if_revision": 1},
+        {"detach": ["held"], "state": {"joint_1": -0.2, "joint_2": 0.1}},
+        {"add": [{**box, "id": "new", "xyz": [3, 3, 3]}], "attach": [
+            {"object": "new", "link": link}], "detach": ["held"], "remove": ["keep"]},
+    ]
+
+
 def mutate(r: random.Random, value: Any) -> Any:
     """One random change somewhere in a JSON value."""
     if isinstance(value, dict) and value and r.random() < 0.8:
@@ -53,4 +69,6 @@ def mutate(r: random.Random, value: Any) -> Any:
         return [*value[:i], mutate(r, value[i]), *value[i + 1:]]
     return r.choice([None, True, -1, 0, 1e308, -1e-320, 2**63, "", "x" * 70, "world",
                      "claw_support", [], {}, [1, 2, 3], [0.0] * 3, {"format": "obj"},
-                     "mesh", "box", [1e9, 0, 0], junk_mesh(r), {"a": {"b": [[[]]]}}])
+                     "mesh", "box", [1e9, 0, 0], junk_mesh(r), {"a": {"b": [[[]]]}},
+                     "joint_1", {"joint_1": 99}, {"nope": 0}, {"gripper_left_joint": 0.1},
+                     "held", "keep", "base_link", ["held", "held"], -0.0, 1e-300])
