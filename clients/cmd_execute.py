@@ -7,36 +7,32 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import signal
 import sys
 import threading
-from collections.abc import Iterator
-from contextlib import ExitStack, contextmanager
-from dataclasses import dataclass
+from contextlib import ExitStack
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 from .argtypes import UsageError, json_object
 from .common import (
-    EXIT_FAIL,
+    EXIT_CANCELLED,
     EXIT_OK,
     add_connection_args,
     add_model_args,
     client,
     connect,
     load_from_args,
+    sigint_sets,
 )
+from .ros2_options import add_ros2_args, ros2_settings
 
 if TYPE_CHECKING:  # the executor and the drivers load with the command, not with the CLI
     from description import Description
-    from execution.robots.base import RobotError
     from execution.robots.mjcf import Progress
     from execution.robots.spec import RobotSpec
-    from ros2.controllers import Controller
 
     from .remote_execution import ExecutionEvent
 
-EXIT_CANCELLED = 130
 log = logging.getLogger(__name__)
 
 
@@ -138,63 +134,6 @@ def add_serve_args(p: argparse.ArgumentParser) -> None:
 
 
 # ros2.attachment.LAYOUTS, spelled out: the ros2 extra is not imported to build the parser
-ATTACHMENT_LAYOUTS = ("current", "jazzy-0.2.3")
-
-
-def add_ros2_args(g: argparse._ArgumentGroup) -> None:
-    """The ROS 2 graph options ``serve --ros2`` and ``execute --ros2`` share."""
-    g.add_argument("--ros-domain-id", type=int, default=None, metavar="N",
-                   help="the ROS 2 domain, 0..232 (default: $ROS_DOMAIN_ID, else 0)")
-    g.add_argument("--ros-namespace", default=None, metavar="NS",
-                   help="the namespace of our node and of the names it uses (default /)")
-    g.add_argument("--ros2-attachment", choices=ATTACHMENT_LAYOUTS, default=None,
-                   help="rmw_zenoh's message attachment: current (Jazzy 0.2.4+, Kilted, "
-                   "Rolling; default) or jazzy-0.2.3 (Jazzy's rmw_zenoh 0.2.0..0.2.3)")
-
-
-@dataclass(frozen=True)
-class Ros2Settings:
-    """Where on the ROS 2 graph we appear: the domain, our namespace, the attachment."""
-
-    domain_id: int
-    namespace: str
-    attachment: Literal["current", "jazzy-0.2.3"]
-
-
-def ros2_settings(ns: argparse.Namespace, *, flag: str = "--ros2") -> Ros2Settings | None:
-    """The ROS 2 options of ``ns`` (None without ``--ros2``).
-
-    Raises:
-        UsageError: a ROS 2 option without --ros2, or a domain id out of 0..232 (the
-            flag's or $ROS_DOMAIN_ID's).
-    """
-    given = [f for f, v in (("--ros-domain-id", ns.ros_domain_id),
-                            ("--ros-namespace", ns.ros_namespace),
-                            ("--ros2-attachment", ns.ros2_attachment)) if v is not None]
-    if not ns.ros2:
-        if given:
-            raise UsageError(f"{', '.join(given)} {'go' if len(given) > 1 else 'goes'} "
-                             f"with {flag}")
-        return None
-    try:  # only now: the ros2 extra is optional
-        from ros2 import InvalidName, InvalidOption
-        from ros2.names import domain_id_from_env, validate_namespace
-    except ImportError as e:
-        raise UsageError(f"{flag} needs the ros2 extra (pip install 'arduinobot[ros2]'): "
-                         f"{e}") from e
-    try:
-        domain = domain_id_from_env() if ns.ros_domain_id is None else ns.ros_domain_id
-    except InvalidOption as e:
-        raise UsageError(e.message) from e
-    if not 0 <= domain <= 232:
-        raise UsageError(f"ROS 2 domain id {domain} is out of 0..232")
-    try:
-        namespace = validate_namespace(ns.ros_namespace or "/")
-    except InvalidName as e:
-        raise UsageError(f"--ros-namespace: {e.message}") from e
-    return Ros2Settings(domain, namespace, ns.ros2_attachment or "current")
-
-
 def _add_robot_args(g: argparse._ArgumentGroup) -> None:
     g.add_argument("--baud", type=int, default=None, help="serial baud rate (default "
                    "115200, or the URDF's baud_rate param)")
@@ -282,7 +221,8 @@ def cmd_execute(ns: argparse.Namespace) -> int:
         return _remote(ns, req)
     settings = ros2_settings(ns)
     if settings is not None:
-        return _ros2(ns, req, settings)
+        from .ros2_execute import execute_on_controllers
+        return execute_on_controllers(ns, req, settings, _model(ns, req is not None))
     from execution.executor import ExecuteOptions, Executor, plan_start
     from execution.robots.sim_arduinobot import SimArduinobot
     from execution.segments import SampledTrajectory, check_fits
@@ -310,7 +250,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
         where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
         print(f"executing {traj.duration:.3f} s on {where} of '{desc.robot.name}' at "
               f"{ns.rate:g} Hz (Ctrl-C stops smoothly)", file=sys.stderr)
-        with _sigint_sets(cancel):
+        with sigint_sets(cancel):
             report = ex.execute(traj, cancel=cancel)
         summary = report.to_dict()
         if isinstance(robot, SimArduinobot):
@@ -331,18 +271,6 @@ def _publisher(ns: argparse.Namespace, held: ExitStack) -> Any:
                     ns.prefix, e.message)
         return None
     return JointStatePublisher(c.session, ns.prefix)
-
-
-@contextmanager
-def _sigint_sets(event: threading.Event) -> Iterator[None]:
-    """While active, Ctrl-C (and SIGTERM) set ``event`` instead of raising."""
-    old = {sig: signal.signal(sig, lambda *_: event.set())
-           for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for sig, h in old.items():
-            signal.signal(sig, h)
 
 
 def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
@@ -388,7 +316,7 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
                       "robot (Ctrl-C stops smoothly)", file=sys.stderr)
         cancel = threading.Event()
         traj = None if req is not None else read_json(ns.trajectory)
-        with _sigint_sets(cancel):
+        with sigint_sets(cancel):
             done = c.execute(traj, plan=req, start_tolerance=ns.start_tolerance,
                              move_to_start=ns.move_to_start, on_event=on_event,
                              cancel=cancel)
@@ -397,145 +325,3 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
 
 # -- --ros2: a ROS 2 workspace's joint_trajectory_controllers ------------------------------------
 
-def controllers_of(desc: Description, names: list[str] | None) -> tuple[Controller, ...]:
-    """The controllers to send to: the MoveIt config's ``moveit_controllers.yaml``
-    (the package's ``config/``, beside the SRDF), else ``<group>_controller`` per SRDF
-    group (its actuated, non-mimic joints; a group whose joints an earlier one has is
-    skipped); ``names`` (--controller) keeps those, and a name neither knows is a
-    controller of every joint the others leave.
-
-    Raises:
-        UsageError: a --controller name unknown while every joint already has one.
-    """
-    from ros2.controllers import Controller, read_moveit_controllers
-    cfg = desc.config
-    dirs = [d for d in ((cfg.moveit_package / "config") if cfg.moveit_package else None,
-                        cfg.srdf.parent if cfg.srdf else None) if d is not None]
-    found = next((d / "moveit_controllers.yaml" for d in dirs
-                  if (d / "moveit_controllers.yaml").is_file()), None)
-    if found is not None:
-        known = read_moveit_controllers(found)
-        log.info("controllers from %s: %s", found, ", ".join(c.name for c in known))
-    else:
-        taken: set[str] = set()
-        out = []
-        actuated = set(desc.robot.actuated_joints)
-        for g in (desc.srdf.groups.values() if desc.srdf else ()):
-            joints = tuple(j for j in g.joints if j in actuated and j not in taken)
-            if joints:
-                out.append(Controller(f"{g.name}_controller", joints))
-                taken.update(joints)
-        known = tuple(out)
-        log.info("no moveit_controllers.yaml: controllers after the SRDF groups: %s",
-                 ", ".join(c.name for c in known) or "none")
-    if not names:
-        return known
-    by_name = {c.name: c for c in known}
-    chosen = [by_name[n] for n in names if n in by_name]
-    unknown = [n for n in names if n not in by_name]
-    if len(unknown) > 1:
-        raise UsageError(f"controllers {', '.join(unknown)} are not in the MoveIt config "
-                         f"(it has {', '.join(by_name) or 'none'}); at most one unknown "
-                         "--controller takes the remaining joints")
-    if unknown:
-        rest = tuple(j for j in desc.robot.actuated_joints
-                     if not any(j in c.joints for c in chosen))
-        if not rest:
-            raise UsageError(f"controller {unknown[0]} is not in the MoveIt config and "
-                             "the others already move every joint")
-        chosen.append(Controller(unknown[0], rest))
-    return tuple(chosen)
-
-
-def _ros2(ns: argparse.Namespace, req: dict[str, Any] | None, settings: Ros2Settings) -> int:
-    """Send the trajectory (TRAJ.json, or planned from the controllers' /joint_states)
-    to the joint_trajectory_controllers; Ctrl-C cancels (they stop and hold)."""
-    from execution.executor import NotAtStart
-    from execution.segments import SampledTrajectory, check_fits, parse_trajectory, read_json
-    from ros2 import Ros2Error
-    from ros2.controllers import TargetOptions, TrajectoryTarget, split_trajectory
-
-    desc = _model(ns, req is not None)
-    controllers = controllers_of(desc, ns.controller)
-    try:
-        with client(ns) as c:  # the router's session: the service plans on it too
-            target = TrajectoryTarget(c.session, domain_id=settings.domain_id,
-                                      namespace=settings.namespace,
-                                      attachment=settings.attachment,
-                                      options=TargetOptions(control_msgs=ns.control_msgs))
-            try:
-                now = target.joint_positions(timeout=3.0)
-                if req is not None:
-                    if "start" not in req:
-                        req["start"] = _start_from(now, desc)
-                    with connect(ns, model_drives_robot=True) as service:
-                        body: Any = service.request("plan", req)
-                else:
-                    body = read_json(ns.trajectory)
-                names, times, cols = parse_trajectory(body)
-                traj = SampledTrajectory.from_json(body)
-                check_fits(traj, desc)
-                _check_ros2_start(traj, now, ns.start_tolerance, NotAtStart)
-                parts = split_trajectory(names, times, cols, controllers)
-                where = ", ".join(f"{p.controller.name} ({', '.join(p.joint_names)})"
-                                  for p in parts)
-                print(f"executing {traj.duration:.3f} s on {where} (ROS 2 domain "
-                      f"{settings.domain_id}; Ctrl-C stops)", file=sys.stderr)
-                cancel = threading.Event()
-                with _sigint_sets(cancel):
-                    if ns.ros2_topic:
-                        done = target.publish(parts, cancel=cancel)
-                        print("published on " + ", ".join(
-                            "/" + p.controller.topic for p in parts)
-                            + ("" if done else "; cancelled: an empty trajectory sent "
-                               "(the controllers hold)"))
-                        return EXIT_OK if done else EXIT_CANCELLED
-                    outcomes = target.follow(parts, cancel=cancel)
-            finally:
-                target.close()
-    except Ros2Error as e:
-        print(f"arduinobot: {e.code}: {e.message}", file=sys.stderr)
-        if e.details:
-            print(f"  details: {json.dumps(e.details, default=str)[:2000]}", file=sys.stderr)
-        return EXIT_FAIL
-    for o in outcomes:
-        print(f"{o.controller}: {o.outcome}" + (f" ({o.error_string})" if o.error_string
-                                                 else ""))
-    return EXIT_OK if all(o.outcome == "succeeded" for o in outcomes) else EXIT_CANCELLED
-
-
-def _start_from(now: dict[str, float] | None, desc: Description) -> dict[str, float]:
-    """A plan's start from the controllers' /joint_states (clipped to the limits, as
-    :func:`execution.executor.plan_start`).
-
-    Raises:
-        UsageError: no /joint_states arrived, or it lacks a joint of the robot.
-    """
-    names = desc.robot.actuated_joints
-    if now is None:
-        raise UsageError("no /joint_states from the ROS 2 side (is joint_state_broadcaster "
-                         "active?): cannot plan from the robot's state; give TRAJ.json or "
-                         "a request with a start")
-    missing = [n for n in names if n not in now]
-    if missing:
-        raise UsageError(f"/joint_states lacks {', '.join(missing)}: cannot plan from it")
-    lim = desc.robot.position_limits(tuple(names))
-    return {n: min(max(now[n], float(lo)), float(hi)) for n, (lo, hi) in zip(names, lim)}
-
-
-def _check_ros2_start(traj: Any, now: dict[str, float] | None, tolerance: float,
-                      not_at_start: type[RobotError]) -> None:
-    """Refuse a trajectory that does not start where /joint_states says the arm is (a
-    controller would jump there); without /joint_states the check is skipped, said."""
-    if now is None:
-        log.warning("no /joint_states from the ROS 2 side: the trajectory's start is not "
-                    "checked against the arm")
-        return
-    for j, name in enumerate(traj.joint_names):
-        if name in now and abs(now[name] - traj.positions[0][j]) > tolerance:
-            raise not_at_start(
-                f"the robot is not at the trajectory's start: {name} is at {now[name]:.4f} "
-                f"rad (/joint_states), the trajectory starts at {traj.positions[0][j]:.4f} "
-                f"rad (tolerance {tolerance:g} rad); plan from the robot's state",
-                details={"joint": name, "robot": now[name],
-                         "start": float(traj.positions[0][j]), "tolerance": tolerance})

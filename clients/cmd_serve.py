@@ -20,7 +20,7 @@ from .common import EXIT_FAIL, EXIT_OK, add_model_args, model_options
 if TYPE_CHECKING:
     from description import Description
 
-    from .cmd_execute import Ros2Settings
+    from .ros2_options import Ros2Settings
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -86,7 +86,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "scene-PREFIX.json)")
     p.add_argument("--no-cache", action="store_true",
                    help="keep nothing between starts (recompute at every start)")
-    from .cmd_execute import add_ros2_args, add_serve_args
+    from .cmd_execute import add_serve_args
+    from .ros2_options import add_ros2_args
     add_serve_args(p)
     ros = p.add_argument_group("ROS 2 (rmw_zenoh; see docs/ros2.md)")
     ros.add_argument("--ros2", action="store_true",

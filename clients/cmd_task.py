@@ -177,7 +177,7 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> 
     from execution.executor import ExecuteOptions, Executor
     from execution.segments import SampledTrajectory
 
-    from .cmd_execute import _sigint_sets
+    from .common import sigint_sets
     ts, q, qd, qdd = result.samples(ns.rate)
     traj = SampledTrajectory(tuple(result.joint_names), ts, q, qd, qdd)
     opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
@@ -188,7 +188,7 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> 
     print(f"executing {traj.duration:.3f} s on {where} (Ctrl-C stops smoothly)",
           file=sys.stderr)
     cancel = threading.Event()
-    with _sigint_sets(cancel):
+    with sigint_sets(cancel):
         report = ex.execute(traj, cancel=cancel).to_dict()
     print(f"{report['outcome']}: {report['duration']:.3f} s")
     return report
@@ -206,7 +206,7 @@ def _remote(ns: argparse.Namespace) -> int:
     import orjson
     import zenoh
 
-    from .cmd_execute import _sigint_sets
+    from .common import sigint_sets
     from .errors import ServiceUnavailable, error_from_reply
     if ns.file or any((ns.package_dir, ns.arg, ns.moveit_config, ns.srdf, ns.joint_limits)):
         raise UsageError("--remote runs the service's robot: its model is the service's")
@@ -222,7 +222,7 @@ def _remote(ns: argparse.Namespace) -> int:
     out: dict[str, Any] = {}
     cancel = threading.Event()
     execution: list[str] = []
-    with client(ns) as c, _sigint_sets(cancel):
+    with client(ns) as c, sigint_sets(cancel):
         replies = c.session.get(f"{ns.prefix}/task", payload=orjson.dumps(req),
                                 consolidation=zenoh.ConsolidationMode.NONE,
                                 timeout=24 * 3600.0)

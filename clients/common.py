@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import threading
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -25,6 +27,7 @@ if TYPE_CHECKING:
     from .client import PlannerClient
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_UNAVAILABLE = 0, 1, 2, 3
+EXIT_CANCELLED = 130  # a run stopped by Ctrl-C, as a shell reports SIGINT
 
 
 def add_model_args(p: argparse.ArgumentParser, *, file_arg: bool = True) -> None:
@@ -215,3 +218,15 @@ def run_guarded(ns: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     except DescriptionError as e:
         print(f"arduinobot: {type(e).__name__}: {e}", file=sys.stderr)
     return EXIT_FAIL
+
+
+@contextmanager
+def sigint_sets(event: threading.Event) -> Iterator[None]:
+    """While active, Ctrl-C (and SIGTERM) set ``event`` instead of raising."""
+    old = {sig: signal.signal(sig, lambda *_: event.set())
+           for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)

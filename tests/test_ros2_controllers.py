@@ -232,7 +232,7 @@ def test_moveit_controllers_yaml_and_the_split() -> None:
 
 
 def test_controllers_of_the_shipped_model_follow_its_srdf_groups() -> None:
-    from clients.cmd_execute import controllers_of
+    from clients.ros2_execute import controllers_of
     desc = load_description()  # no moveit_controllers.yaml: <group>_controller per group
     assert controllers_of(desc, None) == COURSE
     assert controllers_of(desc, ["gripper_controller"]) == COURSE[1:]
@@ -241,10 +241,10 @@ def test_controllers_of_the_shipped_model_follow_its_srdf_groups() -> None:
 
 def test_controllers_of_the_course_come_from_its_moveit_controllers_yaml(
         course_ws, caplog: pytest.LogCaptureFixture) -> None:
-    from clients.cmd_execute import controllers_of
+    from clients.ros2_execute import controllers_of
     desc = load_description(course_ws.xacro, package_dirs=[course_ws.src],
                             moveit_config=course_ws.moveit_pkg)
-    with caplog.at_level("INFO", logger="clients.cmd_execute"):
+    with caplog.at_level("INFO", logger="clients.ros2_execute"):
         assert controllers_of(desc, None) == COURSE
     yaml_file = course_ws.moveit_pkg / "config" / "moveit_controllers.yaml"
     assert f"controllers from {yaml_file}" in caplog.text
@@ -446,7 +446,7 @@ def test_ros2_options_domain_from_the_environment_and_usage_errors(
         monkeypatch: pytest.MonkeyPatch) -> None:
     from clients.argtypes import UsageError
     from clients.cli import build_parser
-    from clients.cmd_execute import Ros2Settings, ros2_settings
+    from clients.ros2_options import Ros2Settings, ros2_settings
 
     def settings(*argv: str) -> Ros2Settings | None:
         return ros2_settings(build_parser().parse_args(["serve", *argv]))
