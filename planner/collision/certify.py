@@ -37,6 +37,7 @@ import numpy as np
 from ..kinematics.chain import Chain, _fk_into
 from .advance import Work, tree_lower_bound
 from .body_speed import local_rates, local_step
+from .compiled import Direct
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
 from .resume import Motion, Proof, Status, Stop, new_walk
@@ -255,10 +256,14 @@ class Certifier:
     def __init__(self, world: CollisionWorld, *, fraction: float = 0.0,
                  local: bool = True) -> None:
         self.world = world
-        self.fraction = fraction
-        self.local = local
+        self.fraction = float(fraction)  # one compiled variant of the walk
+        self.local = bool(local)
         self._work = Work.of(world.table.slots)
         self._q = np.empty(world.dof)
+        # the walk resumes after every bound Python computes: past numba's dispatcher
+        # (:mod:`.compiled`); its arguments are this certifier's and its world's, typed
+        # the same on every call
+        self._advance = Direct(_advance)
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -312,9 +317,9 @@ class Certifier:
         walk = new_walk()
         exact, queries = 0, 0
         while True:
-            status = Status(_advance(motion, walk, w.chain, table.bodies, pairs, w.forest,
-                                     w.hulls, clear, self.fraction, self.local, self._work,
-                                     self._q, proof))
+            status = Status(self._advance.call(motion, walk, w.chain, table.bodies, pairs,
+                                               w.forest, w.hulls, clear, self.fraction,
+                                               self.local, self._work, self._q, proof))
             if status == Status.DONE:
                 break
             at = Stop.read(walk)
