@@ -23,10 +23,20 @@ continuum, not only where it was sampled.
 The walk runs in numba, one call for the whole motion and every pair; Python only
 computes the hull and FCL distances near contact (FCL stays the reference for exact
 contact).
+
+A pair whose relative motion is one-dimensional (its ``weight`` is zero but for one
+joint: the two fingers of a gripper along its mimic, a link turning past an obstacle about
+one axis) has a distance that is a function of that joint alone. Such a pair is proven
+once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
+the cell's middle less ``weight`` times half its width, cells halved where that does not
+prove them) and the proof is kept: a motion whose joint range the proven cells cover
+takes the smallest of their bounds for the pair, and the walk passes over it (near
+contact, thousands of tiny steps; here, a few cached cells).
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -68,6 +78,12 @@ CARRY = 0.5
 # less than this is certified by its distance bound at the start less that motion
 # (CollisionWorld.still_distance: the hulls', FCL's where they touch)
 STILL = 1e-4
+# [rad] one-dimensional pairs are proven over cells of their joint this wide at first
+# (each halved, down to CELL / 2**CELL_LEVELS, where its bound does not prove it)
+CELL = 0.01
+CELL_LEVELS = 4
+# refinements of a cell's hull direction (each from the extreme points the last one found)
+HULL_TRIES = 4
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
@@ -241,6 +257,11 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     return Status.DONE.value
 
 
+#: per world, its one-dimensional pairs' proven cells (:meth:`Certifier.one_dim_pairs`)
+_CELLS: weakref.WeakKeyDictionary[CollisionWorld, dict[tuple[int, int, int], float]] = \
+    weakref.WeakKeyDictionary()
+
+
 class Certifier:
     """Certifies motions in one :class:`CollisionWorld` (its robot, scene, padding and
     allowed pairs). The required clearance is the world's padding.
@@ -264,6 +285,14 @@ class Certifier:
         # (:mod:`.compiled`); its arguments are this certifier's and its world's, typed
         # the same on every call
         self._advance = Direct(_advance)
+        # the pairs whose relative motion one joint alone makes: pair -> that joint (the
+        # weights carry a 1e-12 floor: a joint that moves both bodies rigidly is ~0)
+        moving = world.table.pairs.weight > 1e-9
+        self._one_dim = {p: int(np.flatnonzero(moving[p])[0])
+                         for p in range(len(moving)) if moving[p].sum() == 1}
+        # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
+        # with the world, so every certifier of it (and every request) reuses them
+        self._cells = _CELLS.setdefault(world, {})
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -306,13 +335,17 @@ class Certifier:
         still: dict[int, float] = {}
         if self.fraction > 0:  # a clearance to report: still pairs at their own bound
             still = self._still_pairs(starts, u1, u2, lengths, clear)
-            if still:
-                idx = np.fromiter(still, np.int64)
-                best[idx] = np.fromiter(still.values(), float)
-                weight = pairs.weight.copy()
-                weight[idx] = 0.0  # proven: the walk passes over them
-                weight.flags.writeable = False  # as the table's (one compiled variant)
-                pairs = pairs._replace(weight=weight)
+        # pairs one joint moves, proven over its range by cached cells
+        for p, d in self.one_dim_pairs(starts, u1, u2, lengths).items():
+            if p not in still:
+                still[p] = d
+        if still:
+            idx = np.fromiter(still, np.int64)
+            best[idx] = np.fromiter(still.values(), float)
+            weight = pairs.weight.copy()
+            weight[idx] = 0.0  # proven: the walk passes over them
+            weight.flags.writeable = False  # as the table's (one compiled variant)
+            pairs = pairs._replace(weight=weight)
         motion = Motion(starts, u1, u2, lengths)
         walk = new_walk()
         exact, queries = 0, 0
@@ -372,6 +405,66 @@ class Certifier:
             if d > clear + GAP:  # else the walk decides (and refuses where it must)
                 out[int(p)] = d
         return out
+
+    def one_dim_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+                      lengths: np.ndarray) -> dict[int, float]:
+        """The one-dimensional pairs (see the module) proven over the whole motion, each
+        with its bound [m] (above the clearance): over every cell of its joint's range.
+
+        A piece's joint ``k`` stays within ``start_k + L [min(0, u1_k, u2_k), max(0,
+        u1_k, u2_k)]`` (its speed lies between ``u1_k`` and ``u2_k``). A cell's bound is
+        the convex hulls' at its middle (sound at any state, no contact premise needed;
+        where the hulls touch there is none) less the most the pair's distance changes
+        within half the cell (``weight``)."""
+        if not self._one_dim:
+            return {}
+        lo = (starts + lengths[:, None] * np.minimum(0.0, np.minimum(u1, u2))).min(axis=0)
+        hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
+        out = {}
+        for p, j in self._one_dim.items():
+            d = np.inf
+            for k in range(int(np.floor(lo[j] / CELL)), int(np.floor(hi[j] / CELL)) + 1):
+                d = min(d, self._cell(p, j, 0, k, starts[0]))
+                if not d > self.world.padding + GAP:
+                    break
+            else:
+                out[p] = float(d)
+        return out
+
+    def _cell(self, p: int, j: int, level: int, k: int, base: np.ndarray) -> float:
+        # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
+        # 2**level; halved where it fails. ``base``: any state (the other joints move the
+        # pair's bodies together: the pair's distance does not depend on them).
+        key = (p, level, k)
+        got = self._cells.get(key)
+        if got is not None:
+            return got
+        w = self.world
+        h = CELL / 2**level
+        q = np.array(base, dtype=float)
+        q[j] = (k + 0.5) * h
+        change = float(w.table.pairs.weight[p, j]) * h / 2  # [m] within half the cell
+        need = w.padding + GAP + change
+        # the hulls' separation along a few refined directions: sound at any state (an
+        # exact distance would hold only at a state reached without contact, which the
+        # middle of a cell need not be), microseconds each
+        a, b = (int(x) for x in w.table.pairs.index[p])
+        poses = w.kin.link_poses(q)
+        ta = np.ascontiguousarray(w.body_pose(poses, a))
+        tb = np.ascontiguousarray(w.body_pose(poses, b))
+        n = ta[:3, 3] - tb[:3, 3]
+        norm = float(np.linalg.norm(n))
+        n = n / norm if norm > 0 else np.array([1.0, 0.0, 0.0])
+        h_ = w.hulls
+        d = -np.inf
+        for _ in range(HULL_TRIES):
+            d = max(d, warm_bound(h_.vertices, h_.offsets, h_.radii, a, ta, b, tb, n))
+        bound = d - change if d > need else -np.inf
+        if bound == -np.inf and level < CELL_LEVELS:
+            bound = min(self._cell(p, j, level + 1, 2 * k, base),
+                        self._cell(p, j, level + 1, 2 * k + 1, base))
+        self._cells[key] = bound
+        return bound
 
     def path(self, path: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
              ) -> Certificate:
