@@ -24,9 +24,9 @@ The walk runs in numba, one call for the whole motion and every pair; Python onl
 computes the hull and FCL distances near contact (FCL stays the reference for exact
 contact).
 
-A pair whose relative motion is one-dimensional (its ``weight`` is zero but for one
-joint: the two fingers of a gripper along its mimic, a link turning past an obstacle about
-one axis) has a distance that is a function of that joint alone. Such a pair is proven
+A pair of links whose relative motion is one-dimensional (its ``weight`` is zero but for
+one joint: the two fingers of a gripper along its mimic, a camera by the turntable) has a
+distance that is a function of that joint alone. Such a pair is proven
 once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
 the cell's middle less ``weight`` times half its width, cells halved where that does not
 prove them) and the proof is kept: a motion whose joint range the proven cells cover
@@ -51,7 +51,7 @@ from .compiled import Direct
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
 from .resume import Motion, Proof, Status, Stop, new_walk
-from .table import Bodies, Pairs, place_carried
+from .table import Bodies, BodyKind, Pairs, place_carried
 from .world import CollisionWorld
 
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more
@@ -257,9 +257,38 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     return Status.DONE.value
 
 
-#: per world, its one-dimensional pairs' proven cells (:meth:`Certifier.one_dim_pairs`)
-_CELLS: weakref.WeakKeyDictionary[CollisionWorld, dict[tuple[int, int, int], float]] = \
+#: per robot geometry (a world's ``bodies``, shared by the worlds of its scenes), its
+#: one-dimensional link pairs' proven cells (:meth:`Certifier.one_dim_pairs`), by
+#: (padding, link, link, level, cell)
+_CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
     weakref.WeakKeyDictionary()
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_at(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray,
+             axis: np.ndarray, src: np.ndarray, scale: np.ndarray, offset: np.ndarray,
+             vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int, b: int,
+             fa: int, fb: int, poses: np.ndarray) -> float:
+    # The hulls' bound [m] of link bodies a and b (pose slots fa, fb) at state q: their
+    # separation along the line between their frames, refined HULL_TRIES times from the
+    # extreme points each direction picks (warm_bound). Sound along any direction.
+    _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+    ta, tb = poses[fa], poses[fb]
+    n = np.empty(3)
+    norm = 0.0
+    for r in range(3):
+        n[r] = ta[r, 3] - tb[r, 3]
+        norm += n[r] * n[r]
+    norm = np.sqrt(norm)
+    if norm > 0.0:
+        for r in range(3):
+            n[r] /= norm
+    else:
+        n[0], n[1], n[2] = 1.0, 0.0, 0.0
+    d = -np.inf
+    for _ in range(HULL_TRIES):
+        d = max(d, warm_bound(vertices, offsets, radii, a, ta, b, tb, n))
+    return d
 
 
 class Certifier:
@@ -287,12 +316,18 @@ class Certifier:
         self._advance = Direct(_advance)
         # the pairs whose relative motion one joint alone makes: pair -> that joint (the
         # weights carry a 1e-12 floor: a joint that moves both bodies rigidly is ~0)
+        # Two links only: their cells hold for every scene of the robot and are few (an
+        # obstacle a link turns past about one axis would want cells over that joint's
+        # whole range, one scene's: measured slower than its walk through the service)
         moving = world.table.pairs.weight > 1e-9
+        links = world.table.pairs.index
         self._one_dim = {p: int(np.flatnonzero(moving[p])[0])
-                         for p in range(len(moving)) if moving[p].sum() == 1}
+                         for p in range(len(moving)) if moving[p].sum() == 1
+                         and world.table.kinds[links[p, 0]] == BodyKind.LINK
+                         and world.table.kinds[links[p, 1]] == BodyKind.LINK}
         # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
         # with the world, so every certifier of it (and every request) reuses them
-        self._cells = _CELLS.setdefault(world, {})
+        self._cells = _CELLS.setdefault(world.bodies, {})
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -435,7 +470,7 @@ class Certifier:
         # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
         # 2**level; halved where it fails. ``base``: any state (the other joints move the
         # pair's bodies together: the pair's distance does not depend on them).
-        key = (p, level, k)
+        key = (self.world.padding, *self.world.pair_names[p], level, k)
         got = self._cells.get(key)
         if got is not None:
             return got
@@ -449,16 +484,10 @@ class Certifier:
         # exact distance would hold only at a state reached without contact, which the
         # middle of a cell need not be), microseconds each
         a, b = (int(x) for x in w.table.pairs.index[p])
-        poses = w.kin.link_poses(q)
-        ta = np.ascontiguousarray(w.body_pose(poses, a))
-        tb = np.ascontiguousarray(w.body_pose(poses, b))
-        n = ta[:3, 3] - tb[:3, 3]
-        norm = float(np.linalg.norm(n))
-        n = n / norm if norm > 0 else np.array([1.0, 0.0, 0.0])
-        h_ = w.hulls
-        d = -np.inf
-        for _ in range(HULL_TRIES):
-            d = max(d, warm_bound(h_.vertices, h_.offsets, h_.radii, a, ta, b, tb, n))
+        c, hp, frame = w.chain, w.hulls, w.table.bodies.frame
+        d = _hull_at(q, c.parent, c.origin, c.jtype, c.axis, c.src, c.scale, c.offset,
+                     hp.vertices, hp.offsets, hp.radii, a, b, int(frame[a]), int(frame[b]),
+                     self._work.poses)
         bound = d - change if d > need else -np.inf
         if bound == -np.inf and level < CELL_LEVELS:
             bound = min(self._cell(p, j, level + 1, 2 * k, base),
