@@ -29,7 +29,8 @@ one joint: the two fingers of a gripper along its mimic, a camera by the turntab
 distance that is a function of that joint alone. Such a pair is proven
 once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
 the cell's middle less ``weight`` times half its width, cells halved where that does not
-prove them) and the proof is kept: a motion whose joint range the proven cells cover
+prove them), once a walk has had to ask for its bounds near contact, and the proof is
+kept: a motion whose joint range the proven cells cover
 takes the smallest of their bounds for the pair, and the walk passes over it (near
 contact, thousands of tiny steps; here, a few cached cells).
 """
@@ -262,6 +263,9 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
 #: (padding, link, link, level, cell)
 _CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
     weakref.WeakKeyDictionary()
+#: per robot geometry, by padding, the one-dimensional pairs that get cells
+_HARD: weakref.WeakKeyDictionary[Any, dict[float, set[tuple[str, str]]]] = \
+    weakref.WeakKeyDictionary()
 
 
 @numba.njit(cache=True, nogil=True)
@@ -328,6 +332,11 @@ class Certifier:
         # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
         # with the world, so every certifier of it (and every request) reuses them
         self._cells = _CELLS.setdefault(world.bodies, {})
+        # the one-dimensional pairs (by name) a walk had to ask Python about (near
+        # contact, where it takes its tiny steps): only those get cells, so a pair the
+        # walk proves in a few steps costs nothing more (measured: filling cells for
+        # fingers 5-15 mm apart cost more than their walks saved)
+        self._hard = _HARD.setdefault(world.bodies, {}).setdefault(world.padding, set())
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -408,6 +417,8 @@ class Certifier:
                 warm[p] = True
             exact += was_exact
             queries += 1
+            if p in self._one_dim:
+                self._hard.add(pair)
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
@@ -457,6 +468,8 @@ class Certifier:
         hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
         out = {}
         for p, j in self._one_dim.items():
+            if self.world.pair_names[p] not in self._hard:
+                continue
             d = np.inf
             for k in range(int(np.floor(lo[j] / CELL)), int(np.floor(hi[j] / CELL)) + 1):
                 d = min(d, self._cell(p, j, 0, k, starts[0]))
