@@ -2,7 +2,8 @@
 
 Two robots (bench/_lib/peer_models.py): the course workspace (millimetre CAD meshes of 2k-54k
 triangles, a camera on a fixed joint, a separate MoveIt package) and the shipped
-arduinobot. Three scenes each (bench/_lib/scenes.py: self, table, pillars) with seeded
+arduinobot; and ``course_fingers``, the course workspace with a matrix that disables only
+joint-connected pairs (the fingers checked against each other). Three scenes each (bench/_lib/scenes.py: self, table, pillars) with seeded
 problems (at least half needing a detour). Per robot:
 
 - ours: a real ``arduinobot serve`` (2 workers, 127.0.0.1 on a free port, multicast
@@ -25,12 +26,20 @@ problems (at least half needing a detour). Per robot:
   on the reply's waypoints), their ratio (issue target <= 1.2), MPlib's; and the jerk
   floor (:func:`jerk_floor`), a lower bound on any jerk-limited motion of the path: where
   it is itself over 1.2x toppra, no jerk-limited timing can meet the target;
+- near contact: the share of our motions whose certified clearance is under 0.1 mm (a
+  pair within microns somewhere), and the proof's time (the reply's ``recheck`` stage)
+  median for those and for the others;
+- ``--group all``: the arm and the gripper move together (the gripper's start and goal
+  drawn across its range; the request's group ``all``). MPlib is not run on those (its
+  planner here takes the arm's move group; a mimic finger is not one of its joints), so
+  they have no MPlib column;
 - every returned trajectory, ours and MPlib's, re-checked independently
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
 
-Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0]
+Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0] [--group arm]
        ./dev bench peer --n 10     (a quick look)
+       ./dev bench peer --models course_fingers --group all   (arm and gripper, fingers checked)
 Prints a block per robot and scene, then one JSON line of all figures.
 """
 
@@ -65,6 +74,8 @@ from service.disk_cache import DiskCache
 from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
+# [m] a certified clearance under this: the motion came within microns of some contact
+NEAR = 1e-4
 STAGES = ("validate", "plan", "simplify", "recheck", "parameterise", "verify", "total")
 
 
@@ -81,8 +92,10 @@ def median(xs: list[float]) -> float | None:
 
 def plan_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: list[dict],
               seed: int, args: argparse.Namespace) -> dict[str, Any]:
+    moved = names if args.group == "all" else ARM
     return {"start": dict(zip(names, map(float, a))),
-            "goal": {"joints": dict(zip(ARM, map(float, b[:3])))},
+            "goal": {"joints": dict(zip(moved, map(float, b[:len(moved)])))},
+            **({"group": "all"} if args.group == "all" else {}),
             "obstacles": obstacles, "planning_time": args.planning_time,
             "velocity_scaling": args.scaling, "acceleration_scaling": args.scaling,
             "seed": seed}
@@ -219,7 +232,8 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
     cache = folder / "cache"
     mp = MotionPlanner(d, cache=DiskCache(cache))
     names = mp.joint_names
-    probs_of = {s: problems(mp.world(tuple(obs)), args.n, np.random.default_rng(args.seed))
+    probs_of = {s: problems(mp.world(tuple(obs)), args.n, np.random.default_rng(args.seed),
+                            gripper=args.group == "all")
                 for s, obs in SCENES.items()}
     replies, desc = run_service(model, probs_of, names, cache, args)
     lim = mp.limits(args.scaling, args.scaling)
@@ -231,7 +245,12 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                   ("lower", "upper", "velocity", "acceleration", "jerk", "effort")))
     toppra = toppra_durations(mp, replies, args.scaling)
     scale = scale_check(model, mp, names, folder, args.state_checks)
-    mplib, mplib_tasks = mplib_rows(model, names, probs_of, lim, folder, args, rl)
+    if args.group == "all":  # not MPlib's problem (see the module's notes)
+        mplib: dict[str, Any] = {s: {"success": None, "median_ms": None, "p95_ms": None,
+                                     "duration_s_median": None} for s in SCENES}
+        mplib_tasks: dict[str, list[tuple]] = {s: [] for s in SCENES}
+    else:
+        mplib, mplib_tasks = mplib_rows(model, names, probs_of, lim, folder, args, rl)
     rows: dict[str, Any] = {}
     ours_tasks: dict[str, list[tuple]] = {}
     for scene, rows_ in replies.items():
@@ -247,6 +266,10 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
         overhead = median([w - r.timing["total"] for w, r in rows_ if not isinstance(r, str)])
         clear = [r.verification.min_clearance for r in ok
                  if r.verification.min_clearance is not None]
+        near = [r for r in ok if r.verification.min_clearance is not None
+                and r.verification.min_clearance < NEAR]
+        near_ids = {id(r) for r in near}  # (replies hold arrays: by identity)
+        far = [r for r in ok if id(r) not in near_ids]
         durs = [r.duration for r in ok]
         ratios = [r.duration / t for r, t in zip(ok, toppra[scene]) if t]
         floors = [jerk_floor(r.path, lim.velocity, lim.acceleration, lim.jerk) for r in ok]
@@ -262,6 +285,13 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                      "stage_median_ms": stage, "verify_share_median": share,
                      "wire_overhead_ms_median": None if overhead is None else 1e3 * overhead,
                      "certified_all": all(r.verification.certified for r in ok),
+                     "near_contact_share": len(near) / len(ok) if ok else None,
+                     "proof_ms_median": {
+                         "all": median([1e3 * r.timing["recheck"] for r in ok]),
+                         "near": median([1e3 * r.timing["recheck"] for r in near]),
+                         "others": median([1e3 * r.timing["recheck"] for r in far])},
+                     "wall_ms_median_near": median([1e3 * w for w, r in rows_
+                                                    if id(r) in near_ids]),
                      "min_clearance_m": {"min": min(clear) if clear else None,
                                          "median": median(clear)},
                      "duration_s_median": median(durs),
@@ -291,7 +321,8 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
         k = len(mplib_tasks[scene])
         rows[scene]["mplib"]["recheck"] = summarise(reports[at:at + k])
         at += k
-    return {"source": model.source, "scaling": args.scaling, "recheck_step": args.recheck_step,
+    return {"source": model.source, "group": args.group, "scaling": args.scaling,
+            "recheck_step": args.recheck_step,
             "default_scaling": desc.get("default_scaling"),
             "limits_velocity": [float(v) for v in lim.velocity],
             "limits_acceleration": [float(v) for v in lim.acceleration],
@@ -304,7 +335,8 @@ def fmt(x: float | None, spec: str = ".1f") -> str:
 
 def report(name: str, res: dict[str, Any]) -> None:
     sc = res["scale_check"]
-    print(f"\n== {name}: {res['source']}; scaling {res['scaling']} on both sides (model "
+    print(f"\n== {name}, group {res['group']}: {res['source']}; scaling {res['scaling']} "
+          f"on both sides (model "
           f"default {res['default_scaling']}); MPlib vs our checker on {sc['states']} states: "
           f"{sc['agree']} agree ({sc['ours_colliding']} colliding by ours, "
           f"{sc['mplib_colliding']} by MPlib)")
@@ -312,13 +344,18 @@ def report(name: str, res: dict[str, Any]) -> None:
         o, m = r["ours"], r["mplib"]
         st = o["stage_median_ms"]
         print(f"  {scene:8s} n={r['problems']}  success ours {o['success']:.2f} "
-              f"{o['failures'] or ''} mplib {m['success']:.2f}")
+              f"{o['failures'] or ''} mplib {fmt(m['success'], '.2f')}")
         print(f"    wall ms median/p95: ours {fmt(o['median_ms'])}/{fmt(o['p95_ms'])}  "
               f"mplib (plan+TOPP) {fmt(m['median_ms'])}/{fmt(m['p95_ms'])}  ours/mplib "
               f"{fmt(r['ours_over_mplib_median'], '.2f')}x  (ours over the wire: "
               f"{fmt(o['wire_overhead_ms_median'])} ms beyond the reply's total)")
         print("    ours stages median ms: " + " ".join(f"{k} {fmt(st[k])}" for k in STAGES)
               + f"; verify share {fmt(o['verify_share_median'], '.0%')}")
+        pr = o["proof_ms_median"]
+        print(f"    near contact (certified clearance < {1e3 * NEAR:g} mm): "
+              f"{fmt(o['near_contact_share'], '.0%')} of motions, wall median "
+              f"{fmt(o['wall_ms_median_near'])} ms; proof (recheck) median ms: all "
+              f"{fmt(pr['all'])} near {fmt(pr['near'])} others {fmt(pr['others'])}")
         c = o["min_clearance_m"]
         print(f"    certified min clearance m: min {fmt(c['min'], '.4f')} median "
               f"{fmt(c['median'], '.4f')} (all certified: {o['certified_all']})")
@@ -345,7 +382,11 @@ def report(name: str, res: dict[str, Any]) -> None:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=40, help="problems per scene (default 40)")
-    ap.add_argument("--models", default="course,shipped", help="course,shipped")
+    ap.add_argument("--models", default="course,shipped",
+                    help="course,course_fingers,shipped (comma-separated)")
+    ap.add_argument("--group", choices=("arm", "all"), default="arm",
+                    help="arm: the arm moves, the gripper closed; all: arm and gripper "
+                         "together (no MPlib column)")
     ap.add_argument("--scaling", type=float, default=1.0,
                     help="velocity and acceleration scaling, both sides (default 1.0)")
     ap.add_argument("--planning-time", type=float, default=1.0, help="budget [s], both sides")

@@ -3,6 +3,10 @@
 - ``course``: the course-like workspace (tests/helpers/course_workspace.py): millimetre
   CAD meshes of 2k-54k triangles, a camera on a fixed joint, a separate
   ``arduinobot_moveit`` package with the SRDF and joint_limits.yaml;
+- ``course_fingers``: the same workspace with its SRDF's ``disable_collisions`` cut to
+  the joint-connected pairs (as a model without an SRDF, or an SRDF that does not
+  disable them): the two fingers, and every pair the course's SRDF calls "Never", are
+  checked;
 - ``shipped``: the arduinobot shipped in description/ (``arduinobot serve``'s default).
 
 For each: the arguments of ``arduinobot serve``, the description as the service loads
@@ -27,7 +31,7 @@ from typing import Literal
 from description import Description, load_description
 from description.loader import read_model_text
 
-ModelName = Literal["course", "shipped"]
+ModelName = Literal["course", "course_fingers", "shipped"]
 
 
 @dataclass(frozen=True)
@@ -35,7 +39,7 @@ class PeerModel:
     """One robot as both sides get it.
 
     Attributes:
-        name: ``course`` or ``shipped``.
+        name: ``course``, ``course_fingers`` or ``shipped``.
         description: as ``arduinobot serve`` loads it (same files, same MoveIt config).
         serve_args: the model arguments of ``arduinobot serve`` (empty: its default).
         urdf: the expanded URDF for MPlib and the re-check (relative mesh paths, scale kept).
@@ -85,16 +89,38 @@ def plain_srdf(d: Description, folder: Path) -> Path:
     return srdf
 
 
-def course_model(folder: Path, *, tri_target: int = 20000, seed: int = 0) -> PeerModel:
-    """Generate the course workspace in ``folder`` and prepare it."""
+def joints_only_srdf(srdf: Path, joints: list[tuple[str, str]]) -> None:
+    """Rewrite ``srdf`` in place: its ``disable_collisions`` only for the pairs a joint
+    connects (``joints``: (parent, child) links); everything else kept."""
+    tree = ET.parse(srdf)
+    root = tree.getroot()
+    connected = {frozenset(p) for p in joints}
+    for e in list(root.iter("disable_collisions")):
+        if frozenset((e.get("link1", ""), e.get("link2", ""))) not in connected:
+            root.remove(e)
+    tree.write(srdf)
+
+
+def course_model(folder: Path, *, tri_target: int = 20000, seed: int = 0,
+                 fingers: bool = False) -> PeerModel:
+    """Generate the course workspace in ``folder`` and prepare it; with ``fingers`` its
+    SRDF disables only joint-connected pairs (``course_fingers``)."""
     from tests.helpers.course_workspace import make_course_workspace
     ws = make_course_workspace(folder / "ws", tri_target=tri_target, seed=seed)
     d = load_description(ws.xacro, package_dirs=[ws.src], moveit_config=ws.moveit_pkg)
+    if fingers:
+        assert d.srdf is not None and d.srdf.source is not None
+        joints_only_srdf(Path(d.srdf.source),
+                         [(j.parent, j.child) for j in d.robot.joints.values()])
+        d = load_description(ws.xacro, package_dirs=[ws.src], moveit_config=ws.moveit_pkg)
     files = folder / "plain"
-    return PeerModel("course", d, (str(ws.xacro), "--package-dir", str(ws.src),
-                                   "--moveit-config", str(ws.moveit_pkg)),
+    return PeerModel("course_fingers" if fingers else "course", d,
+                     (str(ws.xacro), "--package-dir", str(ws.src),
+                      "--moveit-config", str(ws.moveit_pkg)),
                      plain_urdf(d, files), plain_srdf(d, files),
-                     f"course workspace (tri_target {tri_target}, seed {seed})")
+                     f"course workspace (tri_target {tri_target}, seed {seed})"
+                     + ("; SRDF cut to the joint-connected pairs: fingers checked"
+                        if fingers else ""))
 
 
 def shipped_model(folder: Path) -> PeerModel:
@@ -109,6 +135,8 @@ def make_model(name: ModelName, folder: Path) -> PeerModel:
     """``course`` or ``shipped``, with its files under ``folder``."""
     if name == "course":
         return course_model(folder)
+    if name == "course_fingers":
+        return course_model(folder, fingers=True)
     if name == "shipped":
         return shipped_model(folder)
-    raise ValueError(f"unknown model {name!r} (course, shipped)")
+    raise ValueError(f"unknown model {name!r} (course, course_fingers, shipped)")

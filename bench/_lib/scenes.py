@@ -25,14 +25,18 @@ SCENES = {
 }
 
 
-def problems(w: CollisionWorld, n: int, rng: np.random.Generator) -> list[tuple]:
-    """``n`` (start, goal, needs_detour) with valid ends, at least half needing a detour."""
+def problems(w: CollisionWorld, n: int, rng: np.random.Generator, *,
+             gripper: bool = False) -> list[tuple]:
+    """``n`` (start, goal, needs_detour) with valid ends, at least half needing a detour.
+    The gripper (the joints after the arm's three) stays closed, or with ``gripper`` is
+    drawn across its range too (arm and gripper moving together)."""
     lim = w.description.robot.position_limits(w.kin.joint_names)
     out, blocked = [], 0
     while len(out) < n:
         a = rng.uniform(lim[:, 0], lim[:, 1])
         b = rng.uniform(lim[:, 0], lim[:, 1])
-        a[3] = b[3] = 0  # the gripper stays closed
+        if not gripper:
+            a[3:] = b[3:] = 0  # the gripper stays closed
         if not (w.is_valid(a) and w.is_valid(b)):
             continue
         is_blocked = w.first_invalid(interpolate(np.array([a, b]), 0.002)) >= 0

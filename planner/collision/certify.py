@@ -23,10 +23,21 @@ continuum, not only where it was sampled.
 The walk runs in numba, one call for the whole motion and every pair; Python only
 computes the hull and FCL distances near contact (FCL stays the reference for exact
 contact).
+
+A pair of links whose relative motion is one-dimensional (its ``weight`` is zero but for
+one joint: the two fingers of a gripper along its mimic, a camera by the turntable) has a
+distance that is a function of that joint alone. Such a pair is proven
+once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
+the cell's middle less ``weight`` times half its width, cells halved where that does not
+prove them), once a walk has had to ask for its bounds near contact, and the proof is
+kept: a motion whose joint range the proven cells cover
+takes the smallest of their bounds for the pair, and the walk passes over it (near
+contact, thousands of tiny steps; here, a few cached cells).
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -37,10 +48,11 @@ import numpy as np
 from ..kinematics.chain import Chain, _fk_into
 from .advance import Work, tree_lower_bound
 from .body_speed import local_rates, local_step
+from .compiled import Direct
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
 from .resume import Motion, Proof, Status, Stop, new_walk
-from .table import Bodies, Pairs, place_carried
+from .table import Bodies, BodyKind, Pairs, place_carried
 from .world import CollisionWorld
 
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more
@@ -67,6 +79,12 @@ CARRY = 0.5
 # less than this is certified by its distance bound at the start less that motion
 # (CollisionWorld.still_distance: the hulls', FCL's where they touch)
 STILL = 1e-4
+# [rad] one-dimensional pairs are proven over cells of their joint this wide at first
+# (each halved, down to CELL / 2**CELL_LEVELS, where its bound does not prove it)
+CELL = 0.01
+CELL_LEVELS = 4
+# refinements of a cell's hull direction (each from the extreme points the last one found)
+HULL_TRIES = 4
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
@@ -240,6 +258,43 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     return Status.DONE.value
 
 
+#: per robot geometry (a world's ``bodies``, shared by the worlds of its scenes), its
+#: one-dimensional link pairs' proven cells (:meth:`Certifier.one_dim_pairs`), by
+#: (padding, link, link, level, cell)
+_CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
+    weakref.WeakKeyDictionary()
+#: per robot geometry, by padding, the one-dimensional pairs that get cells
+_HARD: weakref.WeakKeyDictionary[Any, dict[float, set[tuple[str, str]]]] = \
+    weakref.WeakKeyDictionary()
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_at(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray,
+             axis: np.ndarray, src: np.ndarray, scale: np.ndarray, offset: np.ndarray,
+             vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int, b: int,
+             fa: int, fb: int, poses: np.ndarray) -> float:
+    # The hulls' bound [m] of link bodies a and b (pose slots fa, fb) at state q: their
+    # separation along the line between their frames, refined HULL_TRIES times from the
+    # extreme points each direction picks (warm_bound). Sound along any direction.
+    _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
+    ta, tb = poses[fa], poses[fb]
+    n = np.empty(3)
+    norm = 0.0
+    for r in range(3):
+        n[r] = ta[r, 3] - tb[r, 3]
+        norm += n[r] * n[r]
+    norm = np.sqrt(norm)
+    if norm > 0.0:
+        for r in range(3):
+            n[r] /= norm
+    else:
+        n[0], n[1], n[2] = 1.0, 0.0, 0.0
+    d = -np.inf
+    for _ in range(HULL_TRIES):
+        d = max(d, warm_bound(vertices, offsets, radii, a, ta, b, tb, n))
+    return d
+
+
 class Certifier:
     """Certifies motions in one :class:`CollisionWorld` (its robot, scene, padding and
     allowed pairs). The required clearance is the world's padding.
@@ -255,10 +310,33 @@ class Certifier:
     def __init__(self, world: CollisionWorld, *, fraction: float = 0.0,
                  local: bool = True) -> None:
         self.world = world
-        self.fraction = fraction
-        self.local = local
+        self.fraction = float(fraction)  # one compiled variant of the walk
+        self.local = bool(local)
         self._work = Work.of(world.table.slots)
         self._q = np.empty(world.dof)
+        # the walk resumes after every bound Python computes: past numba's dispatcher
+        # (:mod:`.compiled`); its arguments are this certifier's and its world's, typed
+        # the same on every call
+        self._advance = Direct(_advance)
+        # the pairs whose relative motion one joint alone makes: pair -> that joint (the
+        # weights carry a 1e-12 floor: a joint that moves both bodies rigidly is ~0)
+        # Two links only: their cells hold for every scene of the robot and are few (an
+        # obstacle a link turns past about one axis would want cells over that joint's
+        # whole range, one scene's: measured slower than its walk through the service)
+        moving = world.table.pairs.weight > 1e-9
+        links = world.table.pairs.index
+        self._one_dim = {p: int(np.flatnonzero(moving[p])[0])
+                         for p in range(len(moving)) if moving[p].sum() == 1
+                         and world.table.kinds[links[p, 0]] == BodyKind.LINK
+                         and world.table.kinds[links[p, 1]] == BodyKind.LINK}
+        # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
+        # with the world, so every certifier of it (and every request) reuses them
+        self._cells = _CELLS.setdefault(world.bodies, {})
+        # the one-dimensional pairs (by name) a walk had to ask Python about (near
+        # contact, where it takes its tiny steps): only those get cells, so a pair the
+        # walk proves in a few steps costs nothing more (measured: filling cells for
+        # fingers 5-15 mm apart cost more than their walks saved)
+        self._hard = _HARD.setdefault(world.bodies, {}).setdefault(world.padding, set())
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -301,20 +379,24 @@ class Certifier:
         still: dict[int, float] = {}
         if self.fraction > 0:  # a clearance to report: still pairs at their own bound
             still = self._still_pairs(starts, u1, u2, lengths, clear)
-            if still:
-                idx = np.fromiter(still, np.int64)
-                best[idx] = np.fromiter(still.values(), float)
-                weight = pairs.weight.copy()
-                weight[idx] = 0.0  # proven: the walk passes over them
-                weight.flags.writeable = False  # as the table's (one compiled variant)
-                pairs = pairs._replace(weight=weight)
+        # pairs one joint moves, proven over its range by cached cells
+        for p, d in self.one_dim_pairs(starts, u1, u2, lengths).items():
+            if p not in still:
+                still[p] = d
+        if still:
+            idx = np.fromiter(still, np.int64)
+            best[idx] = np.fromiter(still.values(), float)
+            weight = pairs.weight.copy()
+            weight[idx] = 0.0  # proven: the walk passes over them
+            weight.flags.writeable = False  # as the table's (one compiled variant)
+            pairs = pairs._replace(weight=weight)
         motion = Motion(starts, u1, u2, lengths)
         walk = new_walk()
         exact, queries = 0, 0
         while True:
-            status = Status(_advance(motion, walk, w.chain, table.bodies, pairs, w.forest,
-                                     w.hulls, clear, self.fraction, self.local, self._work,
-                                     self._q, proof))
+            status = Status(self._advance.call(motion, walk, w.chain, table.bodies, pairs,
+                                               w.forest, w.hulls, clear, self.fraction,
+                                               self.local, self._work, self._q, proof))
             if status == Status.DONE:
                 break
             at = Stop.read(walk)
@@ -335,6 +417,8 @@ class Certifier:
                 warm[p] = True
             exact += was_exact
             queries += 1
+            if p in self._one_dim:
+                self._hard.add(pair)
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
@@ -367,6 +451,62 @@ class Certifier:
             if d > clear + GAP:  # else the walk decides (and refuses where it must)
                 out[int(p)] = d
         return out
+
+    def one_dim_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+                      lengths: np.ndarray) -> dict[int, float]:
+        """The one-dimensional pairs (see the module) proven over the whole motion, each
+        with its bound [m] (above the clearance): over every cell of its joint's range.
+
+        A piece's joint ``k`` stays within ``start_k + L [min(0, u1_k, u2_k), max(0,
+        u1_k, u2_k)]`` (its speed lies between ``u1_k`` and ``u2_k``). A cell's bound is
+        the convex hulls' at its middle (sound at any state, no contact premise needed;
+        where the hulls touch there is none) less the most the pair's distance changes
+        within half the cell (``weight``)."""
+        if not self._one_dim:
+            return {}
+        lo = (starts + lengths[:, None] * np.minimum(0.0, np.minimum(u1, u2))).min(axis=0)
+        hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
+        out = {}
+        for p, j in self._one_dim.items():
+            if self.world.pair_names[p] not in self._hard:
+                continue
+            d = np.inf
+            for k in range(int(np.floor(lo[j] / CELL)), int(np.floor(hi[j] / CELL)) + 1):
+                d = min(d, self._cell(p, j, 0, k, starts[0]))
+                if not d > self.world.padding + GAP:
+                    break
+            else:
+                out[p] = float(d)
+        return out
+
+    def _cell(self, p: int, j: int, level: int, k: int, base: np.ndarray) -> float:
+        # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
+        # 2**level; halved where it fails. ``base``: any state (the other joints move the
+        # pair's bodies together: the pair's distance does not depend on them).
+        key = (self.world.padding, *self.world.pair_names[p], level, k)
+        got = self._cells.get(key)
+        if got is not None:
+            return got
+        w = self.world
+        h = CELL / 2**level
+        q = np.array(base, dtype=float)
+        q[j] = (k + 0.5) * h
+        change = float(w.table.pairs.weight[p, j]) * h / 2  # [m] within half the cell
+        need = w.padding + GAP + change
+        # the hulls' separation along a few refined directions: sound at any state (an
+        # exact distance would hold only at a state reached without contact, which the
+        # middle of a cell need not be), microseconds each
+        a, b = (int(x) for x in w.table.pairs.index[p])
+        c, hp, frame = w.chain, w.hulls, w.table.bodies.frame
+        d = _hull_at(q, c.parent, c.origin, c.jtype, c.axis, c.src, c.scale, c.offset,
+                     hp.vertices, hp.offsets, hp.radii, a, b, int(frame[a]), int(frame[b]),
+                     self._work.poses)
+        bound = d - change if d > need else -np.inf
+        if bound == -np.inf and level < CELL_LEVELS:
+            bound = min(self._cell(p, j, level + 1, 2 * k, base),
+                        self._cell(p, j, level + 1, 2 * k + 1, base))
+        self._cells[key] = bound
+        return bound
 
     def path(self, path: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
              ) -> Certificate:

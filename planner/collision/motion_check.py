@@ -10,12 +10,22 @@ batched call (fast: what search and shortcutting try thousands of times), and
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 import ompl.base as ob
+from numpy.typing import ArrayLike
 
 from .certify import Certifier
-from .world import CollisionWorld
+
+
+class StateChecker(Protocol):
+    """What search and shortcutting ask of a world (a :class:`CollisionWorld` is one; so
+    is :class:`planner.planning.room.Guarded`)."""
+
+    def is_valid(self, q: ArrayLike) -> bool: ...
+
+    def first_invalid(self, qs: ArrayLike) -> int: ...
 
 
 def interpolate(path: np.ndarray, step: float) -> np.ndarray:
@@ -33,7 +43,7 @@ def interpolate(path: np.ndarray, step: float) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def sampled_motion_valid(world: CollisionWorld, a: np.ndarray, b: np.ndarray,
+def sampled_motion_valid(world: StateChecker, a: np.ndarray, b: np.ndarray,
                          step: float) -> bool:
     """True if every state of the straight motion a -> b, ``step`` [rad] apart (ends
     excluded but b), is free. Between states nothing is proven."""
@@ -72,7 +82,7 @@ class StateCodec:
 class ValidityChecker(ob.StateValidityChecker):
     """OMPL state validity through :meth:`CollisionWorld.is_valid`."""
 
-    def __init__(self, si: ob.SpaceInformation, world: CollisionWorld, codec: StateCodec):
+    def __init__(self, si: ob.SpaceInformation, world: StateChecker, codec: StateCodec):
         super().__init__(si)
         self.world, self.codec = world, codec
 

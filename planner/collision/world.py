@@ -29,6 +29,7 @@ from .advance import SweepCarry, Work, pair_weights, sweep, tree_lower_bound
 from .assembly import SceneBodies, carried_touch
 from .bodies import RobotBodies
 from .body_speed import moving_by_static
+from .compiled import Direct
 from .hulls import HullBounds
 from .obbtree import Forest, pair_candidates, state_candidates
 from .table import BodyKind, BodyTable
@@ -148,6 +149,10 @@ class CollisionWorld:
         self._still: dict[tuple[int, float, bytes], float] = {}
         self._cand = np.zeros(len(index), dtype=np.int64)
         self._work = Work.of(self.table.slots, _STACK)
+        # the two kernels called per state and per sweep resume, past numba's dispatcher
+        # (its typing of the tables' arrays cost ~4 us a call: :mod:`.compiled`)
+        self._state_candidates = Direct(state_candidates)
+        self._sweep_kernel = Direct(sweep)
         # [m] how far ahead one distance bound is asked to prove a pair free: a short
         # proof is a shallow tree descent, and a sampled edge's states are close together
         # (0.06 -> 0.01 m: course model self 9.3 -> 8.3 ms median in process, 14.4 ->
@@ -257,8 +262,9 @@ class CollisionWorld:
         if q.shape != (self.dof,):
             self.kin.link_poses(q)  # raises its InvalidRequest naming the joints
         t, poses = self.table, self._poses
-        if state_candidates(q, self.chain, t.bodies, t.pairs.index, self.forest, self.padding,
-                            poses, self._work.stack, self._cand) == 0:
+        if self._state_candidates.call(q, self.chain, t.bodies, t.pairs.index, self.forest,
+                                       self.padding, poses, self._work.stack,
+                                       self._cand) == 0:
             return True
         return not self._state_hits(poses, self._cand, first=True)
 
@@ -373,8 +379,9 @@ class CollisionWorld:
     def _sweep(self, qs: np.ndarray, start: int, stop_early: bool, cum: np.ndarray,
                carry: SweepCarry, out: np.ndarray) -> int:
         t = self.table
-        return sweep(qs, start, stop_early, cum, carry, self.chain, t.bodies, t.pairs,
-                     self.forest, self.padding, self.horizon, self._work, out)
+        return self._sweep_kernel.call(qs, start, stop_early, cum, carry, self.chain,
+                                       t.bodies, t.pairs, self.forest, self.padding,
+                                       self.horizon, self._work, out)
 
     def _budget(self) -> SweepCarry:
         # the sweep's per-pair proof, carried between its resumed calls

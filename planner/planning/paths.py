@@ -38,6 +38,7 @@ from .goals import (
     resolve_goal,
     resolve_group,
 )
+from .room import Guarded, StateChecker, short_of_room
 
 _log = logging.getLogger(__name__)
 
@@ -159,6 +160,7 @@ class PathPlanner:
         self.certify_edges = certify_edges
         self.room = room
         self._roomy: dict[tuple[str, ...], CollisionWorld] = {}
+        self._guarded: dict[tuple[tuple[str, ...], tuple[tuple[str, str], ...]], Guarded] = {}
         self.certifier = Certifier(world)
         # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
         self.proof = Certifier(world, fraction=0.5)
@@ -189,7 +191,23 @@ class PathPlanner:
                     self.world.rigid_pairs(joints), reason="Rigid in the group"))
         return w
 
-    def _edge_free(self, a: np.ndarray, b: np.ndarray, world: CollisionWorld | None = None
+    def guarded(self, joints: tuple[str, ...], lost: tuple[tuple[str, str], ...]) -> Guarded:
+        """The roomy world of ``joints`` where the pairs ``lost`` (by name) lose the room
+        alone: checked at the plain clearance, every other pair keeping it
+        (:mod:`.room`)."""
+        g = self._guarded.get((joints, lost))
+        if g is None:
+            w, keep = self.world, set(lost)
+            roomy = w.with_scene(w.obstacles, padding=w.padding + self.room,
+                                 narrow_phase=False, acm=w.acm.with_pairs(
+                                     w.rigid_pairs(joints), reason="Rigid in the group"
+                                 ).with_pairs(lost, reason="Short of room at an end"))
+            guard = w.with_scene(w.obstacles, acm=w.acm.with_pairs(
+                [n for n in w.pair_names if n not in keep], reason="Kept apart with room"))
+            g = self._guarded[(joints, lost)] = Guarded(roomy, guard, lost)
+        return g
+
+    def _edge_free(self, a: np.ndarray, b: np.ndarray, world: StateChecker | None = None
                    ) -> bool:
         if world is not None:
             return sampled_motion_valid(world, a, b, self.step)
@@ -289,19 +307,36 @@ class PathPlanner:
                           length=_path_length(path), certificate=cert)
 
     def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
-                joints: tuple[str, ...]) -> tuple[np.ndarray, CollisionWorld | None]:
+                joints: tuple[str, ...]) -> tuple[np.ndarray, StateChecker | None]:
         # With room first (half the budget), then without. An end that lacks the room
         # (a start a hair from the base) is joined by a short free edge to a nearby state
-        # that has it, so only that edge comes close. Returns the path and the roomy
-        # world it was found in (None: without room).
+        # that has it, so only that edge comes close. Where no such edge leaves it (a
+        # camera a millimetre from the turntable), the pairs short of room there lose
+        # it alone (:mod:`.room`). Returns the path and the roomy world it was found in
+        # (None: without room).
         budget = float(req.planning_time)
         if self.room > 0 and not self.certify_edges:
-            roomy = self.roomy(joints)
+            roomy: StateChecker = self.roomy(joints)
             cols = np.array([self.world.kin.joint_names.index(j) for j in joints])
             rng = np.random.default_rng(req.seed)
             head = self._escape(start, goals[0], cols, roomy, rng)
             tails = [(g, self._escape(g, start, cols, roomy, rng)) for g in goals]
             tails = [(g, e) for g, e in tails if e is not None]
+            # an end stuck without room: the pairs exactly short of it there lose it
+            # alone; if the trees still doubt others, those too
+            for exact in (True, False):
+                if head is not None and tails:
+                    break
+                stuck = ([start] if head is None else []) + ([] if tails else list(goals))
+                lost = short_of_room(self.world, self.roomy(joints), stuck, self.room,
+                                     exact=exact)
+                if not lost:
+                    continue
+                roomy = self.guarded(joints, lost)
+                _log.info("%d pairs lose the room alone: %s", len(lost), lost)
+                head = self._escape(start, goals[0], cols, roomy, rng)
+                tails = [(g, self._escape(g, start, cols, roomy, rng)) for g in goals]
+                tails = [(g, e) for g, e in tails if e is not None]
             if head is not None and tails:
                 t0 = time.perf_counter()
                 try:
@@ -319,7 +354,7 @@ class PathPlanner:
         return self._plan(req, start, goals, joints, None, budget), None
 
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
-                roomy: CollisionWorld, rng: np.random.Generator) -> np.ndarray | None:
+                roomy: StateChecker, rng: np.random.Generator) -> np.ndarray | None:
         # ``end`` if it has the room, else a state with room that a free straight edge
         # reaches from it, at the shortest distance [rad] where one does: the first of
         # the directions tried (towards ``toward``, then seeded random ones of the
@@ -342,7 +377,7 @@ class PathPlanner:
         return None
 
     def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
-              joints: tuple[str, ...], roomy: CollisionWorld | None, budget: float
+              joints: tuple[str, ...], roomy: StateChecker | None, budget: float
               ) -> np.ndarray:
         names = self.world.kin.joint_names
         gidx = np.array([names.index(j) for j in joints], dtype=np.int64)
@@ -385,7 +420,7 @@ class PathPlanner:
         return out
 
     def _shortcut(self, path: np.ndarray, *, seed: int | None, attempts: int = 10,
-                  patience: int = 4, world: CollisionWorld | None = None) -> np.ndarray:
+                  patience: int = 4, world: StateChecker | None = None) -> np.ndarray:
         """Drop waypoints a straight segment can skip, then random shortcuts (seeded),
         stopping after ``attempts`` or ``patience`` attempts in a row that gained nothing,
         then drop waypoints again.
@@ -420,7 +455,7 @@ class PathPlanner:
                 idle = 0
         return self._reduce(pts, world)
 
-    def _reduce(self, path: np.ndarray, world: CollisionWorld | None) -> np.ndarray:
+    def _reduce(self, path: np.ndarray, world: StateChecker | None) -> np.ndarray:
         # greedy: from each kept waypoint, straight to the farthest one a free edge reaches
         kept = list(path)
         i = 0

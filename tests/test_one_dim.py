@@ -1,0 +1,95 @@
+"""One-dimensional pairs proven by cached cells (planner/collision/certify.py): the two
+fingers along the mimic, a link turning past an obstacle about one axis. Their bound is
+never above the pair's true distance anywhere on the motion, the verdicts are the walk's,
+and the cells are kept with the world."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from description import load_description
+from planner.collision.certify import _CELLS, Certifier
+from planner.collision.motion_check import interpolate
+from planner.collision.world import CollisionWorld
+from planner.scene import Obstacle
+
+
+@pytest.fixture(scope="module")
+def world(course_ws):
+    d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
+    return CollisionWorld(d, obstacles=[Obstacle("p1", "cylinder", radius=0.05, length=1.0,
+                                                 xyz=(0.55, 0.0, 0.5))])
+
+
+def _pieces(path: np.ndarray) -> tuple[np.ndarray, ...]:
+    d = np.diff(path, axis=0)
+    L = np.linalg.norm(d, axis=1)
+    u = d / L[:, None]
+    return path[:-1], u, u, L
+
+
+def _motions(w: CollisionWorld, n: int, *, free: bool = True) -> list[np.ndarray]:
+    # seeded two-state motions of arm and gripper together, free (or colliding between
+    # free ends)
+    lim = w.description.robot.position_limits(w.kin.joint_names)
+    rng = np.random.default_rng(3)
+    out: list[np.ndarray] = []
+    while len(out) < n:
+        a, b = rng.uniform(lim[:, 0], lim[:, 1]), rng.uniform(lim[:, 0], lim[:, 1])
+        if not (w.is_valid(a) and w.is_valid(b)):
+            continue
+        if (w.first_invalid(interpolate(np.array([a, b]), 0.002)) < 0) == free:
+            out.append(np.array([a, b]))
+    return out
+
+
+def test_the_fingers_are_one_dimensional(world):
+    c = Certifier(world, fraction=0.5)
+    fresh = Certifier(CollisionWorld(world.description, obstacles=world.obstacles))
+    assert not fresh.one_dim_pairs(*_pieces(_motions(world, 1)[0]))  # no walk came near
+    names = {world.pair_names[p]: j for p, j in c._one_dim.items()}
+    assert names[("gripper_right", "gripper_left")] == 3  # joint_4 and its mimic
+    # a pair two joints move is not; nor one with an obstacle (a scene's, not the robot's)
+    assert ("base_link", "horizontal_arm") not in names
+    assert ("base_plate", "p1") not in names
+
+
+def _all_hard(c: Certifier) -> Certifier:
+    # as if a walk had come near contact for every one-dimensional pair (cells are
+    # built only for those)
+    c._hard.update(c.world.pair_names[p] for p in c._one_dim)
+    return c
+
+
+def test_cell_bounds_never_exceed_the_distance_on_the_motion(world):
+    c = _all_hard(Certifier(world, fraction=0.5))
+    proven = 0
+    for path in _motions(world, 6):
+        d = np.diff(path, axis=0)
+        L = np.linalg.norm(d, axis=1)
+        u = d / L[:, None]
+        got = c.one_dim_pairs(path[:-1], u, u, L)
+        qs = interpolate(path, 0.01)
+        for p, bound in got.items():
+            assert bound > world.padding
+            true = min(world.pair_distance(q, p) for q in qs)
+            assert bound <= true + 1e-9, (world.pair_names[p], bound, true)
+            proven += 1
+    assert proven >= 6  # the fingers at least, on every motion
+
+
+def test_same_verdicts_as_the_walk_and_cells_kept_with_the_world(world):
+    on, off = _all_hard(Certifier(world, fraction=0.5)), Certifier(world, fraction=0.5)
+    off._one_dim = {}  # the walk alone
+    motions = _motions(world, 4)
+    hits = _motions(world, 4, free=False)
+    # the proof alone decides (no samples first): a colliding motion is refused by the
+    # walk where its pair comes close, cells or not
+    for path, free in [(m, True) for m in motions] + [(m, False) for m in hits]:
+        a, b = on.path(path, sample_step=None), off.path(path, sample_step=None)
+        assert a.free == b.free == free
+    n = len(_CELLS[world.bodies])
+    assert n > 0
+    Certifier(world, fraction=0.5).path(motions[0])  # a new certifier: no new cell
+    assert len(_CELLS[world.bodies]) == n
