@@ -6,7 +6,9 @@ import base64
 import io
 import json
 import math
+import os
 import shutil
+import signal
 import socket
 import subprocess
 import tempfile
@@ -29,6 +31,8 @@ from description.model import rpy_matrix
 from planner.errors import InvalidRequest
 from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
+
+from .helpers.procs import wait_for
 
 ROOT = Path(__file__).resolve().parents[1]
 FOLDED = -1.5  # joint_3 [rad]: the forearm folds down into the base (self-collision)
@@ -182,7 +186,8 @@ class Browser:
              "--disable-sync", f"--user-data-dir={self._profile.name}",
              "--remote-debugging-address=127.0.0.1", "--remote-debugging-port=0",
              "--hide-scrollbars", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+            start_new_session=True)  # its helpers in one group, ended together
         ws_url = None
         for line in self.proc.stderr:  # type: ignore[union-attr]
             if "DevTools listening on " in line:
@@ -249,7 +254,29 @@ class Browser:
         self.ws.close()
         self.proc.terminate()
         self.proc.wait(timeout=30)
+        # Chromium's helper processes outlive the browser for a moment and still write
+        # to the profile: end the group and wait until none is left before removing it
+        wait_for(lambda: not _group_alive(self.proc.pid), timeout=30,
+                 what="Chromium's helper processes to exit")
         self._profile.cleanup()
+
+
+def _group_alive(pgid: int) -> bool:
+    """Whether a live (not zombie) process of group ``pgid`` is left; each is asked to end."""
+    alive = False
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            # after the command's ")": state, ppid, pgrp, ...
+            state, _ppid, pgrp = stat.read_text().rsplit(")", 1)[1].split()[:3]
+        except (OSError, IndexError):  # ended while we read
+            continue
+        if int(pgrp) == pgid and state != "Z":
+            alive = True
+            try:
+                os.kill(int(stat.parent.name), signal.SIGTERM)
+            except ProcessLookupError:  # it ended between the read and the signal: done
+                pass
+    return alive
 
 
 def _scene_region(img: np.ndarray) -> np.ndarray:
