@@ -83,6 +83,21 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "tcp/127.0.0.1:7447, rmw_zenohd's); needs the ros2 extra")
     r = p.add_argument_group("robot")
     _add_robot_args(r)
+    _add_run_args(r)
+    ros = p.add_argument_group("ROS 2 (--ros2; see docs/ros2.md)")
+    _add_controller_args(ros)
+    add_ros2_args(ros)
+    g = p.add_argument_group("service (planning, joint_states, --remote)")
+    add_connection_args(g, timeout_help="seconds to wait for a plan (default 60)",
+                        local_help="plan in this process, not through the service")
+    p.add_argument("--description", metavar="PATH", dest="description_path",
+                   help="the robot's URDF/xacro, as FILE (default: see above)")
+    add_model_args(p, file_arg=False)
+    p.set_defaults(func=cmd_execute)
+
+
+def _add_run_args(r: argparse._ArgumentGroup) -> None:
+    """How the run goes: pacing (twin), the start check, blending, what it reports."""
     pace = r.add_mutually_exclusive_group()
     pace.add_argument("--realtime", dest="realtime", action="store_true", default=True,
                       help="pace the twin in real time (default)")
@@ -99,7 +114,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--no-publish", action="store_true",
                    help="do not publish <prefix>/joint_states")
     r.add_argument("--report", metavar="OUT.json", help="write the execution report")
-    ros = p.add_argument_group("ROS 2 (--ros2; see docs/ros2.md)")
+
+
+def _add_controller_args(ros: argparse._ArgumentGroup) -> None:
+    """--ros2's controllers and how the trajectory reaches them."""
     ros.add_argument("--controller", action="append", metavar="NAME",
                      help="send to this controller, repeatable (default: every controller "
                      "of the MoveIt config's moveit_controllers.yaml that moves a joint of "
@@ -112,14 +130,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="control_msgs' FollowJointTrajectory feedback: jazzy (5.x) or "
                      "rolling (6.3+, with index); default auto: the one the controller "
                      "announces. Only the feedback differs")
-    add_ros2_args(ros)
-    g = p.add_argument_group("service (planning, joint_states, --remote)")
-    add_connection_args(g, timeout_help="seconds to wait for a plan (default 60)",
-                        local_help="plan in this process, not through the service")
-    p.add_argument("--description", metavar="PATH", dest="description_path",
-                   help="the robot's URDF/xacro, as FILE (default: see above)")
-    add_model_args(p, file_arg=False)
-    p.set_defaults(func=cmd_execute)
 
 
 def add_serve_args(p: argparse.ArgumentParser) -> None:

@@ -34,7 +34,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from description.model import Robot, Shape, rpy_matrix
+from description.model import Joint, Robot, Shape, rpy_matrix
 from planner.cache import ArtifactCache, content_key
 
 #: told what is being built, for a user waiting on a first twin: ``progress(message)``
@@ -222,6 +222,42 @@ def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
     return lines
 
 
+def _joint_element(j: Joint) -> str:
+    """The ``<joint>`` of a revolute, continuous or prismatic URDF joint, its range
+    limited where the URDF gives both bounds (a continuous joint never is)."""
+    kind = "slide" if j.type == "prismatic" else "hinge"
+    lim = j.limit
+    if j.type != "continuous" and lim is not None and lim.lower is not None \
+            and lim.upper is not None:
+        rng = f'limited="true" range="{lim.lower!r} {lim.upper!r}"'
+    else:
+        rng = 'limited="false"'
+    return f'<joint name="{_esc(j.name)}" type="{kind}" axis="{_f(j.axis)}" {rng}/>'
+
+
+def _mimic_equalities(robot: Robot) -> list[str]:
+    """The ``<equality>`` joint couplings of the URDF's mimic joints."""
+    eq = []
+    for n in robot.mimic_joints:
+        m = robot.joints[n].mimic
+        eq.append(f'<joint joint1="{_esc(n)}" joint2="{_esc(m.joint)}" '  # type: ignore
+                  f'polycoef="{m.offset!r} {m.multiplier!r} 0 0 0"/>')  # type: ignore
+    return eq
+
+
+def _actuators(robot: Robot, gains: Mapping[str, Gains]) -> list[str]:
+    """One position servo per actuated joint (``kp``, ``kv`` as an affine bias), its
+    force within the URDF's effort (unbounded-ish 1e6 where none is given)."""
+    act = []
+    for n in robot.actuated_joints:
+        g, lim = gains[n], robot.joints[n].limit
+        effort = lim.effort if lim is not None and lim.effort > 0 else 1e6
+        act.append(f'<general name="{_esc(n)}" joint="{_esc(n)}" gainprm="{g.kp!r}" '
+                   f'biastype="affine" biasprm="0 {-g.kp!r} {-g.kv!r}" ctrllimited="false" '
+                   f'forcelimited="true" forcerange="{-effort!r} {effort!r}"/>')
+    return act
+
+
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
             obstacles: Sequence[Mapping[str, Any]] = (),
@@ -262,15 +298,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             out.append(f'{indent}<body name="{_esc(j.child)}" pos="{_f(j.origin.xyz)}" '
                        f'quat="{_quat(rpy_matrix(j.origin.rpy))}">')
             if j.type in ("revolute", "continuous", "prismatic"):
-                kind = "slide" if j.type == "prismatic" else "hinge"
-                lim = j.limit
-                if j.type != "continuous" and lim is not None and lim.lower is not None \
-                        and lim.upper is not None:
-                    rng = f'limited="true" range="{lim.lower!r} {lim.upper!r}"'
-                else:
-                    rng = 'limited="false"'
-                out.append(f'{indent}  <joint name="{_esc(j.name)}" type="{kind}" '
-                           f'axis="{_f(j.axis)}" {rng}/>')
+                out.append(f"{indent}  {_joint_element(j)}")
             out.extend(body(j.child, indent + "  "))
             out.append(f"{indent}</body>")
         return out
@@ -287,18 +315,8 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
         pairs |= {frozenset((f"carried:{a.id}", t)) for t in {a.link, *a.touch_links}}
     exclude = [f'    <exclude body1="{_esc(a)}" body2="{_esc(b)}"/>'
                for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
-    eq = []
-    for n in robot.mimic_joints:
-        m = robot.joints[n].mimic
-        eq.append(f'    <joint joint1="{_esc(n)}" joint2="{_esc(m.joint)}" '  # type: ignore
-                  f'polycoef="{m.offset!r} {m.multiplier!r} 0 0 0"/>')  # type: ignore
-    act = []
-    for n in robot.actuated_joints:
-        g, lim = gains[n], robot.joints[n].limit
-        effort = lim.effort if lim is not None and lim.effort > 0 else 1e6
-        act.append(f'    <general name="{_esc(n)}" joint="{_esc(n)}" gainprm="{g.kp!r}" '
-                   f'biastype="affine" biasprm="0 {-g.kp!r} {-g.kv!r}" ctrllimited="false" '
-                   f'forcelimited="true" forcerange="{-effort!r} {effort!r}"/>')
+    eq = [f"    {e}" for e in _mimic_equalities(robot)]
+    act = [f"    {e}" for e in _actuators(robot, gains)]
     world = obstacle_geoms([obstacle_form(o) for o in obstacles], assets=assets, cache=cache,
                            progress=progress)
     parts = [f'<mujoco model="{_esc(robot.name)}">',

@@ -356,19 +356,10 @@ class Certifier:
         u1 = np.ascontiguousarray(u1, float).reshape(-1, w.dof)
         u2 = np.ascontiguousarray(u2, float).reshape(-1, w.dof)
         lengths = np.ascontiguousarray(lengths, float).reshape(-1)
-        for k in range(len(starts) if sample_step is not None else 0):
-            # (a pair no piece moves keeps its start distance: the start is a sample)
-            n = max(1, int(np.ceil(lengths[k] / sample_step)))
-            sig = np.linspace(0.0, lengths[k], n + 1)
-            x = sig / lengths[k] if lengths[k] > 0 else np.zeros_like(sig)
-            qs = starts[k] + np.outer(sig, u1[k]) + np.outer(
-                lengths[k] * (x**3 - 0.5 * x**4), u2[k] - u1[k])
-            bad = w.first_invalid(qs)
-            if bad >= 0:
-                chk = w.check(qs[bad])
-                pair = chk.pairs[0] if chk.pairs else ("", "")
-                return Certificate(False, clear, 0.0, pair, (k, float(sig[bad]), pair, 0.0),
-                                   0, 0)
+        if sample_step is not None:
+            refuted = self._sampled_collision(starts, u1, u2, lengths, sample_step)
+            if refuted is not None:
+                return refuted
         table = w.table
         npair = len(table.pair_names)
         # per motion, so a certificate never depends on what was certified before
@@ -376,13 +367,7 @@ class Certifier:
         best, directions, warm = proof
         direction = np.empty(3)
         pairs = table.pairs
-        still: dict[int, float] = {}
-        if self.fraction > 0:  # a clearance to report: still pairs at their own bound
-            still = self._still_pairs(starts, u1, u2, lengths, clear)
-        # pairs one joint moves, proven over its range by cached cells
-        for p, d in self.one_dim_pairs(starts, u1, u2, lengths).items():
-            if p not in still:
-                still[p] = d
+        still = self._proven_before_walk(starts, u1, u2, lengths, clear)
         if still:
             idx = np.fromiter(still, np.int64)
             best[idx] = np.fromiter(still.values(), float)
@@ -430,6 +415,39 @@ class Certifier:
         cert = float(best[worst]) if npair and np.isfinite(best[worst]) else float("inf")
         return Certificate(True, clear, cert, table.pair_names[worst] if npair else None,
                            None, Stop.read(walk).bounds, exact)
+
+    def _sampled_collision(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+                           lengths: np.ndarray, sample_step: float) -> Certificate | None:
+        """The refusal at the first colliding sample (states ``sample_step`` [rad]
+        apart along each piece), or None when every sample is free."""
+        w = self.world
+        for k in range(len(starts)):
+            # (a pair no piece moves keeps its start distance: the start is a sample)
+            n = max(1, int(np.ceil(lengths[k] / sample_step)))
+            sig = np.linspace(0.0, lengths[k], n + 1)
+            x = sig / lengths[k] if lengths[k] > 0 else np.zeros_like(sig)
+            qs = starts[k] + np.outer(sig, u1[k]) + np.outer(
+                lengths[k] * (x**3 - 0.5 * x**4), u2[k] - u1[k])
+            bad = w.first_invalid(qs)
+            if bad >= 0:
+                chk = w.check(qs[bad])
+                pair = chk.pairs[0] if chk.pairs else ("", "")
+                return Certificate(False, w.padding, 0.0, pair,
+                                   (k, float(sig[bad]), pair, 0.0), 0, 0)
+        return None
+
+    def _proven_before_walk(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
+                            lengths: np.ndarray, clear: float) -> dict[int, float]:
+        """The pairs proven without the walk, each with its bound [m]: the still pairs
+        (only when a clearance is to be reported) and the pairs one joint moves."""
+        still: dict[int, float] = {}
+        if self.fraction > 0:  # a clearance to report: still pairs at their own bound
+            still = self._still_pairs(starts, u1, u2, lengths, clear)
+        # pairs one joint moves, proven over its range by cached cells
+        for p, d in self.one_dim_pairs(starts, u1, u2, lengths).items():
+            if p not in still:
+                still[p] = d
+        return still
 
     def _still_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                      lengths: np.ndarray, clear: float) -> dict[int, float]:

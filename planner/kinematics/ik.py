@@ -108,14 +108,43 @@ def position_ik(
         raw = _closed_form(geo, target, q_base[chain.columns])
         solver = "closed_form"
     else:
-        starts = _starts(q_base[chain.columns], lower, upper)
-        raw_q, err = solve_dls(kin, tcp, chain, q_base, target, starts, lower, upper,
-                               clamp=True)
-        free_q, free_err = solve_dls(kin, tcp, chain, q_base, target, starts, lower, upper,
-                                     clamp=False)
-        found = np.concatenate([raw_q[err <= tolerance], free_q[free_err <= tolerance]])
-        raw = [(q, "") for q in found]
+        raw = _numeric(kin, tcp, chain, q_base, target, lower, upper, tolerance)
         solver = "numeric"
+    candidates, outside = _into_limits(kin, tcp, chain, q_base, target, raw, lower, upper,
+                                       tolerance)
+    kept = dedupe(candidates, chain)
+    if not kept:
+        raise _out_of_reach(kin, tcp, chain, q_base, target, lower, upper, outside, geo,
+                            tolerance)
+    # closed form: by branch, then joint values; numeric: by joint values, then numbered
+    kept.sort(key=lambda c: (_BRANCHES.index(c[1]) if geo is not None else 0,
+                             tuple(np.round(c[0][chain.columns], 9))))
+    if solver == "numeric":
+        kept = [(q, f"solution {k + 1}") for k, (q, _) in enumerate(kept)]
+    _log.debug("position_ik %s: %d solutions (%s)", target, len(kept), solver)
+    return tuple(IkSolution(q=q, branch=b) for q, b in kept)
+
+
+def _numeric(kin: Kinematics, tcp: Tcp, chain: Chain, q_base: np.ndarray,
+             target: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+             tolerance: float) -> list[tuple[np.ndarray, str]]:
+    """The numeric solver's solutions (chain joints, unlabelled): multi-start, once within
+    the limits and once without (so a target reachable only outside them is told)."""
+    starts = _starts(q_base[chain.columns], lower, upper)
+    raw_q, err = solve_dls(kin, tcp, chain, q_base, target, starts, lower, upper,
+                           clamp=True)
+    free_q, free_err = solve_dls(kin, tcp, chain, q_base, target, starts, lower, upper,
+                                 clamp=False)
+    found = np.concatenate([raw_q[err <= tolerance], free_q[free_err <= tolerance]])
+    return [(q, "") for q in found]
+
+
+def _into_limits(kin: Kinematics, tcp: Tcp, chain: Chain, q_base: np.ndarray,
+                 target: np.ndarray, raw: Sequence[tuple[np.ndarray, str]],
+                 lower: np.ndarray, upper: np.ndarray, tolerance: float
+                 ) -> tuple[list[tuple[np.ndarray, str]], list[tuple[np.ndarray, str]]]:
+    """The raw solutions reaching ``target`` as full joint vectors: those within the
+    limits (revolute joints wrapped into them, every turn that fits) and those outside."""
 
     def full(q: np.ndarray) -> np.ndarray:  # q_base with the solved-for joints at q
         out = q_base.copy()
@@ -132,17 +161,7 @@ def position_ik(
         if not shifted:
             outside.append((full(q), label))
         candidates += [(full(qs), label) for qs in shifted]
-    kept = dedupe(candidates, chain)
-    if not kept:
-        raise _out_of_reach(kin, tcp, chain, q_base, target, lower, upper, outside, geo,
-                            tolerance)
-    # closed form: by branch, then joint values; numeric: by joint values, then numbered
-    kept.sort(key=lambda c: (_BRANCHES.index(c[1]) if geo is not None else 0,
-                             tuple(np.round(c[0][chain.columns], 9))))
-    if solver == "numeric":
-        kept = [(q, f"solution {k + 1}") for k, (q, _) in enumerate(kept)]
-    _log.debug("position_ik %s: %d solutions (%s)", target, len(kept), solver)
-    return tuple(IkSolution(q=q, branch=b) for q, b in kept)
+    return candidates, outside
 
 
 _BRANCHES = ("front/elbow_up", "front/elbow_down", "back/elbow_up", "back/elbow_down")

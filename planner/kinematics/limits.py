@@ -161,20 +161,7 @@ class JointLimits:
                 vals[kind].append(math.nan if value is None else value)
                 if value is not None:
                     sources[f"{name}.{kind}"] = yaml_src
-        missing_acc = [i for i, a in enumerate(vals["acceleration"]) if math.isnan(a)]
-        if missing_acc:
-            derived = derive_accelerations(description, [names[i] for i in missing_acc])
-            for i, a in zip(missing_acc, derived):
-                vals["acceleration"][i] = a
-                sources[f"{names[i]}.acceleration"] = (
-                    f"derived: {ACCELERATION_MARGIN} x (effort - max |gravity torque|) / "
-                    f"max M_ii(q) over {DERIVATION_SAMPLES} seeded samples")
-        for i, name in enumerate(names):
-            if math.isnan(vals["jerk"][i]):
-                vals["jerk"][i] = vals["acceleration"][i] / JERK_RAMP_TIME
-                sources[f"{name}.jerk"] = (f"derived: acceleration / {JERK_RAMP_TIME} s ramp "
-                                           f"(acceleration from "
-                                           f"{sources[f'{name}.acceleration'].split(':')[0]})")
+        _derive_missing(description, names, vals, sources)
         vals["acceleration"] = [a * acceleration_scaling for a in vals["acceleration"]]
         vals["jerk"] = [j * acceleration_scaling for j in vals["jerk"]]
         sources["scaling"] = (f"velocity x {velocity_scaling}, acceleration and jerk x "
@@ -182,6 +169,27 @@ class JointLimits:
         arr = {k: np.array(vals[k], dtype=float) for k in _KINDS}
         return cls(names, arr["lower"], arr["upper"], arr["velocity"], arr["acceleration"],
                    arr["jerk"], arr["effort"], sources=sources)
+
+
+def _derive_missing(description: Description, names: Sequence[str],
+                    vals: dict[str, list[float]], sources: dict[str, str]) -> None:
+    """Fill in place the (unscaled) accelerations and jerks joint_limits.yaml leaves out
+    (nan in ``vals``): accelerations from the dynamics, then jerks from the acceleration
+    over ``JERK_RAMP_TIME``; ``sources`` says how each was derived."""
+    missing_acc = [i for i, a in enumerate(vals["acceleration"]) if math.isnan(a)]
+    if missing_acc:
+        derived = derive_accelerations(description, [names[i] for i in missing_acc])
+        for i, a in zip(missing_acc, derived):
+            vals["acceleration"][i] = a
+            sources[f"{names[i]}.acceleration"] = (
+                f"derived: {ACCELERATION_MARGIN} x (effort - max |gravity torque|) / "
+                f"max M_ii(q) over {DERIVATION_SAMPLES} seeded samples")
+    for i, name in enumerate(names):
+        if math.isnan(vals["jerk"][i]):
+            vals["jerk"][i] = vals["acceleration"][i] / JERK_RAMP_TIME
+            sources[f"{name}.jerk"] = (f"derived: acceleration / {JERK_RAMP_TIME} s ramp "
+                                       f"(acceleration from "
+                                       f"{sources[f'{name}.acceleration'].split(':')[0]})")
 
 
 def _check_scaling(value: float, name: str) -> None:

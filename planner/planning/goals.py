@@ -49,6 +49,7 @@ from ..kinematics.rotations import (
 )
 
 if TYPE_CHECKING:
+    from ..kinematics.ik import IkSolution
     from ..kinematics.ik_numeric import Chain
 
 Axis = Literal["x", "y", "z"]
@@ -406,6 +407,26 @@ def _position_candidates(goal: PositionGoal | PoseGoal, *, world: CollisionWorld
     return np.array([found[i] for i in np.argsort(dist, kind="stable")])
 
 
+def _free_solutions(sols: Sequence[IkSolution], *, world: CollisionWorld,
+                    what: str) -> np.ndarray:
+    """The states of the IK solutions that are collision-free.
+
+    Raises:
+        GoalInCollision: every one collides; the pairs are those of the first.
+    """
+    free, first_pairs = [], None
+    for s in sols:
+        chk = world.check(s.q)
+        if chk.valid:
+            free.append(np.asarray(s.q, float))
+        elif first_pairs is None:
+            first_pairs = chk.pairs
+    if not free:
+        raise GoalInCollision(f"every IK solution ({len(sols)}) for {what} collides",
+                              pairs=first_pairs or ())
+    return np.array(free)
+
+
 def _exact_position(position: tuple[float, float, float], *, world: CollisionWorld,
                     description: Description, start: np.ndarray,
                     group_joints: Sequence[str]) -> np.ndarray:
@@ -419,17 +440,7 @@ def _exact_position(position: tuple[float, float, float], *, world: CollisionWor
     if not sols:
         raise GoalOutOfReach(f"no joint state reaches {position}",
                              details={"position": list(position)})
-    free, first_pairs = [], None
-    for s in sols:
-        chk = world.check(s.q)
-        if chk.valid:
-            free.append(np.asarray(s.q, float))
-        elif first_pairs is None:
-            first_pairs = chk.pairs
-    if not free:
-        raise GoalInCollision(f"every IK solution ({len(sols)}) for {position} collides",
-                              pairs=first_pairs or ())
-    return np.array(free)
+    return _free_solutions(sols, world=world, what=str(position))
 
 
 #: a chain with fewer joints moving the tcp has all of them placing its position
@@ -471,17 +482,7 @@ def _pose_candidates(goal: PoseGoal, *, world: CollisionWorld, description: Desc
             f"{[round(float(v), 6) for v in limits]} rad)",
             details={"position": list(goal.position), "orientation": list(goal.orientation),
                      "orientation_limits": limits.tolist(), "joints": list(ik_joints)})
-    free, first_pairs = [], None
-    for s in sols:
-        chk = world.check(s.q)
-        if chk.valid:
-            free.append(np.asarray(s.q, float))
-        elif first_pairs is None:
-            first_pairs = chk.pairs
-    if not free:
-        raise GoalInCollision(f"every IK solution ({len(sols)}) for the pose collides",
-                              pairs=first_pairs or ())
-    return np.array(free)
+    return _free_solutions(sols, world=world, what="the pose")
 
 
 class ControllableAxis(TypedDict):
