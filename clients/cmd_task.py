@@ -164,7 +164,7 @@ def cmd_task(ns: argparse.Namespace) -> int:
         out: dict[str, Any] = {"planned": body}
         code = EXIT_OK
         if robot is not None:
-            out["execution"] = _run(ns, robot, desc, result)
+            out["execution"] = _run(ns, robot, desc, task, result)
             code = EXIT_OK if out["execution"]["outcome"] == "completed" else EXIT_FAIL
     finally:
         if robot is not None:
@@ -173,7 +173,8 @@ def cmd_task(ns: argparse.Namespace) -> int:
     return code
 
 
-def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> dict[str, Any]:
+def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, result: Any
+         ) -> dict[str, Any]:
     from execution.executor import ExecuteOptions, Executor
     from execution.segments import SampledTrajectory
 
@@ -182,7 +183,13 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> 
     traj = SampledTrajectory(tuple(result.joint_names), ts, q, qd, qdd)
     opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
                           move_to_start=ns.move_to_start, realtime=ns.realtime)
-    ex = Executor.for_description(robot, desc, options=opts)
+    on_tick, objects = None, ()
+    if ns.sim:  # the task's scene in the twin, what it picks up a free body it grips
+        from execution.robots.sim_arduinobot import grasp_schedule, task_objects, without
+        objects = task_objects(task, result)
+        robot.set_scene(without(result.start_obstacles, objects), loose=objects)
+        on_tick = grasp_schedule(robot, result)
+    ex = Executor.for_description(robot, desc, options=opts, on_tick=on_tick)
     ex.check_start(traj)
     where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
     print(f"executing {traj.duration:.3f} s on {where} (Ctrl-C stops smoothly)",
@@ -191,6 +198,10 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> 
     with _sigint_sets(cancel):
         report = ex.execute(traj, cancel=cancel).to_dict()
     print(f"{report['outcome']}: {report['duration']:.3f} s")
+    if objects:  # where the simulated objects ended (MuJoCo's state, not the plan's)
+        report["objects"] = {a.id: robot.object_pose(a.id)[:3, 3].tolist() for a in objects}
+        for k, xyz in report["objects"].items():
+            print(f"  {k} rests at {xyz[0]:.3f} {xyz[1]:.3f} {xyz[2]:.3f} m")
     return report
 
 
