@@ -200,9 +200,13 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, resu
     print(f"{report['outcome']}: {report['duration']:.3f} s")
     if objects:  # where the simulated objects ended (MuJoCo's state, not the plan's)
         report["objects"] = {a.id: robot.object_pose(a.id)[:3, 3].tolist() for a in objects}
-        for k, xyz in report["objects"].items():
-            print(f"  {k} rests at {xyz[0]:.3f} {xyz[1]:.3f} {xyz[2]:.3f} m")
+        _print_objects(report["objects"])
     return report
+
+
+def _print_objects(objects: dict[str, list[float]]) -> None:
+    for k, xyz in objects.items():
+        print(f"  {k} ends at {xyz[0]:.3f} {xyz[1]:.3f} {xyz[2]:.3f} m (simulated)")
 
 
 def _write_report(ns: argparse.Namespace, out: dict[str, Any]) -> None:
@@ -258,6 +262,9 @@ def _remote(ns: argparse.Namespace) -> int:
             elif body["event"] == "finished":
                 out["execution"] = body["report"]
                 print(f"{body['report']['outcome']}: {body['report']['duration']:.3f} s")
+                if body.get("objects"):  # the service's twin simulated them
+                    out["execution"]["objects"] = body["objects"]
+                    _print_objects(body["objects"])
         cancel.set()  # ends the watcher (nothing left to cancel)
     if not out:
         raise ServiceUnavailable(f"no reply on {ns.prefix}/task (is `arduinobot serve` "

@@ -474,13 +474,25 @@ def without(obstacles: Sequence[Any], objects: Sequence[Any]) -> list[Any]:
     return [o for o in obstacles if (o["id"] if isinstance(o, dict) else o.id) not in ids]
 
 
-def grasp_schedule(robot: SimArduinobot, result: Any) -> Callable[[Any], None]:
-    """An executor ``on_tick`` for ``robot`` running ``result`` (a task joined into one
-    trajectory, its time the task's): at the first tick at or past an attach step's
-    start the object is welded to its link, at or past a detach step's start let go."""
-    pending = [(t0, s.object, s.kind == "attach")
-               for s, t0 in zip(result.steps, result.boundaries())
-               if s.kind in ("attach", "detach") and s.object is not None]
+#: a grip switch of a task: (task time [s], object id, held from then on)
+Grasp = tuple[float, str, bool]
+
+
+def task_grasps(result: Any) -> list[Grasp]:
+    """When a planned task grips and lets go of its objects: its attach and detach
+    steps' start times."""
+    return [(t0, s.object, s.kind == "attach")
+            for s, t0 in zip(result.steps, result.boundaries())
+            if s.kind in ("attach", "detach") and s.object is not None]
+
+
+def grasp_schedule(robot: SimArduinobot, grasps: Any) -> Callable[[Any], None]:
+    """An executor ``on_tick`` for ``robot`` running a task joined into one trajectory
+    (its time the task's): at the first tick at or past each grasp's time
+    (``grasps``, or a :class:`planner.tasks.TaskResult`: :func:`task_grasps`) the
+    object is welded to its link, or let go."""
+    pending = sorted(task_grasps(grasps) if hasattr(grasps, "steps") else grasps,
+                     key=lambda g: g[0])
 
     def on_tick(tick: Any) -> None:
         while pending and tick.phase in ("trajectory", "stop") \
