@@ -164,7 +164,7 @@ def cmd_task(ns: argparse.Namespace) -> int:
         out: dict[str, Any] = {"planned": body}
         code = EXIT_OK
         if robot is not None:
-            out["execution"] = _run(ns, robot, desc, result)
+            out["execution"] = _run(ns, robot, desc, task, result)
             code = EXIT_OK if out["execution"]["outcome"] == "completed" else EXIT_FAIL
     finally:
         if robot is not None:
@@ -173,7 +173,8 @@ def cmd_task(ns: argparse.Namespace) -> int:
     return code
 
 
-def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> dict[str, Any]:
+def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, result: Any
+         ) -> dict[str, Any]:
     from execution.executor import ExecuteOptions, Executor
     from execution.segments import SampledTrajectory
 
@@ -182,7 +183,13 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> 
     traj = SampledTrajectory(tuple(result.joint_names), ts, q, qd, qdd)
     opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
                           move_to_start=ns.move_to_start, realtime=ns.realtime)
-    ex = Executor.for_description(robot, desc, options=opts)
+    on_tick, objects = None, ()
+    if ns.sim:  # the task's scene in the twin, what it picks up a free body it grips
+        from execution.robots.sim_arduinobot import grasp_schedule, task_objects, without
+        objects = task_objects(task, result)
+        robot.set_scene(without(result.start_obstacles, objects), loose=objects)
+        on_tick = grasp_schedule(robot, result)
+    ex = Executor.for_description(robot, desc, options=opts, on_tick=on_tick)
     ex.check_start(traj)
     where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
     print(f"executing {traj.duration:.3f} s on {where} (Ctrl-C stops smoothly)",
@@ -191,7 +198,15 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, result: Any) -> 
     with sigint_sets(cancel):
         report = ex.execute(traj, cancel=cancel).to_dict()
     print(f"{report['outcome']}: {report['duration']:.3f} s")
+    if objects:  # where the simulated objects ended (MuJoCo's state, not the plan's)
+        report["objects"] = {a.id: robot.object_pose(a.id)[:3, 3].tolist() for a in objects}
+        _print_objects(report["objects"])
     return report
+
+
+def _print_objects(objects: dict[str, list[float]]) -> None:
+    for k, xyz in objects.items():
+        print(f"  {k} ends at {xyz[0]:.3f} {xyz[1]:.3f} {xyz[2]:.3f} m (simulated)")
 
 
 def _write_report(ns: argparse.Namespace, out: dict[str, Any]) -> None:
@@ -247,6 +262,9 @@ def _remote(ns: argparse.Namespace) -> int:
             elif body["event"] == "finished":
                 out["execution"] = body["report"]
                 print(f"{body['report']['outcome']}: {body['report']['duration']:.3f} s")
+                if body.get("objects"):  # the service's twin simulated them
+                    out["execution"]["objects"] = body["objects"]
+                    _print_objects(body["objects"])
         cancel.set()  # ends the watcher (nothing left to cancel)
     if not out:
         raise ServiceUnavailable(f"no reply on {ns.prefix}/task (is `arduinobot serve` "

@@ -88,6 +88,7 @@ class ExecuteRequest:
     move_to_start: bool
     blend: bool
     client: str | None
+    twin: Mapping[str, Any] | None = None  # a task's objects for a twin (the schema's)
 
     @classmethod
     def decode(cls, payload: bytes) -> ExecuteRequest:
@@ -96,7 +97,7 @@ class ExecuteRequest:
         return cls(body.get("trajectory"), body.get("plan"),
                    float(body.get("start_tolerance", DEFAULT_START_TOLERANCE)),
                    bool(body.get("move_to_start", False)), bool(body.get("blend", False)),
-                   body.get("client"))
+                   body.get("client"), body.get("twin"))
 
 
 def _reply_err(query: zenoh.Query, code: str, message: str,
@@ -269,7 +270,7 @@ class ExecuteService:
             self._current = execution
             self._cancel.clear()
             run = _Run(self, query, execution, req)
-            self._scene_to_twin(robot, (req.plan or {}).get("obstacles") or ())
+            self._scene_to_twin(robot, (req.plan or {}).get("obstacles") or (), req.twin)
             if req.trajectory is not None:
                 run.start_with(SampledTrajectory.from_json(req.trajectory))
                 return
@@ -281,17 +282,31 @@ class ExecuteService:
             self._finish()
             raise
 
-    def _scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]]) -> None:
+    def _scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
+                       twin: Mapping[str, Any] | None = None) -> None:
         """Give a twin (a robot with ``set_scene``) the kept scene's objects, the plan's
-        own obstacles and the carried objects, when they changed since the last time."""
+        own obstacles and the carried objects, when they changed since the last time; a
+        task's ``twin`` (its obstacles, the kept scene's among them, and the objects it
+        picks up as loose bodies, put back where it has them) instead of the plan's."""
         set_scene = getattr(robot, "set_scene", None)
         snap = self.scene_source() if self.scene_source is not None else None
         if set_scene is None:
             return
-        key = (getattr(snap, "revision", 0), wire.encode(list(own)))
-        if key == self._twin_scene:
+        if twin is not None:
+            own = twin.get("obstacles") or ()
+        key = (getattr(snap, "revision", 0), wire.encode(list(own)), twin is not None)
+        # a task's objects start where its scene has them: rebuilt for every task
+        if key == self._twin_scene and twin is None:
             return
-        set_scene([*getattr(snap, "obstacles", ()), *own], getattr(snap, "attached", ()))
+        if twin is None:
+            set_scene([*getattr(snap, "obstacles", ()), *own], getattr(snap, "attached", ()))
+        else:
+            from planner.scene import AttachedObject
+            loose = [AttachedObject.from_mapping(o, where=f"twin.objects[{i}]")
+                     for i, o in enumerate(twin.get("objects") or ())]
+            mine = {o["id"] for o in own} | {a.id for a in loose}
+            kept = [o for o in getattr(snap, "obstacles", ()) if o.id not in mine]
+            set_scene([*kept, *own], getattr(snap, "attached", ()), loose=loose)
         self._twin_scene = key
 
     def _plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
@@ -379,7 +394,16 @@ class _Run:
         publishes joint_states and replies progress."""
         base, pub = self.svc.executor(), self.svc._publisher
 
+        grasps = (self.req.twin or {}).get("grasps") or ()
+        grip = None
+        if grasps and hasattr(base.robot, "grasp"):  # a twin grips a task's objects
+            from execution.robots.sim_arduinobot import grasp_schedule
+            grip = grasp_schedule(base.robot, [(float(g["time"]), g["object"], g["hold"])
+                                               for g in grasps])
+
         def on_tick(tick: Tick) -> None:
+            if grip is not None:
+                grip(tick)
             msg = tick_message(tick)
             if pub is not None:
                 pub.put(wire.encode(msg))
@@ -416,8 +440,14 @@ class _Run:
                     watch = None
                 _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
                           time.monotonic() - t0)
-                self._reply({"event": "finished", "execution": self.execution,
-                             "report": report.to_dict()})
+                done: dict[str, Any] = {"event": "finished", "execution": self.execution,
+                                        "report": report.to_dict()}
+                objects = (self.req.twin or {}).get("objects") or ()
+                if objects and hasattr(ex.robot, "object_pose"):
+                    # where the twin's objects ended: MuJoCo's state, not the plan's
+                    done["objects"] = {o["object"]["id"]: ex.robot.object_pose(
+                        o["object"]["id"])[:3, 3].tolist() for o in objects}
+                self._reply(done)
             finally:
                 svc._running = None
                 if watch is not None:

@@ -94,6 +94,18 @@ def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str,
     return {"joint_names": list(result.joint_names), "points": points}
 
 
+def twin_body(task: Task, result: TaskResult) -> dict[str, Any]:
+    """What a twin simulates of the task (execute's ``twin``): its obstacles, the objects
+    it picks up as free bodies where its scene has them, when it grips and lets go."""
+    from execution.robots.sim_arduinobot import task_grasps, task_objects, without
+    objects = task_objects(task, result)
+    return {"obstacles": [obstacle_json(o) for o in without(result.start_obstacles, objects)],
+            "objects": [{"object": obstacle_json(a.shape), "link": a.link,
+                         "touch_links": list(a.touch_links), "mass": a.mass}
+                        for a in objects],
+            "grasps": [{"time": t, "object": o, "hold": h} for t, o, h in task_grasps(result)]}
+
+
 class TaskService:
     """The ``<prefix>/task`` queryable; plans with its own planner, built on first use."""
 
@@ -185,7 +197,7 @@ class TaskService:
             result, name=task.name, trajectories=bool(body.get("trajectories", True)))),
             encoding=JSON)
         if execute:
-            self._execute(query, result, body)
+            self._execute(query, task, result, body)
 
     def _robot_start(self) -> dict[str, float]:
         for reply in self.session.get(f"{self.prefix}/robot_state", timeout=30.0):
@@ -203,12 +215,13 @@ class TaskService:
         raise InvalidRequest("this service drives no robot to start the task from: give "
                              "the task a start", field="task.start")
 
-    def _execute(self, query: zenoh.Query, result: TaskResult, body: Mapping[str, Any]
-                 ) -> None:
+    def _execute(self, query: zenoh.Query, task: Task, result: TaskResult,
+                 body: Mapping[str, Any]) -> None:
         """Relay ``<prefix>/execute``'s stream for the joined task to ``query``."""
         req = {"trajectory": task_trajectory(result),
                "start_tolerance": body.get("start_tolerance", 0.01),
-               "move_to_start": bool(body.get("move_to_start", False))}
+               "move_to_start": bool(body.get("move_to_start", False)),
+               "twin": twin_body(task, result)}
         key = f"{self.prefix}/task"
         got = False
         for reply in self.session.get(f"{self.prefix}/execute", payload=wire.encode(req),

@@ -205,11 +205,13 @@ def obstacle_form(o: Any) -> dict[str, Any]:
 
 
 def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
-                 progress: Progress | None) -> list[str]:
+                 progress: Progress | None, *, prefix: str = "carried",
+                 head: str = "") -> list[str]:
     """The MJCF lines of a carried object (a :class:`planner.scene.AttachedObject`): a
     body in its link's frame, no joint (welded), its payload's mass and inertia, its
-    shape as contact geoms (massless: the inertial says the mass)."""
-    lines = [f'<body name="{_esc("carried:" + a.id)}">']
+    shape as contact geoms (massless: the inertial says the mass). ``head`` goes into
+    the body's tag (a pose), its first line inside (a joint)."""
+    lines = [f'<body name="{_esc(prefix + ":" + a.id)}"{head}>']
     p = a.payload()
     if p.mass > 0:
         t = np.asarray(p.inertia, float)
@@ -217,7 +219,7 @@ def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
                      f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
     lines += ["  " + g for g in obstacle_geoms([obstacle_form(a.shape)], assets=assets,
                                                 cache=cache, progress=progress,
-                                                prefix="carried", extra=' mass="0"')]
+                                                prefix=prefix, extra=' mass="0"')]
     lines.append("</body>")
     return lines
 
@@ -258,10 +260,25 @@ def _actuators(robot: Robot, gains: Mapping[str, Gains]) -> list[str]:
     return act
 
 
+def loose_body(a: Any, assets: list[str], cache: ArtifactCache | None,
+               progress: Progress | None) -> list[str]:
+    """A loose object (an :class:`planner.scene.AttachedObject` whose shape is posed in
+    the world): a free body ``loose:<id>`` where its shape is, with its mass, under
+    gravity until :func:`to_mjcf`'s weld ``grasp:<id>`` to its link is switched on."""
+    from dataclasses import replace
+    pose = (f' pos="{_f(a.shape.xyz)}" '
+            f'quat="{_quat(rpy_matrix(tuple(a.shape.rpy)))}"')
+    at_origin = replace(a, shape=replace(a.shape, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)),
+                        com=None)
+    lines = carried_body(at_origin, assets, cache, progress, prefix="loose", head=pose)
+    lines.insert(1, f'  <freejoint name="{_esc("loose:" + a.id)}"/>')
+    return lines
+
+
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
             obstacles: Sequence[Mapping[str, Any]] = (),
-            attached: Sequence[Any] = (),
+            attached: Sequence[Any] = (), loose: Sequence[Any] = (),
             cache: ArtifactCache | None = None, progress: Progress | None = None) -> str:
     """The MJCF text of ``robot`` (see the module doc).
 
@@ -271,6 +288,9 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
         obstacles: world obstacles, as in a plan request (or :func:`obstacle_form`'s).
         attached: carried objects (:class:`planner.scene.AttachedObject`, touch links
             resolved), each welded inside its link.
+        loose: objects free in the world (:func:`loose_body`, touch links resolved), each
+            with an inactive weld ``grasp:<id>`` to its link for the twin to switch on
+            while it is carried; what holds it never collides with it (as in the planner).
         cache, progress: the meshes' convex pieces (:func:`mesh_parts`).
     """
     assets: list[str] = []
@@ -313,12 +333,15 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     pairs |= {frozenset(p) for p in excluded if p[0] != p[1]}
     for a in attached:  # what holds it may touch it, as in the planner
         pairs |= {frozenset((f"carried:{a.id}", t)) for t in {a.link, *a.touch_links}}
+    for a in loose:  # the grasp is the weld, not friction of the fingers
+        pairs |= {frozenset((f"loose:{a.id}", t)) for t in {a.link, *a.touch_links}}
     exclude = [f'    <exclude body1="{_esc(a)}" body2="{_esc(b)}"/>'
                for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
     eq = [f"    {e}" for e in _mimic_equalities(robot)]
     act = [f"    {e}" for e in _actuators(robot, gains)]
     world = obstacle_geoms([obstacle_form(o) for o in obstacles], assets=assets, cache=cache,
                            progress=progress)
+    free = [line for a in loose for line in loose_body(a, assets, cache, progress)]
     parts = [f'<mujoco model="{_esc(robot.name)}">',
              '  <compiler angle="radian" inertiafromgeom="false" balanceinertia="false" '
              'boundmass="1e-6" boundinertia="1e-9"/>',
@@ -326,8 +349,12 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
              'gravity="0 0 -9.81"/>',
              "  <asset>", *("    " + a for a in assets), "  </asset>",
              "  <worldbody>", *("    " + g for g in world), *tree,
+             *("    " + line for line in free),
              "  </worldbody>",
              "  <contact>", *exclude, "  </contact>"]
+    for a in loose:
+        eq.append(f'    <weld name="{_esc("grasp:" + a.id)}" body1="{_esc(a.link)}" '
+                  f'body2="{_esc("loose:" + a.id)}" active="false"/>')
     if eq:
         parts += ["  <equality>", *eq, "  </equality>"]
     parts += ["  <actuator>", *act, "  </actuator>", "</mujoco>"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -141,6 +141,8 @@ class SimArduinobot(Robot):
             :class:`planner.scene.Obstacle`, meshes included).
         attached: carried objects (:class:`planner.scene.AttachedObject`), each welded to
             its link with its mass (:meth:`set_scene` changes both later).
+        loose: objects a task picks up (AttachedObject posed in the world): free bodies
+            with their mass, gripped and let go by :meth:`grasp` (:func:`task_objects`).
         controllers: a controllers yaml (default: :func:`find_controllers_yaml`).
         initial: actuated positions [rad] to start at (default: initial_positions.yaml, else 0).
         bandwidth: [Hz] of the default servos.
@@ -167,7 +169,8 @@ class SimArduinobot(Robot):
     _jerk: np.ndarray | None
 
     def __init__(self, description: Description, *, obstacles: Sequence[Any] = (),
-                 attached: Sequence[Any] = (), controllers: Path | None = None, initial: Sequence[float] | None = None,
+                 attached: Sequence[Any] = (), loose: Sequence[Any] = (),
+                 controllers: Path | None = None, initial: Sequence[float] | None = None,
                  bandwidth: float = DEFAULT_BANDWIDTH, cache: ArtifactCache | None = None,
                  progress: Progress | None = None) -> None:
         import mujoco  # optional dependency (the `sim` extra)
@@ -177,6 +180,7 @@ class SimArduinobot(Robot):
         self._cache, self._progress = cache, progress
         robot = description.robot
         attached = _resolved(description, attached)
+        loose = _resolved(description, loose)
         self.mimic = MimicMap.from_description(description)
         self.joint_names = self.mimic.actuated
         self.state_names = self.mimic.names
@@ -190,7 +194,7 @@ class SimArduinobot(Robot):
             else check_setpoint(initial, self.joint_names, "initial positions")
         for _ in range(2):
             self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded, obstacles=obstacles,
-                               attached=attached, cache=cache, progress=progress)
+                               attached=attached, loose=loose, cache=cache, progress=progress)
             self._build(robot.name)
             self._set_positions(q0)
             # MuJoCo collides meshes as convex hulls: hulls of concave links (fingers, an
@@ -234,7 +238,8 @@ class SimArduinobot(Robot):
             m.actuator_gainprm[a, 0] = g.kp
             m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
 
-    def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = ()) -> None:
+    def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = (),
+                  loose: Sequence[Any] = ()) -> None:
         """Put ``obstacles`` in the world and weld ``attached`` to their links instead of
         what was there (the kept scene at a new revision, or a plan's own obstacles), the
         arm at rest where it is now; the servo gains and figures stay.
@@ -247,7 +252,7 @@ class SimArduinobot(Robot):
         gains = {n: g for n, g in zip(self.joint_names, self.gains)}
         self.xml = to_mjcf(robot, gains=gains, excluded=self._excluded, obstacles=obstacles,
                            attached=_resolved(self._description, attached),
-                           cache=self._cache, progress=self._progress)
+                           loose=_resolved(self._description, loose), cache=self._cache, progress=self._progress)
         stats = (self._peak, self._peak_ff, self._saturated, self._contacts,
                  self._contact_steps, self._steps)
         self._build(robot.name)
@@ -273,6 +278,47 @@ class SimArduinobot(Robot):
                               for b in m.geom_bodyid]
         self._geom_names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
                             for g in range(m.ngeom)]
+
+    def grasp(self, object_id: str, hold: bool) -> None:
+        """Weld the loose object ``object_id`` to its link where it is now (``hold``), or
+        let it go: a free body under gravity again.
+
+        Raises:
+            SimulationError: no loose object of that id.
+        """
+        mj, m, d = self._mj, self.model, self.data
+        eq = mj.mj_name2id(m, mj.mjtObj.mjOBJ_EQUALITY, f"grasp:{object_id}")
+        if eq < 0:
+            raise SimulationError(f"the twin has no loose object '{object_id}'")
+        if hold:
+            # the weld keeps the pose the object has in its link now (the gripper closed
+            # on it), not the one it had when the model was built
+            b1, b2 = int(m.eq_obj1id[eq]), int(m.eq_obj2id[eq])
+            r1 = d.xmat[b1].reshape(3, 3)
+            rel = np.empty(4)
+            inv = np.empty(4)
+            mj.mju_negQuat(inv, d.xquat[b1])
+            mj.mju_mulQuat(rel, inv, d.xquat[b2])
+            m.eq_data[eq, 0:3] = 0.0
+            m.eq_data[eq, 3:6] = r1.T @ (d.xpos[b2] - d.xpos[b1])
+            m.eq_data[eq, 6:10] = rel
+            m.eq_data[eq, 10] = 1.0
+        d.eq_active[eq] = int(hold)
+
+    def object_pose(self, object_id: str) -> np.ndarray:
+        """The loose object's simulated pose in the world (4x4, MuJoCo's xpos/xmat).
+
+        Raises:
+            SimulationError: no loose object of that id.
+        """
+        mj = self._mj
+        b = mj.mj_name2id(self.model, mj.mjtObj.mjOBJ_BODY, f"loose:{object_id}")
+        if b < 0:
+            raise SimulationError(f"the twin has no loose object '{object_id}'")
+        out = np.eye(4)
+        out[:3, :3] = self.data.xmat[b].reshape(3, 3)
+        out[:3, 3] = self.data.xpos[b]
+        return out
 
     def _set_positions(self, q: np.ndarray) -> None:
         self.data.qpos[self._qadr] = self.mimic.expand(q)
@@ -403,3 +449,56 @@ class SimArduinobot(Robot):
         d = self.data
         return sorted({self._pair(int(c.geom1), int(c.geom2))
                        for c in d.contact[:d.ncon] if c.dist <= 0})
+
+
+def task_objects(task: Any, result: Any) -> tuple[Any, ...]:
+    """The objects a planned task (:class:`planner.tasks.Task` and its
+    :class:`planner.tasks.TaskResult`) picks up, as the twin's ``loose`` objects: each
+    where the task's scene has it, held by the attach step's link with its mass."""
+    from planner.scene import AttachedObject
+    from planner.tasks.steps import AttachStep
+    scene = {o.id: o for o in result.start_obstacles}
+    out: dict[str, Any] = {}
+    for s in result.steps:
+        step = task.steps[s.index]
+        if s.kind == "attach" and isinstance(step, AttachStep) and s.object in scene \
+                and s.object not in out:
+            out[s.object] = AttachedObject(shape=scene[s.object], link=s.link,
+                                           touch_links=step.touch_links, mass=step.mass)
+    return tuple(out.values())
+
+
+def without(obstacles: Sequence[Any], objects: Sequence[Any]) -> list[Any]:
+    """``obstacles`` less the ``objects`` the twin simulates as loose bodies."""
+    ids = {a.id for a in objects}
+    return [o for o in obstacles if (o["id"] if isinstance(o, dict) else o.id) not in ids]
+
+
+#: a grip switch of a task: (task time [s], object id, held from then on)
+Grasp = tuple[float, str, bool]
+
+
+def task_grasps(result: Any) -> list[Grasp]:
+    """When a planned task grips and lets go of its objects: its attach and detach
+    steps' start times."""
+    return [(t0, s.object, s.kind == "attach")
+            for s, t0 in zip(result.steps, result.boundaries())
+            if s.kind in ("attach", "detach") and s.object is not None]
+
+
+def grasp_schedule(robot: SimArduinobot, grasps: Any) -> Callable[[Any], None]:
+    """An executor ``on_tick`` for ``robot`` running a task joined into one trajectory
+    (its time the task's): at the first tick at or past each grasp's time
+    (``grasps``, or a :class:`planner.tasks.TaskResult`: :func:`task_grasps`) the
+    object is welded to its link, or let go."""
+    pending = sorted(task_grasps(grasps) if hasattr(grasps, "steps") else grasps,
+                     key=lambda g: g[0])
+
+    def on_tick(tick: Any) -> None:
+        while pending and tick.phase in ("trajectory", "stop") \
+                and tick.trajectory_time >= pending[0][0] - 1e-9:
+            _, obj, hold = pending.pop(0)
+            robot.grasp(obj, hold)
+            log.info("twin: %s %s at %.3f s", "gripped" if hold else "let go", obj,
+                     tick.trajectory_time)
+    return on_tick
