@@ -7,8 +7,9 @@ The client follows ros2/rmw_zenoh docs/design.md @ 99a6a2bd10b949052f4f12c585482
 <qos>``, chunks mangled ``/`` -> ``%``), "Topic and Service name mapping to Zenoh key
 expressions" (``<domain>/<name>/<type>/<hash>``), "Services" (a query, its reply), "Actions"
 (rcl_action's ``_action/send_goal``, ``cancel_goal``, ``get_result`` services and
-``feedback``, ``status`` topics) and attachment_helpers.cpp at that commit (int64
-sequence number, int64 source timestamp, LEB128 length 16 then the 16-byte GID). CDR
+``feedback``, ``status`` topics; "Publishers": 8 bytes of sequence number, 8 of source
+timestamp, 1 byte of GID length (16), the GID), as rmw_zenoh_cpp/src/detail/
+attachment_helpers.cpp @ 534747dca92adf15e1b1b975123037ca278db5ba serialises it. CDR
 comes from rosbags' own typestore with the course's ArduinobotTask.action fields, so a
 layout of ours that ROS typesupport would not read fails here.
 """
