@@ -92,7 +92,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     ros = p.add_argument_group("ROS 2 (rmw_zenoh; see docs/ros2.md)")
     ros.add_argument("--ros2", action="store_true",
                      help="publish /joint_states (sensor_msgs/msg/JointState) while the "
-                     "robot moves, as a ROS 2 node on rmw_zenoh (needs the ros2 extra). "
+                     "robot moves and serve the course's /task_server action "
+                     "(arduinobot_msgs/action/ArduinobotTask: the named tasks by number), "
+                     "as a ROS 2 node on rmw_zenoh (needs the ros2 extra). "
                      "With a ROS 2 router on 7447: --listen tcp/127.0.0.1:7448 --connect "
                      "tcp/127.0.0.1:7447")
     add_ros2_args(ros)
@@ -116,6 +118,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     ros = ros2_settings(ns)
     if ros is not None and ns.no_robot:
         raise UsageError("--ros2 publishes the robot's /joint_states: not with --no-robot")
+    graph = None if ros is None else _Ros2Graph(ros)
     logging.getLogger("service").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
                            **model_options(ns),
@@ -137,7 +140,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         memory_cap=int(ns.memory_cap * 2**20) if ns.memory_cap > 0 else None,
                         extensions=(execute_extension(robot_spec(
                             ns, progress=logging.getLogger("service.execution").info),
-                            tick_sink=None if ros is None else _joint_states(ros)),),
+                            tick_sink=None if graph is None else _joint_states(graph)),
+                            *(() if graph is None else (_task_server(graph, ns.tasks),))),
                         scene_file=ns.scene_file, tasks_file=ns.tasks)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -159,19 +163,91 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _joint_states(ros: Ros2Settings) -> Callable[[Any, Description], Any]:
+class _Ros2Graph:
+    """The service's one ROS 2 node (``arduinobot_motion``), shared by /joint_states and
+    /task_server: opened by the first that needs it, closed when both are done (one node
+    name on the graph, as one rclcpp node would be)."""
+
+    def __init__(self, ros: Ros2Settings) -> None:
+        self.ros = ros
+        self._node: Any = None
+        self._users = 0
+        self._lock = threading.Lock()
+
+    def acquire(self, session: Any) -> Any:
+        with self._lock:
+            if self._node is None:
+                from ros2 import Node
+                self._node = Node(session, "arduinobot_motion", namespace=self.ros.namespace,
+                                  domain_id=self.ros.domain_id,
+                                  attachment=self.ros.attachment)
+            self._users += 1
+            return self._node
+
+    def release(self) -> None:
+        with self._lock:
+            self._users -= 1
+            if self._users == 0 and self._node is not None:
+                self._node.close()
+                self._node = None
+
+
+class _Released:
+    """``inner`` whose close() also releases the shared node."""
+
+    def __init__(self, inner: Any, graph: _Ros2Graph) -> None:
+        self._inner, self._graph = inner, graph
+
+    def __call__(self, tick: Any) -> None:  # the executor's tick sink
+        self._inner(tick)
+
+    def close(self) -> None:
+        try:
+            self._inner.close()
+        finally:
+            self._graph.release()
+
+
+def _joint_states(graph: _Ros2Graph) -> Callable[[Any, Description], Any]:
     """Opens ``/joint_states`` (``ros2.JointStates``, the executor's tick sink) on the
     service's session: the model's actuated joints, then its mimic joints."""
     def open_js(session: Any, description: Description) -> Any:
         import ros2
         robot = description.robot
-        js = ros2.open_joint_states(session, robot.actuated_joints + robot.mimic_joints,
-                                    domain_id=ros.domain_id, namespace=ros.namespace,
-                                    attachment=ros.attachment)
+        node = graph.acquire(session)
+        try:
+            js = ros2.JointStates(node, robot.actuated_joints + robot.mimic_joints)
+        except BaseException:
+            graph.release()
+            raise
         logging.getLogger("service.execution").info(
-            "ROS 2: /joint_states on domain %d (key %s)", ros.domain_id, js.publisher.key)
-        return js
+            "ROS 2: /joint_states on domain %d (key %s)", graph.ros.domain_id,
+            js.publisher.key)
+        return _Released(js, graph)
     return open_js
+
+
+def _task_server(graph: _Ros2Graph, tasks_file: str | None) -> Callable[..., Any]:
+    """An extension serving the course's ``/task_server`` action: the named tasks by
+    number, run through ``<prefix>/task`` with execute (``ros2.task_server``)."""
+    def make(session: Any, prefix: str, description: Description, submit_plan: object
+             ) -> Any:
+        from ros2.task_server import TaskServer
+        from service.task_service import run_named_task, task_number_known
+
+        def run(number: int, on_progress: Callable[[float], None],
+                cancel: threading.Event) -> bool:
+            return run_named_task(session, prefix, number, on_progress=on_progress,
+                                  cancel=cancel)
+        node = graph.acquire(session)
+        try:
+            server = TaskServer(node, run=run, known=lambda n: task_number_known(
+                description, tasks_file, n))
+        except BaseException:
+            graph.release()
+            raise
+        return _Released(server, graph)
+    return make
 
 
 def _ros2_errors(ros: Ros2Settings | None) -> tuple[type[BaseException], ...]:

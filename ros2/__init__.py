@@ -4,8 +4,9 @@ No ROS install: keys, liveliness tokens and attachments are built here from rmw_
 design document and source (each module cites the file and commit); CDR and RIHS01 type
 hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attachment`,
 :mod:`.qos`, :mod:`.names`, :mod:`.graph` (keys, tokens, GIDs), then :mod:`.topics` and
-:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states` and
-:mod:`.controllers` (trajectories to ros2_control's joint_trajectory_controllers).
+:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states`,
+:mod:`.controllers` (trajectories to ros2_control's joint_trajectory_controllers) and
+:mod:`.task_server` (the course's /task_server action).
 Nothing here imports ``clients/`` or ``service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """
 
@@ -32,6 +33,7 @@ from .errors import (
 from .joint_states import JointStates, open_joint_states
 from .node import Node
 from .qos import QoS
+from .task_server import TaskServer
 from .types import TypeStore
 
 __all__ = [
@@ -39,6 +41,7 @@ __all__ = [
     "ControllerUnavailable", "EntityClosed", "GoalAlreadyEnded", "GoalHandle", "GoalRejected",
     "InvalidName", "InvalidOption", "InvalidTypeDefinition",
     "JointStates", "MalformedAttachment", "MalformedCdr", "MalformedToken", "MessageMismatch",
-    "NoController", "Node", "QoS", "Ros2Error", "ServiceFailed", "TypeStore", "UnknownType",
+    "NoController", "Node", "QoS", "Ros2Error", "ServiceFailed", "TaskServer", "TypeStore",
+    "UnknownType",
     "open_joint_states",
 ]
