@@ -396,10 +396,11 @@ class _Run:
 
         grasps = (self.req.twin or {}).get("grasps") or ()
         grip = None
-        if grasps and hasattr(base.robot, "grasp"):  # a twin grips a task's objects
-            from execution.robots.sim_arduinobot import grasp_schedule
-            grip = grasp_schedule(base.robot, [(float(g["time"]), g["object"], g["hold"])
-                                               for g in grasps])
+        if grasps:  # a twin grips a task's objects (a real arm has no weld to switch)
+            from execution.robots.sim_arduinobot import SimArduinobot, grasp_schedule
+            if isinstance(base.robot, SimArduinobot):
+                grip = grasp_schedule(base.robot, [(float(g["time"]), g["object"], g["hold"])
+                                                   for g in grasps])
 
         def on_tick(tick: Tick) -> None:
             if grip is not None:
