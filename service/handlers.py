@@ -25,22 +25,11 @@ from planner.kinematics.ik import position_ik
 from planner.planning.goals import JointGoal, tcp_joints
 
 from .requests import joint_values, obstacles
-from .scene_store import SceneSnapshot, with_scene
+from .scene_store import SceneSnapshot, rpy_of, with_scene
 
 _log = logging.getLogger(__name__)
 
 _SCENE_CACHE = 4
-
-
-def _rpy(m: np.ndarray) -> list[float]:
-    """URDF roll-pitch-yaw [rad] of a rotation matrix, shape (3, 3)."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(m[2, 0]))))
-    if abs(math.cos(pitch)) > 1e-9:
-        roll = math.atan2(float(m[2, 1]), float(m[2, 2]))
-        yaw = math.atan2(float(m[1, 0]), float(m[0, 0]))
-    else:  # gimbal lock: put it all in yaw
-        roll, yaw = 0.0, math.atan2(-float(m[0, 1]), float(m[1, 1]))
-    return [roll, pitch, yaw]
 
 
 class Handlers:
@@ -112,7 +101,7 @@ class Handlers:
                                      field=f"links[{i}]")
         poses = self.kin.link_poses(q)
         out = {link: {"xyz": [float(v) for v in poses[self.kin.link_index[link]][:3, 3]],
-                      "rpy": _rpy(poses[self.kin.link_index[link]][:3, :3]),
+                      "rpy": rpy_of(poses[self.kin.link_index[link]][:3, :3]),
                       "matrix": poses[self.kin.link_index[link]].tolist()} for link in links}
         tcp = self.description.tcp
         tcp_xyz = None if tcp is None else [
@@ -163,7 +152,7 @@ class Handlers:
         for a in carried:
             t = poses[self.kin.link_index[a.link]] @ a.shape.pose()
             out[a.id] = {"link": a.link, "xyz": [float(v) for v in t[:3, 3]],
-                         "rpy": _rpy(t[:3, :3]), "matrix": t.tolist()}
+                         "rpy": rpy_of(t[:3, :3]), "matrix": t.tolist()}
         return out
 
     def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
