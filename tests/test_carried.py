@@ -13,7 +13,6 @@ import fcl
 import mujoco
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 from description import load_description
 from planner.errors import InvalidRequest, StartInCollision
@@ -22,28 +21,10 @@ from planner.planning.motion import MotionRequest
 from planner.planning.pipeline import MotionPlanner
 from planner.scene import AttachedObject, Obstacle, default_touch_links
 
+from .helpers.fk import link_pose
 from .test_dynamics import to_mjcf
 
 PAYLOAD = 0.2  # [kg]
-
-
-def _link_pose(robot, link: str, names, q) -> np.ndarray:
-    # the link's world pose by walking the URDF joints with scipy (not the planner's FK)
-    col = {n: i for i, n in enumerate(names)}
-    t = np.eye(4)
-    for j in robot.link_path(link):
-        o = np.eye(4)
-        o[:3, :3] = Rotation.from_euler("xyz", j.origin.rpy).as_matrix()
-        o[:3, 3] = j.origin.xyz
-        t = t @ o
-        if j.movable:
-            leader, mult, off = (j.mimic.joint, j.mimic.multiplier, j.mimic.offset) \
-                if j.mimic else (j.name, 1.0, 0.0)
-            m = np.eye(4)
-            axis = np.asarray(j.axis, float) / np.linalg.norm(j.axis)
-            m[:3, :3] = Rotation.from_rotvec(axis * (mult * q[col[leader]] + off)).as_matrix()
-            t = t @ m
-    return t
 
 
 def _dense(positions: np.ndarray, step: float = 0.002) -> np.ndarray:
@@ -65,7 +46,7 @@ def _box_hits(description, names, positions, box: Obstacle, link: str,
     offset = box.pose()
     hits = 0
     for q in _dense(positions):
-        t = _link_pose(description.robot, link, names, q) @ offset
+        t = link_pose(description.robot, link, names, q) @ offset
         box_obj.setRotation(t[:3, :3])
         box_obj.setTranslation(t[:3, 3])
         hits += fcl.collide(box_obj, table_obj, fcl.CollisionRequest(), fcl.CollisionResult()) > 0
@@ -302,7 +283,7 @@ def test_a_check_reports_the_carried_box_pose_and_its_contact(shipped):
     assert not reply["valid"]
     assert ["carried_box", "table"] in reply["pairs"] or ["table", "carried_box"] in reply["pairs"]
     pose = np.array(reply["carried"]["carried_box"]["matrix"])
-    want = _link_pose(shipped.d.robot, shipped.link, shipped.names,
+    want = link_pose(shipped.d.robot, shipped.link, shipped.names,
                       np.zeros(len(shipped.names))) @ shipped.box.pose()
     assert np.allclose(pose, want, atol=1e-9)
     free = h.check(wire.decode("check", json.dumps({**data, "joints": {"joint_1": -0.8}})))

@@ -15,7 +15,8 @@ from execution.robots.sim_arduinobot import SimArduinobot
 from planner.scene import Obstacle
 from service.disk_cache import DiskCache
 
-from .test_carried import _Case, _link_pose
+from .helpers.fk import link_pose
+from .test_carried import _Case
 
 CACHE = DiskCache()
 
@@ -40,7 +41,7 @@ def test_the_carried_box_is_welded_where_its_link_holds_it_with_its_mass(case):
     assert body >= 0 and geom >= 0
     assert m.body_mass[body] == pytest.approx(0.2)
     assert m.body_jntnum[body] == 0  # welded: no joint of its own
-    want = _link_pose(case.d.robot, case.link, case.names, _q(case, state)) @ case.box.pose()
+    want = link_pose(case.d.robot, case.link, case.names, _q(case, state)) @ case.box.pose()
     assert np.allclose(d.geom_xpos[geom], want[:3, 3], atol=1e-9)
     assert np.allclose(d.geom_xmat[geom].reshape(3, 3), want[:3, :3], atol=1e-9)
     # its weight on the servos: holding torque with it minus without it is the torque of

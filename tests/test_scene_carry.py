@@ -20,8 +20,8 @@ from service.scene_carry import RobotFrames
 from service.scene_store import SceneBuilder, SceneFile, SceneState, apply, restore
 from service.scene_sync import decode_apply
 
+from .helpers.fk import link_pose
 from .helpers.scene_fuzz import carry_seeds, mutate
-from .test_carried import _link_pose
 
 BOX = {"id": "box", "shape": "box", "size": [0.02, 0.02, 0.05]}
 
@@ -59,7 +59,7 @@ def _at_tool(desc, state, offset=(0.0, 0.0, -0.04)):
     """A world pose a little below the tool at ``state`` (between the fingers, clear of
     every link but the gripper's)."""
     link = desc.tcp.parent_link
-    t = _link_pose(desc.robot, link, _names(desc), _q(desc, state))
+    t = link_pose(desc.robot, link, _names(desc), _q(desc, state))
     local = np.eye(4)
     local[:3, 3] = np.asarray(desc.tcp.xyz, float) + np.asarray(offset)
     return link, t @ local
@@ -78,7 +78,7 @@ def test_attach_by_id_takes_the_object_into_the_link_frame_where_it_is(desc, bui
     assert held["link"] == link and held["mass"] == 0.2
     assert set(held["touch_links"]) >= {link}  # the end effector's, by default
     local = _pose(held["object"])
-    link_t = _link_pose(desc.robot, link, _names(desc), _q(desc, state))
+    link_t = link_pose(desc.robot, link, _names(desc), _q(desc, state))
     assert np.allclose(link_t @ local, world, atol=1e-9)
     (a,) = s2.snapshot.attached
     assert a.link == link and a.mass == 0.2 and a.id == "box"
@@ -87,7 +87,7 @@ def test_attach_by_id_takes_the_object_into_the_link_frame_where_it_is(desc, bui
     s3 = applied(s2, {"detach": ["box"], "state": there}, builder)
     assert s3.attached_ids() == () and s3.ids() == ("box",)
     (free,) = s3.to_json()["objects"]
-    link_there = _link_pose(desc.robot, link, _names(desc), _q(desc, there))
+    link_there = link_pose(desc.robot, link, _names(desc), _q(desc, there))
     assert np.allclose(_pose(free), link_there @ local, atol=1e-9)
     assert "frame" not in free and free["size"] == BOX["size"]
 
@@ -138,7 +138,7 @@ def test_attaching_what_already_touches_a_non_touch_link_is_refused_naming_pairs
         desc, builder):
     # a sphere around the upper arm's joint, taken by the gripper: it touches the arm, not a
     # touch link
-    at = _link_pose(desc.robot, "horizontal_arm", _names(desc), _q(desc, {}))[:3, 3]
+    at = link_pose(desc.robot, "horizontal_arm", _names(desc), _q(desc, {}))[:3, 3]
     ball = {"id": "ball", "shape": "sphere", "radius": 0.05, "xyz": at.tolist()}
     state = applied(SceneState(), {"add": [ball]}, builder)
     with pytest.raises(InvalidRequest) as e:
@@ -190,7 +190,7 @@ def test_fk_check_and_plan_carry_the_scene_attachment(desc, builder):
     h = Handlers(desc)
     state = {"joint_1": 0.4}
     fk = h.handle("fk", wire.decode("fk", json.dumps({"joints": state})), scene=s.snapshot)
-    link_t = _link_pose(desc.robot, link, _names(desc), _q(desc, state))
+    link_t = link_pose(desc.robot, link, _names(desc), _q(desc, state))
     local = _pose(s.to_json()["attached"][0]["object"])
     assert np.allclose(np.array(fk["carried"]["box"]["matrix"]), link_t @ local, atol=1e-9)
     check = h.handle("check", wire.decode("check", json.dumps({"joints": state})),
