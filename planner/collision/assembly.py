@@ -8,6 +8,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from itertools import combinations
 from typing import cast
 
@@ -21,7 +22,6 @@ from .bodies import RobotBodies, ShapeCache, bvh
 from .hulls import Hull, mesh_hull, primitive_hull
 from .obbtree import ObbTree, box_tree, build_tree
 from .table import BodyKind, checked_kinds
-
 
 _Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
 
@@ -56,6 +56,10 @@ def _build_geometry(o: Obstacle) -> _Geometry:
     mesh = cast("trimesh.Trimesh", trimesh.load(o.mesh_path, force="mesh"))  # force: one mesh
     return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
             mesh_hull(np.asarray(mesh.vertices, float)))
+
+
+def _box_surface(size: tuple[float, float, float]) -> fcl.BVHModel:
+    return bvh(trimesh.creation.box(extents=size))
 
 
 def _enclosing_points(tree: ObbTree) -> np.ndarray:
@@ -145,11 +149,10 @@ class SceneBodies:
             kinds.append(BodyKind.OBSTACLE)
             trees.append(tree)
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-            if o.shape == "box":
-                size = o.size
+            if o.shape == "box" and o.size is not None:
                 surfaces[len(objs) - 1] = fcl.CollisionObject(
-                    robot.shapes.get(("box surface", size),
-                                     lambda: bvh(trimesh.creation.box(extents=size))),
+                    robot.shapes.get(("box surface", o.size),
+                                     partial(_box_surface, o.size)),
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
