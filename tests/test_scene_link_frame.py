@@ -10,31 +10,15 @@ import json
 import numpy as np
 import pytest
 
-from description import load_description
 from planner.errors import InvalidRequest, StartInCollision
 from planner.scene import rigid_links
 from service import wire
 from service.handlers import Handlers
-from service.scene_carry import RobotFrames
-from service.scene_store import SceneBuilder, SceneFile, SceneState, apply, restore
-from service.scene_sync import decode_apply
+from service.scene_store import SceneBuilder, SceneFile, SceneState, restore
 
 from .helpers.fk import link_pose
 from .test_carried import _box_hits, _Case
-
-
-@pytest.fixture(scope="module")
-def desc():
-    return load_description(env={})
-
-
-@pytest.fixture
-def builder(desc, tmp_path):
-    return SceneBuilder(tuple(desc.robot.links), tmp_path / "meshes", robot=RobotFrames(desc))
-
-
-def applied(state, change, builder):
-    return apply(state, decode_apply(json.dumps(change).encode()), builder)
+from .test_scene_carry import applied
 
 
 def _q(desc, values):
@@ -53,8 +37,8 @@ def test_rigid_links_follow_fixed_joints_both_ways(desc):
     assert "base_link" in rigid_links(desc, "world")
 
 
-def test_an_object_in_a_link_frame_moves_with_it(desc, builder):
-    s = applied(SceneState(), {"add": [CAM]}, builder)
+def test_an_object_in_a_link_frame_moves_with_it(desc, scene_builder):
+    s = applied(SceneState(), {"add": [CAM]}, scene_builder)
     # kept as sent (its frame too), planned as a massless object its link carries
     assert s.to_json()["objects"] == [CAM] and s.to_json()["attached"] == []
     assert s.snapshot.obstacles == ()
@@ -72,8 +56,8 @@ def test_an_object_in_a_link_frame_moves_with_it(desc, builder):
                            atol=1e-9)
 
 
-def test_a_world_obstacle_in_its_way_is_a_contact_of_the_object_not_the_link(desc, builder):
-    s = applied(SceneState(), {"add": [CAM]}, builder)
+def test_a_world_obstacle_in_its_way_is_a_contact_of_the_object_not_the_link(desc, scene_builder):
+    s = applied(SceneState(), {"add": [CAM]}, scene_builder)
     h = Handlers(desc)
     state = {"joint_1": 0.5}
     link_t = link_pose(desc.robot, "claw_support", list(desc.robot.actuated_joints),
@@ -90,18 +74,18 @@ def test_a_world_obstacle_in_its_way_is_a_contact_of_the_object_not_the_link(des
     assert free["valid"]
 
 
-def test_a_plan_keeps_an_object_fixed_in_the_link_frame_out_of_the_table(desc, builder):
+def test_a_plan_keeps_an_object_fixed_in_the_link_frame_out_of_the_table(desc, scene_builder):
     case = _Case(desc, desc.tcp)  # a box hanging below the tool sweeps the table directly
     box = case.box
     obj = {"id": box.id, "shape": "box", "size": list(box.size), "xyz": list(box.xyz),
            "frame": case.link}
     # it hangs between the fingers: without them as touch links the start collides
     with pytest.raises(StartInCollision) as e:
-        case.mp.solve(case.request(applied(SceneState(), {"add": [obj]}, builder)
+        case.mp.solve(case.request(applied(SceneState(), {"add": [obj]}, scene_builder)
                                    .snapshot.attached))
     assert box.id in {n for p in e.value.pairs for n in p}
     obj["touch_links"] = ["gripper_left", "gripper_right"]
-    s = applied(SceneState(), {"add": [obj]}, builder)
+    s = applied(SceneState(), {"add": [obj]}, scene_builder)
     assert set(s.snapshot.attached[0].touch_links) == {case.link, "horizontal_arm",
                                                         "gripper_left", "gripper_right"}
     res = case.mp.solve(case.request(s.snapshot.attached))
@@ -111,8 +95,8 @@ def test_a_plan_keeps_an_object_fixed_in_the_link_frame_out_of_the_table(desc, b
                      case.table) == 0
 
 
-def test_attach_and_detach_keep_it_where_its_link_holds_it(desc, builder):
-    s = applied(SceneState(), {"add": [CAM]}, builder)
+def test_attach_and_detach_keep_it_where_its_link_holds_it(desc, scene_builder):
+    s = applied(SceneState(), {"add": [CAM]}, scene_builder)
     state = {"joint_1": 0.3, "joint_2": 0.2}
     q = _q(desc, state)
     link_t = link_pose(desc.robot, "claw_support", list(desc.robot.actuated_joints), q)
@@ -120,22 +104,22 @@ def test_attach_and_detach_keep_it_where_its_link_holds_it(desc, builder):
     local[:3, 3] = CAM["xyz"]
     world = link_t @ local
     s = applied(s, {"attach": [{"object": "cam", "link": "horizontal_arm", "mass": 0.05}],
-                    "state": state}, builder)
+                    "state": state}, scene_builder)
     (held,) = s.snapshot.attached
     assert held.link == "horizontal_arm" and held.mass == 0.05 and not s.objects
     arm_t = link_pose(desc.robot, "horizontal_arm", list(desc.robot.actuated_joints), q)
     assert np.allclose(arm_t @ held.shape.pose(), world, atol=1e-9)
-    s = applied(s, {"detach": ["cam"], "state": state}, builder)
+    s = applied(s, {"detach": ["cam"], "state": state}, scene_builder)
     (put,) = s.objects
     assert put.link is None and "frame" not in put.data
     assert np.allclose(put.obstacle.pose(), world, atol=1e-9)
 
 
-def test_the_file_keeps_the_frame(desc, builder, tmp_path):
-    s = applied(SceneState(), {"add": [CAM]}, builder)
+def test_the_file_keeps_the_frame(desc, scene_builder, tmp_path):
+    s = applied(SceneState(), {"add": [CAM]}, scene_builder)
     f = SceneFile(tmp_path / "scene.json")
     f.save(s)
-    back = restore(f.load(), builder)
+    back = restore(f.load(), scene_builder)
     assert back.to_json() == s.to_json()
     assert back.snapshot.attached == s.snapshot.attached
 
@@ -145,9 +129,9 @@ def test_the_file_keeps_the_frame(desc, builder, tmp_path):
     ({**CAM, "touch_links": ["claw"]}, "add[0].touch_links[0]"),
     ({**CAM, "frame": "world", "touch_links": ["claw_support"]}, "add[0].touch_links"),
 ])
-def test_an_unknown_frame_or_touch_link_names_the_field(builder, obj, field):
+def test_an_unknown_frame_or_touch_link_names_the_field(scene_builder, obj, field):
     with pytest.raises(InvalidRequest) as e:
-        applied(SceneState(), {"add": [obj]}, builder)
+        applied(SceneState(), {"add": [obj]}, scene_builder)
     assert e.value.field == field
     if field.endswith("frame"):
         assert "claw_support" in e.value.details["links"]
