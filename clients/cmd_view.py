@@ -18,9 +18,8 @@ from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 
 if TYPE_CHECKING:  # the viewer's modules need the view extra: imported when it runs
     from description import Description
-
-    from .viewer.task_view import TaskPlayback
-    from .viewer.trajectory import PlaybackTrajectory
+    from viewer.task_view import TaskPlayback
+    from viewer.trajectory import PlaybackTrajectory
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -100,8 +99,8 @@ def read_obstacles(items: list[str], scene: str | None) -> tuple[Obstacle, ...]:
 
 
 def cmd_view(ns: argparse.Namespace) -> int:
-    from .viewer import ViewerUnavailable
-    from .viewer.trajectory import PlaybackTrajectory
+    from viewer import ViewerUnavailable
+    from viewer.trajectory import PlaybackTrajectory
 
     try:
         obstacles = read_obstacles(ns.obstacle, ns.scene)
@@ -123,8 +122,7 @@ def cmd_view(ns: argparse.Namespace) -> int:
 
 def _read_task(path: str, d: Description) -> TaskPlayback:
     from planner.kinematics.chain import Kinematics
-
-    from .viewer.task_view import TaskPlayback
+    from viewer.task_view import TaskPlayback
     try:
         body = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as e:
@@ -133,7 +131,7 @@ def _read_task(path: str, d: Description) -> TaskPlayback:
 
 
 def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory | None) -> int:
-    from .viewer.plots import joint_limits, plot_panels, plot_png
+    from viewer.plots import joint_limits, plot_panels, plot_png
 
     if traj is None:
         raise UsageError("--plot-png needs --trajectory FILE.json or --task FILE.json")
@@ -145,10 +143,10 @@ def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory 
 
 def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ...],
            traj: PlaybackTrajectory | None, task: TaskPlayback | None = None) -> int:
-    from .viewer.app import RobotViewer
-    from .viewer.plan_panel import PlanningPanel
-    from .viewer.planning import LocalBackend, RemoteBackend
-    from .viewer.playback import PlaybackPanel
+    from viewer.app import RobotViewer
+    from viewer.plan_panel import PlanningPanel
+    from viewer.planning import LocalBackend, RemoteBackend
+    from viewer.playback import PlaybackPanel
 
     # the backend first: it refuses what the service cannot plan around before a page opens
     backend = (RemoteBackend(ns.connect, obstacles=obstacles) if ns.connect
@@ -157,13 +155,13 @@ def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ..
     playback = PlaybackPanel(viewer)
     PlanningPanel(viewer, playback, backend)
     if task is not None:
-        from .viewer.task_view import show_task
+        from viewer.task_view import show_task
         show_task(viewer, playback, task)
     elif traj is not None:
         playback.load(traj, source=Path(ns.trajectory).name)
     follower = None
     if ns.follow:
-        from .viewer.follow import JointStateFollower
+        from viewer.follow import JointStateFollower
         follower = JointStateFollower(viewer, ns.connect or "tcp/127.0.0.1:7447",
                                       prefix=ns.prefix)
     # the handlers before the ready line: a Ctrl-C right after it must stop the page's
