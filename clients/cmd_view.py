@@ -267,7 +267,8 @@ def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ..
     remote = (RemoteBackend(ns.connect, obstacles=obstacles, prefix=ns.prefix)
               if ns.connect else None)
     scene = read_kept_scene(ns, d)
-    client, served = service_scene(ns, d)
+    # a task's report holds the scene it starts in: the kept one only when following
+    client, served = service_scene(ns, d) if task is None or ns.follow else (None, None)
     closers: list[Callable[[], None]] = [client.close] if client is not None else []
     try:
         page = RobotViewer(d, obstacles=obstacles, scene=scene or served, host=ns.host,

@@ -256,3 +256,31 @@ def test_view_png_draws_the_services_scene_with_the_carried_cup(served, tmp_path
     assert r.returncode == 0, r.stderr
     assert f"scene revision {rev}: 1 object(s), carried: cup by claw_support" in r.stdout
     assert _magenta(out.read_bytes()).sum() > 100
+
+
+def test_an_obstacle_and_a_scene_object_of_one_id_are_refused_by_name(desc, tmp_path):
+    from planner.scene import Obstacle
+    from viewer.app import RobotViewer
+
+    scene = ViewerScene.from_json(_scene(), desc, mesh_dir=tmp_path)
+    table = Obstacle.from_mapping({**TABLE, "xyz": [0, 2, 0.5]})
+    with pytest.raises(InvalidRequest, match=r"id\(s\) table name both an obstacle .* "
+                       r"kept scene \(revision 3"):
+        RobotViewer(desc, obstacles=(table,), scene=scene, port=free_port())
+
+
+def test_view_png_of_a_saved_scene_and_no_saved_scene_with_connect(tmp_path, capsys):
+    from clients.cli import main
+
+    cell, out = tmp_path / "cell.json", tmp_path / "cell.png"
+    cell.write_text(json.dumps(_scene(objects=(TABLE, BIN))))
+    assert main(["view", "--local", "--scene", str(cell), "--png", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "scene revision 3: 2 object(s), carried: cup by claw_support (cell.json)" in said
+    assert _magenta(out.read_bytes()).sum() > 100
+    # a saved scene is this process's: the service plans around its own
+    with pytest.raises(SystemExit) as e:
+        main(["view", "--connect", "tcp/127.0.0.1:1", "--scene", str(cell), "--png",
+              str(out)])
+    assert e.value.code == 2
+    assert "is a kept scene: the service plans around its own" in capsys.readouterr().err

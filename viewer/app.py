@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 
 from description import Description
 from planner.collision.world import CollisionWorld, StateCheck
+from planner.errors import InvalidRequest
 from planner.scene import Obstacle
 
 from . import require
@@ -147,6 +148,12 @@ class RobotViewer:
     def _world(self, scene: ViewerScene) -> CollisionWorld:
         """The collision check of the robot with the obstacles and ``scene`` (the robot's
         own geometry built once, reused for every scene)."""
+        both = sorted({o.id for o in self.obstacles} & {i.id for i in scene.items})
+        if both:
+            raise InvalidRequest(
+                f"id(s) {', '.join(both)} name both an obstacle of this page and an object "
+                f"of the kept scene ({scene.summary()}): rename the obstacle",
+                field="obstacles")
         current: CollisionWorld | None = getattr(self, "world", None)  # None: the first
         bodies = current.bodies if current is not None else None
         return CollisionWorld(self.description, obstacles=self.obstacles + scene.obstacles,

@@ -4,7 +4,8 @@ The service publishes ``<prefix>/scene/changes`` once per applied revision
 (:mod:`service.scene_sync`); a publication only wakes this follower, which then reads the
 whole ``<prefix>/scene`` (a change names ids, not what they became) and draws it if its
 revision is new. A publication can be missed (sent while the viewer was connecting, or
-dropped with a link), so the revision is also read every ``poll`` seconds.
+dropped with a link), so the scene is also read every ``poll`` seconds: the whole scene
+(meshes too: the service has no cheaper key for its revision), hence a long period.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ class SceneFollower:
     """
 
     def __init__(self, viewer: RobotViewer, client: PlannerClient, *,
-                 poll: float = 2.0) -> None:
+                 poll: float = 10.0) -> None:
         self.viewer, self.client, self.poll = viewer, client, float(poll)
         self.key = f"{client.prefix}/scene/changes"
         #: revisions drawn, in order (the page's, for whoever waits on one)
