@@ -284,3 +284,27 @@ def test_view_png_of_a_saved_scene_and_no_saved_scene_with_connect(tmp_path, cap
               str(out)])
     assert e.value.code == 2
     assert "is a kept scene: the service plans around its own" in capsys.readouterr().err
+
+
+def test_in_process_plans_go_around_the_pages_kept_scene_and_what_it_carries(desc, tmp_path):
+    from planner.errors import GoalInCollision
+    from planner.planning.goals import JointGoal
+    from viewer.planning import LocalBackend
+
+    # a crate 30 cm out along the claw's z axis at BENT: the arm misses it, a cup carried
+    # there does not
+    spot = _world(desc, "claw_support", BENT) @ [0, 0, 0.3, 1]
+    crate = {"id": "crate", "shape": "box", "size": [0.06] * 3, "xyz": [float(v) for v in spot[:3]]}
+    cup = {**CUP, "object": {**CUP["object"], "xyz": [0, 0, 0.3]}}
+    shown = {"scene": ViewerScene.from_json(_scene(objects=(crate,), attached=()), desc,
+                                            mesh_dir=tmp_path)}
+    backend = LocalBackend(desc, scene=lambda: shown["scene"])
+    start = {n: 0.0 for n in JOINTS}
+    traj = backend.plan(JointGoal(BENT), start=start, group="all")
+    assert traj.positions[-1] == pytest.approx(_q(BENT), abs=1e-6)
+    # the page's scene at the next plan: now carrying the cup
+    shown["scene"] = ViewerScene.from_json(_scene(objects=(crate,), attached=(cup,)), desc,
+                                           mesh_dir=tmp_path)
+    with pytest.raises(GoalInCollision) as e:
+        backend.plan(JointGoal(BENT), start=start, group="all")
+    assert ("cup", "crate") in e.value.pairs or ("crate", "cup") in e.value.pairs

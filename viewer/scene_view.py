@@ -128,7 +128,8 @@ class ViewerScene:
 def _item(shape: Obstacle, link: str | None, data: Mapping[str, Any]) -> SceneItem:
     mesh = obstacle_mesh(shape)
     key = hashlib.sha256(orjson.dumps({"link": link, "data": data},
-                                      option=orjson.OPT_SORT_KEYS)).hexdigest()
+                                      option=orjson.OPT_SORT_KEYS | orjson.OPT_SERIALIZE_NUMPY)
+                         ).hexdigest()
     return SceneItem(shape.id, link, shape.pose(),
                      np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.uint32),
                      key)
