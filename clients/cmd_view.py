@@ -145,7 +145,7 @@ def cmd_view(ns: argparse.Namespace) -> int:
         if ns.plot_png:
             return _write_png(ns, d, traj)
         if ns.png:
-            return _write_still(ns, d, obstacles, traj)
+            return _write_still(ns, d, obstacles, traj, task)
         return _serve(ns, d, obstacles, traj, task)
     except ViewerUnavailable as e:
         print(f"arduinobot: {e}", file=sys.stderr)
@@ -174,7 +174,7 @@ def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory 
 
 
 def _write_still(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ...],
-                 traj: PlaybackTrajectory | None) -> int:
+                 traj: PlaybackTrajectory | None, task: TaskPlayback | None) -> int:
     from planner.kinematics.chain import Kinematics
     from viewer.geometry import link_meshes
     from viewer.still import still_bodies, still_png
@@ -182,7 +182,8 @@ def _write_still(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstac
     if ns.follow:
         raise UsageError("--png draws the scene once: give --png or --follow, not both")
     scene = read_kept_scene(ns, d)
-    client, served = service_scene(ns, d)
+    # a task's report holds the scene it starts in (as the page shows it)
+    client, served = service_scene(ns, d) if task is None else (None, None)
     if client is not None:
         client.close()
     kin = Kinematics(d.robot)
@@ -194,7 +195,12 @@ def _write_still(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstac
         at = dict(zip(traj.joint_names, traj.at(ns.at)))
         q = np.array([at.get(n, v) for n, v in zip(kin.joint_names, q)])
     shown = scene or served
-    bodies = still_bodies(kin, link_meshes(d, kin), q, obstacles=obstacles, scene=shown)
+    # what a task carries at --at, where its link holds it then
+    moved = {} if task is None else {
+        c.object: pose for c in task.carries
+        if (pose := task.object_pose(c.object, ns.at, kin)) is not None}
+    bodies = still_bodies(kin, link_meshes(d, kin), q, obstacles=obstacles, scene=shown,
+                          moved=moved)
     Path(ns.png).write_bytes(still_png(bodies, title=d.robot.name))
     what = f"{len(obstacles)} obstacle(s)" + (f", scene {shown.summary()}" if shown else "")
     wrote(ns.png, f"the robot and {what}")

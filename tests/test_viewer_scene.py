@@ -308,3 +308,24 @@ def test_in_process_plans_go_around_the_pages_kept_scene_and_what_it_carries(des
     with pytest.raises(GoalInCollision) as e:
         backend.plan(JointGoal(BENT), start=start, group="all")
     assert ("cup", "crate") in e.value.pairs or ("crate", "cup") in e.value.pairs
+
+
+def test_view_png_at_a_time_of_the_trajectory_carries_the_cup_there(tmp_path, capsys):
+    from clients.cli import main
+
+    cell, traj = tmp_path / "cell.json", tmp_path / "traj.json"
+    cell.write_text(json.dumps(_scene(objects=(TABLE,))))
+    # joint_1 (the base's turn) 0 -> 1 rad in 1 s
+    traj.write_text(json.dumps({"trajectory": {"joint_names": ["joint_1"], "points": [
+        {"positions": [0.0], "velocities": [0.0], "time_from_start": 0.0},
+        {"positions": [1.0], "velocities": [0.0], "time_from_start": 1.0}]}}))
+    where = {}
+    for at in ("0", "1"):
+        out = tmp_path / f"at{at}.png"
+        assert main(["view", "--local", "--scene", str(cell), "--trajectory", str(traj),
+                     "--at", at, "--png", str(out)]) == 0
+        ys, xs = np.nonzero(_magenta(out.read_bytes()))
+        assert len(xs) > 50, at
+        where[at] = (xs.mean(), ys.mean())
+    capsys.readouterr()
+    assert np.hypot(where["0"][0] - where["1"][0], where["0"][1] - where["1"][1]) > 20

@@ -10,7 +10,7 @@ to judge a contact (the page's collision colours say that).
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,16 +44,19 @@ class StillBody:
 
 
 def still_bodies(kin: Kinematics, meshes: Sequence[LinkMesh], q: np.ndarray, *,
-                 obstacles: Sequence[Obstacle] = (), scene: ViewerScene | None = None
-                 ) -> list[StillBody]:
+                 obstacles: Sequence[Obstacle] = (), scene: ViewerScene | None = None,
+                 moved: Mapping[str, np.ndarray] | None = None) -> list[StillBody]:
     """What the picture draws at pose ``q`` (shape (dof,) [rad]): the links, the
-    obstacles, the scene's free objects and its carried ones where their link is."""
+    obstacles (at ``moved``'s pose, shape (4, 4), for the ids it names: a task's carried
+    box), the scene's free objects and its carried ones where their link is."""
+    moved = moved or {}
     poses = kin.link_poses(np.asarray(q, float))
     out = [StillBody(m.link, _placed(m.vertices, m.faces, poses[m.index]), m.color)
            for m in meshes]
     for o in obstacles:
         mesh = obstacle_mesh(o)
-        out.append(StillBody(o.id, _placed(mesh.vertices, mesh.faces, o.pose()), OBSTACLE_RGB))
+        out.append(StillBody(o.id, _placed(mesh.vertices, mesh.faces, moved.get(o.id, o.pose())),
+                             OBSTACLE_RGB))
     for item in scene.items if scene is not None else ():
         link = poses[kin.link_index[item.link]] if item.link is not None else None
         out.append(StillBody(item.id, _placed(item.vertices, item.faces, item.pose(link)),
