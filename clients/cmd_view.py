@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.errors import InvalidRequest
 from planner.scene import Obstacle
 from service.zconfig import DEFAULT_ENDPOINT
 
@@ -256,6 +257,12 @@ def service_scene(ns: argparse.Namespace, d: Description
         later = " (drawn once it answers: --follow)" if ns.follow else ""
         print(f"arduinobot view: WARN no kept scene drawn{later}: {e}", file=sys.stderr)
         return client, None
+    except InvalidRequest as e:  # the service took it: it was made for another model
+        client.close()
+        raise InvalidRequest(f"{ns.prefix}/scene at {endpoint} cannot be drawn on "
+                             f"'{d.robot.name}' ({e.message}): view it with the service's "
+                             "model (its URDF/xacro and --package-dir)",
+                             details=e.details) from None
     except BaseException:
         client.close()
         raise

@@ -329,3 +329,34 @@ def test_view_png_at_a_time_of_the_trajectory_carries_the_cup_there(tmp_path, ca
         where[at] = (xs.mean(), ys.mean())
     capsys.readouterr()
     assert np.hypot(where["0"][0] - where["1"][0], where["0"][1] - where["1"][1]) > 20
+
+
+@pytest.mark.slow
+def test_the_page_in_chromium_shows_the_cup_moving_with_the_claw(desc, tmp_path):
+    from viewer.app import RobotViewer
+
+    from .test_viewer import Browser, _scene_region
+
+    big = {**CUP, "object": {**CUP["object"], "size": [0.1, 0.1, 0.1]}}
+    scene = ViewerScene.from_json(_scene(objects=(TABLE,), attached=(big,)), desc,
+                                  mesh_dir=tmp_path)
+    page = RobotViewer(desc, scene=scene, port=free_port())
+    browser = None
+    try:
+        browser = Browser(page.url)
+        browser.wait_text("carried: cup by claw_support")
+        spots = []
+        for k, values in enumerate(({n: 0.0 for n in JOINTS}, BENT)):
+            page.set_joints(values)
+            img = _scene_region(browser.screenshot(tmp_path / f"page{k}.png")).astype(np.uint8)
+            buf = io.BytesIO()
+            Image.fromarray(img).save(buf, format="png")
+            ys, xs = np.nonzero(_magenta(buf.getvalue()))
+            assert len(xs) > 50, f"no carried cup on the page at {values}"
+            spots.append((xs.mean(), ys.mean()))
+        (x0, y0), (x1, y1) = spots
+        assert np.hypot(x1 - x0, y1 - y0) > 20, "the cup did not move with the claw"
+    finally:
+        if browser is not None:
+            browser.close()
+        page.close()
