@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 if TYPE_CHECKING:  # the plan command's client path must not import the planner (numba)
+    from description import Description
     from planner.kinematics.limits import JointLimits
 
 Kind = Literal["lower", "upper", "velocity", "acceleration", "jerk", "effort"]
@@ -153,3 +154,15 @@ def default_scaling_from(description: Any) -> str:
     if description.config.joint_limits is None:
         return "default: no joint_limits.yaml"
     return f"default_*_scaling_factor of {description.config.joint_limits}"
+
+
+def applied_limits(description: Description, joints: tuple[str, ...]) -> AppliedLimits:
+    """The limits of ``joints`` at the description's default scaling (what a request
+    that sets none is held to), with where each came from (``info``, the viewer's plots)."""
+    from planner.kinematics.limits import JointLimits  # the planner: imported when asked
+
+    return AppliedLimits.from_joint_limits(
+        JointLimits.from_description(description), joints=joints,
+        velocity_scaling=description.default_velocity_scaling,
+        acceleration_scaling=description.default_acceleration_scaling,
+        scaling_from=default_scaling_from(description))

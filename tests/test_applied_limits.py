@@ -14,10 +14,10 @@ import pytest
 from clients.applied_limits import AppliedLimits
 from clients.cmd_plan import summary
 from clients.replies import PlanReply
-from clients.viewer.plots import joint_limits, limit_notes, plot_panels
-from clients.viewer.trajectory import PlaybackTrajectory
 from description import load_description
 from service.bodies import description_body
+from viewer.plots import joint_limits, limit_notes, plot_panels
+from viewer.trajectory import PlaybackTrajectory
 
 from .conftest import REPO
 
@@ -121,7 +121,7 @@ def test_plot_panels_carry_the_applied_limits_and_their_origins(course):
          "effort": [0] * 4, "time_from_start": 0.0},
         {"positions": [0.5, 0, 0, 0], "velocities": [0, 0, 0, 0], "accelerations": [0] * 4,
          "effort": [0] * 4, "time_from_start": 1.0}]})
-    from clients.viewer.plots import applied_limits
+    from clients.applied_limits import applied_limits
     applied = applied_limits(course, JOINTS)
     panels = plot_panels(t, joint_limits(course, JOINTS), notes=limit_notes(applied))
     by = {p.quantity: p for p in panels}

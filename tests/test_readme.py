@@ -16,7 +16,7 @@ in order in one scratch folder, as a user following it would type them, with:
   view --follow) gets ``--connect`` to it. A ``serve`` the README shows listens on a free
   port of its own (its ``--listen`` rewritten, or given).
 - ``/dev/ttyACM0``: a pty whose far end the test reads, as the Arduino would.
-- Commands that block (``serve``, ``view`` without ``--plot-png``) are started, checked
+- Commands that block (``serve``, ``view`` without ``--plot-png`` or ``--png``) are started, checked
   for their ready line, then stopped with Ctrl-C; the others run in bash with
   ``set -euo pipefail``, consecutive ones in one script (so ``&`` and ``wait`` work).
 """
@@ -104,7 +104,7 @@ class Command:
         w = self.words
         if w[:2] == ["arduinobot", "serve"]:
             return "serve"
-        if w[:2] == ["arduinobot", "view"] and "--plot-png" not in w:
+        if w[:2] == ["arduinobot", "view"] and not {"--plot-png", "--png"} & set(w):
             return "view"
         return None
 

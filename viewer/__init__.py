@@ -1,8 +1,11 @@
 """`arduinobot view`: a web 3D viewer of a robot, its collisions and its trajectories.
 
-The viewer library (viser) and matplotlib are optional dependencies (the ``view``
-extra); nothing outside ``clients.viewer`` and ``clients.cmd_view`` imports them, and
-this package imports them only where it draws, through :func:`require`.
+A package of its own above ``clients`` (it plans and follows through
+:class:`clients.client.PlannerClient`): the core (``planner``, ``service``,
+``execution``, ``description``, ``ros2``) never imports it, and ``clients`` only inside
+the functions that need it (``arduinobot view``, ``plan --plot``). Its libraries, viser
+and matplotlib, are optional dependencies (the ``view`` extra), imported only where it
+draws, through :func:`require`.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Protocol
 
@@ -17,6 +17,8 @@ from .trajectory import PlaybackTrajectory
 if TYPE_CHECKING:  # both are imported on the first plan: the viewer starts without them
     from clients.client import PlannerClient
     from planner.planning.pipeline import MotionPlanner
+
+    from .scene_view import ViewerScene
 
 _log = logging.getLogger(__name__)
 
@@ -37,13 +39,16 @@ class PlanBackend(Protocol):
 
 class LocalBackend:
     """Plans in this process with :class:`planner.planning.pipeline.MotionPlanner` (built on the
-    first request: it takes a few seconds)."""
+    first request: it takes a few seconds), around ``obstacles`` and the kept scene
+    ``scene()`` gives at each plan (the page's: its objects, and what the robot carries)."""
 
     name = "in-process"
 
-    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = ()) -> None:
+    def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
+                 scene: Callable[[], ViewerScene] | None = None) -> None:
         self.description = description
         self.obstacles = tuple(obstacles)
+        self.scene = scene
         self._planner: MotionPlanner | None = None
 
     def plan(self, goal: Goal, *, start: Mapping[str, float], group: Group) -> PlaybackTrajectory:
@@ -52,8 +57,11 @@ class LocalBackend:
         planner = self._planner
         if planner is None:
             planner = self._planner = MotionPlanner(self.description)
-        res = planner.solve(MotionRequest(goal=goal, start=dict(start), group=group,
-                                                obstacles=self.obstacles, seed=SEED))
+        kept = self.scene() if self.scene is not None else None
+        res = planner.solve(MotionRequest(
+            goal=goal, start=dict(start), group=group, seed=SEED,
+            obstacles=self.obstacles + (kept.obstacles if kept is not None else ()),
+            attached=kept.attached if kept is not None else ()))
         _log.info("planned %.2f s of motion with %s in %.3f s", res.trajectory.duration,
                   res.planner, res.timing.get("total", float("nan")))
         return PlaybackTrajectory.from_json(res.trajectory.to_dict())
@@ -64,7 +72,8 @@ class RemoteBackend:
     (connected on the first request). Its failures raise :class:`clients.errors.ServiceError`
     subclasses."""
 
-    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = ()) -> None:
+    def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = (),
+                 prefix: str = "arduinobot") -> None:
         """Raises:
             InvalidRequest: a mesh obstacle (the service's requests carry only boxes,
                 spheres and cylinders: a mesh file's path means nothing to it)."""
@@ -74,8 +83,8 @@ class RemoteBackend:
                     f"'{o.id}' is a mesh: the service takes boxes, spheres and cylinders "
                     "(plan without --connect to plan around it in this process)",
                     field=f"obstacles[{i}].shape")
-        self.endpoint = endpoint
-        self.name = f"through the service at {endpoint}"
+        self.endpoint, self.prefix = endpoint, prefix
+        self.name = f"through the service at {endpoint} (around its kept scene)"
         self.obstacles = tuple(obstacles)
         self._client: PlannerClient | None = None
 
@@ -91,7 +100,7 @@ class RemoteBackend:
 
         client = self._client
         if client is None:
-            client = self._client = PlannerClient(self.endpoint)
+            client = self._client = PlannerClient(self.endpoint, prefix=self.prefix)
         res = client.plan(self.request(goal, start=start, group=group))
         return PlaybackTrajectory.from_json(res.raw)
 

@@ -1,8 +1,9 @@
 """The viewer: a viser server showing the robot, sliders per joint and collisions.
 
 Threading: viser runs GUI callbacks on its own threads; every change of the shown pose
-goes through :meth:`RobotViewer.set_q`, which holds one lock while it moves the links and
-recolours them.
+goes through :meth:`RobotViewer.set_q`, which holds one lock while it moves the links (and
+the objects they carry) and recolours them; a new kept scene goes through
+:meth:`RobotViewer.set_scene`, under the same lock.
 """
 
 from __future__ import annotations
@@ -11,25 +12,29 @@ import logging
 import math
 import threading
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from description import Description
 from planner.collision.world import CollisionWorld, StateCheck
+from planner.errors import InvalidRequest
 from planner.scene import Obstacle
 
 from . import require
 from .geometry import (
+    CARRIED_RGB,
     COLLISION_RGB,
     OBSTACLE_RGB,
+    SCENE_RGB,
     frame_box,
     link_meshes,
     matrix_to_wxyz,
     obstacle_mesh,
     world_bounds,
 )
+from .scene_view import SceneItem, ViewerScene, world_points
 
 if TYPE_CHECKING:
     import viser  # optional (the view extra): imported at run time through require()
@@ -42,19 +47,26 @@ class RobotViewer:
 
     Args:
         description: the robot.
-        obstacles: scene obstacles to show (and check against).
+        obstacles: a request's own obstacles to show (and check against).
+        scene: a kept scene to show (and check against): free objects in the world,
+            carried ones on their link; :meth:`set_scene` replaces it.
         host: the address to listen on (127.0.0.1: this machine only).
         port: the HTTP/websocket port.
 
     The first pose is all zeros clamped into the limits.
+
+    Raises:
+        planner.errors.InvalidRequest: an obstacle with the id of a scene object.
     """
 
     def __init__(self, description: Description, *, obstacles: Sequence[Obstacle] = (),
-                 host: str = "127.0.0.1", port: int = 8080) -> None:
+                 scene: ViewerScene | None = None, host: str = "127.0.0.1",
+                 port: int = 8080) -> None:
         viser = require("viser")
         self.description = description
         self.obstacles = tuple(obstacles)
-        self.world = CollisionWorld(description, obstacles=self.obstacles)
+        self.scene = scene if scene is not None else ViewerScene()
+        self.world = self._world(self.scene)
         self.kin = self.world.kin
         self.joint_names = self.kin.joint_names
         lim = description.robot.position_limits(self.joint_names)
@@ -80,7 +92,8 @@ class RobotViewer:
         scene = self.server.scene
         scene.set_up_direction("+z")
         poses = self.kin.link_poses(self._q)
-        bounds = world_bounds(self.meshes, poses, self.obstacles)
+        bounds = world_bounds(self.meshes, poses, self.obstacles,
+                              extra=world_points(self.scene.items, self._by_link(poses)))
         size = float(np.max(bounds[1] - bounds[0]))
         cell = 10 ** math.floor(math.log10(max(size, 1e-3) / 2))
         extent = 2 * cell * math.ceil(1.5 * size / (2 * cell))
@@ -111,6 +124,40 @@ class RobotViewer:
                 wxyz=matrix_to_wxyz(pose[:3, :3]), position=tuple(pose[:3, 3]))
         self._colors = {m.link: m.color for m in self.meshes}
         self._colors.update({o: OBSTACLE_RGB for o in self._obstacle_handles})
+        self._scene_handles: dict[str, Any] = {}
+        self._scene_items: dict[str, SceneItem] = {}
+        for item in self.scene.items:
+            self._draw_item(item, poses)
+
+    def _draw_item(self, item: SceneItem, poses: np.ndarray) -> None:
+        """Add one kept-scene object to the page at its pose for link ``poses``."""
+        pose = self._item_pose(item, poses)
+        self._scene_handles[item.id] = self.server.scene.add_mesh_simple(
+            f"/scene/{item.id}", item.vertices, item.faces,
+            color=CARRIED_RGB if item.carried else SCENE_RGB, opacity=0.85,
+            wxyz=matrix_to_wxyz(pose[:3, :3]), position=tuple(float(v) for v in pose[:3, 3]))
+        self._scene_items[item.id] = item
+
+    def _item_pose(self, item: SceneItem, poses: np.ndarray) -> np.ndarray:
+        return item.pose(poses[self.kin.link_index[item.link]] if item.link is not None
+                         else None)
+
+    def _by_link(self, poses: np.ndarray) -> dict[str, np.ndarray]:
+        return {name: poses[i] for name, i in self.kin.link_index.items()}
+
+    def _world(self, scene: ViewerScene) -> CollisionWorld:
+        """The collision check of the robot with the obstacles and ``scene`` (the robot's
+        own geometry built once, reused for every scene)."""
+        both = sorted({o.id for o in self.obstacles} & {i.id for i in scene.items})
+        if both:
+            raise InvalidRequest(
+                f"id(s) {', '.join(both)} name both an obstacle of this page and an object "
+                f"of the kept scene ({scene.summary()}): rename the obstacle",
+                field="obstacles")
+        current: CollisionWorld | None = getattr(self, "world", None)  # None: the first
+        bodies = current.bodies if current is not None else None
+        return CollisionWorld(self.description, obstacles=self.obstacles + scene.obstacles,
+                              attached=scene.attached, bodies=bodies)
 
     def _build_joint_panel(self) -> dict[str, viser.GuiSliderHandle[float]]:
         gui = self.server.gui
@@ -146,6 +193,8 @@ class RobotViewer:
                     f.show_axes = frames.value
         with gui.add_folder("Collisions"):
             self._collision_md = gui.add_markdown("")
+        with gui.add_folder("Scene"):
+            self._scene_md = gui.add_markdown(self.scene.summary())
         return sliders
 
     # -- state -------------------------------------------------------------------------
@@ -181,8 +230,20 @@ class RobotViewer:
                     f = self._frames[m.link]
                     f.wxyz = matrix_to_wxyz(t[:3, :3])
                     f.position = tuple(float(v) for v in t[:3, 3])
+                for item in self._scene_items.values():
+                    if item.carried:  # it moves with its link
+                        t = self._item_pose(item, poses)
+                        h = self._scene_handles[item.id]
+                        h.wxyz = matrix_to_wxyz(t[:3, :3])
+                        h.position = tuple(float(v) for v in t[:3, 3])
                 for name, h in (self._mesh_handles | self._obstacle_handles).items():
                     want = COLLISION_RGB if name in red else self._colors[name]
+                    if force or tuple(h.color) != want:
+                        h.color = want
+                for name, h in self._scene_handles.items():
+                    item = self._scene_items[name]
+                    want = COLLISION_RGB if name in red else \
+                        CARRIED_RGB if item.carried else SCENE_RGB
                     if force or tuple(h.color) != want:
                         h.color = want
                 self._local.setting = True
@@ -211,6 +272,41 @@ class RobotViewer:
         """The shown links' poses, shape (n_links, 4, 4), in ``kin.link_names`` order."""
         with self._lock:
             return self._poses.copy()
+
+    def set_scene(self, scene: ViewerScene) -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """Show ``scene`` instead of the current kept scene: what was removed or changed
+        goes, what was added or changed is drawn, carried objects on their link, and the
+        collision check takes the new scene. Returns (ids drawn anew, ids taken away).
+
+        Raises:
+            planner.errors.InvalidRequest: a scene object with the id of one of the
+                obstacles (the page keeps the scene it shows).
+        """
+        # refused here, before anything on the page changes; built outside the lock (a
+        # mesh's trees take a moment) so the robot keeps moving meanwhile
+        world = self._world(scene)
+        with self._lock:
+            fresh, gone = scene.changes(self.scene)
+            with self.server.atomic():
+                for oid in gone:
+                    self._scene_handles.pop(oid).remove()
+                    del self._scene_items[oid]
+                items = {i.id: i for i in scene.items}
+                for oid in fresh:
+                    self._draw_item(items[oid], self._poses)
+            self.scene, self.world = scene, world
+            self.set_q(self._q, force=True)
+            self._scene_md.content = scene.summary()
+        _log.info("viewer: scene %s (%d drawn anew, %d taken away)", scene.summary(),
+                  len(fresh), len(gone))
+        return fresh, gone
+
+    def object_poses(self) -> dict[str, np.ndarray]:
+        """Where the kept scene's objects are shown, id -> pose in the world, shape (4, 4)
+        (carried ones where their link is now)."""
+        with self._lock:
+            return {i: self._item_pose(item, self._poses)
+                    for i, item in self._scene_items.items()}
 
     def close(self) -> None:
         self.server.stop()

@@ -13,10 +13,9 @@ from typing import Any, Literal
 
 import numpy as np
 
+from clients.applied_limits import KINDS, AppliedLimits, applied_limits
 from description import Description
-from planner.kinematics.limits import JointLimits
 
-from ..applied_limits import KINDS, AppliedLimits, default_scaling_from
 from . import require
 from .trajectory import PlaybackTrajectory
 
@@ -46,16 +45,6 @@ class PlotPanel:
     lower: np.ndarray
     upper: np.ndarray
     limit_note: str = ""
-
-
-def applied_limits(description: Description, joints: tuple[str, ...]) -> AppliedLimits:
-    """The limits of ``joints`` at the description's default scaling (what a request
-    that sets none is held to), with where each came from."""
-    return AppliedLimits.from_joint_limits(
-        JointLimits.from_description(description), joints=joints,
-        velocity_scaling=description.default_velocity_scaling,
-        acceleration_scaling=description.default_acceleration_scaling,
-        scaling_from=default_scaling_from(description))
 
 
 def joint_limits(description: Description, joints: tuple[str, ...]) -> dict[str, np.ndarray]:

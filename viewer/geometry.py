@@ -37,6 +37,10 @@ PALETTE: tuple[Rgb, ...] = (
 )
 COLLISION_RGB: Rgb = (225, 25, 25)
 OBSTACLE_RGB: Rgb = (150, 145, 135)
+#: the kept scene's objects: a warmer grey than a request's own obstacles
+SCENE_RGB: Rgb = (170, 150, 120)
+#: an object the robot carries (magenta: neither a link colour nor collision red)
+CARRIED_RGB: Rgb = (200, 60, 200)
 
 
 @dataclass(frozen=True)
@@ -85,12 +89,14 @@ def obstacle_mesh(obstacle: Obstacle) -> trimesh.Trimesh:
 
 
 def world_bounds(meshes: Sequence[LinkMesh], poses: np.ndarray,
-                 obstacles: Sequence[Obstacle] = ()) -> np.ndarray:
-    """Axis-aligned box of the links at ``poses`` (n_links, 4, 4) and the obstacles,
-    shape (2, 3) [m]."""
+                 obstacles: Sequence[Obstacle] = (), *,
+                 extra: Sequence[np.ndarray] = ()) -> np.ndarray:
+    """Axis-aligned box of the links at ``poses`` (n_links, 4, 4), the obstacles and
+    ``extra`` points (each shape (n, 3), in the world [m]), shape (2, 3) [m]."""
     pts = [m.vertices @ poses[m.index][:3, :3].T + poses[m.index][:3, 3] for m in meshes]
     for o in obstacles:
         pts.append(np.asarray(obstacle_mesh(o).copy().apply_transform(o.pose()).vertices))
+    pts += [np.asarray(p, float) for p in extra]
     if not pts:
         return np.array([[-0.5, -0.5, 0.0], [0.5, 0.5, 1.0]])
     allp = np.concatenate(pts)

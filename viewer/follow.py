@@ -29,7 +29,7 @@ class JointStateFollower:
 
     def __init__(self, viewer: RobotViewer, endpoint: str, *, prefix: str = "arduinobot",
                  rate: float = 30.0) -> None:
-        from ..client import PlannerClient  # raises ServiceUnavailable if unreachable
+        from clients.client import PlannerClient  # raises ServiceUnavailable if unreachable
         self.viewer, self.period = viewer, 1.0 / rate
         self.key = f"{prefix}/joint_states"
         self._latest: dict[str, Any] | None = None
