@@ -344,8 +344,18 @@ def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
     if items and builder.robot is None:
         raise InvalidRequest("this scene cannot carry objects (no robot model)",
                              field="attached")
-    state = apply(SceneState(), {"add": objects}, builder)
-    ids = set(state.ids())
+    if len(objects) > MAX_SCENE_OBJECTS:
+        raise InvalidRequest(f"{len(objects)} objects, more than a scene's cap of "
+                             f"{MAX_SCENE_OBJECTS}", field="objects")
+    free: dict[str, SceneObject] = {}
+    for i, item in enumerate(objects):
+        where = f"objects[{i}]"
+        oid = item.get("id") if isinstance(item, Mapping) else None
+        if oid in free:
+            raise InvalidRequest(f"duplicate id '{oid}'", field=f"{where}.id")
+        obj = builder.build(item, where)
+        free[obj.id] = obj
+    ids = set(free)
     held = []
     for i, item in enumerate(items):
         where = f"attached[{i}]"
@@ -357,7 +367,10 @@ def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
             raise InvalidRequest(f"duplicate id '{a.id}'", field=f"{where}.object.id")
         ids.add(a.id)
         held.append(a)
-    return SceneState(revision, state.objects, tuple(held))
+    if len(free) + len(held) > MAX_SCENE_OBJECTS:
+        raise InvalidRequest(f"{len(free) + len(held)} objects, more than a scene's cap of "
+                             f"{MAX_SCENE_OBJECTS}", field="attached")
+    return SceneState(revision, tuple(free.values()), tuple(held))
 
 
 class SceneFile:

@@ -95,12 +95,26 @@ def test_a_scene_this_model_cannot_show_is_refused_naming_the_field(desc, tmp_pa
     with pytest.raises(InvalidRequest) as e:
         ViewerScene.from_json(_scene(objects=[{**TABLE, "size": [1, -1, 1]}]), desc,
                               mesh_dir=tmp_path)
-    # (service.scene_store.restore reads the objects as an apply's add: it names them so)
-    assert e.value.details["field"] == "add[0].size"
+    assert e.value.details["field"] == "objects[0].size"
     path = tmp_path / "scene.json"
     path.write_text(json.dumps(_scene(attached=[bad])))
     with pytest.raises(InvalidRequest, match=f"scene file {path}"):
         read_scene_file(str(path), desc)
+
+
+def test_an_object_fixed_to_a_link_is_drawn_on_it(desc, tmp_path):
+    cam = {"id": "cam", "shape": "box", "size": [0.05] * 3, "xyz": [0, 0.2, 0.3],
+           "frame": "claw_support"}
+    s = ViewerScene.from_json(_scene(objects=(TABLE, cam), attached=()), desc,
+                              mesh_dir=tmp_path)
+    items = {i.id: i for i in s.items}
+    assert (items["cam"].link, items["cam"].fixed) == ("claw_support", True)
+    claw = _world(desc, "claw_support", BENT)
+    assert items["cam"].pose(claw)[:3, 3] == pytest.approx((claw @ [0, 0.2, 0.3, 1])[:3])
+    # the collision check carries it with its link
+    assert [o.id for o in s.obstacles] == ["table"]
+    assert [(a.id, a.link, a.mass) for a in s.attached] == [("cam", "claw_support", 0.0)]
+    assert "2 object(s), fixed to links: cam on claw_support" in s.summary()
 
 
 def test_changes_name_what_to_draw_anew_and_what_goes(desc, tmp_path):

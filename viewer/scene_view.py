@@ -33,11 +33,13 @@ class SceneItem:
 
     Attributes:
         id: the object's id.
-        link: None for an object in the world; the link that carries it otherwise.
+        link: None for an object in the world; the link that carries it (or that it
+            is fixed to: ``fixed``) otherwise.
         offset: its pose in the world, or in ``link``'s frame, shape (4, 4).
         vertices: shape (n, 3) [m], float32, in the object's frame.
         faces: shape (m, 3), uint32.
         key: a digest of its wire form and link: equal keys draw the same thing.
+        fixed: an object of the scene in its link's frame (not carried: attached).
     """
 
     id: str
@@ -46,6 +48,7 @@ class SceneItem:
     vertices: np.ndarray
     faces: np.ndarray
     key: str
+    fixed: bool = False
 
     @property
     def carried(self) -> bool:
@@ -69,7 +72,7 @@ class ViewerScene:
         revision: the scene's revision (:data:`NO_REVISION`: none was read).
         items: what is drawn, free objects first.
         obstacles: the free objects, for the collision check.
-        attached: the carried objects, for the collision check.
+        attached: the carried objects and those fixed to a link, for the collision check.
         source: where it came from (``<prefix>/scene``, a file name), for the page.
     """
 
@@ -99,8 +102,10 @@ class ViewerScene:
         builder = SceneBuilder(tuple(description.robot.links), folder,
                                robot=RobotFrames(description))
         state = restore(data, builder)
-        items = [_item(o.obstacle, None, o.data) for o in state.objects]
+        items = [_item(o.obstacle, o.link, o.data, fixed=o.link is not None)
+                 for o in state.objects]
         items += [_item(a.attached.shape, a.attached.link, a.data) for a in state.attached]
+        # the snapshot's carried objects hold those fixed to a link too (massless)
         return cls(state.revision, tuple(items), state.snapshot.obstacles,
                    state.snapshot.attached, source)
 
@@ -117,22 +122,26 @@ class ViewerScene:
         """One line for the page: the revision, the objects, what is carried by what."""
         if self.revision == NO_REVISION:
             return "no kept scene"
-        free = sum(1 for i in self.items if not i.carried)
-        carried = [f"{i.id} by {i.link}" for i in self.items if i.carried]
+        free = sum(1 for i in self.items if not i.carried or i.fixed)
+        fixed = [f"{i.id} on {i.link}" for i in self.items if i.fixed]
+        carried = [f"{i.id} by {i.link}" for i in self.items if i.carried and not i.fixed]
         text = f"revision {self.revision}: {free} object(s)"
+        if fixed:
+            text += ", fixed to links: " + ", ".join(fixed)
         if carried:
             text += ", carried: " + ", ".join(carried)
         return text + (f" ({self.source})" if self.source else "")
 
 
-def _item(shape: Obstacle, link: str | None, data: Mapping[str, Any]) -> SceneItem:
+def _item(shape: Obstacle, link: str | None, data: Mapping[str, Any], *,
+          fixed: bool = False) -> SceneItem:
     mesh = obstacle_mesh(shape)
     key = hashlib.sha256(orjson.dumps({"link": link, "data": data},
                                       option=orjson.OPT_SORT_KEYS | orjson.OPT_SERIALIZE_NUMPY)
                          ).hexdigest()
     return SceneItem(shape.id, link, shape.pose(),
                      np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.uint32),
-                     key)
+                     key, fixed)
 
 
 def read_scene_file(path: str, description: Description) -> ViewerScene:
