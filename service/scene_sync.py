@@ -24,11 +24,9 @@ them uses it, and killing any instance loses nothing. An instance that missed ch
 (down, or late) fetches the whole scene from the sender; a new instance takes the newest
 scene among its file and the live instances' before it serves anything.
 
-An attach or detach needs the robot's state (where the link holds the object): the
-apply's ``state``, else the executing robot's (``<p>/robot_state``, if this service
-executes), else all joints at 0. The instance that takes the apply fills it in before
-the change goes to the leader, so every instance replays the same change to the same
-scene (``state_source`` in the reply says which it was).
+An attach or detach gets the robot's state from the instance that takes the apply, before
+the change goes to the leader (:mod:`service.scene_apply`; ``state_source`` in the reply
+says where it came from).
 """
 
 from __future__ import annotations
@@ -46,11 +44,17 @@ import zenoh
 
 from description import Description
 from planner.codes import Code
-from planner.errors import InvalidRequest, PlanningError
+from planner.errors import PlanningError
 
 from . import wire
 from .keyguard import addressed_exactly
 from .messages import Failure
+from .scene_apply import (
+    MAX_APPLY_PAYLOAD,
+    SceneUnavailable,
+    decode_apply,
+    with_robot_state,
+)
 from .scene_carry import RobotFrames
 from .scene_store import (
     SceneBuilder,
@@ -65,10 +69,6 @@ from .scene_store import (
 
 _log = logging.getLogger(__name__)
 
-#: Largest scene apply payload [bytes]: a few meshes of at most 2 MiB each, in base64.
-MAX_APPLY_PAYLOAD = 16 * 2**20
-#: Deepest nesting of a scene apply (``add[i].scale[j]`` is 4 deep).
-MAX_APPLY_DEPTH = 8
 #: How long the leader waits for the other instances to take a change [s].
 REPLICATE_TIMEOUT = 10.0
 #: How long a forwarded apply may take at the leader [s] (mesh decoding included).
@@ -78,46 +78,7 @@ FORWARD_TIMEOUT = 30.0
 LEADER_WAIT = 10.0
 #: How long a starting instance waits for the live instances' scenes [s].
 CATCH_UP_TIMEOUT = 5.0
-#: How long an attach or detach without a state waits for the executing robot's [s]
-#: (a twin opens on its first use, ~1.5 s); no robot answers at once.
-ROBOT_STATE_TIMEOUT = 5.0
 JSON = "application/json"
-
-
-def decode_apply(payload: bytes) -> dict[str, Any]:
-    """A scene apply request: at most :data:`MAX_APPLY_PAYLOAD` bytes of strict JSON,
-    nested at most :data:`MAX_APPLY_DEPTH` deep, valid against
-    ``scene_apply_request.json``.
-
-    Raises:
-        InvalidRequest: naming the field (and ``details.limit`` for a cap).
-    """
-    if len(payload) > MAX_APPLY_PAYLOAD:
-        raise InvalidRequest(f"payload of {len(payload)} bytes exceeds the "
-                             f"{MAX_APPLY_PAYLOAD}-byte cap of a scene apply",
-                             details={"size": len(payload), "limit": MAX_APPLY_PAYLOAD})
-    if not payload:
-        raise InvalidRequest("empty payload: send a JSON object")
-    try:
-        value = orjson.loads(payload)
-    except orjson.JSONDecodeError as e:
-        raise wire._malformed(e) from None  # the same refusal as every other request's
-    _check_depth(value)
-    return wire.validate("scene_apply", value)
-
-
-def _check_depth(value: Any) -> None:
-    stack: list[tuple[Any, tuple[Any, ...], int]] = [(value, (), 1)]
-    while stack:
-        node, path, depth = stack.pop()
-        if not isinstance(node, (dict, list)):
-            continue
-        if depth > MAX_APPLY_DEPTH:
-            raise InvalidRequest(f"nested deeper than {MAX_APPLY_DEPTH} levels",
-                                 field=wire.field_path(path) or "(root)",
-                                 details={"limit": MAX_APPLY_DEPTH})
-        items = node.items() if isinstance(node, dict) else enumerate(node)
-        stack.extend((v, (*path, k), depth + 1) for k, v in items)
 
 
 class SceneService:
@@ -278,7 +239,8 @@ class SceneService:
         source = None
         if change.get("attach") or change.get("detach"):
             # the state here, once: the leader and every follower replay this one
-            change, source = self._with_state(change)
+            change, source = with_robot_state(change, session=self.session,
+                                              prefix=self.prefix, robot=self.builder.robot)
             raw = orjson.dumps(change)
         give_up = time.monotonic() + LEADER_WAIT
         while True:
@@ -300,53 +262,10 @@ class SceneService:
                     query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
                 return None
             if time.monotonic() > give_up:
-                raise _Unavailable("the scene's leading instance did not answer; retry")
+                raise SceneUnavailable("the scene's leading instance did not answer; retry")
             # it has just gone: its liveliness token goes too, and the next one leads
             _log.warning("scene: leader %s did not answer an apply; asking again", lead)
             time.sleep(0.2)
-
-    def _with_state(self, change: dict[str, Any]) -> tuple[dict[str, Any], StateSource]:
-        """``change`` with the robot's ``state`` for its attach or detach, and where the
-        state came from (see the module)."""
-        if "state" in change:
-            return change, "request"
-        state = self._robot_state()
-        if state is not None:
-            return {**change, "state": state}, "robot"
-        return {**change, "state": {}}, "zero"
-
-    def _robot_state(self) -> dict[str, float] | None:
-        """The executing robot's actuated joints, or None if no robot serves its state.
-
-        Raises:
-            _Unavailable: a robot serves its state but did not give it (an error, or no
-                answer in :data:`ROBOT_STATE_TIMEOUT`): never guessed as all zeros.
-        """
-        robot = self.builder.robot
-        if robot is None:
-            return None
-        began = time.monotonic()
-        try:
-            replies = list(self.session.get(f"{self.prefix}/robot_state",
-                                            timeout=ROBOT_STATE_TIMEOUT))
-        except zenoh.ZError:
-            replies = []
-        actuated = set(robot.description.robot.actuated_joints)
-        failed = False
-        for r in replies:
-            if r.ok is None:
-                failed = failed or not _no_robot(r)
-                continue
-            try:
-                body = orjson.loads(r.ok.payload.to_bytes())
-                return {str(n): float(v) for n, v in zip(body["name"], body["position"])
-                        if n in actuated}
-            except (orjson.JSONDecodeError, KeyError, TypeError, ValueError):
-                _log.warning("scene: a robot_state reply is not a state: ignored")
-        if failed or time.monotonic() - began >= 0.9 * ROBOT_STATE_TIMEOUT:
-            raise _Unavailable("the executing robot did not give its state (where the link "
-                               "holds the object): retry, or give the apply a state")
-        return None  # nothing serves a robot state: all joints 0
 
     def _lead(self, query: zenoh.Query, raw: bytes) -> None:
         self._lead_change(query, decode_apply(raw))
@@ -484,22 +403,6 @@ class SceneService:
                 inst = str(reply.ok.key_expr).split("/instance/", 1)[1].split("/", 1)[0]
                 out[inst] = orjson.loads(reply.ok.payload.to_bytes())
         return out
-
-
-def _no_robot(reply: zenoh.Reply) -> bool:
-    """An error reply of an instance that drives no robot (``serve --no-robot``)."""
-    err = reply.err
-    if err is None:
-        return False
-    try:
-        body = orjson.loads(err.payload.to_bytes())
-        return body["error"]["details"].get("robot") == "none"
-    except (orjson.JSONDecodeError, KeyError, TypeError, AttributeError):
-        return False
-
-
-class _Unavailable(PlanningError):
-    code = Code.BUSY
 
 
 def _reply_error(query: zenoh.Query, failure: Failure) -> None:
