@@ -10,45 +10,35 @@ import numpy as np
 import pytest
 import trimesh
 
-from description import load_description
 from execution.robots.sim_arduinobot import SimArduinobot
 from planner.scene import Obstacle
 from service.disk_cache import DiskCache
 
+from .helpers.carry import shipped_case
 from .helpers.fk import link_pose
-from .test_carried import _Case
 
 CACHE = DiskCache()
-
-
-@pytest.fixture(scope="module")
-def case():
-    d = load_description(env={})
-    return _Case(d, d.tcp)
-
-
-def _q(case, state):
-    return np.array([state.get(n, 0.0) for n in case.names])
+case = pytest.fixture(shipped_case, scope="module", name="case")
 
 
 def test_the_carried_box_is_welded_where_its_link_holds_it_with_its_mass(case):
     state = {"joint_1": -0.8, "joint_2": 0.3}
     sim = SimArduinobot(case.d, cache=CACHE, attached=[case.attached(0.2)],
-                        initial=list(_q(case, state)))
+                        initial=list(case.q(state)))
     m, d = sim.model, sim.data
     body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "carried:carried_box")
     geom = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "carried:carried_box")
     assert body >= 0 and geom >= 0
     assert m.body_mass[body] == pytest.approx(0.2)
     assert m.body_jntnum[body] == 0  # welded: no joint of its own
-    want = link_pose(case.d.robot, case.link, case.names, _q(case, state)) @ case.box.pose()
+    want = link_pose(case.d.robot, case.link, case.names, case.q(state)) @ case.box.pose()
     assert np.allclose(d.geom_xpos[geom], want[:3, 3], atol=1e-9)
     assert np.allclose(d.geom_xmat[geom].reshape(3, 3), want[:3, :3], atol=1e-9)
     # its weight on the servos: holding torque with it minus without it is the torque of
     # 0.2 kg at its centre (the box's centre) about each joint's axis, by hand
-    bare = SimArduinobot(case.d, cache=CACHE, initial=list(_q(case, state)))
+    bare = SimArduinobot(case.d, cache=CACHE, initial=list(case.q(state)))
     zero = np.zeros(len(case.names))
-    extra = sim._inverse(_q(case, state), zero, zero) - bare._inverse(_q(case, state), zero,
+    extra = sim._inverse(case.q(state), zero, zero) - bare._inverse(case.q(state), zero,
                                                                       zero)
     weight = np.array([0.0, 0.0, -9.81 * 0.2])
     above = {j.name for j in case.d.robot.link_path(case.link)}  # the joints that carry it
@@ -77,7 +67,7 @@ def test_set_scene_puts_scene_objects_in_the_world_and_reports_the_carried_conta
     assert not any("carried:carried_box" in p and case.link in p for p in touching)
     # away from the table (as the planner says: free at -0.8) it touches nothing
     sim.set_scene([case.table, bin_], [case.attached(0.2)])
-    sim.reset(_q(case, {"joint_1": -0.8}))
+    sim.reset(case.q({"joint_1": -0.8}))
     assert not any("carried:carried_box" in p for p in sim.contacts_now())
     # put down: no carried body any more
     sim.set_scene([case.table])
