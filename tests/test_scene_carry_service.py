@@ -159,6 +159,15 @@ def test_the_scene_attach_and_detach_commands_as_typed(case, tmp_path):
         assert "revision 2 (0 objects, 1 carried), at --state" in out.stdout
         out = _cli("scene", "show", *con)
         assert "1 carried" in out.stdout and f"in {case.link}'s frame" in out.stdout
+        # fk prints where the carried box is at the asked state, by the independent walk
+        out = _cli("fk", "--joints", "joint_1=0.3,joint_2=0.2", "--link", case.link, *con)
+        assert out.returncode == 0, out.stderr
+        (line,) = [ln for ln in out.stdout.splitlines() if ln.startswith("carried_box ")]
+        assert line.endswith(f"carried by {case.link}"), line
+        xyz = [float(v) for v in line.split("xyz (", 1)[1].split(")", 1)[0].split()]
+        want = link_pose(case.d.robot, case.link, case.names,
+                         case.q({"joint_1": 0.3, "joint_2": 0.2})) @ case.box.pose()
+        assert xyz == pytest.approx(want[:3, 3].tolist(), abs=1e-4)  # printed to 0.1 mm
         saved = tmp_path / "cell.json"
         assert _cli("scene", "save", str(saved), *con).returncode == 0
         body = json.loads(saved.read_text())
