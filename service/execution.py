@@ -258,8 +258,9 @@ class ExecuteService:
 
     def _blend(self, query: zenoh.Query, req: ExecuteRequest) -> None:
         """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
-        (a moving start) and switch to it at that tick; one reply, ``blended`` or an
-        error (``TOO_LATE`` when the arm stops first or planning took too long)."""
+        (a moving start) and switch to it at that tick, where a twin also takes the
+        world the plan was made in (:meth:`TwinScene.at_switch`); one reply, ``blended``
+        or an error (``TOO_LATE`` when the arm stops first or planning took too long)."""
         if req.plan is None:
             raise InvalidRequest("a blend needs a plan request (the new goal)", field="plan")
         ex, execution = self.running, self._current
@@ -267,6 +268,9 @@ class ExecuteService:
             raise TooLate("nothing is moving: send the goal without blend")
         k, q, qd, qdd = ex.lookahead(BLEND_LEAD)
         names = ex.robot.joint_names
+        # the world the blend is planned in, for the twin at the switch tick
+        snap = self.scene_source() if self.scene_source is not None else None
+        own = req.plan.get("obstacles") or ()
         plan = {**req.plan, "start": dict(zip(names, q.tolist())),
                 "start_velocity": dict(zip(names, qd.tolist())),
                 "start_acceleration": dict(zip(names, qdd.tolist()))}
@@ -278,7 +282,8 @@ class ExecuteService:
                     reply_err(query, outcome.code, outcome.message, outcome.details)
                 else:
                     traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
-                    ex.switch(traj, k)
+                    ex.switch(traj, k, on_switch=self.twin_scene.at_switch(ex.robot, snap,
+                                                                            own))
                     query.reply(key, wire.encode({"event": "blended", "execution": execution,
                                                   "tick": k, "duration": traj.duration}),
                                 encoding=JSON)
