@@ -12,9 +12,10 @@ one line of JSON.
 - fuzz: hostile applies (mutations, junk meshes, raw bytes) through both instances:
   every reply coded, 0 INTERNAL, 0 missing, the instances' scenes equal after.
 - plans: the same R plan requests (seeded) with 20 objects (17 primitives and 3 stand-in
-  boxes) sent in each request, with the same 20 kept in the scene, and with 17
-  primitives plus 3 meshes of ~10k triangles kept: median and p95 of the latency a
-  client sees [ms].
+  boxes) sent in each request, with the same 20 kept in the scene, with 17
+  primitives plus 3 meshes of ~10k triangles kept, and at the next revision (one more
+  sphere; the meshes' geometry is cached by content, not rebuilt): median and p95 of the
+  latency a client sees [ms], and the first plan of each (its world built).
 
     ./dev bench scene [--writers 4] [--applies 250] [--fuzz 2000] [--plans 30]
 """
@@ -220,6 +221,10 @@ def plans(endpoint: str, instance: str, n: int) -> dict:
         runs["kept_20_primitives"] = ms(timed({}))
         c.request("scene/apply", {"clear": True, "add": objects(meshes=True)})
         runs["kept_17_primitives_3_meshes_10k"] = ms(timed({}))
+        # the next revision keeps the meshes: their geometry is not built again
+        c.request("scene/apply", {"add": [{"id": "late", "shape": "sphere", "radius": 0.1,
+                                           "xyz": [-2.0, -2.0, 0.5]}]})
+        runs["kept_meshes_next_revision"] = ms(timed({}))
         c.request("scene/apply", {"clear": True})
         runs["no_obstacles"] = ms(timed({}))
     for name, t in zip(list(runs), first):

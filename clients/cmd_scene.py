@@ -12,7 +12,8 @@ from typing import Any
 from .argtypes import UsageError, joint_values, json_object, numbers, obstacle
 from .common import EXIT_OK, add_connection_args, client, joints_by_name, wrote
 
-_POSE_HELP = "X,Y,Z or X,Y,Z,ROLL,PITCH,YAW in the world frame [m, rad] (default 0)"
+_POSE_HELP = ("X,Y,Z or X,Y,Z,ROLL,PITCH,YAW in the world frame (or --frame's) [m, rad] "
+              "(default 0)")
 _MESH_FORMATS = {".stl": "stl", ".obj": "obj"}
 _STATE_HELP = ("the robot's state where it takes or puts down the object: J1,J2,... in "
                "the robot's joint order, or NAME=V,...; missing joints 0 (default: the "
@@ -29,6 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the scene is still at revision N (else SCENE_CONFLICT naming the current one).",
         epilog="examples:\n"
         "  arduinobot scene add box:table:1,1,0.1@0,1,0.5\n"
+        "  arduinobot scene add box:cam:0.05,0.05,0.05@0,0.2,0.3 --frame claw_support\n"
         "  arduinobot scene add-mesh bin bin.stl --pose 0.3,0.8,0.6 --scale 0.001\n"
         "  arduinobot scene attach cup --link claw_support --mass 0.2 --state 0.3,0.5\n"
         "  arduinobot scene detach cup --state -0.4,0.5\n"
@@ -52,6 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("spec", nargs="+", type=obstacle, metavar="SPEC",
                    help="box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@..., "
                    "cylinder:ID:r,l@... (as plan --obstacle)")
+    _frame_args(a)
     _if_revision(a)
     a = action("add-mesh", "add a mesh object (binary or ASCII STL, or OBJ; at most 2 MiB, "
                "200000 triangles, 100 m across)")
@@ -61,6 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=_POSE_HELP)
     a.add_argument("--scale", type=numbers_scale, metavar="S",
                    help="mesh units -> m: one factor or SX,SY,SZ (e.g. 0.001 for mm)")
+    _frame_args(a)
     _if_revision(a)
     a = action("remove", "remove objects by id")
     a.add_argument("ids", nargs="+", metavar="ID")
@@ -97,6 +101,27 @@ def add_scene_arg(p: argparse.ArgumentParser) -> None:
     plan or check against."""
     p.add_argument("--scene", metavar="FILE.json", help="with --local: plan against this "
                    "saved scene (`arduinobot scene save`); the service uses its own")
+
+
+def _frame_args(a: argparse.ArgumentParser) -> None:
+    a.add_argument("--frame", metavar="LINK", help="give the pose in this link's frame: the "
+                   "object is fixed to the link and moves with it (a camera, a tool "
+                   "holder); default: the world")
+    a.add_argument("--touch-links", type=_names, metavar="L1,L2",
+                   help="with --frame: links it may touch besides those rigidly joined to "
+                   "LINK (e.g. fingers it sits between)")
+
+
+def _framed(objects: list[dict[str, Any]], ns: argparse.Namespace) -> list[dict[str, Any]]:
+    if ns.touch_links and not ns.frame:
+        raise UsageError("--touch-links needs --frame: a world object touches nothing of "
+                         "the robot")
+    extra: dict[str, Any] = {}
+    if ns.frame:
+        extra["frame"] = ns.frame
+    if ns.touch_links:
+        extra["touch_links"] = ns.touch_links
+    return [{**o, **extra} for o in objects]
 
 
 def _if_revision(a: argparse.ArgumentParser) -> None:
@@ -144,9 +169,9 @@ def change_of(ns: argparse.Namespace) -> dict[str, Any]:
     """The apply request an action stands for."""
     a = ns.action
     if a == "add":
-        change: dict[str, Any] = {"add": ns.spec}
+        change: dict[str, Any] = {"add": _framed(ns.spec, ns)}
     elif a == "add-mesh":
-        change = {"add": [mesh_object(ns.id, ns.mesh_file, ns.pose, ns.scale)]}
+        change = {"add": _framed([mesh_object(ns.id, ns.mesh_file, ns.pose, ns.scale)], ns)}
     elif a == "remove":
         change = {"remove": ns.ids}
     elif a == "clear":
@@ -217,7 +242,8 @@ def _print(scene: dict[str, Any]) -> None:
     print(f"scene revision {scene['revision']}: {len(objects)} object(s)"
           + (f", {len(carried)} carried" if carried else ""))
     for o in objects:
-        print(f"  {_line(o)}")
+        frame = o.get("frame", "world")
+        print(f"  {_line(o)}" + ("" if frame == "world" else f" in {frame}'s frame, fixed"))
     for c in carried:
         print(f"  {_line(c['object'])} in {c['link']}'s frame, carried, "
               f"{c.get('mass', 0):g} kg")

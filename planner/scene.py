@@ -293,6 +293,26 @@ def default_touch_links(description: object, link: str) -> tuple[str, ...]:
     return tuple(touch)
 
 
+def rigid_links(description: object, link: str) -> tuple[str, ...]:
+    """``link`` and every link joined to it by fixed joints (up and down the tree): one
+    rigid body, whose parts never move relative to an object fixed in ``link``'s frame, so
+    their contact with it is the same in every state (what an object in a link's frame
+    may touch)."""
+    robot = description.robot  # type: ignore[attr-defined]
+    out, stack = [link], [link]
+    while stack:
+        at = stack.pop()
+        near = [j.child for j in robot.child_joints.get(at, ()) if j.type == "fixed"]
+        up = robot.parent_joint.get(at)
+        if up is not None and up.type == "fixed":
+            near.append(up.parent)
+        for n in near:
+            if n not in out:
+                out.append(n)
+                stack.append(n)
+    return tuple(out)
+
+
 def resolve_attached(description: object, attached: Sequence[AttachedObject], *,
                      obstacles: Sequence[Obstacle] = (), field: str = "attached"
                      ) -> tuple[AttachedObject, ...]:

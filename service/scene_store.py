@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 import numpy as np
 
 from planner.errors import InvalidRequest, SceneConflict
-from planner.scene import AttachedObject, Obstacle
+from planner.scene import AttachedObject, Obstacle, rigid_links
 
 from .scene_mesh import decode_mesh, scale_of
 
@@ -35,8 +35,8 @@ _log = logging.getLogger(__name__)
 
 #: Most objects a scene holds (as many as a plan request's own obstacles).
 MAX_SCENE_OBJECTS = 256
-#: The frame every free object is placed in (a carried one is in its link's frame, see
-#: ``attach``).
+#: The frame a free object is placed in unless it names a link's (then it moves with that
+#: link); a carried one is in its link's frame, see ``attach``.
 WORLD = "world"
 #: Where an apply's robot state came from (``state_source`` in its reply).
 StateSource = Literal["request", "robot", "zero"]
@@ -44,11 +44,18 @@ StateSource = Literal["request", "robot", "zero"]
 
 @dataclass(frozen=True)
 class SceneObject:
-    """One object of the scene: ``data`` its wire form, ``obstacle`` its geometry."""
+    """One object of the scene: ``data`` its wire form, ``obstacle`` its geometry (posed
+    in the world, or in its ``link``'s frame: ``fixed``, the object as plans carry it)."""
 
     id: str
     data: Mapping[str, Any]
     obstacle: Obstacle
+    fixed: AttachedObject | None = None
+
+    @property
+    def link(self) -> str | None:
+        """The link whose frame it is fixed in (None: the world)."""
+        return None if self.fixed is None else self.fixed.link
 
 
 @dataclass(frozen=True)
@@ -82,9 +89,11 @@ class SceneState:
     snapshot: SceneSnapshot = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        # an object in a link's frame moves with its link: plans carry it (massless)
         object.__setattr__(self, "snapshot", SceneSnapshot(
-            self.revision, tuple(o.obstacle for o in self.objects),
-            tuple(a.attached for a in self.attached)))
+            self.revision, tuple(o.obstacle for o in self.objects if o.fixed is None),
+            tuple(a.attached for a in self.attached)
+            + tuple(o.fixed for o in self.objects if o.fixed is not None)))
 
     def to_json(self) -> dict[str, Any]:
         """The ``<prefix>/scene`` reply (and the scene file)."""
@@ -112,25 +121,28 @@ class SceneBuilder:
     def build(self, data: Mapping[str, Any], where: str) -> SceneObject:
         """One object (schema-valid, see ``scene_apply_request.json``) at field ``where``.
 
+        An object in a link's frame moves with that link: it is checked against the scene
+        and every link but those rigidly joined to its own (:func:`planner.scene.rigid_links`).
+
         Raises:
-            InvalidRequest: a link's frame (not yet supported) or an unknown frame, an id
+            InvalidRequest: an unknown frame (or a link's without a robot model), an id
                 that is a link name, a bad primitive or mesh.
         """
         if not isinstance(data, Mapping):
             raise InvalidRequest("must be an object", field=where)
         frame = data.get("frame", WORLD)
-        if frame != WORLD:
-            if frame in self.link_names:
-                raise InvalidRequest(
-                    f"objects in a link's frame ('{frame}') are not yet supported: the "
-                    "collision world holds world-fixed objects only; give the pose in "
-                    "'world'", field=f"{where}.frame", details={"unsupported": "frame"})
+        if frame != WORLD and frame not in self.link_names:
             raise InvalidRequest(f"'{frame}' is neither 'world' nor a link of the robot",
-                                 field=f"{where}.frame")
+                                 field=f"{where}.frame",
+                                 details={"links": sorted(self.link_names)})
+        if frame != WORLD and self.robot is None:
+            raise InvalidRequest("this scene holds objects in the world only (no robot "
+                                 "model)", field=f"{where}.frame")
         oid = data.get("id")
         if oid in self.link_names:
             raise InvalidRequest(f"id '{oid}' is also a link name", field=f"{where}.id")
-        geometry = {k: v for k, v in data.items() if k not in ("frame", "mesh", "scale")}
+        geometry = {k: v for k, v in data.items()
+                    if k not in ("frame", "mesh", "scale", "touch_links")}
         if data.get("shape") == "mesh":
             if "mesh" not in data:
                 raise InvalidRequest("a mesh object needs mesh {format, data}",
@@ -142,7 +154,21 @@ class SceneBuilder:
             bad = "mesh" if "mesh" in data else "scale"
             raise InvalidRequest("only a mesh object takes it", field=f"{where}.{bad}")
         obstacle = Obstacle.from_mapping(geometry, where=where)
-        return SceneObject(obstacle.id, dict(data), obstacle)
+        extra = data.get("touch_links") or ()
+        if frame == WORLD:
+            if "touch_links" in data:
+                raise InvalidRequest("only an object in a link's frame takes it (a carried "
+                                     "object's are its attach's)", field=f"{where}.touch_links")
+            return SceneObject(obstacle.id, dict(data), obstacle)
+        for i, t in enumerate(extra):
+            if t not in self.link_names:
+                raise InvalidRequest(f"'{t}' is not a link of the robot",
+                                     field=f"{where}.touch_links[{i}]")
+        assert self.robot is not None  # refused above
+        rigid = rigid_links(self.robot.description, frame)
+        touch = rigid + tuple(t for t in extra if t not in rigid)
+        return SceneObject(obstacle.id, dict(data), obstacle,
+                           AttachedObject(obstacle, frame, touch, where=where))
 
 
 def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *,
@@ -235,7 +261,9 @@ def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
                 raise InvalidRequest(f"no object '{ref}' in the scene", field=f"{where}.object",
                                      details={"objects": sorted(objects)})
             free = objects.pop(ref)
-            data = _posed(free.data, np.linalg.inv(link_pose) @ free.obstacle.pose())
+            world = free.obstacle.pose() if free.link is None \
+                else robot.link_pose(q, free.link) @ free.obstacle.pose()
+            data = _posed(free.data, np.linalg.inv(link_pose) @ world)
         else:
             oid = ref.get("id") if isinstance(ref, Mapping) else None
             if oid in objects or oid in carried:
@@ -281,8 +309,9 @@ def _held(obj: Mapping[str, Any], item: Mapping[str, Any], builder: SceneBuilder
 
 def _posed(data: Mapping[str, Any], pose: np.ndarray) -> dict[str, Any]:
     """``data`` (a wire object) at ``pose`` (4x4), rounded to 1e-12 so a value that is 0
-    reads 0; no ``frame``: the caller knows which it is."""
-    out = {k: v for k, v in data.items() if k != "frame"}
+    reads 0; no ``frame`` (the caller knows which it is) nor the ``touch_links`` of an
+    object fixed in a link's frame (an attach names its own)."""
+    out = {k: v for k, v in data.items() if k not in ("frame", "touch_links")}
     out["xyz"] = [round(float(v), 12) + 0.0 for v in pose[:3, 3]]
     out["rpy"] = [round(v, 12) + 0.0 for v in rpy_of(pose[:3, :3])]
     return out

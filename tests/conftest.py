@@ -44,6 +44,21 @@ def course_ws(tmp_path_factory):
     return make_course_workspace(tmp_path_factory.mktemp("course_ws"))
 
 
+@pytest.fixture(scope="session")
+def desc():
+    """The shipped arduinobot as `load_description` gives it with no environment."""
+    from description import load_description
+    return load_description(env={})
+
+
+@pytest.fixture
+def scene_builder(desc, tmp_path):
+    """A kept scene's builder for the shipped arm (it can attach and fix objects to links)."""
+    from service.scene_carry import RobotFrames
+    from service.scene_store import SceneBuilder
+    return SceneBuilder(tuple(desc.robot.links), tmp_path / "meshes", robot=RobotFrames(desc))
+
+
 # -- the `slow` marker: tests that start `arduinobot serve` or router processes or a browser
 # (`./dev test -m "not slow"` is the quick loop; the default run, and CI, run everything).
 # It is set explicitly: `@pytest.mark.slow` on a test (or `pytestmark` on a module) that

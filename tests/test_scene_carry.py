@@ -11,13 +11,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from description import load_description
 from planner.codes import Code
 from planner.errors import InvalidRequest, JointLimitViolation, PlanningError
 from service import wire
 from service.handlers import Handlers
 from service.scene_apply import decode_apply
-from service.scene_carry import RobotFrames
 from service.scene_store import SceneBuilder, SceneFile, SceneState, apply, restore
 
 from .helpers.fk import link_pose
@@ -26,18 +24,8 @@ from .helpers.scene_fuzz import carry_seeds, mutate
 BOX = {"id": "box", "shape": "box", "size": [0.02, 0.02, 0.05]}
 
 
-@pytest.fixture(scope="module")
-def desc():
-    return load_description(env={})
-
-
-@pytest.fixture
-def builder(desc, tmp_path):
-    return SceneBuilder(tuple(desc.robot.links), tmp_path / "meshes", robot=RobotFrames(desc))
-
-
-def applied(state, change, builder):
-    return apply(state, decode_apply(json.dumps(change).encode()), builder)
+def applied(state, change, scene_builder):
+    return apply(state, decode_apply(json.dumps(change).encode()), scene_builder)
 
 
 def _names(desc):
@@ -65,14 +53,14 @@ def _at_tool(desc, state, offset=(0.0, 0.0, -0.04)):
     return link, t @ local
 
 
-def test_attach_by_id_takes_the_object_into_the_link_frame_where_it_is(desc, builder):
+def test_attach_by_id_takes_the_object_into_the_link_frame_where_it_is(desc, scene_builder):
     state = {"joint_1": 0.3, "joint_2": 0.2}
     link, world = _at_tool(desc, state)
     box = {**BOX, "xyz": world[:3, 3].tolist(),
            "rpy": Rotation.from_matrix(world[:3, :3]).as_euler("xyz").tolist()}
-    s1 = applied(SceneState(), {"add": [box]}, builder)
+    s1 = applied(SceneState(), {"add": [box]}, scene_builder)
     s2 = applied(s1, {"attach": [{"object": "box", "link": link, "mass": 0.2}],
-                      "state": state}, builder)
+                      "state": state}, scene_builder)
     assert s2.revision == 2 and s2.ids() == () and s2.attached_ids() == ("box",)
     (held,) = s2.to_json()["attached"]
     assert held["link"] == link and held["mass"] == 0.2
@@ -84,7 +72,7 @@ def test_attach_by_id_takes_the_object_into_the_link_frame_where_it_is(desc, bui
     assert a.link == link and a.mass == 0.2 and a.id == "box"
     # detach elsewhere: it stays where the link holds it at that state
     there = {"joint_1": -0.5, "joint_2": 0.1}
-    s3 = applied(s2, {"detach": ["box"], "state": there}, builder)
+    s3 = applied(s2, {"detach": ["box"], "state": there}, scene_builder)
     assert s3.attached_ids() == () and s3.ids() == ("box",)
     (free,) = s3.to_json()["objects"]
     link_there = link_pose(desc.robot, link, _names(desc), _q(desc, there))
@@ -92,14 +80,14 @@ def test_attach_by_id_takes_the_object_into_the_link_frame_where_it_is(desc, bui
     assert "frame" not in free and free["size"] == BOX["size"]
 
 
-def test_attach_a_new_object_in_the_world_or_the_link_frame(desc, builder):
+def test_attach_a_new_object_in_the_world_or_the_link_frame(desc, scene_builder):
     link, world = _at_tool(desc, {})
     s = applied(SceneState(), {"attach": [
         {"object": {**BOX, "id": "w", "xyz": world[:3, 3].tolist()}, "link": link},
         {"object": {**BOX, "id": "l", "frame": link,
                     "xyz": (np.asarray(desc.tcp.xyz) + [0, 0, -0.04]).tolist()},
          "link": link, "com": [0, 0, 0.01], "touch_links": [link, "gripper_left",
-                                                            "gripper_right"]}]}, builder)
+                                                            "gripper_right"]}]}, scene_builder)
     a, b = s.to_json()["attached"]
     assert np.allclose(_pose(a["object"])[:3, 3], _pose(b["object"])[:3, 3], atol=1e-9)
     assert b["com"] == [0, 0, 0.01] and "frame" not in b["object"]
@@ -118,75 +106,75 @@ def test_attach_a_new_object_in_the_world_or_the_link_frame(desc, builder):
     ({"detach": ["ghost"]}, "detach[0]"),
     ({"attach": [{"object": "box", "link": "claw_support"}], "state": {"nope": 1}}, "state.nope"),
 ])
-def test_refusals_name_the_field_and_leave_the_scene(builder, change, field):
-    state = applied(SceneState(), {"add": [BOX]}, builder)
+def test_refusals_name_the_field_and_leave_the_scene(scene_builder, change, field):
+    state = applied(SceneState(), {"add": [BOX]}, scene_builder)
     before = state.to_json()
     with pytest.raises(InvalidRequest) as e:
-        applied(state, change, builder)
+        applied(state, change, scene_builder)
     assert e.value.field == field, e.value.message
     assert state.to_json() == before
 
 
-def test_a_state_beyond_a_limit_is_refused(desc, builder):
-    state = applied(SceneState(), {"add": [BOX]}, builder)
+def test_a_state_beyond_a_limit_is_refused(desc, scene_builder):
+    state = applied(SceneState(), {"add": [BOX]}, scene_builder)
     with pytest.raises(JointLimitViolation):
         applied(state, {"attach": [{"object": "box", "link": "claw_support"}],
-                        "state": {"joint_1": 99.0}}, builder)
+                        "state": {"joint_1": 99.0}}, scene_builder)
 
 
 def test_attaching_what_already_touches_a_non_touch_link_is_refused_naming_pairs(
-        desc, builder):
+        desc, scene_builder):
     # a sphere around the upper arm's joint, taken by the gripper: it touches the arm, not a
     # touch link
     at = link_pose(desc.robot, "horizontal_arm", _names(desc), _q(desc, {}))[:3, 3]
     ball = {"id": "ball", "shape": "sphere", "radius": 0.05, "xyz": at.tolist()}
-    state = applied(SceneState(), {"add": [ball]}, builder)
+    state = applied(SceneState(), {"add": [ball]}, scene_builder)
     with pytest.raises(InvalidRequest) as e:
-        applied(state, {"attach": [{"object": "ball", "link": "claw_support"}]}, builder)
+        applied(state, {"attach": [{"object": "ball", "link": "claw_support"}]}, scene_builder)
     assert e.value.field == "attach[0]"
     pairs = {tuple(p) for p in e.value.details["pairs"]}
     assert ("ball", "horizontal_arm") in pairs
     assert not any(p[1] in ("claw_support", "gripper_left", "gripper_right") for p in pairs)
     # the same sphere given the base as a touch link too is taken
     ok = applied(state, {"attach": [{"object": "ball", "link": "claw_support",
-                                     "touch_links": sorted(desc.robot.links)}]}, builder)
+                                     "touch_links": sorted(desc.robot.links)}]}, scene_builder)
     assert ok.attached_ids() == ("ball",)
 
 
-def test_remove_of_a_carried_object_and_clear(desc, builder):
+def test_remove_of_a_carried_object_and_clear(desc, scene_builder):
     link, world = _at_tool(desc, {})
     s = applied(SceneState(), {"attach": [{"object": {**BOX, "xyz": world[:3, 3].tolist()},
-                                           "link": link}]}, builder)
+                                           "link": link}]}, scene_builder)
     with pytest.raises(InvalidRequest) as e:
-        applied(s, {"remove": ["box"]}, builder)
+        applied(s, {"remove": ["box"]}, scene_builder)
     assert e.value.field == "remove[0]" and "detach it first" in e.value.message
     with pytest.raises(InvalidRequest) as e:
-        applied(s, {"add": [BOX]}, builder)
+        applied(s, {"add": [BOX]}, scene_builder)
     assert e.value.field == "add[0].id"
-    assert applied(s, {"clear": True}, builder).to_json()["attached"] == []
+    assert applied(s, {"clear": True}, scene_builder).to_json()["attached"] == []
 
 
-def test_the_file_and_a_restore_keep_the_attachment(desc, builder, tmp_path):
+def test_the_file_and_a_restore_keep_the_attachment(desc, scene_builder, tmp_path):
     link, world = _at_tool(desc, {})
     s = applied(SceneState(), {"attach": [{"object": {**BOX, "xyz": world[:3, 3].tolist()},
-                                           "link": link, "mass": 0.1}]}, builder)
+                                           "link": link, "mass": 0.1}]}, scene_builder)
     f = SceneFile(tmp_path / "scene.json")
     f.save(s)
-    back = restore(f.load(), builder)
+    back = restore(f.load(), scene_builder)
     assert back.to_json() == s.to_json()
     assert [(a.shape_key(), a.payload_key()) for a in back.snapshot.attached] == \
         [(a.shape_key(), a.payload_key()) for a in s.snapshot.attached]
     wire.validator("scene_response").validate(back.to_json())
-    # a builder without a robot cannot take it
+    # a scene_builder without a robot cannot take it
     with pytest.raises(InvalidRequest) as e:
         restore(f.load(), SceneBuilder(tuple(desc.robot.links), tmp_path / "m2"))
     assert e.value.field == "attached"
 
 
-def test_fk_check_and_plan_carry_the_scene_attachment(desc, builder):
+def test_fk_check_and_plan_carry_the_scene_attachment(desc, scene_builder):
     link, world = _at_tool(desc, {})
     s = applied(SceneState(), {"attach": [{"object": {**BOX, "xyz": world[:3, 3].tolist()},
-                                           "link": link}]}, builder)
+                                           "link": link}]}, scene_builder)
     h = Handlers(desc)
     state = {"joint_1": 0.4}
     fk = h.handle("fk", wire.decode("fk", json.dumps({"joints": state})), scene=s.snapshot)
@@ -203,7 +191,7 @@ def test_fk_check_and_plan_carry_the_scene_attachment(desc, builder):
     assert e.value.details["field"] == "obstacles[0].id"
 
 
-def test_fuzzed_attach_and_detach_are_coded_and_leave_the_scene_as_it_was(desc, builder):
+def test_fuzzed_attach_and_detach_are_coded_and_leave_the_scene_as_it_was(desc, scene_builder):
     import random
     r = random.Random(28)
     link, world = _at_tool(desc, {})
@@ -211,7 +199,7 @@ def test_fuzzed_attach_and_detach_are_coded_and_leave_the_scene_as_it_was(desc, 
                                            "xyz": world[:3, 3].tolist()}],
                                   "attach": [{"object": {**BOX, "id": "held",
                                                          "xyz": world[:3, 3].tolist()},
-                                              "link": link}]}, builder)
+                                              "link": link}]}, scene_builder)
     before = base.to_json()
     seeds = carry_seeds(link)
     outcomes: dict[str, int] = {}
@@ -220,13 +208,13 @@ def test_fuzzed_attach_and_detach_are_coded_and_leave_the_scene_as_it_was(desc, 
         for _ in range(r.randrange(0, 3)):
             change = mutate(r, change)
         try:
-            new = apply(base, decode_apply(json.dumps(change).encode()), builder)
+            new = apply(base, decode_apply(json.dumps(change).encode()), scene_builder)
         except PlanningError as e:  # every refusal coded
             assert e.code in (Code.INVALID_REQUEST, Code.SCENE_CONFLICT), e
             outcomes[e.code] = outcomes.get(e.code, 0) + 1
         else:
             wire.validator("scene_response").validate(json.loads(wire.encode(new.to_json())))
-            back = restore(new.to_json(), builder)  # what is kept can be read again
+            back = restore(new.to_json(), scene_builder)  # what is kept can be read again
             assert back.to_json() == new.to_json()
             outcomes["applied"] = outcomes.get("applied", 0) + 1
         assert base.to_json() == before

@@ -123,8 +123,9 @@ BAD = [
     ({"add": [TABLE | {"id": "dup"}, TABLE | {"id": "dup"}]}, "add[1].id", "INVALID_REQUEST"),
     ({"remove": ["nothere"]}, "remove[0]", "INVALID_REQUEST"),
     ({"if_revision": 0, "clear": True}, "if_revision", "SCENE_CONFLICT"),
-    ({"add": [TABLE | {"id": "x", "frame": "claw_support"}]}, "add[0].frame",
-     "INVALID_REQUEST"),
+    ({"add": [TABLE | {"id": "x", "frame": "claw"}]}, "add[0].frame", "INVALID_REQUEST"),
+    ({"add": [TABLE | {"id": "x", "frame": "claw_support", "touch_links": ["finger"]}]},
+     "add[0].touch_links[0]", "INVALID_REQUEST"),
     ({"attach": [{"object": "table", "link": "no_link"}]}, "attach[0].link", "INVALID_REQUEST"),
     ({"add": [_mesh("m") | {"mesh": {"format": "stl", "data": "@@"}}]}, "add[0].mesh.data",
      "INVALID_REQUEST"),
@@ -291,6 +292,20 @@ def test_the_scene_command_as_a_user_types_it(tmp_path):
         assert out.returncode == 0 and "revision 4 (3 objects)" in out.stdout, out.stderr
         out = _cli("scene", "add-mesh", "x", str(tmp_path / "none.stl"), *con)
         assert out.returncode == 2 and "cannot read" in out.stderr
+        # an object fixed in a link's frame moves with the link: 0.3 m above the claw
+        # support it meets an orb at joint_1 = 0, not at joint_1 = 1
+        out = _cli("scene", "add", "sphere:orb:0.03@-0.02,1.02,1.757", *con)
+        assert out.returncode == 0, out.stderr
+        out = _cli("scene", "add", "box:cam:0.05,0.05,0.05@0,0.2,0.3", "--frame",
+                   "claw_support", *con)
+        assert out.returncode == 0 and "revision 6" in out.stdout, out.stderr
+        assert "cam" in _cli("scene", "show", *con).stdout.split("claw_support's frame")[0]
+        out = _cli("check-state", "--joints", "0,0,0", "--json", *con)
+        assert sorted(json.loads(out.stdout)["pairs"]) == [["cam", "orb"]], out.stdout
+        out = _cli("check-state", "--joints", "1,0,0", "--json", *con)
+        assert json.loads(out.stdout)["valid"], out.stdout
+        out = _cli("scene", "add", "box:x:1,1,1@5,5,5", "--touch-links", "base_link", *con)
+        assert out.returncode == 2 and "--touch-links needs --frame" in out.stderr
     finally:
         srv.stop()
     # --local reads a saved scene: a wall there makes the zero state collide

@@ -182,14 +182,6 @@ def test_refused_applies_are_coded_name_the_field_and_change_nothing(builder, ch
         assert e.value.details["current_revision"] == 1
 
 
-def test_link_frame_says_not_yet_supported(builder):
-    # a free object in a link's frame (a carried one is attached: tests/test_scene_carry.py)
-    change = {"add": [{"id": "a", "shape": "sphere", "radius": 1, "frame": "claw_support"}]}
-    with pytest.raises(InvalidRequest) as e:
-        applied(SceneState(), change, builder)
-    assert "not yet supported" in e.value.message and "unsupported" in e.value.details
-
-
 def test_attach_without_a_robot_model_is_refused(builder):
     state = applied(SceneState(), {"add": [{"id": "a", "shape": "sphere", "radius": 1}]},
                     builder)

@@ -151,3 +151,38 @@ def test_the_remembered_still_distance_is_tight_on_convex_links_and_order_free(d
     # the same figures in another order, in a world that has answered nothing yet
     fresh = CollisionWorld(d)
     assert [fresh.still_distance(q, fingers, above=1e-5) for q in (c, b, a)] == got[::-1]
+
+
+def test_scene_meshes_are_built_once_per_content_across_worlds(world, tmp_path, monkeypatch):
+    import trimesh
+
+    from planner.collision import assembly
+
+    built: list[str] = []
+    real = assembly._build_geometry
+
+    def counting(o):
+        built.append(o.id)
+        return real(o)
+
+    monkeypatch.setattr(assembly, "_build_geometry", counting)
+    path = tmp_path / "bin.stl"
+    path.write_bytes(trimesh.creation.box(extents=(0.3, 0.3, 0.3)).export(file_type="stl"))
+    # the box sits where the upper arm stands at q = 0
+    mesh = Obstacle("bin", "mesh", mesh_path=str(path), xyz=(0.0, 0.0, 1.0))
+    ball = Obstacle("ball", "sphere", radius=0.05, xyz=(2.0, 2.0, 2.0))
+    a = world.with_scene([mesh])
+    b = world.with_scene([mesh, ball])  # the scene's next revision: one more object
+    c = world.with_scene([Obstacle("bin2", "mesh", mesh_path=str(path), xyz=(0, 0, 1))])
+    assert built == ["bin", "ball"]  # the same content, under any id, is built once
+    q0 = np.zeros(a.kin.dof)
+    for w, name in ((a, "bin"), (b, "bin"), (c, "bin2")):
+        assert ("forward_drive_arm", name) in w.check(q0).pairs
+    assert b.check(q0).pairs == a.check(q0).pairs
+    # the same file rewritten with other content is another shape: built again, and a
+    # tiny box where the big one stood collides with nothing
+    path.write_bytes(trimesh.creation.box(extents=(0.001, 0.001, 0.001)).export(
+        file_type="stl"))
+    d = world.with_scene([Obstacle("bin", "mesh", mesh_path=str(path), xyz=(0.5, 0.5, 0))])
+    assert built == ["bin", "ball", "bin"]
+    assert d.check(q0).valid

@@ -5,8 +5,10 @@ object, convex hull, the points its motion bounds read), and the pairs worth che
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from itertools import combinations
 from typing import cast
 
@@ -16,13 +18,30 @@ import trimesh
 
 from ..scene import AttachedObject, Obstacle
 from .acm import AllowedCollisionMatrix
-from .bodies import RobotBodies, bvh
+from .bodies import RobotBodies, ShapeCache, bvh
 from .hulls import Hull, mesh_hull, primitive_hull
 from .obbtree import ObbTree, box_tree, build_tree
 from .table import BodyKind, checked_kinds
 
+_Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
 
-def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hull]:
+
+def _shape_key(o: Obstacle) -> tuple:
+    """What an obstacle's geometry depends on (not its id or pose): a mesh's file bytes
+    (hashed: the same content under another name, or a file rewritten in place, is told
+    apart), a primitive's dimensions."""
+    if o.shape == "mesh":
+        assert o.mesh_path is not None
+        with open(o.mesh_path, "rb") as f:
+            return ("mesh", hashlib.sha256(f.read()).digest())
+    return (o.shape, o.size, o.radius, o.length)
+
+
+def _obstacle_geometry(o: Obstacle, shapes: ShapeCache) -> _Geometry:
+    return shapes.get(_shape_key(o), lambda: _build_geometry(o))
+
+
+def _build_geometry(o: Obstacle) -> _Geometry:
     # Obstacle checked that its shape's dimensions (or mesh file) are set
     if o.shape == "box":
         assert o.size is not None
@@ -37,6 +56,10 @@ def _obstacle_geometry(o: Obstacle) -> tuple[fcl.CollisionGeometry, ObbTree, Hul
     mesh = cast("trimesh.Trimesh", trimesh.load(o.mesh_path, force="mesh"))  # force: one mesh
     return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
             mesh_hull(np.asarray(mesh.vertices, float)))
+
+
+def _box_surface(size: tuple[float, float, float]) -> fcl.BVHModel:
+    return bvh(trimesh.creation.box(extents=size))
 
 
 def _enclosing_points(tree: ObbTree) -> np.ndarray:
@@ -104,7 +127,7 @@ class SceneBodies:
         for a in attached:
             if link_index is None or a.link not in link_index:
                 raise ValueError(f"carried object '{a.id}' on unknown link '{a.link}'")
-            geom, tree, hull = _obstacle_geometry(a.shape)
+            geom, tree, hull = _obstacle_geometry(a.shape, robot.shapes)
             offset = a.shape.pose()  # in the link's frame
             poses[len(names)] = offset
             names.append(a.id)
@@ -118,7 +141,7 @@ class SceneBodies:
             points.append((a.link, local @ offset[:3, :3].T + offset[:3, 3]))
             hulls.append(hull)
         for o in obstacles:
-            geom, tree, hull = _obstacle_geometry(o)
+            geom, tree, hull = _obstacle_geometry(o, robot.shapes)
             pose = o.pose()
             poses[len(names)] = pose
             names.append(o.id)
@@ -126,9 +149,10 @@ class SceneBodies:
             kinds.append(BodyKind.OBSTACLE)
             trees.append(tree)
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-            if o.shape == "box":
+            if o.shape == "box" and o.size is not None:
                 surfaces[len(objs) - 1] = fcl.CollisionObject(
-                    bvh(trimesh.creation.box(extents=o.size)),
+                    robot.shapes.get(("box surface", o.size),
+                                     partial(_box_surface, o.size)),
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))

@@ -4,8 +4,9 @@ OBB tree (:mod:`.obbtree`), an FCL BVH and a convex hull (:mod:`.hulls`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import cast
+from collections.abc import Callable, Hashable
+from dataclasses import dataclass, field
+from typing import TypeVar, cast
 
 import fcl
 import numpy as np
@@ -19,6 +20,8 @@ from ..kinematics.chain import Kinematics
 from .hulls import Hull, mesh_hull
 from .obbtree import ObbTree, cached_tree
 
+_T = TypeVar("_T")
+
 
 def bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
     """FCL's BVH of a triangle mesh, in the mesh's frame."""
@@ -27,6 +30,30 @@ def bvh(mesh: trimesh.Trimesh) -> fcl.BVHModel:
     m.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
     m.endModel()
     return m
+
+
+class ShapeCache:
+    """Scene shapes' collision geometry by content, least recently used dropped past
+    ``max_items``: a world for a new obstacle set (a scene's next revision) reuses what an
+    earlier one built for the same mesh instead of loading it again (~0.4 s for a mesh of
+    10k triangles)."""
+
+    def __init__(self, max_items: int = 64) -> None:
+        self.max_items = max_items
+        self._items: dict[Hashable, object] = {}
+
+    def get(self, key: Hashable, build: Callable[[], _T]) -> _T:
+        """The geometry under ``key``, built by ``build()`` the first time."""
+        found = self._items.pop(key, None)
+        if found is None:
+            found = build()
+        self._items[key] = found  # most recently used last
+        while len(self._items) > self.max_items:
+            self._items.pop(next(iter(self._items)))
+        return cast(_T, found)
+
+    def __len__(self) -> int:
+        return len(self._items)
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +70,8 @@ class RobotBodies:
         statics: whether the link never moves (no movable joint above it).
         points: (link, vertices) for the motion bounds.
         hulls: each one's convex hull (link frame), for cheap distance bounds.
+        shapes: the scene shapes' geometry built so far, by content, for every world
+            of the robot.
     """
 
     description: Description
@@ -53,6 +82,7 @@ class RobotBodies:
     statics: tuple[bool, ...]
     points: tuple[tuple[str, np.ndarray], ...]
     hulls: tuple[Hull, ...]
+    shapes: ShapeCache = field(default_factory=ShapeCache, repr=False)
 
     @classmethod
     def build(cls, description: Description, kin: Kinematics, *,
