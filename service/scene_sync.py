@@ -56,6 +56,7 @@ from .scene_apply import (
     with_robot_state,
 )
 from .scene_carry import RobotFrames
+from .scene_members import Instances
 from .scene_store import (
     SceneBuilder,
     SceneFile,
@@ -110,14 +111,7 @@ class SceneService:
         self._entities: list[Any] = []
         self._shared: list[Any] = []  # held until the session closes
         self._publisher: Any = None
-        # the live instances, kept by a liveliness subscriber: a liveliness get per apply
-        # sometimes missed a token under load, and an instance that misses the leader's
-        # leads too (two leaders lose changes; measured with bench/scene.py)
-        self._alive: set[str] = set()
-        #: the instances holding the scene (``<p>/scene/member/<id>``): the leader sends
-        #: each change to each of them
-        self._members: set[str] = set()
-        self._alive_lock = threading.Lock()
+        self.instances = Instances(session, prefix, instance)
 
     @property
     def state(self) -> SceneState:
@@ -134,10 +128,7 @@ class SceneService:
                       len(self._state.objects), self.file.path)
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
         liveliness = self.session.liveliness()
-        self._entities.append(liveliness.declare_subscriber(
-            f"{p}/alive/*", self._on_token(self._alive), history=True))
-        self._entities.append(liveliness.declare_subscriber(
-            f"{p}/scene/member/*", self._on_token(self._members), history=True))
+        self._entities += self.instances.subscribe()
         # takes changes from now on (the leader sends them to every member), then asks
         # for the scene: no change falls between the two
         self._declare(f"{me}/scene/sync", self._on_sync, complete=False, exact=True)
@@ -232,7 +223,7 @@ class SceneService:
     # -- writing -----------------------------------------------------------------------
     def leader(self) -> str:
         """The live instance with the smallest id (this one counts, live or not yet)."""
-        return min(self._live() | {self.instance})
+        return min(self.instances.live() | {self.instance})
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
@@ -297,8 +288,7 @@ class SceneService:
         disk too), before the apply is acknowledged."""
         payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
                                 "change": change})
-        with self._alive_lock:
-            members = sorted(self._members - {self.instance})
+        members = sorted(self.instances.members())
         # one exact query per member, all sent before any answer is awaited
         pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
                                         payload=payload, timeout=REPLICATE_TIMEOUT,
@@ -351,12 +341,12 @@ class SceneService:
         :data:`CATCH_UP_TIMEOUT`."""
         deadline = time.monotonic() + CATCH_UP_TIMEOUT
         scenes = self._scenes("*")
-        missing = self._live() - set(scenes) - {self.instance}
+        missing = self.instances.live() - set(scenes) - {self.instance}
         while missing and time.monotonic() < deadline:
             time.sleep(0.1)
             for inst in sorted(missing):
                 scenes.update(self._scenes(inst))
-            missing = self._live() - set(scenes) - {self.instance}
+            missing = self.instances.live() - set(scenes) - {self.instance}
         if missing:
             _log.warning("scene: instances %s did not answer; starting from the newest "
                          "scene of the others and the file", ", ".join(sorted(missing)))
@@ -368,29 +358,6 @@ class SceneService:
                     self.file.save(new)
                     self._state = new
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
-
-    def _on_token(self, ids: set[str]) -> Callable[[zenoh.Sample], None]:
-        """Keeps ``ids`` as the ids of the liveliness tokens a subscriber sees."""
-        def on_sample(sample: zenoh.Sample) -> None:
-            inst = str(sample.key_expr).rsplit("/", 1)[-1]
-            with self._alive_lock:
-                if sample.kind == zenoh.SampleKind.PUT:
-                    ids.add(inst)
-                else:
-                    ids.discard(inst)
-        return on_sample
-
-    def _live(self) -> set[str]:
-        """The ids of the instances with a liveliness token (the subscriber's view, and
-        a get's while it may not have heard of them all yet)."""
-        with self._alive_lock:
-            ids = set(self._alive)
-        if not ids - {self.instance}:  # just started, or alone: ask as well
-            for reply in self.session.liveliness().get(f"{self.prefix}/alive/*",
-                                                       timeout=2.0):
-                if reply.ok is not None:
-                    ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
-        return ids
 
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
         """The scenes of the instances ``instance`` matches (``*``: all), by id."""
