@@ -35,7 +35,6 @@ MAX_APPLY_DEPTH = 8
 ROBOT_STATE_TIMEOUT = 5.0
 
 
-
 class SceneUnavailable(PlanningError):
     """The scene cannot take the change now (its leader or the robot did not answer):
     retry."""

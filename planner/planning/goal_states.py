@@ -48,7 +48,6 @@ def resolve_group(description: Description, group: str | None, goal: Goal) -> st
     return description.default_group()
 
 
-
 def check_limits(world: CollisionWorld, q: np.ndarray, *, field: str) -> None:
     """Raise :class:`JointLimitViolation` naming the first joint outside its limits."""
     names = world.kin.joint_names

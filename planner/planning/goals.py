@@ -184,6 +184,7 @@ class LineGoal:
 
 Goal = JointGoal | NamedGoal | PositionGoal | PoseGoal | LineGoal
 
+
 def check_goal(goal: object) -> None:
     """The one goal-type check, run when a request is built (:class:`MotionRequest`,
     :class:`PathRequest`); every layer below trusts it.
@@ -193,5 +194,3 @@ def check_goal(goal: object) -> None:
     """
     if not isinstance(goal, (JointGoal, NamedGoal, PositionGoal, PoseGoal, LineGoal)):
         raise InvalidRequest(f"unknown goal type {type(goal).__name__}", field="goal")
-
-
