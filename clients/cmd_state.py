@@ -22,8 +22,9 @@ _JOINTS_HELP = ("every actuated joint's value in the model's order (`arduinobot 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("fk", help="forward kinematics: link poses and tcp of a joint state",
-                       description="Print the world pose of each link (or --link ones) and "
-                       "the tcp position for a joint state (missing joints are 0).",
+                       description="Print the world pose of each link (or --link ones), "
+                       "the tcp position and the pose of each object the kept scene carries "
+                       "for a joint state (missing joints are 0).",
                        epilog="example:\n  arduinobot fk --joints 0.5,0.3,-0.4 --link "
                        "claw_support")
     p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
@@ -96,6 +97,9 @@ def cmd_fk(ns: argparse.Namespace) -> int:
         print(f"{link:<20} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad")
     if res.tcp is not None:
         print(f"{'tcp':<20} xyz ({_xyz(res.tcp)}) m")
+    for oid, pose in res.carried.items():  # the kept scene's carried objects
+        print(f"{oid:<20} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad  "
+              f"carried by {pose.link}")
     return EXIT_OK
 
 

@@ -197,14 +197,22 @@ class Pose:
 
 
 @dataclass(frozen=True, eq=False)
+class CarriedPose(Pose):
+    """A carried object's pose in the world frame, and the ``link`` that holds it."""
+
+    link: str
+
+
+@dataclass(frozen=True, eq=False)
 class FkReply:
     """Link poses at ``joints`` [rad] (``<prefix>/fk``); the tcp position [m] if the
-    robot has a tcp."""
+    robot has a tcp; ``carried``: where each object the kept scene carries is, by id."""
 
     joints: Mapping[str, float]
     links: Mapping[str, Pose]
     tcp: tuple[float, float, float] | None
     request_id: str
+    carried: Mapping[str, CarriedPose] = field(default_factory=dict)
 
     @classmethod
     def parse(cls, body: Any) -> FkReply:
@@ -214,7 +222,10 @@ class FkReply:
         return cls(dict(b["joints"]),
                    {k: Pose(tuple(p["xyz"]), tuple(p["rpy"]), np.array(p["matrix"], float))
                     for k, p in b["links"].items()},
-                   None if tcp is None else tuple(tcp), b["request_id"])
+                   None if tcp is None else tuple(tcp), b["request_id"],
+                   {k: CarriedPose(tuple(p["xyz"]), tuple(p["rpy"]),
+                                   np.array(p["matrix"], float), p["link"])
+                    for k, p in (b.get("carried") or {}).items()})
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,8 @@ def execute_on_controllers(ns: argparse.Namespace, req: dict[str, Any] | None,
     from execution.executor import NotAtStart
     from execution.segments import SampledTrajectory, check_fits, parse_trajectory, read_json
     from ros2 import Ros2Error
-    from ros2.controllers import TargetOptions, TrajectoryTarget, split_trajectory
+    from ros2.controllers import split_trajectory
+    from ros2.trajectory_target import TargetOptions, TrajectoryTarget
 
     controllers = controllers_of(desc, ns.controller)
     try:

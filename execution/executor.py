@@ -135,7 +135,8 @@ class Executor:
         self.last_stop: StopKind | None = None
         self.blends = 0
         self._switch_lock = threading.Lock()
-        self._switch: tuple[int, SampledTrajectory] | None = None
+        # (tick, trajectory, what to do on the executing thread just before it plays)
+        self._switch: tuple[int, SampledTrajectory, Callable[[], None] | None] | None = None
         self._playing: tuple[Phase, Segment, int, int] | None = None
         self._tick_index = 0
         self._lock = threading.Lock()
@@ -173,9 +174,12 @@ class Executor:
         q, qd, qdd = seg.evaluate(t)
         return k, q, qd, qdd
 
-    def switch(self, trajectory: SampledTrajectory, at_tick: int) -> None:
+    def switch(self, trajectory: SampledTrajectory, at_tick: int, *,
+               on_switch: Callable[[], None] | None = None) -> None:
         """Play ``trajectory`` from tick ``at_tick`` on (it must start in the state
-        :meth:`lookahead` gave for that tick).
+        :meth:`lookahead` gave for that tick). ``on_switch`` runs on the executing thread
+        at that tick, before the trajectory's first setpoint (a twin takes the world the
+        new trajectory was planned in); its error ends the execution as a driver's does.
 
         Raises:
             TooLate: that tick has passed, or the motion it blends from has ended.
@@ -188,7 +192,7 @@ class Executor:
                 raise TooLate(f"tick {at_tick} has passed (now {self._tick_index}): plan "
                               "with a longer lead")
             hold = self._playing[1].evaluate(0.0)[0]
-            self._switch = (at_tick, trajectory.for_joints(names, hold))
+            self._switch = (at_tick, trajectory.for_joints(names, hold), on_switch)
 
     # -- checks -------------------------------------------------------------------------
     def check_start(self, trajectory: SampledTrajectory) -> SampledTrajectory:
@@ -334,6 +338,8 @@ class _Playback:
                         ex.blends += 1
                         log.info("tick %d: blended into a new %.3f s trajectory", self.k,
                                  seg.duration)
+                if sw is not None and sw[0] == self.k and sw[2] is not None:
+                    sw[2]()  # outside the lock: a twin's new world may take a while
                 t = min(i * dt, seg.duration)
                 self._segment(seg, t, phase, t if phase == "trajectory" else 0.0)
                 self.last = (seg, t)

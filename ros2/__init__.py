@@ -5,7 +5,8 @@ design document and source (each module cites the file and commit); CDR and RIHS
 hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attachment`,
 :mod:`.qos`, :mod:`.names`, :mod:`.graph` (keys, tokens, GIDs), then :mod:`.topics` and
 :mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states`,
-:mod:`.controllers` (trajectories to ros2_control's joint_trajectory_controllers) and
+:mod:`.controllers`, :mod:`.control_msgs` and :mod:`.trajectory_target` (trajectories
+to ros2_control's joint_trajectory_controllers) and
 :mod:`.task_server` (the course's /task_server action).
 Nothing here imports ``clients/`` or ``service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """

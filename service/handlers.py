@@ -22,7 +22,8 @@ from planner.collision.world import CollisionWorld
 from planner.errors import InvalidRequest, PlanningError
 from planner.kinematics.chain import Kinematics
 from planner.kinematics.ik import position_ik
-from planner.planning.goals import JointGoal, tcp_joints
+from planner.planning.goals import JointGoal
+from planner.planning.tcp_goals import tcp_joints
 
 from .requests import joint_values, obstacles
 from .scene_store import SceneSnapshot, rpy_of, with_scene

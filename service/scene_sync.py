@@ -24,11 +24,9 @@ them uses it, and killing any instance loses nothing. An instance that missed ch
 (down, or late) fetches the whole scene from the sender; a new instance takes the newest
 scene among its file and the live instances' before it serves anything.
 
-An attach or detach needs the robot's state (where the link holds the object): the
-apply's ``state``, else the executing robot's (``<p>/robot_state``, if this service
-executes), else all joints at 0. The instance that takes the apply fills it in before
-the change goes to the leader, so every instance replays the same change to the same
-scene (``state_source`` in the reply says which it was).
+An attach or detach gets the robot's state from the instance that takes the apply, before
+the change goes to the leader (:mod:`service.scene_apply`; ``state_source`` in the reply
+says where it came from).
 """
 
 from __future__ import annotations
@@ -46,12 +44,19 @@ import zenoh
 
 from description import Description
 from planner.codes import Code
-from planner.errors import InvalidRequest, PlanningError
+from planner.errors import PlanningError
 
 from . import wire
 from .keyguard import addressed_exactly
 from .messages import Failure
+from .scene_apply import (
+    MAX_APPLY_PAYLOAD,
+    SceneUnavailable,
+    decode_apply,
+    with_robot_state,
+)
 from .scene_carry import RobotFrames
+from .scene_members import Instances
 from .scene_store import (
     SceneBuilder,
     SceneFile,
@@ -65,10 +70,6 @@ from .scene_store import (
 
 _log = logging.getLogger(__name__)
 
-#: Largest scene apply payload [bytes]: a few meshes of at most 2 MiB each, in base64.
-MAX_APPLY_PAYLOAD = 16 * 2**20
-#: Deepest nesting of a scene apply (``add[i].scale[j]`` is 4 deep).
-MAX_APPLY_DEPTH = 8
 #: How long the leader waits for the other instances to take a change [s].
 REPLICATE_TIMEOUT = 10.0
 #: How long a forwarded apply may take at the leader [s] (mesh decoding included).
@@ -78,46 +79,7 @@ FORWARD_TIMEOUT = 30.0
 LEADER_WAIT = 10.0
 #: How long a starting instance waits for the live instances' scenes [s].
 CATCH_UP_TIMEOUT = 5.0
-#: How long an attach or detach without a state waits for the executing robot's [s]
-#: (a twin opens on its first use, ~1.5 s); no robot answers at once.
-ROBOT_STATE_TIMEOUT = 5.0
 JSON = "application/json"
-
-
-def decode_apply(payload: bytes) -> dict[str, Any]:
-    """A scene apply request: at most :data:`MAX_APPLY_PAYLOAD` bytes of strict JSON,
-    nested at most :data:`MAX_APPLY_DEPTH` deep, valid against
-    ``scene_apply_request.json``.
-
-    Raises:
-        InvalidRequest: naming the field (and ``details.limit`` for a cap).
-    """
-    if len(payload) > MAX_APPLY_PAYLOAD:
-        raise InvalidRequest(f"payload of {len(payload)} bytes exceeds the "
-                             f"{MAX_APPLY_PAYLOAD}-byte cap of a scene apply",
-                             details={"size": len(payload), "limit": MAX_APPLY_PAYLOAD})
-    if not payload:
-        raise InvalidRequest("empty payload: send a JSON object")
-    try:
-        value = orjson.loads(payload)
-    except orjson.JSONDecodeError as e:
-        raise wire._malformed(e) from None  # the same refusal as every other request's
-    _check_depth(value)
-    return wire.validate("scene_apply", value)
-
-
-def _check_depth(value: Any) -> None:
-    stack: list[tuple[Any, tuple[Any, ...], int]] = [(value, (), 1)]
-    while stack:
-        node, path, depth = stack.pop()
-        if not isinstance(node, (dict, list)):
-            continue
-        if depth > MAX_APPLY_DEPTH:
-            raise InvalidRequest(f"nested deeper than {MAX_APPLY_DEPTH} levels",
-                                 field=wire.field_path(path) or "(root)",
-                                 details={"limit": MAX_APPLY_DEPTH})
-        items = node.items() if isinstance(node, dict) else enumerate(node)
-        stack.extend((v, (*path, k), depth + 1) for k, v in items)
 
 
 class SceneService:
@@ -149,14 +111,7 @@ class SceneService:
         self._entities: list[Any] = []
         self._shared: list[Any] = []  # held until the session closes
         self._publisher: Any = None
-        # the live instances, kept by a liveliness subscriber: a liveliness get per apply
-        # sometimes missed a token under load, and an instance that misses the leader's
-        # leads too (two leaders lose changes; measured with bench/scene.py)
-        self._alive: set[str] = set()
-        #: the instances holding the scene (``<p>/scene/member/<id>``): the leader sends
-        #: each change to each of them
-        self._members: set[str] = set()
-        self._alive_lock = threading.Lock()
+        self.instances = Instances(session, prefix, instance)
 
     @property
     def state(self) -> SceneState:
@@ -173,10 +128,7 @@ class SceneService:
                       len(self._state.objects), self.file.path)
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
         liveliness = self.session.liveliness()
-        self._entities.append(liveliness.declare_subscriber(
-            f"{p}/alive/*", self._on_token(self._alive), history=True))
-        self._entities.append(liveliness.declare_subscriber(
-            f"{p}/scene/member/*", self._on_token(self._members), history=True))
+        self._entities += self.instances.subscribe()
         # takes changes from now on (the leader sends them to every member), then asks
         # for the scene: no change falls between the two
         self._declare(f"{me}/scene/sync", self._on_sync, complete=False, exact=True)
@@ -271,14 +223,15 @@ class SceneService:
     # -- writing -----------------------------------------------------------------------
     def leader(self) -> str:
         """The live instance with the smallest id (this one counts, live or not yet)."""
-        return min(self._live() | {self.instance})
+        return min(self.instances.live() | {self.instance})
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
         source = None
         if change.get("attach") or change.get("detach"):
             # the state here, once: the leader and every follower replay this one
-            change, source = self._with_state(change)
+            change, source = with_robot_state(change, session=self.session,
+                                              prefix=self.prefix, robot=self.builder.robot)
             raw = orjson.dumps(change)
         give_up = time.monotonic() + LEADER_WAIT
         while True:
@@ -300,53 +253,10 @@ class SceneService:
                     query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
                 return None
             if time.monotonic() > give_up:
-                raise _Unavailable("the scene's leading instance did not answer; retry")
+                raise SceneUnavailable("the scene's leading instance did not answer; retry")
             # it has just gone: its liveliness token goes too, and the next one leads
             _log.warning("scene: leader %s did not answer an apply; asking again", lead)
             time.sleep(0.2)
-
-    def _with_state(self, change: dict[str, Any]) -> tuple[dict[str, Any], StateSource]:
-        """``change`` with the robot's ``state`` for its attach or detach, and where the
-        state came from (see the module)."""
-        if "state" in change:
-            return change, "request"
-        state = self._robot_state()
-        if state is not None:
-            return {**change, "state": state}, "robot"
-        return {**change, "state": {}}, "zero"
-
-    def _robot_state(self) -> dict[str, float] | None:
-        """The executing robot's actuated joints, or None if no robot serves its state.
-
-        Raises:
-            _Unavailable: a robot serves its state but did not give it (an error, or no
-                answer in :data:`ROBOT_STATE_TIMEOUT`): never guessed as all zeros.
-        """
-        robot = self.builder.robot
-        if robot is None:
-            return None
-        began = time.monotonic()
-        try:
-            replies = list(self.session.get(f"{self.prefix}/robot_state",
-                                            timeout=ROBOT_STATE_TIMEOUT))
-        except zenoh.ZError:
-            replies = []
-        actuated = set(robot.description.robot.actuated_joints)
-        failed = False
-        for r in replies:
-            if r.ok is None:
-                failed = failed or not _no_robot(r)
-                continue
-            try:
-                body = orjson.loads(r.ok.payload.to_bytes())
-                return {str(n): float(v) for n, v in zip(body["name"], body["position"])
-                        if n in actuated}
-            except (orjson.JSONDecodeError, KeyError, TypeError, ValueError):
-                _log.warning("scene: a robot_state reply is not a state: ignored")
-        if failed or time.monotonic() - began >= 0.9 * ROBOT_STATE_TIMEOUT:
-            raise _Unavailable("the executing robot did not give its state (where the link "
-                               "holds the object): retry, or give the apply a state")
-        return None  # nothing serves a robot state: all joints 0
 
     def _lead(self, query: zenoh.Query, raw: bytes) -> None:
         self._lead_change(query, decode_apply(raw))
@@ -378,8 +288,7 @@ class SceneService:
         disk too), before the apply is acknowledged."""
         payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
                                 "change": change})
-        with self._alive_lock:
-            members = sorted(self._members - {self.instance})
+        members = sorted(self.instances.members())
         # one exact query per member, all sent before any answer is awaited
         pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
                                         payload=payload, timeout=REPLICATE_TIMEOUT,
@@ -432,12 +341,12 @@ class SceneService:
         :data:`CATCH_UP_TIMEOUT`."""
         deadline = time.monotonic() + CATCH_UP_TIMEOUT
         scenes = self._scenes("*")
-        missing = self._live() - set(scenes) - {self.instance}
+        missing = self.instances.live() - set(scenes) - {self.instance}
         while missing and time.monotonic() < deadline:
             time.sleep(0.1)
             for inst in sorted(missing):
                 scenes.update(self._scenes(inst))
-            missing = self._live() - set(scenes) - {self.instance}
+            missing = self.instances.live() - set(scenes) - {self.instance}
         if missing:
             _log.warning("scene: instances %s did not answer; starting from the newest "
                          "scene of the others and the file", ", ".join(sorted(missing)))
@@ -450,29 +359,6 @@ class SceneService:
                     self._state = new
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
 
-    def _on_token(self, ids: set[str]) -> Callable[[zenoh.Sample], None]:
-        """Keeps ``ids`` as the ids of the liveliness tokens a subscriber sees."""
-        def on_sample(sample: zenoh.Sample) -> None:
-            inst = str(sample.key_expr).rsplit("/", 1)[-1]
-            with self._alive_lock:
-                if sample.kind == zenoh.SampleKind.PUT:
-                    ids.add(inst)
-                else:
-                    ids.discard(inst)
-        return on_sample
-
-    def _live(self) -> set[str]:
-        """The ids of the instances with a liveliness token (the subscriber's view, and
-        a get's while it may not have heard of them all yet)."""
-        with self._alive_lock:
-            ids = set(self._alive)
-        if not ids - {self.instance}:  # just started, or alone: ask as well
-            for reply in self.session.liveliness().get(f"{self.prefix}/alive/*",
-                                                       timeout=2.0):
-                if reply.ok is not None:
-                    ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
-        return ids
-
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
         """The scenes of the instances ``instance`` matches (``*``: all), by id."""
         out = {}
@@ -484,22 +370,6 @@ class SceneService:
                 inst = str(reply.ok.key_expr).split("/instance/", 1)[1].split("/", 1)[0]
                 out[inst] = orjson.loads(reply.ok.payload.to_bytes())
         return out
-
-
-def _no_robot(reply: zenoh.Reply) -> bool:
-    """An error reply of an instance that drives no robot (``serve --no-robot``)."""
-    err = reply.err
-    if err is None:
-        return False
-    try:
-        body = orjson.loads(err.payload.to_bytes())
-        return body["error"]["details"].get("robot") == "none"
-    except (orjson.JSONDecodeError, KeyError, TypeError, AttributeError):
-        return False
-
-
-class _Unavailable(PlanningError):
-    code = Code.BUSY
 
 
 def _reply_error(query: zenoh.Query, failure: Failure) -> None:

@@ -39,7 +39,7 @@ SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_resp
 #: trajectory (thousands of points), bounded by the payload cap and read point by point.
 _UNCOUNTED: frozenset[str] = frozenset({"execute"})
 #: what :func:`validate` takes beyond the work kinds: the scene's apply request
-#: (decoded by :func:`service.scene_sync.decode_apply`, under its own size caps)
+#: (decoded by :func:`service.scene_apply.decode_apply`, under its own size caps)
 OtherKind = Literal["scene_apply"]
 #: Schema keywords whose figure is a cap or a bound: their refusals carry it as
 #: ``details.limit``.

@@ -4,7 +4,8 @@ import pytest
 from description import load_description
 from planner.collision.world import CollisionWorld
 from planner.errors import GoalInCollision, GoalOutOfReach, InvalidRequest, JointLimitViolation
-from planner.planning.goals import JointGoal, NamedGoal, PositionGoal, resolve_goal
+from planner.planning.goal_states import resolve_goal
+from planner.planning.goals import JointGoal, NamedGoal, PositionGoal
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +51,7 @@ def test_position_goal_gives_collision_free_ik(env):
 
 
 def test_groups_come_from_the_robot(env):
-    from planner.planning.goals import resolve_group
+    from planner.planning.goal_states import resolve_group
     desc = env[0]
     assert resolve_group(desc, None, NamedGoal("gripper_open")) == "gripper"
     assert resolve_group(desc, None, JointGoal({"joint_1": 0.1})) == "arm"

@@ -12,7 +12,8 @@ from planner.collision.world import CollisionWorld
 from planner.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
 from planner.kinematics.chain import Kinematics
 from planner.kinematics.ik import position_ik
-from planner.planning.goals import JointGoal, resolve_goal
+from planner.planning.goal_states import resolve_goal
+from planner.planning.goals import JointGoal
 from planner.planning.motion import MotionRequest
 from planner.planning.paths import PathRequest
 from service.requests import joint_values

@@ -1,5 +1,5 @@
 """Trajectories to ros2_control's joint_trajectory_controllers over rmw_zenoh (issue 31,
-item 2): ``ros2.controllers`` and ``arduinobot execute --ros2`` against fake controllers.
+item 2): ``ros2.controllers``, ``ros2.trajectory_target`` and ``arduinobot execute --ros2`` against fake controllers.
 
 A fake controller is written from control_msgs' definition
 (github.com/ros-controls/control_msgs, control_msgs/action/FollowJointTrajectory.action,
@@ -32,17 +32,14 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from description import load_description
 from ros2 import ControllerFailed, GoalRejected, NoController, Node
 from ros2.actions import STATUS_CANCELED, ActionServer, GoalHandle
+from ros2.control_msgs import FOLLOW_JOINT_TRAJECTORY, control_msgs_types
 from ros2.controllers import (
-    FOLLOW_JOINT_TRAJECTORY,
     JOINT_TRAJECTORY,
     Controller,
-    Feedback,
-    TargetOptions,
-    TrajectoryTarget,
-    control_msgs_types,
     read_moveit_controllers,
     split_trajectory,
 )
+from ros2.trajectory_target import Feedback, TargetOptions, TrajectoryTarget
 from tests.helpers.course_workspace import MOVEIT_CONTROLLERS_YAML
 
 from .conftest import REPO

@@ -15,8 +15,8 @@ from planner.codes import Code
 from planner.errors import InvalidRequest, JointLimitViolation, PlanningError
 from service import wire
 from service.handlers import Handlers
+from service.scene_apply import decode_apply
 from service.scene_store import SceneBuilder, SceneFile, SceneState, apply, restore
-from service.scene_sync import decode_apply
 
 from .helpers.fk import link_pose
 from .helpers.scene_fuzz import carry_seeds, mutate

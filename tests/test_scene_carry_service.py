@@ -13,11 +13,11 @@ import pytest
 
 from clients import errors
 from clients.client import PlannerClient
-from description import load_description
 
 from .conftest import start_servers
+from .helpers.carry import shipped_case
 from .helpers.fk import link_pose
-from .test_carried import _box_hits, _Case
+from .test_carried import _box_hits
 from .test_scene_carry import _pose
 from .test_scene_service import _cli, _kill_tree
 
@@ -25,23 +25,14 @@ pytestmark = pytest.mark.slow  # every test here starts serve processes
 
 START = {"joint_1": -0.8}
 END = {"joint_1": 0.8}
-
-
-@pytest.fixture(scope="module")
-def case():
-    d = load_description(env={})
-    return _Case(d, d.tcp)
-
-
-def _q(case, state):
-    return np.array([state.get(n, 0.0) for n in case.names])
+case = pytest.fixture(shipped_case, scope="module", name="case")
 
 
 def _box_in_world(case, state) -> dict:
     """The case's box (in its link's frame) as a free object where the link holds it at
     ``state``."""
     from service.scene_store import rpy_of
-    t = link_pose(case.d.robot, case.link, case.names, _q(case, state)) @ case.box.pose()
+    t = link_pose(case.d.robot, case.link, case.names, case.q(state)) @ case.box.pose()
     return {"id": case.box.id, "shape": "box", "size": list(case.box.size),
             "xyz": t[:3, 3].tolist(), "rpy": rpy_of(t[:3, :3])}
 
@@ -76,7 +67,7 @@ def test_attach_plan_fk_detach_refusals_and_kill_9(case, tmp_path):
             assert _box_hits(case.d, case.names, qs, case.box, case.link, case.table) == 0
             # fk and check report where the box is
             fk = c.request("fk", {"joints": END})
-            want = link_pose(case.d.robot, case.link, case.names, _q(case, END)) \
+            want = link_pose(case.d.robot, case.link, case.names, case.q(END)) \
                 @ case.box.pose()
             assert np.allclose(np.array(fk["carried"]["carried_box"]["matrix"]), want,
                                atol=1e-9)
@@ -88,7 +79,7 @@ def test_attach_plan_fk_detach_refusals_and_kill_9(case, tmp_path):
             # every refusal coded, naming the field, the scene unchanged
             before = c.request("scene")
             ball_at = link_pose(case.d.robot, "horizontal_arm", case.names,
-                                 _q(case, {}))[:3, 3].tolist()
+                                 case.q({}))[:3, 3].tolist()
             for change, field in [
                 ({"attach": [{"object": "table", "link": "no_link"}]}, "attach[0].link"),
                 ({"attach": [{"object": "ghost", "link": case.link}]}, "attach[0].object"),
@@ -124,9 +115,9 @@ def test_attach_plan_fk_detach_refusals_and_kill_9(case, tmp_path):
             assert held["link"] == case.link and held["mass"] == 0.2
             # detached at END, taken again at 0: the box is now where END put it, seen
             # from the link at 0
-            at_end = link_pose(case.d.robot, case.link, case.names, _q(case, END)) \
+            at_end = link_pose(case.d.robot, case.link, case.names, case.q(END)) \
                 @ case.box.pose()
-            link0 = link_pose(case.d.robot, case.link, case.names, _q(case, {}))
+            link0 = link_pose(case.d.robot, case.link, case.names, case.q({}))
             assert np.allclose(link0 @ _pose(held["object"]), at_end, atol=1e-9)
             chk = c.request("check", {"joints": {}})
             assert chk["scene_revision"] == rev + 2
@@ -148,7 +139,7 @@ def test_detach_leaves_the_box_where_it_was_carried_to(case, tmp_path):
             assert r["state_source"] == "zero"  # no --state, no executing robot
             r = c.request("scene/apply", {"detach": ["carried_box"], "state": END})
             (free,) = c.request("scene")["objects"]
-            want = link_pose(case.d.robot, case.link, case.names, _q(case, END)) \
+            want = link_pose(case.d.robot, case.link, case.names, case.q(END)) \
                 @ case.box.pose()
             assert np.allclose(_pose(free), want, atol=1e-9)
     finally:
@@ -168,6 +159,15 @@ def test_the_scene_attach_and_detach_commands_as_typed(case, tmp_path):
         assert "revision 2 (0 objects, 1 carried), at --state" in out.stdout
         out = _cli("scene", "show", *con)
         assert "1 carried" in out.stdout and f"in {case.link}'s frame" in out.stdout
+        # fk prints where the carried box is at the asked state, by the independent walk
+        out = _cli("fk", "--joints", "joint_1=0.3,joint_2=0.2", "--link", case.link, *con)
+        assert out.returncode == 0, out.stderr
+        (line,) = [ln for ln in out.stdout.splitlines() if ln.startswith("carried_box ")]
+        assert line.endswith(f"carried by {case.link}"), line
+        xyz = [float(v) for v in line.split("xyz (", 1)[1].split(")", 1)[0].split()]
+        want = link_pose(case.d.robot, case.link, case.names,
+                         case.q({"joint_1": 0.3, "joint_2": 0.2})) @ case.box.pose()
+        assert xyz == pytest.approx(want[:3, 3].tolist(), abs=1e-4)  # printed to 0.1 mm
         saved = tmp_path / "cell.json"
         assert _cli("scene", "save", str(saved), *con).returncode == 0
         body = json.loads(saved.read_text())

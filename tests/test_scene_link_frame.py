@@ -16,8 +16,9 @@ from service import wire
 from service.handlers import Handlers
 from service.scene_store import SceneBuilder, SceneFile, SceneState, restore
 
+from .helpers.carry import CarryCase
 from .helpers.fk import link_pose
-from .test_carried import _box_hits, _Case
+from .test_carried import _box_hits
 from .test_scene_carry import applied
 
 
@@ -75,7 +76,7 @@ def test_a_world_obstacle_in_its_way_is_a_contact_of_the_object_not_the_link(des
 
 
 def test_a_plan_keeps_an_object_fixed_in_the_link_frame_out_of_the_table(desc, scene_builder):
-    case = _Case(desc, desc.tcp)  # a box hanging below the tool sweeps the table directly
+    case = CarryCase(desc, desc.tcp)  # a box hanging below the tool sweeps the table directly
     box = case.box
     obj = {"id": box.id, "shape": "box", "size": list(box.size), "xyz": list(box.xyz),
            "frame": case.link}

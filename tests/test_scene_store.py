@@ -13,6 +13,7 @@ import trimesh
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError, SceneConflict
 from service import wire
+from service.scene_apply import MAX_APPLY_PAYLOAD, decode_apply
 from service.scene_mesh import MAX_MESH_BASE64, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, decode_mesh
 from service.scene_store import (
     MAX_SCENE_OBJECTS,
@@ -24,7 +25,6 @@ from service.scene_store import (
     restore,
     with_scene,
 )
-from service.scene_sync import MAX_APPLY_PAYLOAD, decode_apply
 
 from .helpers.scene_fuzz import binary_stl as _binary_stl
 from .helpers.scene_fuzz import junk_mesh as _junk_mesh

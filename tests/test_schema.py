@@ -294,7 +294,7 @@ def test_an_execute_request_needs_exactly_one_of_trajectory_and_plan(payload):
 
 
 def test_the_execute_request_schema_is_published_and_its_ranges_are_the_services():
-    from service.execution import DEFAULT_START_TOLERANCE
+    from service.execute_io import DEFAULT_START_TOLERANCE
     s = wire.schema("execute_request")
     assert "execute_request" in wire.all_schemas()
     tol = s["properties"]["start_tolerance"]

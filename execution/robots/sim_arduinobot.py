@@ -239,15 +239,20 @@ class SimArduinobot(Robot):
             m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
 
     def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = (),
-                  loose: Sequence[Any] = ()) -> None:
+                  loose: Sequence[Any] = (), *, moving: bool = False) -> None:
         """Put ``obstacles`` in the world and weld ``attached`` to their links instead of
         what was there (the kept scene at a new revision, or a plan's own obstacles), the
-        arm at rest where it is now; the servo gains and figures stay.
+        arm at rest where it is now; the servo gains and figures stay. ``moving``: the
+        arm keeps its motion instead (positions, velocities, setpoint and clock: a blend
+        changes the world between two ticks); ``loose`` objects start afresh either way.
 
         Raises:
             SimulationError: MuJoCo refused the model.
         """
         q = np.asarray(self.state().positions[:len(self.joint_names)], float)
+        d = self.data
+        motion = (d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy(), float(d.time),
+                  self._q_ref, self._qd_ref, self._qdd_ref, self._jerk) if moving else None
         robot = self._description.robot
         gains = {n: g for n, g in zip(self.joint_names, self.gains)}
         self.xml = to_mjcf(robot, gains=gains, excluded=self._excluded, obstacles=obstacles,
@@ -261,6 +266,11 @@ class SimArduinobot(Robot):
         self.reset(q)
         (self._peak, self._peak_ff, self._saturated, self._contacts, self._contact_steps,
          self._steps) = stats
+        if motion is not None:  # the joints are the same in the new model, by name
+            qpos, qvel, t, self._q_ref, self._qd_ref, self._qdd_ref, self._jerk = motion
+            self.data.qpos[self._qadr], self.data.qvel[self._dadr] = qpos, qvel
+            self.data.time = t
+            self._mj.mj_forward(self.model, self.data)
 
     def _build(self, name: str) -> None:
         mujoco = self._mj

@@ -44,7 +44,7 @@ from ..timing.curve import Curve, build_curve
 from ..timing.profiles import TimingProfile, build_profiles
 from ..timing.trajectory import CurveTiming, JointTrajectory
 from ..timing.verify import VerificationReport, Verifier, derate
-from .goals import resolve_group
+from .goal_states import resolve_group
 from .motion import MotionRequest, Profile
 from .paths import PathPlanner
 

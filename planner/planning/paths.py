@@ -31,13 +31,8 @@ from ..collision.motion_check import (
 )
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, NoPathFound, StartInCollision
-from .goals import (
-    Goal,
-    check_goal,
-    check_limits,
-    resolve_goal,
-    resolve_group,
-)
+from .goal_states import check_limits, resolve_goal, resolve_group
+from .goals import Goal, check_goal
 from .room import Guarded, StateChecker, short_of_room
 
 _log = logging.getLogger(__name__)

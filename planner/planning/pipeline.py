@@ -33,7 +33,8 @@ from ..timing.trajectory import JointTrajectory
 from ..timing.verify import VerificationReport
 from .context import MAX_ATTEMPTS, PlanningContext
 from .from_rest import FromRest
-from .goals import LineGoal, resolve_group
+from .goal_states import resolve_group
+from .goals import LineGoal
 from .motion import MotionRequest, MotionResult, Profile
 from .moving_start import FromMovingState
 from .reached import Reached, reached

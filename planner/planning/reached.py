@@ -24,7 +24,8 @@ from ..kinematics.rotations import (
     rotation_error,
     rpy_of_matrix,
 )
-from .goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal, named_values
+from .goal_states import named_values
+from .goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal
 
 __all__ = ["Reached", "reached"]
 

@@ -46,11 +46,13 @@ from ..timing.curve import Curve, build_curve
 from ..timing.trajectory import JointTrajectory
 from ..timing.verify import VerificationReport, Verifier
 from .context import PlanningContext
-from .goals import LineGoal, resolve_group, tcp_joints
+from .goal_states import resolve_group
+from .goals import LineGoal
 from .line_path import MAX_TURN, LinePath, LineReport, follow_line, line_deviation
 from .line_timing import Bounds, TcpMotion, line_timing, tcp_motion
 from .motion import MotionRequest, MotionResult
 from .strategy import moves_at_start
+from .tcp_goals import tcp_joints
 
 __all__ = ["StraightLine", "MAX_DEVIATION", "line_target"]
 

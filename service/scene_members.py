@@ -1,0 +1,62 @@
+"""Which instances share the kept scene, as liveliness tokens tell it: the live ones
+(``<p>/alive/<id>``, the leader is the smallest id) and the members that hold the scene
+(``<p>/scene/member/<id>``, the leader sends each change to each of them)."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import zenoh
+
+
+class Instances:
+    """The ids of the live instances and the scene's members under ``prefix``, kept by
+    liveliness subscribers (:meth:`subscribe`) that live as long as their entities."""
+
+    def __init__(self, session: zenoh.Session, prefix: str, me: str) -> None:
+        self.session, self.prefix, self.me = session, prefix, me
+        # kept by subscribers: a liveliness get per apply sometimes missed a token under
+        # load, and an instance that misses the leader's leads too (two leaders lose
+        # changes; measured with bench/scene.py)
+        self._alive: set[str] = set()
+        self._members: set[str] = set()
+        self._lock = threading.Lock()
+
+    def subscribe(self) -> list[Any]:
+        """Declare the two subscribers (each sees the tokens already there); the entities
+        to undeclare when done."""
+        liveliness = self.session.liveliness()
+        return [liveliness.declare_subscriber(f"{self.prefix}/alive/*",
+                                              self._on_token(self._alive), history=True),
+                liveliness.declare_subscriber(f"{self.prefix}/scene/member/*",
+                                              self._on_token(self._members), history=True)]
+
+    def _on_token(self, ids: set[str]) -> Callable[[zenoh.Sample], None]:
+        """Keeps ``ids`` as the ids of the liveliness tokens a subscriber sees."""
+        def on_sample(sample: zenoh.Sample) -> None:
+            inst = str(sample.key_expr).rsplit("/", 1)[-1]
+            with self._lock:
+                if sample.kind == zenoh.SampleKind.PUT:
+                    ids.add(inst)
+                else:
+                    ids.discard(inst)
+        return on_sample
+
+    def members(self) -> set[str]:
+        """The other instances holding the scene."""
+        with self._lock:
+            return self._members - {self.me}
+
+    def live(self) -> set[str]:
+        """The ids of the instances with a liveliness token (the subscriber's view, and
+        a get's while it may not have heard of them all yet)."""
+        with self._lock:
+            ids = set(self._alive)
+        if not ids - {self.me}:  # just started, or alone: ask as well
+            for reply in self.session.liveliness().get(f"{self.prefix}/alive/*",
+                                                       timeout=2.0):
+                if reply.ok is not None:
+                    ids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+        return ids
