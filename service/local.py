@@ -19,7 +19,8 @@ from .bodies import description_body
 from .disk_cache import DiskCache
 from .handlers import Handlers
 from .scene_carry import RobotFrames
-from .scene_store import SceneBuilder, SceneFile, SceneSnapshot, restore
+from .scene_file import SceneFile
+from .scene_store import SceneBuilder, SceneSnapshot, restore
 
 #: the ``request_id`` of every local reply (a worker puts its job id there)
 LOCAL_REQUEST_ID = "local"

@@ -1,5 +1,5 @@
-"""The planning scene that lasts: its objects at a revision, how an apply changes it
-(all or nothing), and its file on disk.
+"""The planning scene that lasts: its objects at a revision and how an apply changes it
+(all or nothing); its file on disk is :mod:`service.scene_file`'s.
 
 A :class:`SceneState` is immutable: :func:`apply` builds the next one or raises, so a
 refused apply leaves the scene as it was by construction. Each object keeps its wire form
@@ -11,11 +11,9 @@ instances is :mod:`service.scene_sync`'s.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -371,69 +369,6 @@ def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
         raise InvalidRequest(f"{len(free) + len(held)} objects, more than a scene's cap of "
                              f"{MAX_SCENE_OBJECTS}", field="attached")
     return SceneState(revision, tuple(free.values()), tuple(held))
-
-
-class SceneFile:
-    """The scene kept on disk: JSON written to a temporary file, synced, then renamed
-    over the old one, so a crash at any moment leaves the old scene or the new one."""
-
-    def __init__(self, path: str | os.PathLike[str]) -> None:
-        self.path = Path(path)
-
-    def load(self) -> dict[str, Any] | None:
-        """The scene file's JSON, or None if there is none yet.
-
-        Raises:
-            InvalidRequest: the file is not a scene (naming the file).
-        """
-        try:
-            text = self.path.read_text("utf-8")
-        except FileNotFoundError:
-            return None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise InvalidRequest(f"scene file {self.path} is not JSON: {e}") from None
-        if not isinstance(data, dict):
-            raise InvalidRequest(f"scene file {self.path} is not a scene object")
-        return data
-
-    def save(self, state: SceneState) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}-",
-                                   suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                json.dump(state.to_json(), f, separators=(",", ":"))
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, self.path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        # the rename itself must reach the disk before the apply is acknowledged
-        dir_fd = os.open(self.path.parent, os.O_RDONLY)
-        try:
-            os.fsync(dir_fd)
-        finally:
-            os.close(dir_fd)
-
-
-def default_scene_file(prefix: str) -> Path:
-    """Where ``arduinobot serve`` keeps the scene of ``prefix`` by default:
-    ``$ARDUINOBOT_STATE``, else ``$XDG_STATE_HOME/arduinobot``, else
-    ``~/.local/state/arduinobot``; one file per prefix."""
-    base = os.environ.get("ARDUINOBOT_STATE")
-    if not base:
-        xdg = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
-        base = str(Path(xdg) / "arduinobot")
-    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in prefix)
-    return Path(base) / f"scene-{safe}.json"
-
-
-def mesh_dir_for(scene_file: str | os.PathLike[str]) -> Path:
-    """The folder of a scene file's canonical mesh files (beside it)."""
-    return Path(scene_file).parent / "meshes"
 
 
 def with_scene(snapshot: SceneSnapshot | None, data: Mapping[str, Any],

@@ -56,15 +56,13 @@ from .scene_apply import (
     with_robot_state,
 )
 from .scene_carry import RobotFrames
+from .scene_file import SceneFile, default_scene_file, mesh_dir_for
 from .scene_members import Instances
 from .scene_store import (
     SceneBuilder,
-    SceneFile,
     SceneState,
     StateSource,
     apply,
-    default_scene_file,
-    mesh_dir_for,
     restore,
 )
 
@@ -89,7 +87,7 @@ class SceneService:
     Args:
         link_names: the robot's links (no object may take a link's name).
         scene_file: where this instance keeps the scene (default
-            :func:`service.scene_store.default_scene_file`).
+            :func:`service.scene_file.default_scene_file`).
         description: the robot (without it, attach and detach are refused).
     """
 

@@ -82,7 +82,7 @@ class ServeOptions:
     #: ``make(session, prefix, description, submit_plan) -> object with close()``
     #: (``arduinobot serve`` adds ``<prefix>/execute``); closed first on shutdown
     extensions: Sequence[Extension] = ()
-    #: where this instance keeps the scene (None: service.scene_store.default_scene_file)
+    #: where this instance keeps the scene (None: service.scene_file.default_scene_file)
     scene_file: str | None = None
     #: the named tasks of <prefix>/task (None: the MoveIt config's tasks.yaml)
     tasks_file: str | None = None

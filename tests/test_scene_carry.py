@@ -16,7 +16,8 @@ from planner.errors import InvalidRequest, JointLimitViolation, PlanningError
 from service import wire
 from service.handlers import Handlers
 from service.scene_apply import decode_apply
-from service.scene_store import SceneBuilder, SceneFile, SceneState, apply, restore
+from service.scene_file import SceneFile
+from service.scene_store import SceneBuilder, SceneState, apply, restore
 
 from .helpers.fk import link_pose
 from .helpers.scene_fuzz import carry_seeds, mutate

@@ -14,7 +14,8 @@ from planner.errors import InvalidRequest, StartInCollision
 from planner.scene import rigid_links
 from service import wire
 from service.handlers import Handlers
-from service.scene_store import SceneBuilder, SceneFile, SceneState, restore
+from service.scene_file import SceneFile
+from service.scene_store import SceneBuilder, SceneState, restore
 
 from .helpers.carry import CarryCase
 from .helpers.fk import link_pose

@@ -14,11 +14,11 @@ from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError, SceneConflict
 from service import wire
 from service.scene_apply import MAX_APPLY_PAYLOAD, decode_apply
+from service.scene_file import SceneFile
 from service.scene_mesh import MAX_MESH_BASE64, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, decode_mesh
 from service.scene_store import (
     MAX_SCENE_OBJECTS,
     SceneBuilder,
-    SceneFile,
     SceneSnapshot,
     SceneState,
     apply,

@@ -152,7 +152,7 @@ def read_scene_file(path: str, description: Description) -> ViewerScene:
             would refuse (the message names the file).
     """
     from planner.errors import InvalidRequest
-    from service.scene_store import SceneFile
+    from service.scene_file import SceneFile
 
     data = SceneFile(path).load()
     if data is None:
