@@ -170,6 +170,12 @@ class Handlers:
         return {**plan_response(self.solve(data, scene=scene)),
                 "scene_revision": scene.revision if scene is not None else 0}
 
+    def task(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None) -> Any:
+        """A ``task`` job (see :func:`service.task_service.answer_task`) planned with this
+        worker's planner -> its :class:`~service.messages.Success`."""
+        from .task_service import answer_task
+        return answer_task(self._motion_planner(), data, scene=scene)
+
     def solve(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None) -> Any:
         """A v1 plan request (validated) against ``scene`` -> the planner's MotionResult,
         which :func:`service.plan_io.plan_response` (or, encoded at once, ``plan_reply``)

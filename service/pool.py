@@ -76,7 +76,8 @@ class WorkerPool:
         # toppra, OMPL: ~2 s) run in it while the caller loads the description, not again
         # in the zygote
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["service.worker", "planner.planning.pipeline"])
+        ctx.set_forkserver_preload(["service.worker", "service.handlers",
+                                  "planner.planning.pipeline"])
         from multiprocessing import forkserver
         forkserver.ensure_running()
         self.counters: Counter[str] = Counter()

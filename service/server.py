@@ -13,9 +13,9 @@ import json
 import logging
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import zenoh
 
@@ -42,6 +42,8 @@ Extension = Callable[..., Any]
 
 VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
+#: what the pool does: the work kinds, and the tasks of <prefix>/task
+JobKind = Literal["plan", "fk", "ik", "check", "task"]
 INFO_KINDS = ("description", "health", "schema")
 JSON = "application/json"
 #: a worker's default memory cap [bytes]. Measured resident sets: 223 MiB ready and
@@ -156,8 +158,8 @@ class PlannerService:
                 if hasattr(ext, "scene_source"):  # the twin puts the kept scene in its world
                     ext.scene_source = self._scene_now
                 self._extensions.append(ext)
-            # <prefix>/task: plans tasks itself, executes through <prefix>/execute
-            self._extensions.append(task_extension(tasks_file=o.tasks_file,
+            # <prefix>/task: tasks planned by the pool, executed through <prefix>/execute
+            self._extensions.append(task_extension(submit=self.submit, tasks_file=o.tasks_file,
                                                    scene=self._scene_now)(
                 self.session, p, desc, self._submit_plan))
         except Exception:
@@ -278,10 +280,21 @@ class PlannerService:
     def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
                      ) -> None:
         """A plan job for an extension's own planning, through the same pool."""
+        self.submit("plan", data, respond)
+
+    def submit(self, kind: JobKind, data: Mapping[str, Any],
+               respond: Callable[[Outcome], None]) -> None:
+        """A job of ``kind`` with a valid request ``data`` through the pool, against the
+        kept scene now; ``respond`` gets its one outcome (a ``task`` job: see
+        :mod:`service.task_service`).
+
+        Raises:
+            ShuttingDown: the pool is closed.
+        """
         pool = self.pool
         if pool is None:  # closed: as _on_query answers a query that arrives then
             raise ShuttingDown(SHUTTING_DOWN)
-        pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
+        pool.submit(Job(kind, data, f"{self.instance[:8]}-{next(self._ids)}",
                         time.monotonic() + self.options.timeout, respond,
                         scene=self._scene_now()))
 

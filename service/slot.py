@@ -18,7 +18,7 @@ from planner.codes import Code
 
 from . import hoptrace
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
-from .messages import Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
+from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
 from .messages import Stop as StopMsg
 from .worker import DescriptionSpec
 from .zygote import WorkerProcess, Zygote, ZygoteError
@@ -165,6 +165,9 @@ class Slot:
         self.name = f"worker {index}"
         self.worker: WorkerProcess | None = None
         self._rss_due = 0.0  # when the busy worker's memory is read next [monotonic s]
+        #: (worker, the scene snapshot it was sent last): a job against the same
+        #: snapshot object sends HELD_SCENE instead of the snapshot again
+        self._held: tuple[WorkerProcess | None, Any] = (None, None)
 
     def live_pid(self) -> int | None:
         """The pid of this slot's worker while it runs (call with the pool's lock held)."""
@@ -220,7 +223,7 @@ class Slot:
             trace["slot"] = t0
         try:
             w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline,
-                                job.scene))
+                               self._scene_for(w, job.scene)))
             if trace is not None:
                 trace["sent"] = hoptrace.now()
             while outcome is None and (stop := self._why_stop(job, w)) is None:
@@ -277,6 +280,15 @@ class Slot:
         q.finish(job, failure(job, Code.INTERNAL, f"the worker process died "
                               f"({how or 'unknown'}) while planning this request; it has "
                               "been replaced", worker_exit=how))
+
+    def _scene_for(self, w: WorkerProcess, scene: Any) -> Any:
+        """What a JobMsg to ``w`` carries of ``scene``: HELD_SCENE when ``w`` was sent this
+        very snapshot last (a snapshot is immutable: the same object, the same scene; a
+        new worker holds none). Compared by identity: equality would walk the objects."""
+        if scene is not None and self._held[0] is w and self._held[1] is scene:
+            return HELD_SCENE
+        self._held = (w, scene)
+        return scene
 
     def _why_stop(self, job: Job, w: WorkerProcess) -> Stop | None:
         q = self._queue
