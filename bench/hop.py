@@ -23,10 +23,14 @@ Python client's own steps, stamping the client's side too. Per request, in order
   :class:`~clients.replies.PlanReply`;
 - ``hop``: end to end (encode to typed reply) minus the reply's ``timing.total``.
 
+With ``--kept``, the service keeps bench/scene.py's 20 primitives (a ring out of the arm's
+way) in its scene while the plans run: every job is answered against them (the worker
+receives the scene once per revision, not with each job).
+
 Also the floor: a bare Zenoh get/reply on loopback (two sessions in this process, a
 queryable replying with a plan reply's bytes), and the reply's size.
 
-Usage: ./dev bench hop [--n 40] [--model course|shipped] [--scene self] [--workers 2]
+Usage: ./dev bench hop [--n 40] [--model course|shipped] [--scene self] [--workers 2] [--kept]
 Prints the split (median and p95 per piece, in ms), then one JSON line.
 """
 
@@ -140,6 +144,9 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
     rows: list[tuple[dict[str, float], PlanReply, int]] = []
     try:
         with PlannerClient(srv.endpoint, timeout=120) as c:
+            if args.kept:
+                from bench.scene import objects
+                c.request("scene/apply", {"clear": True, "add": objects(meshes=False)})
             for k, (a, b, _) in enumerate(probs[:args.workers * 2]):  # warm: not counted
                 one(c, plan_body(names, a, b, obs, 10_000 + k))
             for i, (a, b, _) in enumerate(probs):
@@ -163,7 +170,8 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
     split = {p: stats(v) for p, v in pieces.items()}
     split["handler_outside_total"] = stats(outside)
     big = max(rows, key=lambda r: r[2])[1]
-    return {"model": args.model, "scene": args.scene, "problems": len(rows),
+    return {"model": args.model, "scene": args.scene, "kept_objects": 20 if args.kept else 0,
+            "problems": len(rows),
             "workers": args.workers, "hop": stats(hop), "total": stats(totals),
             "split": split, "reply_bytes_median": statistics.median(n for _, _, n in rows),
             "points_median": statistics.median(len(r.times) for _, r, _ in rows),
@@ -172,7 +180,8 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
 
 
 def report(res: dict[str, Any]) -> None:
-    print(f"{res['model']} / {res['scene']}: {res['problems']} plans, "
+    kept = f", {res['kept_objects']} objects kept" if res["kept_objects"] else ""
+    print(f"{res['model']} / {res['scene']}{kept}: {res['problems']} plans, "
           f"{res['points_median']:.0f} samples and {res['reply_bytes_median']:.0f} reply bytes "
           f"(medians), load average {res['load_average']}")
     order = ["client_encode", "zenoh_in", "callback", "to_slot", "pipe", "decode",
@@ -196,6 +205,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=7, help="problem draws (7: bench/peer's)")
     ap.add_argument("--floor-repeats", type=int, default=200)
+    ap.add_argument("--kept", action="store_true",
+                    help="keep 20 primitives in the service's scene (bench/scene.py's ring)")
     ap.add_argument("--keep", metavar="DIR",
                     help="generate the model and its cache here and keep them (faster reruns)")
     args = ap.parse_args(argv)
