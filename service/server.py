@@ -8,6 +8,7 @@ are answered by the pool, the others at once; each is declared complete under
 from __future__ import annotations
 
 import contextlib
+import gc
 import itertools
 import json
 import logging
@@ -166,6 +167,11 @@ class PlannerService:
             self.close()
             raise
         self._started = time.monotonic()
+        # what start built (the description, schemas, the scene, Zenoh's objects) lives
+        # as long as the service: out of the collector's sight, so no full collection
+        # walks it on a request's time (the zygote does the same for its model)
+        gc.collect()
+        gc.freeze()
         # where clients reach it: what a user must pass as --connect
         listen, connect = _endpoints(cfg, "listen"), _endpoints(cfg, "connect")
         where = f"listening on {', '.join(listen)}" if listen else "no listener"
