@@ -160,12 +160,15 @@ class WorkerPool:
                     slot = self._idle.pop()
                     job.handoff = threading.Event()
                     slot.handed = job
-                    self._cond.notify_all()
                 else:
                     self._enqueue(job, first=False)
             retry = max(0.05, self._service_time / self.workers)
         if slot is not None:
             slot.dispatch(job)
+            # the slot's thread wakes once its worker has the job, not before: a thread
+            # woken earlier would take the GIL from the send on its way
+            with self._cond:
+                self._cond.notify_all()
             return
         if stopping:
             self.finish(job, shutting_down(job))
