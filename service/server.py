@@ -30,6 +30,7 @@ from .keyguard import addressed_exactly
 from .memtrace import MemTrace, count_live
 from .messages import Failure, Outcome, Success
 from .pool import WorkerPool
+from .scene_carry import PooledFrames
 from .scene_store import SceneSnapshot
 from .scene_sync import SceneService
 from .task_service import task_extension
@@ -43,8 +44,9 @@ Extension = Callable[..., Any]
 
 VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
-#: what the pool does: the work kinds, and the tasks of <prefix>/task
-JobKind = Literal["plan", "fk", "ik", "check", "task"]
+#: what the pool does: the work kinds, the tasks of <prefix>/task, and the link poses and
+#: contacts of the kept scene's attach and detach
+JobKind = Literal["plan", "fk", "ik", "check", "task", "frames"]
 INFO_KINDS = ("description", "health", "schema")
 JSON = "application/json"
 #: a worker's default memory cap [bytes]. Measured resident sets: 223 MiB ready and
@@ -145,7 +147,8 @@ class PlannerService:
             # the kept scene first: caught up with the other instances before any plan
             self.scene = SceneService(self.session, p, self.instance,
                                       tuple(desc.robot.links), scene_file=o.scene_file,
-                                      description=desc)
+                                      description=desc,
+                                      robot=PooledFrames(desc, submit=self.submit))
             self.scene.start()
             for kind in (*WORK_KINDS, *INFO_KINDS):
                 for key, held in ((f"{p}/{kind}", self._shared),

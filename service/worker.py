@@ -15,6 +15,8 @@ from dataclasses import dataclass, field, replace
 from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Any, cast
 
+import orjson
+
 from description import load_description
 from planner.codes import Code
 from planner.errors import PlanningError
@@ -140,7 +142,12 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
             # submitted valid had its own deadline from the start)
             conn.send(Deadline(job.job_id, deadline))
         # encoded here, in parallel across workers, not in the serving process
-        if job.kind == "task":  # its reply and execute request: see service.task_service
+        if job.kind == "frames":  # for the kept scene: see service.scene_carry
+            body = handlers.frames(data)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+            out = Success(orjson.dumps(body))
+        elif job.kind == "task":  # its reply and execute request: see service.task_service
             out = handlers.task(data, scene=job.scene)
             if stamps is not None:
                 stamps.append(hoptrace.now())

@@ -1,6 +1,7 @@
-"""Tasks in the worker pool: ``<prefix>/task`` plans each task as a ``task`` job, so the
-serving process never imports the planner (checked in a real serve's ``sys.modules`` at
-its exit); a task job's deadline counts every step's planning time; a worker reuses the
+"""Tasks in the worker pool: ``<prefix>/task`` plans each task as a ``task`` job, and a
+kept-scene attach or detach asks the pool for link poses and contacts (``frames`` jobs),
+so the serving process never imports the planner (checked in a real serve's
+``sys.modules`` at its exit); a task job's deadline counts every step's planning time; a worker reuses the
 kept scene it was sent last instead of receiving it with every job."""
 
 from __future__ import annotations
@@ -12,9 +13,12 @@ from multiprocessing import Pipe
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import orjson
 import pytest
 
+from clients import errors
+from description import load_description
 from planner.scene import Obstacle
 from service import wire
 from service.messages import HELD_SCENE, Done, JobMsg, Stop, Success, Taken
@@ -22,6 +26,7 @@ from service.scene_store import SceneSnapshot
 from service.slot import Slot
 from service.worker import DEFAULT_PLANNING_TIME, job_deadline, serve_jobs
 from service.zygote import WorkerProcess
+from tests.helpers.fk import link_pose
 from tests.helpers.serve import start_server
 
 #: what only the planner's processes may import: the planning pipeline, the task
@@ -56,7 +61,8 @@ def _task_query(endpoint: str, body: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 @pytest.mark.slow
-def test_a_task_is_planned_by_the_pool_and_serve_never_imports_the_planner(tmp_path: Path):
+def test_tasks_and_attaches_go_to_the_pool_and_serve_never_imports_the_planner(
+        tmp_path: Path):
     hook = tmp_path / "hook"
     hook.mkdir()
     (hook / "sitecustomize.py").write_text(_SITECUSTOMIZE)
@@ -64,6 +70,10 @@ def test_a_task_is_planned_by_the_pool_and_serve_never_imports_the_planner(tmp_p
     modules.mkdir()
     env = {**os.environ, "ARDUINOBOT_TEST_MODULES": str(modules),
            "PYTHONPATH": os.pathsep.join([str(hook), os.environ.get("PYTHONPATH", "")])}
+    d = load_description()
+    link = d.tcp.parent_link
+    path = [j.name for j in d.robot.link_path("horizontal_arm")]
+    ball_at = link_pose(d.robot, "horizontal_arm", path, np.zeros(len(path)))[:3, 3].tolist()
     srv = start_server(["--workers", "1", "--no-robot"], env=env)
     try:
         from clients.client import PlannerClient
@@ -73,6 +83,17 @@ def test_a_task_is_planned_by_the_pool_and_serve_never_imports_the_planner(tmp_p
             bad = _task_query(srv.endpoint, {"task": {"steps": [
                 {"move": {"joints": {"joint_1": 9.0}}, "label": "too far"}]}})
             counters = c.health()["counters"]
+            # the kept scene's attach and detach: link poses and contacts by the pool too
+            far = {"id": "far", "shape": "sphere", "radius": 0.02, "xyz": [0.0, 0.0, 3.0]}
+            got = c.request("scene/apply", {"attach": [{"object": far, "link": link}],
+                                            "state": {}})
+            assert got["attached"] == 1
+            with pytest.raises(errors.InvalidRequest) as touching:
+                c.request("scene/apply", {"attach": [{"object": {
+                    "id": "ball", "shape": "sphere", "radius": 0.05, "xyz": ball_at},
+                    "link": link}], "state": {}})
+            detached = c.request("scene/apply", {"detach": ["far"], "state": {}})
+            (free,) = c.request("scene")["objects"]
     finally:
         assert srv.stop(signal.SIGINT) == 0, "\n".join(srv.stderr_lines[-20:])
     assert len(planned) == 1 and planned[0]["event"] == "planned", planned
@@ -83,6 +104,9 @@ def test_a_task_is_planned_by_the_pool_and_serve_never_imports_the_planner(tmp_p
     assert err["details"]["error"]["details"]["joint"] == "joint_1"
     # both tasks were jobs of the pool: received and answered there
     assert counters["received"] == 2 and counters["ok"] == 1, counters
+    assert ["ball", "horizontal_arm"] in touching.value.details["pairs"]
+    assert detached["attached"] == 0 and free["id"] == "far"
+    assert free["xyz"] == pytest.approx([0.0, 0.0, 3.0], abs=1e-9)  # where it was taken
     served = (modules / f"{srv.proc.pid}.txt").read_text().split()
     assert "service.task_service" in served  # it served the key
     loaded = [m for m in PLANNER_MODULES if m in served]
