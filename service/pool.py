@@ -4,7 +4,9 @@ exactly one reply per job.
 Workers are forked from a zygote that holds the built model (:mod:`service.zygote`), so a
 worker that dies or is killed is replaced in milliseconds, before the next job needs it.
 One parent thread per slot feeds its worker over a socket and watches it
-(:mod:`service.slot`):
+(:mod:`service.slot`); a job that arrives while a worker waits idle (and none queues) is
+sent to that worker by the submitting thread itself, one thread wake fewer before the
+worker has it:
 
 - past the job's deadline the worker is killed (it may be stuck in native code, or
   stopped) and the job gets TIMEOUT;
