@@ -129,7 +129,7 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
     """The job's outcome, and whether this worker must end after sending it (``stamps``:
     the hop trace's, appended to when tracing)."""
     try:
-        # the pool carries only work kinds (the server answers the others itself)
+        # the pool carries work kinds, tasks and frames (the server answers the others)
         raw = isinstance(job.payload, (bytes, str))
         data = wire.decode(cast("wire.Kind", job.kind), job.payload) \
             if isinstance(job.payload, (bytes, str)) else job.payload
