@@ -207,3 +207,27 @@ def test_a_held_scene_job_for_a_worker_that_holds_none_ends_it():
     # a bug in the pool's bookkeeping: the worker ends (its job answered INTERNAL by the
     # slot, as for any worker that dies), it never answers against a guessed scene
     assert len(errors) == 1 and "none is held" in str(errors[0])
+
+
+@pytest.mark.slow
+def test_one_worker_answers_each_job_against_the_scene_of_its_arrival():
+    # one worker: every check goes to it; the scene changes between them, so it is sent
+    # the new snapshot each time the revision moves and holds it otherwise
+    from clients.client import PlannerClient
+    d = load_description()
+    path = [j.name for j in d.robot.link_path("horizontal_arm")]
+    at = link_pose(d.robot, "horizontal_arm", path, np.zeros(len(path)))[:3, 3].tolist()
+    srv = start_server(["--workers", "1", "--no-robot"])
+    try:
+        with PlannerClient(srv.endpoint, timeout=60) as c:
+            assert c.check_state({}).valid and c.check_state({}).valid  # the same scene
+            c.request("scene/apply", {"add": [{"id": "ball", "shape": "sphere",
+                                               "radius": 0.05, "xyz": at}]})
+            hit = c.check_state({})
+            assert not hit.valid
+            assert any(set(p) == {"ball", "horizontal_arm"} for p in hit.pairs), hit.pairs
+            assert not c.check_state({}).valid  # the held snapshot
+            c.request("scene/apply", {"remove": ["ball"]})
+            assert c.check_state({}).valid
+    finally:
+        assert srv.stop(signal.SIGINT) == 0
