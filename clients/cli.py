@@ -26,7 +26,9 @@ from .common import run_guarded
 
 # Commands that run OMPL in this process (the second set with --local only), whose own log
 # follows -v (quiet by default); a remote plan must not import OMPL (~1 s).
-_OMPL_ALWAYS, _OMPL_LOCAL = {"serve", "srdf", "view", "task"}, {"plan", "ik", "execute"}
+# (not serve: its workers plan and set OMPL's level themselves, service/zygote.py; the
+# serving process never imports the planner)
+_OMPL_ALWAYS, _OMPL_LOCAL = {"srdf", "view", "task"}, {"plan", "ik", "execute"}
 _COMMANDS = [cmd_model, cmd_serve, cmd_srdf, cmd_view, cmd_plan, cmd_state, cmd_execute,
              cmd_scene, cmd_task]
 

@@ -44,6 +44,7 @@ class Handlers:
         # Padded scenes are not the planner's (it caches unpadded worlds): keep a few here.
         self._padded_scene = functools.lru_cache(_SCENE_CACHE)(self._padded)
         self._planner: Any = None
+        self._frames: Any = None  # the kept scene's attach and detach (built on first use)
 
     def warm_up(self) -> None:
         """Build the planner (and its obstacle-free world) and plan one short motion now,
@@ -170,6 +171,20 @@ class Handlers:
         from .plan_io import plan_response
         return {**plan_response(self.solve(data, scene=scene)),
                 "scene_revision": scene.revision if scene is not None else 0}
+
+    def frames(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        """A ``frames`` job: a link's pose or a carried object's contacts for the kept
+        scene's attach and detach (see :class:`service.scene_carry.PooledFrames`)."""
+        from .scene_carry import RobotFrames, answer_frames
+        if self._frames is None:
+            self._frames = RobotFrames(self.description)
+        return answer_frames(self._frames, data)
+
+    def task(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None) -> Any:
+        """A ``task`` job (see :func:`service.task_service.answer_task`) planned with this
+        worker's planner -> its :class:`~service.messages.Success`."""
+        from .task_service import answer_task
+        return answer_task(self._motion_planner(), data, scene=scene)
 
     def solve(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None) -> Any:
         """A v1 plan request (validated) against ``scene`` -> the planner's MotionResult,

@@ -10,7 +10,9 @@ Each stamp is :func:`time.monotonic` [s] (CLOCK_MONOTONIC: one clock for every p
 the host, so a client on the same host can put its own stamps beside them). In order:
 
 - ``callback``: Zenoh called the queryable; ``queued``: the job goes to the pool;
-- ``slot``: a slot thread took it; ``sent``: its JobMsg is on the worker's socket;
+- ``slot``: it is being sent to a worker (by the submitting thread when a worker waits
+  idle, else by the slot thread that took it from the queue); ``sent``: its JobMsg is
+  on the worker's socket;
 - ``w_recv``, ``w_decoded``, ``w_handled``, ``w_encoded``: the worker received it,
   decoded and validated it, the handler returned, the reply is encoded;
 - ``done``: the slot received the outcome; ``replied``: ``query.reply`` returned;

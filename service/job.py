@@ -43,6 +43,11 @@ class Job:
     redispatched: int = 0
     #: the hop's stamps by stage when tracing (:mod:`service.hoptrace`), else None
     trace: dict[str, float] | None = None
+    #: set once the submitting thread has sent the job to an idle slot's worker itself
+    #: (:meth:`service.slot.Slot.dispatch`); None for a job that went through the queue
+    handoff: threading.Event | None = None
+    #: why that send failed, if it failed for another reason than the worker's death
+    handoff_error: str | None = None
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def __post_init__(self) -> None:

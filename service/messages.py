@@ -26,9 +26,12 @@ from planner.errors import PlanningError
 
 @dataclass(frozen=True)
 class Success:
-    """A job's reply: the JSON body the worker encoded (``request_id`` included)."""
+    """A job's reply: the JSON body the worker encoded (``request_id`` included), and
+    for a task to run, the execute request the worker built for the serving process to
+    send (:mod:`service.task_service`)."""
 
     body: bytes
+    execute: bytes | None = None
 
 
 @dataclass(frozen=True)
@@ -68,8 +71,15 @@ class JobMsg:
     kind: str
     payload: bytes | str | Mapping[str, Any]
     base_deadline: float
-    #: the kept scene the request is answered against (:class:`service.scene_store.SceneSnapshot`)
+    #: the kept scene the request is answered against (:class:`service.scene_store.SceneSnapshot`),
+    #: or :data:`HELD_SCENE`: the one this worker was sent last (a kept scene of 20
+    #: primitives is 2.7 KB pickled, ~60 us to pickle and unpickle: sent once per worker
+    #: and revision, not with every job)
     scene: Any = None
+
+
+#: :attr:`JobMsg.scene` when the worker already holds the job's scene
+HELD_SCENE = "held"
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,9 @@ exactly one reply per job.
 Workers are forked from a zygote that holds the built model (:mod:`service.zygote`), so a
 worker that dies or is killed is replaced in milliseconds, before the next job needs it.
 One parent thread per slot feeds its worker over a socket and watches it
-(:mod:`service.slot`):
+(:mod:`service.slot`); a job that arrives while a worker waits idle (and none queues) is
+sent to that worker by the submitting thread itself, one thread wake fewer before the
+worker has it:
 
 - past the job's deadline the worker is killed (it may be stuck in native code, or
   stopped) and the job gets TIMEOUT;
@@ -76,7 +78,8 @@ class WorkerPool:
         # toppra, OMPL: ~2 s) run in it while the caller loads the description, not again
         # in the zygote
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["service.worker", "planner.planning.pipeline"])
+        ctx.set_forkserver_preload(["service.worker", "service.handlers",
+                                  "planner.planning.pipeline"])
         from multiprocessing import forkserver
         forkserver.ensure_running()
         self.counters: Counter[str] = Counter()
@@ -92,6 +95,10 @@ class WorkerPool:
         self._workers = Workers(ctx, spec, self._cond, count=self.count)
         self._slots = [Slot(i, self._workers, self) for i in range(workers)]
         self._busy: dict[int, Job] = {}  # slot index -> its job
+        # slots waiting in next_job with a live worker: a job submitted while one waits
+        # and none queues is sent to its worker by the submitting thread (one thread
+        # wake fewer before the worker has it)
+        self._idle: list[Slot] = []
         self._service_time = 0.5  # moving average of a job's time in a worker [s]
         self.stopping = False
         self.grace_end = 0.0  # when running jobs stop getting time after close [monotonic s]
@@ -147,11 +154,24 @@ class WorkerPool:
         """Queue a job, or answer it at once: BUSY when the queue is full (with
         ``details.retry_after`` [s]), SHUTTING_DOWN once :meth:`close` has begun."""
         self.count("received")
+        slot = None
         with self._cond:
             stopping, full = self.stopping, len(self._jobs) >= self.queue_size
             if not (stopping or full):
-                self._enqueue(job, first=False)
+                if self._idle and not self._jobs:
+                    slot = self._idle.pop()
+                    job.handoff = threading.Event()
+                    slot.handed = job
+                else:
+                    self._enqueue(job, first=False)
             retry = max(0.05, self._service_time / self.workers)
+        if slot is not None:
+            slot.dispatch(job)
+            # the slot's thread wakes once its worker has the job, not before: a thread
+            # woken earlier would take the GIL from the send on its way
+            with self._cond:
+                self._cond.notify_all()
+            return
         if stopping:
             self.finish(job, shutting_down(job))
         elif full:
@@ -190,21 +210,33 @@ class WorkerPool:
 
     # -- what the slots call (service.slot.JobQueue) -------------------------------------
     def next_job(self, slot: Slot) -> Job | None:
-        """The next waiting job, or None when stopping or the slot's worker has died."""
+        """The job handed to ``slot`` (already sent to its worker), else the next waiting
+        job, or None when stopping or the slot's worker has died."""
         with self._cond:
-            while True:
-                if self.stopping or slot.live_pid() is None:
-                    return None
-                if self._jobs:
-                    job = self._jobs.popleft()
-                    job.waiting = False
-                    self._drop_stale()
-                    return job
-                self._cond.wait()
+            try:
+                while True:
+                    if slot.handed is not None:
+                        job, slot.handed = slot.handed, None
+                        return job
+                    if self.stopping or slot.live_pid() is None:
+                        return None
+                    if self._jobs:
+                        job = self._jobs.popleft()
+                        job.waiting = False
+                        self._drop_stale()
+                        return job
+                    if slot not in self._idle:
+                        self._idle.append(slot)
+                    self._cond.wait()
+            finally:
+                if slot in self._idle:
+                    self._idle.remove(slot)
 
     def requeue(self, job: Job) -> None:
-        """Put a job its worker never took back at the head of the queue."""
+        """Put a job its worker never took back at the head of the queue (to be sent
+        again, by the slot that takes it)."""
         with self._cond:
+            job.handoff, job.handoff_error = None, None
             self._enqueue(job, first=True)
 
     def set_busy(self, slot: Slot, job: Job | None) -> None:

@@ -1,23 +1,30 @@
 """What the kept scene needs of the robot to attach and detach: a state's link poses and
 whether a carried object already touches a link it may not.
 
-Built once per instance, lazily: the kinematics on the first attach or detach, the
-robot's collision geometry on the first attach (the planner's collision world, with the
-carried object alone: its contacts with the scene are the plans' business, a box picked
-from a table rests on it).
+:class:`RobotFrames` computes them in its process, built once, lazily: the kinematics on
+the first attach or detach, the robot's collision geometry on the first attach (the
+planner's collision world, with the carried object alone: its contacts with the scene are
+the plans' business, a box picked from a table rests on it). A worker of the service's
+pool holds one; the serving process holds a :class:`PooledFrames`, which asks the pool
+(a ``frames`` job), so it never imports the planner nor holds the GIL for a collision
+check next to Zenoh's callbacks.
 """
 
 from __future__ import annotations
 
 import logging
 import threading
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, Literal
 
 import numpy as np
+import orjson
 
 from description import Description
+from planner.errors import PlanningError
 from planner.scene import AttachedObject, resolve_attached
 
+from .messages import Failure, Outcome
 from .requests import joint_values
 
 _log = logging.getLogger(__name__)
@@ -73,3 +80,57 @@ class RobotFrames:
                 if other in links:
                     out.append((a.id, other))
         return sorted(set(out))
+
+
+#: submits a job to the service's pool (:meth:`service.server.PlannerService.submit`)
+Submit = Callable[[Literal["frames"], Mapping[str, Any], Callable[[Outcome], None]], None]
+
+
+class PooledFrames(RobotFrames):
+    """:class:`RobotFrames` whose link poses and contacts a worker of the pool computes
+    (``frames`` jobs, :func:`answer_frames`); a state is checked here (no planner needed).
+    A state is the checked ``{joint: value}`` map: the worker orders it."""
+
+    def __init__(self, description: Description, *, submit: Submit) -> None:
+        super().__init__(description)
+        self._submit = submit
+
+    def state(self, values: Any, *, field: str) -> Any:
+        return joint_values(self.description, values, field=field)
+
+    def link_pose(self, q: Any, link: str) -> np.ndarray:
+        return np.array(self._ask({"op": "link_pose", "joints": q, "link": link})["pose"],
+                        float)
+
+    def link_contacts(self, a: AttachedObject, q: Any) -> list[tuple[str, str]]:
+        pairs = self._ask({"op": "contacts", "joints": q, "attached": a})["pairs"]
+        return [(x, y) for x, y in pairs]
+
+    def _ask(self, data: Mapping[str, Any]) -> dict[str, Any]:
+        done = threading.Event()
+        box: list[Outcome] = []
+
+        def respond(outcome: Outcome) -> None:
+            box.append(outcome)
+            done.set()
+        self._submit("frames", data, respond)
+        done.wait()  # the pool answers every job once (TIMEOUT past its deadline)
+        out = box[0]
+        if isinstance(out, Failure):
+            err = PlanningError(f"the robot's frames could not be computed: {out.message}",
+                                details=dict(out.details))
+            err.code = out.code
+            raise err
+        return orjson.loads(out.body)
+
+
+def answer_frames(frames: RobotFrames, data: Mapping[str, Any]) -> dict[str, Any]:
+    """A ``frames`` job in a worker: ``link_pose`` -> ``{"pose": 4x4}``, ``contacts``
+    -> ``{"pairs": [[object, link], ...]}``, at the state ``data["joints"]`` (checked by
+    :meth:`PooledFrames.state`)."""
+    names = frames._kinematics().joint_names
+    joints = data["joints"]
+    q = np.array([joints[n] for n in names], float)
+    if data["op"] == "link_pose":
+        return {"pose": frames.link_pose(q, data["link"]).tolist()}
+    return {"pairs": [list(p) for p in frames.link_contacts(data["attached"], q)]}

@@ -89,16 +89,20 @@ class SceneService:
         scene_file: where this instance keeps the scene (default
             :func:`service.scene_file.default_scene_file`).
         description: the robot (without it, attach and detach are refused).
+        robot: computes link poses and contacts (default: a RobotFrames of description).
     """
 
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
                  link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
-                 description: Description | None = None) -> None:
+                 description: Description | None = None,
+                 robot: RobotFrames | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
         path = scene_file if scene_file is not None else default_scene_file(prefix)
         self.file = SceneFile(path)
-        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=None if description
-                                    is None else RobotFrames(description))
+        # robot: who computes link poses and contacts (the service's: its worker pool)
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot if robot
+                                    is not None or description is None
+                                    else RobotFrames(description))
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
         self._encoded: tuple[int, bytes] = (-1, b"")

@@ -8,14 +8,15 @@ are answered by the pool, the others at once; each is declared complete under
 from __future__ import annotations
 
 import contextlib
+import gc
 import itertools
 import json
 import logging
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import zenoh
 
@@ -29,6 +30,7 @@ from .keyguard import addressed_exactly
 from .memtrace import MemTrace, count_live
 from .messages import Failure, Outcome, Success
 from .pool import WorkerPool
+from .scene_carry import PooledFrames
 from .scene_store import SceneSnapshot
 from .scene_sync import SceneService
 from .task_service import task_extension
@@ -42,6 +44,9 @@ Extension = Callable[..., Any]
 
 VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
+#: what the pool does: the work kinds, the tasks of <prefix>/task, and the link poses and
+#: contacts of the kept scene's attach and detach
+JobKind = Literal["plan", "fk", "ik", "check", "task", "frames"]
 INFO_KINDS = ("description", "health", "schema")
 JSON = "application/json"
 #: a worker's default memory cap [bytes]. Measured resident sets: 223 MiB ready and
@@ -142,7 +147,8 @@ class PlannerService:
             # the kept scene first: caught up with the other instances before any plan
             self.scene = SceneService(self.session, p, self.instance,
                                       tuple(desc.robot.links), scene_file=o.scene_file,
-                                      description=desc)
+                                      description=desc,
+                                      robot=PooledFrames(desc, submit=self.submit))
             self.scene.start()
             for kind in (*WORK_KINDS, *INFO_KINDS):
                 for key, held in ((f"{p}/{kind}", self._shared),
@@ -156,14 +162,19 @@ class PlannerService:
                 if hasattr(ext, "scene_source"):  # the twin puts the kept scene in its world
                     ext.scene_source = self._scene_now
                 self._extensions.append(ext)
-            # <prefix>/task: plans tasks itself, executes through <prefix>/execute
-            self._extensions.append(task_extension(tasks_file=o.tasks_file,
+            # <prefix>/task: tasks planned by the pool, executed through <prefix>/execute
+            self._extensions.append(task_extension(submit=self.submit, tasks_file=o.tasks_file,
                                                    scene=self._scene_now)(
                 self.session, p, desc, self._submit_plan))
         except Exception:
             self.close()
             raise
         self._started = time.monotonic()
+        # what start built (the description, schemas, the scene, Zenoh's objects) lives
+        # as long as the service: out of the collector's sight, so no full collection
+        # walks it on a request's time (the zygote does the same for its model)
+        gc.collect()
+        gc.freeze()
         # where clients reach it: what a user must pass as --connect
         listen, connect = _endpoints(cfg, "listen"), _endpoints(cfg, "connect")
         where = f"listening on {', '.join(listen)}" if listen else "no listener"
@@ -278,10 +289,21 @@ class PlannerService:
     def _submit_plan(self, data: dict[str, Any], respond: Callable[[Outcome], None]
                      ) -> None:
         """A plan job for an extension's own planning, through the same pool."""
+        self.submit("plan", data, respond)
+
+    def submit(self, kind: JobKind, data: Mapping[str, Any],
+               respond: Callable[[Outcome], None]) -> None:
+        """A job of ``kind`` with a valid request ``data`` through the pool, against the
+        kept scene now; ``respond`` gets its one outcome (a ``task`` job: see
+        :mod:`service.task_service`).
+
+        Raises:
+            ShuttingDown: the pool is closed.
+        """
         pool = self.pool
         if pool is None:  # closed: as _on_query answers a query that arrives then
             raise ShuttingDown(SHUTTING_DOWN)
-        pool.submit(Job("plan", data, f"{self.instance[:8]}-{next(self._ids)}",
+        pool.submit(Job(kind, data, f"{self.instance[:8]}-{next(self._ids)}",
                         time.monotonic() + self.options.timeout, respond,
                         scene=self._scene_now()))
 

@@ -18,7 +18,7 @@ from planner.codes import Code
 
 from . import hoptrace
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
-from .messages import Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
+from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
 from .messages import Stop as StopMsg
 from .worker import DescriptionSpec
 from .zygote import WorkerProcess, Zygote, ZygoteError
@@ -165,6 +165,12 @@ class Slot:
         self.name = f"worker {index}"
         self.worker: WorkerProcess | None = None
         self._rss_due = 0.0  # when the busy worker's memory is read next [monotonic s]
+        #: (worker, the scene snapshot it was sent last): a job against the same
+        #: snapshot object sends HELD_SCENE instead of the snapshot again
+        self._held: tuple[WorkerProcess | None, Any] = (None, None)
+        #: a job the pool handed to this idle slot, sent to its worker by the submitting
+        #: thread (guarded by the pool's condition)
+        self.handed: Job | None = None
 
     def live_pid(self) -> int | None:
         """The pid of this slot's worker while it runs (call with the pool's lock held)."""
@@ -194,7 +200,7 @@ class Slot:
         job = q.next_job(self)
         if job is None:
             return not q.stopping
-        if job.deadline <= time.monotonic():
+        if job.handoff is None and job.deadline <= time.monotonic():
             q.finish(job, timed_out(job, "while it waited for a worker"))
         elif self.worker is not None:
             self._run(self.worker, job)
@@ -209,6 +215,34 @@ class Slot:
         self._workers.retire(w, kill=False)
         self.worker = None
 
+    def dispatch(self, job: Job) -> None:
+        """Send ``job`` (handed to this idle slot by the pool) to the worker, on the
+        submitting thread; then let the slot's thread watch it. The slot's thread waits
+        for this send before it reads the worker's replies or could retire it (so no
+        send goes to a socket closed, and its descriptor reused, meanwhile)."""
+        assert job.handoff is not None  # the pool handed it: see WorkerPool.submit
+        w = self.worker
+        try:
+            if w is None:  # cannot be while the slot waits idle; said, not assumed
+                raise RuntimeError(f"{self.name} has no worker")
+            self._send(w, job)
+        except OSError:
+            pass  # the worker died: its slot sees the socket end and re-dispatches it
+        except Exception as e:  # noqa: BLE001 -- the slot answers the job INTERNAL
+            _log.exception("%s: sending request %s failed", self.name, job.request_id)
+            job.handoff_error = f"{type(e).__name__}: {e}"
+        finally:
+            job.handoff.set()
+
+    def _send(self, w: WorkerProcess, job: Job) -> None:
+        trace = job.trace
+        if trace is not None:
+            trace["slot"] = hoptrace.now()
+        w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline,
+                           self._scene_for(w, job.scene)))
+        if trace is not None:
+            trace["sent"] = hoptrace.now()
+
     def _run(self, w: WorkerProcess, job: Job) -> None:
         q = self._queue
         q.set_busy(self, job)
@@ -216,13 +250,15 @@ class Slot:
         taken, outcome, stop = False, None, None
         self._rss_due = t0  # a first look as it starts (a worker already over the cap)
         trace = job.trace
-        if trace is not None:
-            trace["slot"] = t0
         try:
-            w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline,
-                                job.scene))
-            if trace is not None:
-                trace["sent"] = hoptrace.now()
+            if job.handoff is None:
+                self._send(w, job)
+            else:  # sent by the submitting thread (dispatch): once that send is done
+                job.handoff.wait()
+                if job.handoff_error is not None:
+                    q.finish(job, failure(job, Code.INTERNAL, "the request could not be "
+                                          f"sent to a worker: {job.handoff_error}"))
+                    return
             while outcome is None and (stop := self._why_stop(job, w)) is None:
                 if not w.conn.poll(min(_POLL, max(0.0, job.deadline - time.monotonic()))):
                     continue
@@ -277,6 +313,15 @@ class Slot:
         q.finish(job, failure(job, Code.INTERNAL, f"the worker process died "
                               f"({how or 'unknown'}) while planning this request; it has "
                               "been replaced", worker_exit=how))
+
+    def _scene_for(self, w: WorkerProcess, scene: Any) -> Any:
+        """What a JobMsg to ``w`` carries of ``scene``: HELD_SCENE when ``w`` was sent this
+        very snapshot last (a snapshot is immutable: the same object, the same scene; a
+        new worker holds none). Compared by identity: equality would walk the objects."""
+        if scene is not None and self._held[0] is w and self._held[1] is scene:
+            return HELD_SCENE
+        self._held = (w, scene)
+        return scene
 
     def _why_stop(self, job: Job, w: WorkerProcess) -> Stop | None:
         q = self._queue

@@ -2,8 +2,10 @@
 
 A request (``service/schema/task_request.json``) names a task of the service's
 ``tasks.yaml`` (``name`` or ``number``) or gives one (``task``). The service plans every
-step in order (:func:`planner.tasks.plan_task`, in this process, one task at a time)
-before anything moves and replies ``{"event": "planned", ...}`` (each step's start time,
+step in order (:func:`planner.tasks.plan_task`, a ``task`` job of the worker pool, as
+plans are: the serving process never imports the planner, and tasks plan in parallel
+with each other and with plans) before anything moves and replies
+``{"event": "planned", ...}`` (each step's start time,
 duration, start and end states, what the robot carried, its plan reply); a step that
 fails answers its own error code with ``details.step`` and ``details.error``. With
 ``"execute": true`` the whole task, joined into one trajectory, then goes to the
@@ -20,7 +22,7 @@ import threading
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import orjson
 import zenoh
@@ -33,10 +35,15 @@ from planner.scene import Obstacle
 
 from . import wire
 from .keyguard import addressed_exactly
+from .messages import Failure, Outcome, Success
 from .scene_store import SceneSnapshot, with_scene
 
-if TYPE_CHECKING:  # the planner (OMPL) loads with the first task, not with `serve`
+if TYPE_CHECKING:  # the planner (OMPL) loads in the workers, never with `serve`
     from planner.tasks import Task, TaskResult
+
+#: submits a job to the service's worker pool: ``submit(kind, data, respond)``
+#: (:meth:`service.server.PlannerService.submit`); ``respond`` gets its one outcome
+Submit = Callable[[Literal["task"], Mapping[str, Any], Callable[[Outcome], None]], None]
 
 _log = logging.getLogger(__name__)
 
@@ -107,16 +114,17 @@ def twin_body(task: Task, result: TaskResult) -> dict[str, Any]:
 
 
 class TaskService:
-    """The ``<prefix>/task`` queryable; plans with its own planner, built on first use."""
+    """The ``<prefix>/task`` queryable: each task is planned by a ``task`` job of the
+    worker pool (``submit``); this process reads the request, looks named tasks up, asks
+    the robot for its state, and relays the execution."""
 
     def __init__(self, session: zenoh.Session, prefix: str, description: Description, *,
-                 tasks_file: Path | None = None,
+                 submit: Submit, tasks_file: Path | None = None,
                  scene: Callable[[], SceneSnapshot | None] | None = None) -> None:
         self.session, self.prefix, self.description = session, prefix, description
+        self.submit = submit
         self.scene = scene  # the kept scene now: a task starts in it, plus its own obstacles
         self.tasks_file = tasks_file if tasks_file is not None else description.config.tasks
-        self._planner: Any = None
-        self._lock = threading.Lock()  # one task planned at a time: one planner
         self._entities: list[zenoh.Queryable] = []
 
     def start(self) -> None:
@@ -134,6 +142,7 @@ class TaskService:
 
         def on_query(query: zenoh.Query) -> None:
             if addressed_exactly(key, query):  # a wildcard must not move the arm
+                # its own thread: it waits for the pool, then relays a whole execution
                 threading.Thread(target=handle, args=(query,), daemon=True,
                                  name="task").start()
         self._entities.append(self.session.declare_queryable(key, on_query, complete=True))
@@ -157,11 +166,12 @@ class TaskService:
         except DescriptionError as e:
             raise InvalidRequest(str(e), field="name") from None
 
-    def task(self, body: Mapping[str, Any]) -> Task:
-        """The request's task (given, or named in tasks.yaml)."""
-        from planner.tasks import task_from_mapping
+    def source(self, body: Mapping[str, Any]) -> tuple[Any, str, str | None]:
+        """The request's task in its JSON form (given, or named in tasks.yaml), where its
+        fields are (for refusals: ``task``, ``tasks.NAME``) and its name; read by
+        :func:`planner.tasks.task_from_mapping` in the worker."""
         if "task" in body:
-            return task_from_mapping(body["task"], where="task")
+            return body["task"], "task", None
         key = body.get("name", body.get("number"))
         named = self.named()
         found = find_task(named, key)
@@ -171,33 +181,40 @@ class TaskService:
                 f"no task {key!r} in {self.tasks_file or 'the service (no tasks.yaml)'} "
                 f"(tasks: {', '.join(f'{t.number}: {t.name}' if t.number is not None else t.name for t in named.values()) or 'none'})",
                 field=field, details={"known": [t.name for t in named.values()]})
-        return task_from_mapping(found.body, where=f"tasks.{found.name}", name=found.name)
-
-    def planner(self) -> Any:
-        if self._planner is None:
-            from planner.planning.pipeline import MotionPlanner
-            self._planner = MotionPlanner(self.description)
-        return self._planner
+        return found.body, f"tasks.{found.name}", found.name
 
     def _on_task(self, query: zenoh.Query) -> None:
         zb = query.payload
         body = wire.decode("task", zb.to_bytes() if zb is not None else b"")
-        task = self.task(body)
-        if self.scene is not None:
-            obstacles, _ = with_scene(self.scene(), body.get("task", {}), task.obstacles)
-            task = replace(task, obstacles=obstacles)
+        task, where, name = self.source(body)
         execute = bool(body.get("execute", False))
-        if execute and task.start is None:
-            task = _with_start(task, self._robot_start())
-        from planner.tasks import plan_task
-        with self._lock:
-            result = plan_task(self.planner(), task)
-        key = f"{self.prefix}/task"
-        query.reply(key, wire.encode(planned_body(
-            result, name=task.name, trajectories=bool(body.get("trajectories", True)))),
-            encoding=JSON)
-        if execute:
-            self._execute(query, task, result, body)
+        start = None
+        if execute and not (isinstance(task, Mapping) and task.get("start") is not None):
+            start = self._robot_start()  # a task without a start starts where the arm is
+        outcome = self._plan({
+            "task": task, "where": where, "name": name, "start": start,
+            "trajectories": bool(body.get("trajectories", True)), "execute": execute,
+            "start_tolerance": body.get("start_tolerance", 0.01),
+            "move_to_start": bool(body.get("move_to_start", False))})
+        if isinstance(outcome, Failure):
+            query.reply_err(wire.encode(outcome.to_json()), encoding=JSON)
+            return
+        query.reply(f"{self.prefix}/task", outcome.body, encoding=JSON)
+        if outcome.execute is not None:
+            self._execute(query, outcome.execute)
+
+    def _plan(self, job: Mapping[str, Any]) -> Outcome:
+        """The task job's outcome, from the pool (which answers every job exactly once:
+        planned, refused, or TIMEOUT past its deadline)."""
+        done = threading.Event()
+        box: list[Outcome] = []
+
+        def respond(outcome: Outcome) -> None:
+            box.append(outcome)
+            done.set()
+        self.submit("task", job, respond)
+        done.wait()
+        return box[0]
 
     def _robot_start(self) -> dict[str, float]:
         for reply in self.session.get(f"{self.prefix}/robot_state", timeout=30.0):
@@ -215,16 +232,12 @@ class TaskService:
         raise InvalidRequest("this service drives no robot to start the task from: give "
                              "the task a start", field="task.start")
 
-    def _execute(self, query: zenoh.Query, task: Task, result: TaskResult,
-                 body: Mapping[str, Any]) -> None:
-        """Relay ``<prefix>/execute``'s stream for the joined task to ``query``."""
-        req = {"trajectory": task_trajectory(result),
-               "start_tolerance": body.get("start_tolerance", 0.01),
-               "move_to_start": bool(body.get("move_to_start", False)),
-               "twin": twin_body(task, result)}
+    def _execute(self, query: zenoh.Query, request: bytes) -> None:
+        """Relay ``<prefix>/execute``'s stream for the joined task (``request``, built by
+        the worker) to ``query``."""
         key = f"{self.prefix}/task"
         got = False
-        for reply in self.session.get(f"{self.prefix}/execute", payload=wire.encode(req),
+        for reply in self.session.get(f"{self.prefix}/execute", payload=request,
                                       consolidation=zenoh.ConsolidationMode.NONE,
                                       timeout=STREAM_LIMIT):
             got = True
@@ -237,18 +250,47 @@ class TaskService:
                        "answer (serve --no-robot?)")
 
 
+def answer_task(planner: Any, data: Mapping[str, Any], *,
+                scene: SceneSnapshot | None) -> Success:
+    """A ``task`` job in a worker (``data``: what :meth:`TaskService._on_task` sends):
+    the task read, started in the kept ``scene`` (and at ``data["start"]`` if it gives
+    none), planned with the worker's ``planner``; the ``planned`` reply, and for an
+    executed task the execute request of the whole task, both encoded.
+
+    Raises:
+        PlanningError: the task's refusal (a field, a step that failed: its own code).
+    """
+    from planner.tasks import plan_task, task_from_mapping
+    task = task_from_mapping(data["task"], where=data["where"], name=data["name"])
+    obstacles, _ = with_scene(scene, {}, task.obstacles)
+    task = replace(task, obstacles=obstacles)
+    if data.get("start") is not None and task.start is None:
+        task = _with_start(task, data["start"])
+    result = plan_task(planner, task)
+    body = wire.encode(planned_body(result, name=task.name,
+                                    trajectories=bool(data.get("trajectories", True))))
+    if not data.get("execute"):
+        return Success(body)
+    return Success(body, execute=wire.encode({
+        "trajectory": task_trajectory(result),
+        "start_tolerance": data.get("start_tolerance", 0.01),
+        "move_to_start": bool(data.get("move_to_start", False)),
+        "twin": twin_body(task, result)}))
+
+
 def _with_start(task: Task, start: Mapping[str, float]) -> Task:
     return replace(task, start=dict(start))
 
 
-def task_extension(*, tasks_file: str | Path | None = None,
+def task_extension(*, submit: Submit, tasks_file: str | Path | None = None,
                    scene: Callable[[], SceneSnapshot | None] | None = None
                    ) -> Callable[..., TaskService]:
-    """A :class:`service.server.ServeOptions` extension serving ``<prefix>/task``;
-    ``scene()`` gives the kept scene every task starts in."""
+    """A :class:`service.server.ServeOptions` extension serving ``<prefix>/task``, its
+    tasks planned through ``submit`` (the service's pool); ``scene()`` gives the kept
+    scene every task starts in."""
     def make(session: zenoh.Session, prefix: str, description: Description,
              submit_plan: object) -> TaskService:
-        svc = TaskService(session, prefix, description,
+        svc = TaskService(session, prefix, description, submit=submit,
                           tasks_file=Path(tasks_file) if tasks_file else None, scene=scene)
         svc.start()
         return svc

@@ -166,11 +166,14 @@ def _malformed(e: orjson.JSONDecodeError) -> InvalidRequest:
 def check_finite(value: Any, path: tuple[Any, ...] = ()) -> None:
     """Refuse non-finite floats anywhere, naming the field (a reply's numbers: decoded
     requests cannot hold one, :func:`parse_json` refuses them)."""
-    if isinstance(value, float):
+    t = type(value)  # exact types first: an abc's isinstance is ~10x slower
+    if t is float or (t is not int and t is not str and isinstance(value, float)):
         if not math.isfinite(value):
             raise InvalidRequest(f"{value!r} is not a finite number", field=field_path(path)
                                  or "(root)")
-    elif isinstance(value, Mapping):
+    elif t is int or t is str or t is bool or value is None:
+        return
+    elif t is dict or isinstance(value, Mapping):
         for k, v in value.items():
             check_finite(v, (*path, k))
     elif isinstance(value, list):

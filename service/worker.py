@@ -11,9 +11,11 @@ import logging
 import time
 import traceback
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing.connection import Connection
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
+
+import orjson
 
 from description import load_description
 from planner.codes import Code
@@ -21,8 +23,10 @@ from planner.errors import PlanningError
 
 from . import hoptrace, wire
 from .disk_cache import DiskCache
-from .handlers import Handlers
-from .messages import Deadline, Done, Failure, JobMsg, Success, Taken, receive
+from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Success, Taken, receive
+
+if TYPE_CHECKING:  # the serving process imports this module, never the planner
+    from .handlers import Handlers
 
 _log = logging.getLogger(__name__)
 
@@ -53,6 +57,8 @@ class DescriptionSpec:
 def build_handlers(spec: DescriptionSpec) -> Handlers:
     """Load the robot, build the planner and plan one warm-up motion (seconds on CAD
     meshes: done once per zygote, never per worker)."""
+    from .handlers import Handlers  # the planner: in the zygote, not the serving process
+
     t0 = time.perf_counter()
     _log.info("loading the robot")
     description = spec.load()
@@ -71,18 +77,47 @@ def build_handlers(spec: DescriptionSpec) -> Handlers:
 
 
 def job_deadline(kind: str, data: Mapping[str, Any], base_deadline: float) -> float:
-    """When a valid job must be answered [monotonic s]: plans add their planning_time."""
+    """When a valid job must be answered [monotonic s]: plans add their planning_time,
+    tasks every step's."""
+    if kind == "task":
+        return base_deadline + task_planning_time(data.get("task"))
     plan = float(data.get("planning_time", DEFAULT_PLANNING_TIME)) if kind == "plan" else 0.0
     return base_deadline + plan
 
 
+def task_planning_time(task: Any) -> float:
+    """The sum of a task's steps' planning times [s] (a step's own, else the task's,
+    else the default), from its JSON form before it is read: a malformed value counts
+    as the default (the worker refuses it, naming its field)."""
+    steps = task if isinstance(task, list) else \
+        task.get("steps") if isinstance(task, Mapping) else None
+    if not isinstance(steps, list):
+        return DEFAULT_PLANNING_TIME
+    whole = _seconds(task.get("planning_time") if isinstance(task, Mapping) else None,
+                     DEFAULT_PLANNING_TIME)
+    return sum(_seconds(s.get("planning_time") if isinstance(s, Mapping) else None, whole)
+               for s in steps)
+
+
+def _seconds(value: Any, default: float) -> float:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value <= 60
+    return float(value) if ok else default
+
+
 def serve_jobs(conn: Connection, handlers: Handlers) -> None:
     """Answer jobs until :class:`~service.messages.Stop` or EOF (see the module)."""
+    held: Any = None  # the last scene snapshot sent (a job may say it uses it again)
     while (job := receive(conn)) is not None:
         if not isinstance(job, JobMsg):
             raise TypeError(f"a worker takes JobMsg, not {type(job).__name__}")
         stamps: list[float] | None = [hoptrace.now()] if hoptrace.ON else None
         conn.send(Taken(job.job_id))
+        if isinstance(job.scene, str) and job.scene == HELD_SCENE:
+            if held is None:  # the slot's bookkeeping is wrong: a bug, never a guess
+                raise RuntimeError(f"job {job.job_id} refers to a held scene; none is held")
+            job = replace(job, scene=held)
+        elif job.scene is not None:
+            held = job.scene
         outcome, last = _answer(conn, job, handlers, stamps)
         conn.send(Done(job.job_id, outcome, tuple(stamps or ())))
         if last:
@@ -94,18 +129,29 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
     """The job's outcome, and whether this worker must end after sending it (``stamps``:
     the hop trace's, appended to when tracing)."""
     try:
-        # the pool carries only work kinds (the server answers the others itself)
+        # the pool carries work kinds, tasks and frames (the server answers the others)
+        raw = isinstance(job.payload, (bytes, str))
         data = wire.decode(cast("wire.Kind", job.kind), job.payload) \
             if isinstance(job.payload, (bytes, str)) else job.payload
         if stamps is not None:
             stamps.append(hoptrace.now())
         deadline = job_deadline(job.kind, data, job.base_deadline)
-        if deadline != job_deadline(job.kind, {}, job.base_deadline):
+        if raw and deadline != job_deadline(job.kind, {}, job.base_deadline):
             # the pool's provisional deadline is another: say it (one message, and one
-            # wake of the pool's thread, fewer for a request at the default)
+            # wake of the pool's thread, fewer for a request at the default; a job
+            # submitted valid had its own deadline from the start)
             conn.send(Deadline(job.job_id, deadline))
         # encoded here, in parallel across workers, not in the serving process
-        if job.kind == "plan":
+        if job.kind == "frames":  # for the kept scene: see service.scene_carry
+            body = handlers.frames(data)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+            out = Success(orjson.dumps(body))
+        elif job.kind == "task":  # its reply and execute request: see service.task_service
+            out = handlers.task(data, scene=job.scene)
+            if stamps is not None:
+                stamps.append(hoptrace.now())
+        elif job.kind == "plan":
             # from the sample arrays to bytes, no Python object per sample (imported here:
             # the serving process imports this module, and never the planner)
             from .plan_io import plan_reply

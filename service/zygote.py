@@ -72,7 +72,9 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     logging.basicConfig(level=log_level,
                         format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
     from planner.planning.paths import set_ompl_log_level
-    set_ompl_log_level("info" if log_level <= logging.INFO else "none")
+    # as the command line sets it for -v / -vv (the serving process leaves it to us)
+    set_ompl_log_level("debug" if log_level <= logging.DEBUG else
+                       "info" if log_level <= logging.INFO else "none")
     # say what a slow start is doing: CAD meshes make the geometry the long part
     logging.getLogger("service").setLevel(min(logging.INFO, log_level))
     _die_with_parent()

@@ -34,7 +34,6 @@ import numpy as np
 from description.loader import Description
 
 from ..errors import InvalidRequest, LimitsError
-from .dynamics import InverseDynamics
 
 _log = logging.getLogger(__name__)
 
@@ -243,6 +242,10 @@ def derive_accelerations(description: Description, joints: Sequence[str]) -> np.
             moves no mass.
     """
     robot = description.robot
+    # imported here: numba's kernels load with the first limits derived from the dynamics,
+    # not with every importer of JointLimits (the service's serving process reads limits)
+    from .dynamics import InverseDynamics
+
     dyn = InverseDynamics(robot)  # all actuated joints: each one's pose changes M and g
     lim = robot.position_limits(dyn.joint_names)
     lo = np.where(np.isfinite(lim[:, 0]), lim[:, 0], -np.pi)
