@@ -85,6 +85,13 @@ CELL = 0.01
 CELL_LEVELS = 4
 # refinements of a cell's hull direction (each from the extreme points the last one found)
 HULL_TRIES = 4
+# [m] a pair whose trees prove less than this beyond the clearance gets a hull query too
+# (the trees of CAD meshes are loose there: see _advance)
+SOFT = 0.002
+# a warm hull bound under this fraction of the pair's last queried one is checked
+# against the trees, and queried again (its direction may have gone stale as the bodies
+# turned)
+HOLD = 0.25
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
@@ -127,6 +134,33 @@ def _eval_piece(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float
     h = x * x * x - 0.5 * x * x * x * x
     for j in range(start.shape[0]):
         out[j] = start[j] + u1[j] * sigma + (u2[j] - u1[j]) * length * h
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_bound(vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int,
+                ta: np.ndarray, b: int, tb: np.ndarray, n: np.ndarray, warm: bool) -> float:
+    # The hulls' bound [m] of bodies a and b (poses ta, tb) without leaving compiled
+    # code: from direction n if ``warm``, else from the line between their frames,
+    # refined HULL_TRIES times (each from the extreme points the last one found; n gets
+    # the best). Sound along any direction (see warm_bound).
+    if not warm:
+        norm = 0.0
+        for r in range(3):
+            n[r] = ta[r, 3] - tb[r, 3]
+            norm += n[r] * n[r]
+        norm = np.sqrt(norm)
+        if norm > 0.0:
+            for r in range(3):
+                n[r] /= norm
+        else:
+            n[0], n[1], n[2] = 1.0, 0.0, 0.0
+    d = -np.inf
+    for _ in range(HULL_TRIES):
+        e = warm_bound(vertices, offsets, radii, a, ta, b, tb, n)
+        if e <= d:
+            break  # no better direction found
+        d = e
+    return d
 
 
 @numba.njit(cache=True, nogil=True)
@@ -175,9 +209,13 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
         a, b = index[p, 0], index[p, 1]
         carry = -1.0  # a bound [m] proven at the start of piece k, if any
         measured = np.inf  # the last bound measured (trees or FCL)
+        fresh = np.inf  # the last bound Python injected (a hull query's, or exact)
         # the trees failed here (their leaf boxes overlap though the meshes do not, as
         # they do well before contact on CAD links): the hulls first while they prove it
         near = False
+        # the hulls could not beat the trees at this pair's last hull query (a concave
+        # body): no other until its trees prove nothing
+        flat = False
         while k < npiece:
             length = lengths[k]
             speed = 0.0
@@ -193,8 +231,11 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
             if inj >= 0.0:
                 d = inj
                 inj = -1.0
-                measured = d
+                measured = fresh = d
                 near = True
+                # a hull query that could not beat the trees is not asked again until
+                # the walk needs an exact bound for this pair
+                flat = not warm[p]
             elif s == 0.0 and carry > clear + GAP and carry >= CARRY * measured:
                 # what the last piece left proven holds here: no new bound needed (a
                 # pair the motion hardly moves keeps one bound for the whole motion)
@@ -210,13 +251,27 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                     # near contact the steps are short and the hulls barely turn: the
                     # last direction still separates them, without a round trip
                     d = warm_bound(vertices, offsets, radii, a, ta, b, tb, directions[p])
-                if d <= clear + GAP:
-                    d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
+                if d <= clear + GAP or d < HOLD * fresh:
+                    # (a warm bound far below the last query's: its direction went stale,
+                    # and would lead the steps down geometrically as it turns away)
+                    t = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
                                          right, clear + GAP, _CAP, stack, gaps, scratch)
-                    near = d <= clear + GAP
+                    near = t <= clear + SOFT
+                    d = max(d, t)
+                    if near and not flat and d <= clear + SOFT:
+                        # The leaf boxes of CAD meshes (long thin triangles) can prove
+                        # nothing tens of millimetres before the meshes touch: a small
+                        # positive bound would be taken, and the steps would shrink
+                        # geometrically toward the boxes' contact (thousands of bounds,
+                        # and a clearance certified in microns). A hull query first
+                        # (Python: FCL's GJK), whatever the trees proved (in ``injected``)
+                        at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds + 1
+                        at.injected = d
+                        return Status.NEED_BOUND.value
                 bounds += 1
                 if d <= clear + GAP:
                     at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    at.injected = d
                     return Status.NEED_BOUND.value
                 if bounds > MAX_BOUNDS:
                     at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
@@ -277,22 +332,8 @@ def _hull_at(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.nd
     # separation along the line between their frames, refined HULL_TRIES times from the
     # extreme points each direction picks (warm_bound). Sound along any direction.
     _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-    ta, tb = poses[fa], poses[fb]
-    n = np.empty(3)
-    norm = 0.0
-    for r in range(3):
-        n[r] = ta[r, 3] - tb[r, 3]
-        norm += n[r] * n[r]
-    norm = np.sqrt(norm)
-    if norm > 0.0:
-        for r in range(3):
-            n[r] /= norm
-    else:
-        n[0], n[1], n[2] = 1.0, 0.0, 0.0
-    d = -np.inf
-    for _ in range(HULL_TRIES):
-        d = max(d, warm_bound(vertices, offsets, radii, a, ta, b, tb, n))
-    return d
+    return _hull_bound(vertices, offsets, radii, a, poses[fa], b, poses[fb], np.empty(3),
+                       False)
 
 
 class Certifier:
@@ -392,14 +433,24 @@ class Certifier:
                                    at.bounds, exact)
             q = np.empty(w.dof)  # the very point the walk stopped at
             _eval_piece(starts[k], u1[k], u2[k], lengths[k], s, q)
-            # free: the walk reached it from a checked sample, every point farther than
-            # the clearance, so neither body can be inside the other; the hulls' bound
-            # first (cheap), FCL's exact distance where the hulls touch
             direction[:] = np.nan
-            d, was_exact = w.pair_bound(q, p, above=clear + GAP, direction=direction)
-            if np.isfinite(direction[0]):
-                directions[p] = direction
-                warm[p] = True
+            proven = float(walk[0]["injected"])  # what the walk's own bounds proved
+            if proven > clear + GAP:
+                # the trees proved the pair free here, barely: the hulls' bound where it
+                # is better (their direction kept for the walk), else the trees' again
+                h = w.pair_hull_bound(q, p, direction=direction)
+                warm[p] = h > proven and bool(np.isfinite(direction[0]))
+                if warm[p]:
+                    directions[p] = direction
+                d, was_exact = max(h, proven), False
+            else:
+                # free: the walk reached it from a checked sample, every point farther
+                # than the clearance, so neither body can be inside the other; the hulls'
+                # bound first (cheap), FCL's exact distance where the hulls touch
+                d, was_exact = w.pair_bound(q, p, above=clear + GAP, direction=direction)
+                if np.isfinite(direction[0]):
+                    directions[p] = direction
+                    warm[p] = True
             exact += was_exact
             queries += 1
             if p in self._one_dim:
