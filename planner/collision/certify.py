@@ -28,11 +28,17 @@ A pair of links whose relative motion is one-dimensional (its ``weight`` is zero
 one joint: the two fingers of a gripper along its mimic, a camera by the turntable) has a
 distance that is a function of that joint alone. Such a pair is proven
 once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
-the cell's middle less ``weight`` times half its width, cells halved where that does not
-prove them), once a walk has had to ask for its bounds near contact, and the proof is
-kept: a motion whose joint range the proven cells cover
-takes the smallest of their bounds for the pair, and the walk passes over it (near
-contact, thousands of tiny steps; here, a few cached cells).
+the cell's middle, or the trees' where the hulls touch, less ``weight`` times half its
+width, cells halved where that does not prove them), and the proof is kept per process
+for every request: a motion whose joint range the proven cells cover takes the smallest
+of their bounds for the pair, and the walk passes over it (a few cached cells instead of
+a walk of tree bounds, or near contact thousands of tiny steps).
+
+Where the trees prove a pair less than ``SOFT`` beyond the clearance, the walk asks
+Python for the hulls' bound (FCL's GJK) before taking the trees': the leaf boxes of CAD
+meshes (long thin triangles) stop proving anything tens of millimetres before the
+meshes touch, and a walk that took their small positive bounds stepped geometrically
+toward the boxes' contact, certifying microns for paths that kept centimetres.
 """
 
 from __future__ import annotations
@@ -318,9 +324,6 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
 #: (padding, link, link, level, cell)
 _CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
     weakref.WeakKeyDictionary()
-#: per robot geometry, by padding, the one-dimensional pairs that get cells
-_HARD: weakref.WeakKeyDictionary[Any, dict[float, set[tuple[str, str]]]] = \
-    weakref.WeakKeyDictionary()
 
 
 @numba.njit(cache=True, nogil=True)
@@ -372,12 +375,12 @@ class Certifier:
                          and world.table.kinds[links[p, 1]] == BodyKind.LINK}
         # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
         # with the world, so every certifier of it (and every request) reuses them
+        # Every one-dimensional pair gets them, from its first motion on: a gripper's
+        # range is some 160 cells, filled once per process in ~25 ms (hulls, trees
+        # where the hulls touch), looked up in ~0.3 ms a motion; walking the fingers
+        # cost 1.5-2.5 ms a proof of arm and gripper together (course_fingers, trees of
+        # 6k-triangle fingers ~30 us a bound)
         self._cells = _CELLS.setdefault(world.bodies, {})
-        # the one-dimensional pairs (by name) a walk had to ask Python about (near
-        # contact, where it takes its tiny steps): only those get cells, so a pair the
-        # walk proves in a few steps costs nothing more (measured: filling cells for
-        # fingers 5-15 mm apart cost more than their walks saved)
-        self._hard = _HARD.setdefault(world.bodies, {}).setdefault(world.padding, set())
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -453,8 +456,6 @@ class Certifier:
                     warm[p] = True
             exact += was_exact
             queries += 1
-            if p in self._one_dim:
-                self._hard.add(pair)
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
@@ -537,10 +538,11 @@ class Certifier:
         hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
         out = {}
         for p, j in self._one_dim.items():
-            if self.world.pair_names[p] not in self._hard:
-                continue
             d = np.inf
-            for k in range(int(np.floor(lo[j] / CELL)), int(np.floor(hi[j] / CELL)) + 1):
+            # the closed cells [k h, (k + 1) h] that hold [lo, hi] (a motion ending on a
+            # cell's edge, such as a closed gripper at its limit, needs no cell beyond)
+            first = int(np.floor(lo[j] / CELL))
+            for k in range(first, max(first + 1, int(np.ceil(hi[j] / CELL)))):
                 d = min(d, self._cell(p, j, 0, k, starts[0]))
                 if not d > self.world.padding + GAP:
                     break
@@ -562,14 +564,21 @@ class Certifier:
         q[j] = (k + 0.5) * h
         change = float(w.table.pairs.weight[p, j]) * h / 2  # [m] within half the cell
         need = w.padding + GAP + change
-        # the hulls' separation along a few refined directions: sound at any state (an
+        # the hulls' separation along a few refined directions, or the trees' whole
+        # bound where the hulls touch (closed fingers): both sound at any state (an
         # exact distance would hold only at a state reached without contact, which the
         # middle of a cell need not be), microseconds each
         a, b = (int(x) for x in w.table.pairs.index[p])
-        c, hp, frame = w.chain, w.hulls, w.table.bodies.frame
+        c, hp, frame, f = w.chain, w.hulls, w.table.bodies.frame, w.forest
+        wk = self._work
         d = _hull_at(q, c.parent, c.origin, c.jtype, c.axis, c.src, c.scale, c.offset,
                      hp.vertices, hp.offsets, hp.radii, a, b, int(frame[a]), int(frame[b]),
-                     self._work.poses)
+                     wk.poses)
+        if not d > need:  # (_hull_at left the poses of q in the work buffer)
+            d = max(d, tree_lower_bound(wk.poses[frame[a]], f.root[a], wk.poses[frame[b]],
+                                        f.root[b], f.center, f.axes, f.half, f.left,
+                                        f.right, need, 1.0, wk.stack, wk.gaps,
+                                        np.empty((8, 3, 3))))
         bound = d - change if d > need else -np.inf
         if bound == -np.inf and level < CELL_LEVELS:
             bound = min(self._cell(p, j, level + 1, 2 * k, base),
