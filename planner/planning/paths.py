@@ -48,7 +48,7 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE
 # [rad] edges are checked at states this far apart while searching and shortcutting; the
 # path found is then certified over its whole length (and re-planned with certified
 # edges in the rare case it grazes between samples)
-PLAN_STEP = 0.01
+PLAN_STEP = 0.02
 # [m] detours are first searched and shortcut with every moving pair kept this much
 # farther apart than the clearance, as far as the OBB trees alone can prove (no FCL):
 # paths that do not hug the robot or the scene are proven with long certification steps
