@@ -324,6 +324,9 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
 #: (padding, link, link, level, cell)
 _CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
     weakref.WeakKeyDictionary()
+#: per robot geometry, the same level-0 cells as rows (:meth:`Certifier._row`)
+_ROWS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str], tuple[int, np.ndarray]]] = \
+    weakref.WeakKeyDictionary()
 
 
 @numba.njit(cache=True, nogil=True)
@@ -381,6 +384,8 @@ class Certifier:
         # cost 1.5-2.5 ms a proof of arm and gripper together (course_fingers, trees of
         # 6k-triangle fingers ~30 us a bound)
         self._cells = _CELLS.setdefault(world.bodies, {})
+        # (padding, link, link) -> (first cell, each level-0 cell's bound (nan: not yet))
+        self._rows = _ROWS.setdefault(world.bodies, {})
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -538,17 +543,34 @@ class Certifier:
         hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
         out = {}
         for p, j in self._one_dim.items():
-            d = np.inf
             # the closed cells [k h, (k + 1) h] that hold [lo, hi] (a motion ending on a
             # cell's edge, such as a closed gripper at its limit, needs no cell beyond)
             first = int(np.floor(lo[j] / CELL))
-            for k in range(first, max(first + 1, int(np.ceil(hi[j] / CELL)))):
-                d = min(d, self._cell(p, j, 0, k, starts[0]))
-                if not d > self.world.padding + GAP:
-                    break
-            else:
-                out[p] = float(d)
+            last = max(first + 1, int(np.ceil(hi[j] / CELL)))
+            d = float(self._row(p, j, first, last, starts[0]).min())
+            if d > self.world.padding + GAP:
+                out[p] = d
         return out
+
+    def _row(self, p: int, j: int, first: int, last: int, base: np.ndarray) -> np.ndarray:
+        # the bounds of pair p's cells first..last-1 (level 0, each the smallest of its
+        # halves where it was split), from a row kept per pair over its joint's range:
+        # a motion reads a slice (~microseconds), computing only the cells never read
+        key = (self.world.padding, *self.world.pair_names[p])
+        row = self._rows.get(key)
+        if row is None or first < row[0] or last > row[0] + len(row[1]):
+            lim = self.world.description.robot.position_limits(
+                [self.world.kin.joint_names[j]])[0]
+            lo = min(first, int(np.floor(lim[0] / CELL)))
+            hi = max(last, int(np.ceil(lim[1] / CELL)))
+            grown = np.full(hi - lo, np.nan)
+            if row is not None:  # (a motion a hair past the limits: keep what was read)
+                grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
+            row = self._rows[key] = (lo, grown)
+        cells = row[1][first - row[0]:last - row[0]]  # a view: filled in place
+        for i in np.flatnonzero(np.isnan(cells)):
+            cells[i] = self._cell(p, j, 0, first + int(i), base)
+        return cells
 
     def _cell(self, p: int, j: int, level: int, k: int, base: np.ndarray) -> float:
         # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
