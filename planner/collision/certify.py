@@ -89,6 +89,13 @@ STILL = 1e-4
 # (each halved, down to CELL / 2**CELL_LEVELS, where its bound does not prove it)
 CELL = 0.01
 CELL_LEVELS = 4
+# [m] a cell proven less than this beyond the clearance (the closed fingers, whose hulls
+# touch: the trees' bound) is proven again from exact distances chained along the joint
+# from a neighbour proven free, at states CELL / 2**CHAIN_LEVEL apart
+CHAIN_BELOW = 1e-3
+CHAIN_LEVEL = 2
+# cells a chain may cross to its cell (each costs 2**CHAIN_LEVEL exact distances, once)
+CHAIN_REACH = 8
 # refinements of a cell's hull direction (each from the extreme points the last one found)
 HULL_TRIES = 4
 # [m] a pair whose trees prove less than this beyond the clearance gets a hull query too
@@ -568,9 +575,59 @@ class Certifier:
                 grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
             row = self._rows[key] = (lo, grown)
         cells = row[1][first - row[0]:last - row[0]]  # a view: filled in place
-        for i in np.flatnonzero(np.isnan(cells)):
+        todo = np.flatnonzero(np.isnan(cells))
+        for i in todo:
             cells[i] = self._cell(p, j, 0, first + int(i), base)
+        for i in todo:
+            if not cells[i] > self.world.padding + CHAIN_BELOW:
+                self._chain(p, j, row, first + int(i), base)
         return cells
+
+    def _chain(self, p: int, j: int, row: tuple[int, np.ndarray], k: int,
+               base: np.ndarray) -> None:
+        # Cell k (level 0) of pair p proven again, with its neighbours toward the nearest
+        # cell of the row proven by more than CHAIN_BELOW: the state at that cell's edge
+        # is free (proven), so FCL's exact distance there is a true distance; each step
+        # of e = CELL / 2**CHAIN_LEVEL on from a true distance D loses at most w e
+        # (``weight``): while D - w e stays above the clearance, the next state is
+        # reached without contact and its exact distance is true too. A step between
+        # true distances D0 and D1 keeps at least (D0 + D1 - w e) / 2. A cell takes the
+        # larger of that and its own bound.
+        w, (lo, bounds) = self.world, row
+        floor = w.padding + CHAIN_BELOW
+        for step in (-1, 1):
+            a = k + step
+            while 0 <= a - lo < len(bounds) and abs(a - k) <= CHAIN_REACH:
+                if np.isnan(bounds[a - lo]):
+                    bounds[a - lo] = self._cell(p, j, 0, a, base)
+                if bounds[a - lo] > floor:
+                    break
+                a += step
+            else:
+                continue  # no proven neighbour this way
+            weight = float(w.table.pairs.weight[p, j])
+            e = CELL / 2**CHAIN_LEVEL
+            per = 2**CHAIN_LEVEL
+            q = np.array(base, dtype=float)
+            # from the anchor's edge toward k: cells a - step, ..., k
+            edge = (a + 1) * CELL if step < 0 else a * CELL  # the anchor's, facing k
+            q[j] = edge
+            d0 = w.pair_distance(q, p)
+            c = a - step
+            while True:
+                kept = np.inf
+                for i in range(1, per + 1):
+                    if not d0 - weight * e > w.padding + GAP:
+                        return  # the chain stops: no later state is known free
+                    q[j] = edge - step * i * e
+                    d1 = w.pair_distance(q, p)
+                    kept = min(kept, (d0 + d1 - weight * e) / 2)
+                    d0 = d1
+                edge -= step * CELL
+                bounds[c - lo] = max(bounds[c - lo], kept)
+                if c == k:
+                    return
+                c -= step
 
     def _cell(self, p: int, j: int, level: int, k: int, base: np.ndarray) -> float:
         # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
