@@ -567,7 +567,7 @@ class Certifier:
         row = self._rows.get(key)
         if row is None or first < row[0] or last > row[0] + len(row[1]):
             lim = self.world.description.robot.position_limits(
-                [self.world.kin.joint_names[j]])[0]
+                (self.world.kin.joint_names[j],))[0]
             lo = min(first, int(np.floor(lim[0] / CELL)))
             hi = max(last, int(np.ceil(lim[1] / CELL)))
             grown = np.full(hi - lo, np.nan)
