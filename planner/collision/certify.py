@@ -570,6 +570,8 @@ class Certifier:
                 (self.world.kin.joint_names[j],))[0]
             lo = min(first, int(np.floor(lim[0] / CELL)))
             hi = max(last, int(np.ceil(lim[1] / CELL)))
+            if row is not None:
+                lo, hi = min(lo, row[0]), max(hi, row[0] + len(row[1]))
             grown = np.full(hi - lo, np.nan)
             if row is not None:  # (a motion a hair past the limits: keep what was read)
                 grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
