@@ -279,3 +279,17 @@ def test_loose_leaf_boxes_do_not_lead_the_walk_into_microns(needle, tmp_path):
     assert cert.free and cert.closest == ("needle", "prism")
     assert 1e-3 < cert.certified_clearance <= true_gap
     assert cert.bounds <= 15  # (22 before, measured)
+
+
+def test_a_grazing_path_is_planned_again_with_finer_samples_then_certified_edges(needle):
+    # (the search samples edges 0.02 rad apart; a path grazing between samples is planned
+    # again 0.01 rad apart, as before that step was doubled, and only then with every
+    # edge certified: several times slower)
+    from planner.planning.paths import FINEST_STEP, PLAN_STEP, PathPlanner
+    pp = PathPlanner(needle, needle.description)
+    finer = pp._retry()
+    assert pp.step == PLAN_STEP and finer.step == PLAN_STEP / 2 == FINEST_STEP
+    assert not finer.certify_edges and finer.room == pp.room
+    strict = finer._retry()
+    assert strict.certify_edges and strict.step == FINEST_STEP
+    assert pp._retry() is finer  # built once
