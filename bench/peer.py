@@ -30,9 +30,14 @@ problems (at least half needing a detour). Per robot:
   pair within microns somewhere), and the proof's time (the reply's ``recheck`` stage)
   median for those and for the others;
 - ``--group all``: the arm and the gripper move together (the gripper's start and goal
-  drawn across its range; the request's group ``all``). MPlib is not run on those (its
-  planner here takes the arm's move group; a mimic finger is not one of its joints), so
-  they have no MPlib column;
+  drawn across its range; the request's group ``all``). MPlib is not run on those, and
+  no honest column exists: MPlib 0.2.1 loads the URDF's ``<mimic>`` joint_5 as a joint
+  of its own (its pinocchio model has five, joint_5 a plain ``JointModelRZ``: checked on
+  course_fingers), and a move group is the chain to one link, so joint_4 (right finger)
+  and joint_5 (left finger) are never in the same group: with the group ending at
+  gripper_right (joints 1-4) joint_5 keeps its start value while joint_4 moves, the left
+  finger not following. That is another problem (other finger poses, other contacts),
+  not ours with the mimic;
 - every returned trajectory, ours and MPlib's, re-checked independently
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).

@@ -256,3 +256,40 @@ def test_a_pair_the_motion_does_not_move_is_certified_at_its_distance_not_half_a
     walked = Certifier(world, fraction=0.5).path(moving)
     assert walked.free
     assert walked.certified_clearance <= world.min_clearance(interpolate(moving, 0.01))[0]
+
+
+def test_loose_leaf_boxes_do_not_lead_the_walk_into_microns(needle, tmp_path):
+    # an octagonal prism of long slivers (as CAD meshes have): its leaf boxes stick out
+    # of it at the corners, so approaching it the trees' bound falls through zero tens
+    # of millimetres before the prism. The walk used to take the small positive bounds
+    # on the way and step geometrically toward the boxes' contact, certifying microns;
+    # a hull query there proves the true gap's worth, in fewer bounds
+    import trimesh
+    trimesh.creation.cylinder(radius=0.1, height=0.6, sections=8).export(tmp_path / "p.stl")
+    prism = Obstacle("prism", "mesh", mesh_path=str(tmp_path / "p.stl"), xyz=(0.7, 0, 0),
+                     rpy=(0, 0, np.pi / 8))
+    world = needle.with_scene((prism,))
+    path = np.array([[0.4], [0.17]])
+    true_gap = world.min_clearance(interpolate(path, 0.001))[0]
+    assert 0.015 < true_gap < 0.025
+    # (the trees alone prove a few millimetres at the end: nothing near the true gap)
+    trees = world.lower_bound(path[-1])
+    assert trees < 0.005
+    cert = Certifier(world, fraction=0.5).path(path)
+    assert cert.free and cert.closest == ("needle", "prism")
+    assert 1e-3 < cert.certified_clearance <= true_gap
+    assert cert.bounds <= 15  # (22 before, measured)
+
+
+def test_a_grazing_path_is_planned_again_with_finer_samples_then_certified_edges(needle):
+    # (the search samples edges 0.02 rad apart; a path grazing between samples is planned
+    # again 0.01 rad apart, as before that step was doubled, and only then with every
+    # edge certified: several times slower)
+    from planner.planning.paths import FINEST_STEP, PLAN_STEP, PathPlanner
+    pp = PathPlanner(needle, needle.description)
+    finer = pp._retry()
+    assert pp.step == PLAN_STEP and finer.step == PLAN_STEP / 2 == FINEST_STEP
+    assert not finer.certify_edges and finer.room == pp.room
+    strict = finer._retry()
+    assert strict.certify_edges and strict.step == FINEST_STEP
+    assert pp._retry() is finer  # built once

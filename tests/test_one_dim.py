@@ -47,7 +47,9 @@ def _motions(w: CollisionWorld, n: int, *, free: bool = True) -> list[np.ndarray
 def test_the_fingers_are_one_dimensional(world):
     c = Certifier(world, fraction=0.5)
     fresh = Certifier(CollisionWorld(world.description, obstacles=world.obstacles))
-    assert not fresh.one_dim_pairs(*_pieces(_motions(world, 1)[0]))  # no walk came near
+    fingers = world.pair_names.index(("gripper_right", "gripper_left"))
+    # proven by cells from the first motion on, no walk needed first
+    assert fingers in fresh.one_dim_pairs(*_pieces(_motions(world, 1)[0]))
     names = {world.pair_names[p]: j for p, j in c._one_dim.items()}
     assert names[("gripper_right", "gripper_left")] == 3  # joint_4 and its mimic
     # a pair two joints move is not; nor one with an obstacle (a scene's, not the robot's)
@@ -55,15 +57,8 @@ def test_the_fingers_are_one_dimensional(world):
     assert ("base_plate", "p1") not in names
 
 
-def _all_hard(c: Certifier) -> Certifier:
-    # as if a walk had come near contact for every one-dimensional pair (cells are
-    # built only for those)
-    c._hard.update(c.world.pair_names[p] for p in c._one_dim)
-    return c
-
-
 def test_cell_bounds_never_exceed_the_distance_on_the_motion(world):
-    c = _all_hard(Certifier(world, fraction=0.5))
+    c = Certifier(world, fraction=0.5)
     proven = 0
     for path in _motions(world, 6):
         d = np.diff(path, axis=0)
@@ -80,7 +75,7 @@ def test_cell_bounds_never_exceed_the_distance_on_the_motion(world):
 
 
 def test_same_verdicts_as_the_walk_and_cells_kept_with_the_world(world):
-    on, off = _all_hard(Certifier(world, fraction=0.5)), Certifier(world, fraction=0.5)
+    on, off = Certifier(world, fraction=0.5), Certifier(world, fraction=0.5)
     off._one_dim = {}  # the walk alone
     motions = _motions(world, 4)
     hits = _motions(world, 4, free=False)
@@ -93,3 +88,33 @@ def test_same_verdicts_as_the_walk_and_cells_kept_with_the_world(world):
     assert n > 0
     Certifier(world, fraction=0.5).path(motions[0])  # a new certifier: no new cell
     assert len(_CELLS[world.bodies]) == n
+
+
+def test_a_gripper_closing_to_its_limit_is_proven_by_cells(world):
+    # the closed fingers' hulls touch (6 mm apart): cells there take the trees' bound,
+    # and a motion ending on the limit needs no cell beyond it (the fingers overlap there)
+    c = Certifier(world, fraction=0.5)
+    fingers = world.pair_names.index(("gripper_right", "gripper_left"))
+    lim = world.description.robot.position_limits(world.kin.joint_names)
+    assert lim[3, 1] == 0.0  # (the course's gripper closes at 0)
+    path = np.array([[0.3, 0.2, -0.1, -0.5], [0.3, 0.2, -0.1, 0.0]])
+    got = c.one_dim_pairs(*_pieces(path))
+    assert fingers in got
+    true = min(world.pair_distance(q, fingers) for q in interpolate(path, 0.005))
+    assert world.padding < got[fingers] <= true
+    # where the hulls touch, exact distances chained from the open side prove most of
+    # the true gap (the trees' bound there: tens of microns)
+    assert got[fingers] > 0.5 * true
+
+
+def test_motions_a_hair_past_the_limits_grow_the_row_on_either_side(world):
+    # (blends and rounding can take a joint a hair past its limit): the row of cells
+    # grows to hold them, below and then above, keeping what was proven
+    c = Certifier(world, fraction=0.5)
+    fingers = world.pair_names.index(("gripper_right", "gripper_left"))
+    lo, hi = world.description.robot.position_limits(world.kin.joint_names)[3]
+    below = np.array([[0.3, 0.2, -0.1, lo - 0.015], [0.3, 0.2, -0.1, lo + 0.3]])
+    above = np.array([[0.3, 0.2, -0.1, -0.4], [0.3, 0.2, -0.1, hi + 1e-9]])
+    first = c.one_dim_pairs(*_pieces(below))[fingers]
+    c.one_dim_pairs(*_pieces(above))  # (no cell proves past the closed limit)
+    assert c.one_dim_pairs(*_pieces(below))[fingers] == first

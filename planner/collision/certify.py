@@ -28,11 +28,17 @@ A pair of links whose relative motion is one-dimensional (its ``weight`` is zero
 one joint: the two fingers of a gripper along its mimic, a camera by the turntable) has a
 distance that is a function of that joint alone. Such a pair is proven
 once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
-the cell's middle less ``weight`` times half its width, cells halved where that does not
-prove them), once a walk has had to ask for its bounds near contact, and the proof is
-kept: a motion whose joint range the proven cells cover
-takes the smallest of their bounds for the pair, and the walk passes over it (near
-contact, thousands of tiny steps; here, a few cached cells).
+the cell's middle, or the trees' where the hulls touch, less ``weight`` times half its
+width, cells halved where that does not prove them), and the proof is kept per process
+for every request: a motion whose joint range the proven cells cover takes the smallest
+of their bounds for the pair, and the walk passes over it (a few cached cells instead of
+a walk of tree bounds, or near contact thousands of tiny steps).
+
+Where the trees prove a pair less than ``SOFT`` beyond the clearance, the walk asks
+Python for the hulls' bound (FCL's GJK) before taking the trees': the leaf boxes of CAD
+meshes (long thin triangles) stop proving anything tens of millimetres before the
+meshes touch, and a walk that took their small positive bounds stepped geometrically
+toward the boxes' contact, certifying microns for paths that kept centimetres.
 """
 
 from __future__ import annotations
@@ -83,8 +89,22 @@ STILL = 1e-4
 # (each halved, down to CELL / 2**CELL_LEVELS, where its bound does not prove it)
 CELL = 0.01
 CELL_LEVELS = 4
+# [m] a cell proven less than this beyond the clearance (the closed fingers, whose hulls
+# touch: the trees' bound) is proven again from exact distances chained along the joint
+# from a neighbour proven free, at states CELL / 2**CHAIN_LEVEL apart
+CHAIN_BELOW = 1e-3
+CHAIN_LEVEL = 2
+# cells a chain may cross to its cell (each costs 2**CHAIN_LEVEL exact distances, once)
+CHAIN_REACH = 8
 # refinements of a cell's hull direction (each from the extreme points the last one found)
 HULL_TRIES = 4
+# [m] a pair whose trees prove less than this beyond the clearance gets a hull query too
+# (the trees of CAD meshes are loose there: see _advance)
+SOFT = 0.002
+# a warm hull bound under this fraction of the pair's last queried one is checked
+# against the trees, and queried again (its direction may have gone stale as the bodies
+# turned)
+HOLD = 0.25
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
@@ -127,6 +147,33 @@ def _eval_piece(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float
     h = x * x * x - 0.5 * x * x * x * x
     for j in range(start.shape[0]):
         out[j] = start[j] + u1[j] * sigma + (u2[j] - u1[j]) * length * h
+
+
+@numba.njit(cache=True, nogil=True)
+def _hull_bound(vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int,
+                ta: np.ndarray, b: int, tb: np.ndarray, n: np.ndarray, warm: bool) -> float:
+    # The hulls' bound [m] of bodies a and b (poses ta, tb) without leaving compiled
+    # code: from direction n if ``warm``, else from the line between their frames,
+    # refined HULL_TRIES times (each from the extreme points the last one found; n gets
+    # the best). Sound along any direction (see warm_bound).
+    if not warm:
+        norm = 0.0
+        for r in range(3):
+            n[r] = ta[r, 3] - tb[r, 3]
+            norm += n[r] * n[r]
+        norm = np.sqrt(norm)
+        if norm > 0.0:
+            for r in range(3):
+                n[r] /= norm
+        else:
+            n[0], n[1], n[2] = 1.0, 0.0, 0.0
+    d = -np.inf
+    for _ in range(HULL_TRIES):
+        e = warm_bound(vertices, offsets, radii, a, ta, b, tb, n)
+        if e <= d:
+            break  # no better direction found
+        d = e
+    return d
 
 
 @numba.njit(cache=True, nogil=True)
@@ -175,9 +222,13 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
         a, b = index[p, 0], index[p, 1]
         carry = -1.0  # a bound [m] proven at the start of piece k, if any
         measured = np.inf  # the last bound measured (trees or FCL)
+        fresh = np.inf  # the last bound Python injected (a hull query's, or exact)
         # the trees failed here (their leaf boxes overlap though the meshes do not, as
         # they do well before contact on CAD links): the hulls first while they prove it
         near = False
+        # the hulls could not beat the trees at this pair's last hull query (a concave
+        # body): no other until its trees prove nothing
+        flat = False
         while k < npiece:
             length = lengths[k]
             speed = 0.0
@@ -193,8 +244,11 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
             if inj >= 0.0:
                 d = inj
                 inj = -1.0
-                measured = d
+                measured = fresh = d
                 near = True
+                # a hull query that could not beat the trees is not asked again until
+                # the walk needs an exact bound for this pair
+                flat = not warm[p]
             elif s == 0.0 and carry > clear + GAP and carry >= CARRY * measured:
                 # what the last piece left proven holds here: no new bound needed (a
                 # pair the motion hardly moves keeps one bound for the whole motion)
@@ -210,13 +264,27 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                     # near contact the steps are short and the hulls barely turn: the
                     # last direction still separates them, without a round trip
                     d = warm_bound(vertices, offsets, radii, a, ta, b, tb, directions[p])
-                if d <= clear + GAP:
-                    d = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
+                if d <= clear + GAP or d < HOLD * fresh:
+                    # (a warm bound far below the last query's: its direction went stale,
+                    # and would lead the steps down geometrically as it turns away)
+                    t = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
                                          right, clear + GAP, _CAP, stack, gaps, scratch)
-                    near = d <= clear + GAP
+                    near = t <= clear + SOFT
+                    d = max(d, t)
+                    if near and not flat and d <= clear + SOFT:
+                        # The leaf boxes of CAD meshes (long thin triangles) can prove
+                        # nothing tens of millimetres before the meshes touch: a small
+                        # positive bound would be taken, and the steps would shrink
+                        # geometrically toward the boxes' contact (thousands of bounds,
+                        # and a clearance certified in microns). A hull query first
+                        # (Python: FCL's GJK), whatever the trees proved (in ``injected``)
+                        at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds + 1
+                        at.injected = d
+                        return Status.NEED_BOUND.value
                 bounds += 1
                 if d <= clear + GAP:
                     at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    at.injected = d
                     return Status.NEED_BOUND.value
                 if bounds > MAX_BOUNDS:
                     at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
@@ -263,8 +331,8 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
 #: (padding, link, link, level, cell)
 _CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
     weakref.WeakKeyDictionary()
-#: per robot geometry, by padding, the one-dimensional pairs that get cells
-_HARD: weakref.WeakKeyDictionary[Any, dict[float, set[tuple[str, str]]]] = \
+#: per robot geometry, the same level-0 cells as rows (:meth:`Certifier._row`)
+_ROWS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str], tuple[int, np.ndarray]]] = \
     weakref.WeakKeyDictionary()
 
 
@@ -277,22 +345,8 @@ def _hull_at(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.nd
     # separation along the line between their frames, refined HULL_TRIES times from the
     # extreme points each direction picks (warm_bound). Sound along any direction.
     _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-    ta, tb = poses[fa], poses[fb]
-    n = np.empty(3)
-    norm = 0.0
-    for r in range(3):
-        n[r] = ta[r, 3] - tb[r, 3]
-        norm += n[r] * n[r]
-    norm = np.sqrt(norm)
-    if norm > 0.0:
-        for r in range(3):
-            n[r] /= norm
-    else:
-        n[0], n[1], n[2] = 1.0, 0.0, 0.0
-    d = -np.inf
-    for _ in range(HULL_TRIES):
-        d = max(d, warm_bound(vertices, offsets, radii, a, ta, b, tb, n))
-    return d
+    return _hull_bound(vertices, offsets, radii, a, poses[fa], b, poses[fb], np.empty(3),
+                       False)
 
 
 class Certifier:
@@ -331,12 +385,14 @@ class Certifier:
                          and world.table.kinds[links[p, 1]] == BodyKind.LINK}
         # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
         # with the world, so every certifier of it (and every request) reuses them
+        # Every one-dimensional pair gets them, from its first motion on: a gripper's
+        # range is some 160 cells, filled once per process in ~25 ms (hulls, trees
+        # where the hulls touch), looked up in ~0.3 ms a motion; walking the fingers
+        # cost 1.5-2.5 ms a proof of arm and gripper together (course_fingers, trees of
+        # 6k-triangle fingers ~30 us a bound)
         self._cells = _CELLS.setdefault(world.bodies, {})
-        # the one-dimensional pairs (by name) a walk had to ask Python about (near
-        # contact, where it takes its tiny steps): only those get cells, so a pair the
-        # walk proves in a few steps costs nothing more (measured: filling cells for
-        # fingers 5-15 mm apart cost more than their walks saved)
-        self._hard = _HARD.setdefault(world.bodies, {}).setdefault(world.padding, set())
+        # (padding, link, link) -> (first cell, each level-0 cell's bound (nan: not yet))
+        self._rows = _ROWS.setdefault(world.bodies, {})
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -392,18 +448,26 @@ class Certifier:
                                    at.bounds, exact)
             q = np.empty(w.dof)  # the very point the walk stopped at
             _eval_piece(starts[k], u1[k], u2[k], lengths[k], s, q)
-            # free: the walk reached it from a checked sample, every point farther than
-            # the clearance, so neither body can be inside the other; the hulls' bound
-            # first (cheap), FCL's exact distance where the hulls touch
             direction[:] = np.nan
-            d, was_exact = w.pair_bound(q, p, above=clear + GAP, direction=direction)
-            if np.isfinite(direction[0]):
-                directions[p] = direction
-                warm[p] = True
+            proven = float(walk[0]["injected"])  # what the walk's own bounds proved
+            if proven > clear + GAP:
+                # the trees proved the pair free here, barely: the hulls' bound where it
+                # is better (their direction kept for the walk), else the trees' again
+                h = w.pair_hull_bound(q, p, direction=direction)
+                warm[p] = h > proven and bool(np.isfinite(direction[0]))
+                if warm[p]:
+                    directions[p] = direction
+                d, was_exact = max(h, proven), False
+            else:
+                # free: the walk reached it from a checked sample, every point farther
+                # than the clearance, so neither body can be inside the other; the hulls'
+                # bound first (cheap), FCL's exact distance where the hulls touch
+                d, was_exact = w.pair_bound(q, p, above=clear + GAP, direction=direction)
+                if np.isfinite(direction[0]):
+                    directions[p] = direction
+                    warm[p] = True
             exact += was_exact
             queries += 1
-            if p in self._one_dim:
-                self._hard.add(pair)
             if d <= clear + GAP:
                 best[p] = min(best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
@@ -486,16 +550,86 @@ class Certifier:
         hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
         out = {}
         for p, j in self._one_dim.items():
-            if self.world.pair_names[p] not in self._hard:
-                continue
-            d = np.inf
-            for k in range(int(np.floor(lo[j] / CELL)), int(np.floor(hi[j] / CELL)) + 1):
-                d = min(d, self._cell(p, j, 0, k, starts[0]))
-                if not d > self.world.padding + GAP:
-                    break
-            else:
-                out[p] = float(d)
+            # the closed cells [k h, (k + 1) h] that hold [lo, hi] (a motion ending on a
+            # cell's edge, such as a closed gripper at its limit, needs no cell beyond)
+            first = int(np.floor(lo[j] / CELL))
+            last = max(first + 1, int(np.ceil(hi[j] / CELL)))
+            d = float(self._row(p, j, first, last, starts[0]).min())
+            if d > self.world.padding + GAP:
+                out[p] = d
         return out
+
+    def _row(self, p: int, j: int, first: int, last: int, base: np.ndarray) -> np.ndarray:
+        # the bounds of pair p's cells first..last-1 (level 0, each the smallest of its
+        # halves where it was split), from a row kept per pair over its joint's range:
+        # a motion reads a slice (~microseconds), computing only the cells never read
+        key = (self.world.padding, *self.world.pair_names[p])
+        row = self._rows.get(key)
+        if row is None or first < row[0] or last > row[0] + len(row[1]):
+            lim = self.world.description.robot.position_limits(
+                (self.world.kin.joint_names[j],))[0]
+            lo = min(first, int(np.floor(lim[0] / CELL)))
+            hi = max(last, int(np.ceil(lim[1] / CELL)))
+            if row is not None:
+                lo, hi = min(lo, row[0]), max(hi, row[0] + len(row[1]))
+            grown = np.full(hi - lo, np.nan)
+            if row is not None:  # (a motion a hair past the limits: keep what was read)
+                grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
+            row = self._rows[key] = (lo, grown)
+        cells = row[1][first - row[0]:last - row[0]]  # a view: filled in place
+        todo = np.flatnonzero(np.isnan(cells))
+        for i in todo:
+            cells[i] = self._cell(p, j, 0, first + int(i), base)
+        for i in todo:
+            if not cells[i] > self.world.padding + CHAIN_BELOW:
+                self._chain(p, j, row, first + int(i), base)
+        return cells
+
+    def _chain(self, p: int, j: int, row: tuple[int, np.ndarray], k: int,
+               base: np.ndarray) -> None:
+        # Cell k (level 0) of pair p proven again, with its neighbours toward the nearest
+        # cell of the row proven by more than CHAIN_BELOW: the state at that cell's edge
+        # is free (proven), so FCL's exact distance there is a true distance; each step
+        # of e = CELL / 2**CHAIN_LEVEL on from a true distance D loses at most w e
+        # (``weight``): while D - w e stays above the clearance, the next state is
+        # reached without contact and its exact distance is true too. A step between
+        # true distances D0 and D1 keeps at least (D0 + D1 - w e) / 2. A cell takes the
+        # larger of that and its own bound.
+        w, (lo, bounds) = self.world, row
+        floor = w.padding + CHAIN_BELOW
+        for step in (-1, 1):
+            a = k + step
+            while 0 <= a - lo < len(bounds) and abs(a - k) <= CHAIN_REACH:
+                if np.isnan(bounds[a - lo]):
+                    bounds[a - lo] = self._cell(p, j, 0, a, base)
+                if bounds[a - lo] > floor:
+                    break
+                a += step
+            else:
+                continue  # no proven neighbour this way
+            weight = float(w.table.pairs.weight[p, j])
+            e = CELL / 2**CHAIN_LEVEL
+            per = 2**CHAIN_LEVEL
+            q = np.array(base, dtype=float)
+            # from the anchor's edge toward k: cells a - step, ..., k
+            edge = (a + 1) * CELL if step < 0 else a * CELL  # the anchor's, facing k
+            q[j] = edge
+            d0 = w.pair_distance(q, p)
+            c = a - step
+            while True:
+                kept = np.inf
+                for i in range(1, per + 1):
+                    if not d0 - weight * e > w.padding + GAP:
+                        return  # the chain stops: no later state is known free
+                    q[j] = edge - step * i * e
+                    d1 = w.pair_distance(q, p)
+                    kept = min(kept, (d0 + d1 - weight * e) / 2)
+                    d0 = d1
+                edge -= step * CELL
+                bounds[c - lo] = max(bounds[c - lo], kept)
+                if c == k:
+                    return
+                c -= step
 
     def _cell(self, p: int, j: int, level: int, k: int, base: np.ndarray) -> float:
         # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
@@ -511,14 +645,21 @@ class Certifier:
         q[j] = (k + 0.5) * h
         change = float(w.table.pairs.weight[p, j]) * h / 2  # [m] within half the cell
         need = w.padding + GAP + change
-        # the hulls' separation along a few refined directions: sound at any state (an
+        # the hulls' separation along a few refined directions, or the trees' whole
+        # bound where the hulls touch (closed fingers): both sound at any state (an
         # exact distance would hold only at a state reached without contact, which the
         # middle of a cell need not be), microseconds each
         a, b = (int(x) for x in w.table.pairs.index[p])
-        c, hp, frame = w.chain, w.hulls, w.table.bodies.frame
+        c, hp, frame, f = w.chain, w.hulls, w.table.bodies.frame, w.forest
+        wk = self._work
         d = _hull_at(q, c.parent, c.origin, c.jtype, c.axis, c.src, c.scale, c.offset,
                      hp.vertices, hp.offsets, hp.radii, a, b, int(frame[a]), int(frame[b]),
-                     self._work.poses)
+                     wk.poses)
+        if not d > need:  # (_hull_at left the poses of q in the work buffer)
+            d = max(d, tree_lower_bound(wk.poses[frame[a]], f.root[a], wk.poses[frame[b]],
+                                        f.root[b], f.center, f.axes, f.half, f.left,
+                                        f.right, need, 1.0, wk.stack, wk.gaps,
+                                        np.empty((8, 3, 3))))
         bound = d - change if d > need else -np.inf
         if bound == -np.inf and level < CELL_LEVELS:
             bound = min(self._cell(p, j, level + 1, 2 * k, base),

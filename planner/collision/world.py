@@ -302,6 +302,16 @@ class CollisionWorld:
             d = self._still[key] = self.pair_bound(at, pair, above=above)[0]
         return d - float(weight @ np.abs(q - at))
 
+    def pair_hull_bound(self, q: ArrayLike, pair: int, *,
+                        direction: np.ndarray | None = None) -> float:
+        """The convex hulls' lower bound [m] on the distance of checked pair ``pair`` at
+        any state ``q`` (:mod:`.hulls`, ~20 us; 0 or less where the hulls touch).
+        ``direction``: as for :meth:`.HullBounds.bound`."""
+        poses = self._poses_of(q)
+        a, b = self.table.pairs.index[pair]
+        return self._hull_bounds.bound(int(a), self.body_pose(poses, a), int(b),
+                                       self.body_pose(poses, b), direction=direction)
+
     def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
                    direction: np.ndarray | None = None) -> tuple[float, bool]:
         """A lower bound [m] on the distance of checked pair ``pair`` at a state ``q``
@@ -309,10 +319,7 @@ class CollisionWorld:
         hulls' (:mod:`.hulls`, ~20 us) when that is above ``above``, else FCL's exact
         distance (0.3-2 ms on CAD links). The flag says which (True: exact).
         ``direction``: as for :meth:`.HullBounds.bound`."""
-        poses = self._poses_of(q)
-        a, b = self.table.pairs.index[pair]
-        d = self._hull_bounds.bound(int(a), self.body_pose(poses, a), int(b), self.body_pose(poses, b),
-                              direction=direction)
+        d = self.pair_hull_bound(q, pair, direction=direction)
         if d > above:
             return d, False
         return self.pair_distance(q, pair), True  # (FK again: microseconds beside FCL)

@@ -41,15 +41,18 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE
             "LBKPIECE1", "BKPIECE1", "EST", "FMT", "BFMT", "InformedRRTstar", "SORRTstar",
             "AORRTC")
 # [rad] edges are checked at states this far apart while searching and shortcutting; the
-# path found is then certified over its whole length (and re-planned with certified
-# edges in the rare case it grazes between samples)
-PLAN_STEP = 0.01
+# path found is then certified over its whole length (and re-planned with finer samples,
+# then certified edges, in the rare case it grazes between samples)
+PLAN_STEP = 0.02
 # [m] detours are first searched and shortcut with every moving pair kept this much
 # farther apart than the clearance, as far as the OBB trees alone can prove (no FCL):
 # paths that do not hug the robot or the scene are proven with long certification steps
 # instead of thousands of exact distances, and leave the servos room to track. Where no
 # such path exists (ends or passages closer than this), the search runs without it.
 ROOM = 0.002
+# [rad] a path that grazes between its edges' samples is planned again with them twice
+# as close, down to this step, and below it with certified edges
+FINEST_STEP = 0.01
 
 
 def available_planners() -> tuple[str, ...]:
@@ -156,6 +159,7 @@ class PathPlanner:
         self.room = room
         self._roomy: dict[tuple[str, ...], CollisionWorld] = {}
         self._guarded: dict[tuple[tuple[str, ...], tuple[tuple[str, str], ...]], Guarded] = {}
+        self._fallback: PathPlanner | None = None
         self.certifier = Certifier(world)
         # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
         self.proof = Certifier(world, fraction=0.5)
@@ -278,13 +282,14 @@ class PathPlanner:
         t5 = time.perf_counter()
         timings["recheck"] = t5 - t4
         if not cert.free and not self.certify_edges:
-            # an edge accepted on its samples grazes between them: plan again, accepting
-            # only certified edges (slower, rare)
-            _log.info("path not certified (%s); re-planning with certified edges",
-                      cert.failure)
-            strict = PathPlanner(self.world, self.description, step=self.step,
-                                 certify_edges=True)
-            result = strict.solve(request)
+            # an edge accepted on its samples grazes between them: plan again with edges
+            # sampled twice as close, and where even that grazes, accepting only
+            # certified edges (each edge a proof: several times slower; rare)
+            retry = self._retry()
+            _log.info("path not certified (%s); re-planning with %s", cert.failure,
+                      "certified edges" if retry.certify_edges
+                      else f"edges sampled {retry.step:g} rad apart")
+            result = retry.solve(request)
             return PathResult(joint_names=result.joint_names, path=result.path,
                               planner=result.planner,
                               timings={k: timings.get(k, 0.0) + v
@@ -300,6 +305,16 @@ class PathPlanner:
                           planner=planner_name, timings=timings,
                           checks=self.world.checks - checks0, straight_line=straight,
                           length=_path_length(path), certificate=cert)
+
+    def _retry(self) -> PathPlanner:
+        # the planner a path that failed its proof is planned again with (kept: its
+        # roomy worlds are built once)
+        if self._fallback is None:
+            finer = self.step / 2 >= FINEST_STEP - 1e-12
+            self._fallback = PathPlanner(self.world, self.description,
+                                         step=self.step / 2 if finer else self.step,
+                                         certify_edges=not finer, room=self.room)
+        return self._fallback
 
     def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
                 joints: tuple[str, ...]) -> tuple[np.ndarray, StateChecker | None]:
