@@ -221,9 +221,12 @@ class PlannerService:
 
     def health(self) -> dict[str, Any]:
         st = self.pool.status() if self.pool is not None else {"load": 0.0}
+        # the kept scene's revision: a follower polls this, not the whole scene
+        scene = self.scene.state.revision if self.scene is not None else 0
         return {"version": _package_version(), "api": VERSION, "instance": self.instance,
                 "prefix": self.options.prefix, "uptime": time.monotonic() - self._started,
-                "workers": self.options.workers, "config": self._config, **st}
+                "workers": self.options.workers, "config": self._config,
+                "scene_revision": scene, **st}
 
     # -- queries -----------------------------------------------------------------------
     def _callback(self, kind: str, key: str):

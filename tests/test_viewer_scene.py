@@ -258,6 +258,41 @@ def test_the_page_follows_the_services_scene(served, desc):
 
 
 @pytest.mark.slow
+def test_a_missed_publication_is_caught_by_the_health_poll(served, desc, monkeypatch):
+    from viewer.app import RobotViewer
+    from viewer.scene_follow import SceneFollower
+
+    srv, c = served
+    c.request("scene/apply", {"clear": True})
+    asked: list[str] = []
+    request = c.request
+
+    def counted(key, *args, **kw):
+        asked.append(key)
+        return request(key, *args, **kw)
+
+    monkeypatch.setattr(c, "request", counted)
+    page = RobotViewer(desc, port=free_port())
+    follower = SceneFollower(page, c, poll=0.2)
+    try:
+        _wait(lambda: follower.shown, "the first read")
+        # from here on, every publication is missed (the follower listens elsewhere)
+        follower._sub.undeclare()
+        follower._sub = c.session.declare_subscriber("elsewhere/x", lambda _s: None)
+        rev = request("scene/apply", {"add": [BALL]})["revision"]
+        assert request("health")["scene_revision"] == rev
+        _wait(lambda: page.scene.revision == rev, "the polled change")
+        assert set(page._scene_handles) == {"ball"}
+        time.sleep(0.3)
+        asked.clear()
+        time.sleep(1.0)  # ~5 polls at the same revision: health only, no scene read
+        assert asked.count("health") >= 3 and "scene" not in asked, asked
+    finally:
+        follower.close()
+        page.close()
+
+
+@pytest.mark.slow
 def test_view_png_draws_the_services_scene_with_the_carried_cup(served, tmp_path):
     srv, c = served
     c.request("scene/apply", {"clear": True, "add": [TABLE, {**CUP["object"], "xyz": [0.4, -0.3, 0.9]}]})

@@ -4,8 +4,8 @@ The service publishes ``<prefix>/scene/changes`` once per applied revision
 (:mod:`service.scene_sync`); a publication only wakes this follower, which then reads the
 whole ``<prefix>/scene`` (a change names ids, not what they became) and draws it if its
 revision is new. A publication can be missed (sent while the viewer was connecting, or
-dropped with a link), so the scene is also read every ``poll`` seconds: the whole scene
-(meshes too: the service has no cheaper key for its revision), hence a long period.
+dropped with a link), so every ``poll`` seconds the service's ``health`` is asked for
+its ``scene_revision`` (a few hundred bytes), and the whole scene read only if it moved.
 """
 
 from __future__ import annotations
@@ -49,10 +49,21 @@ class SceneFollower:
         self._thread.start()
 
     def _run(self) -> None:
+        woken = True  # read the scene at the start
         while not self._stop.is_set():
             self._wake.clear()
-            self.refresh()
-            self._wake.wait(self.poll)
+            if woken or self._moved():
+                self.refresh()
+            woken = self._wake.wait(self.poll)
+
+    def _moved(self) -> bool:
+        """Whether the service's scene is at another revision than the one shown (or
+        the service cannot say: then read the scene, which reports why)."""
+        try:
+            health = self.client.request("health", timeout=5.0)
+        except ServiceError:
+            return True
+        return health.get("scene_revision") != self.viewer.scene.revision
 
     def refresh(self) -> bool:
         """Read ``<prefix>/scene`` and draw it if its revision is not the one shown;
