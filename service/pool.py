@@ -152,18 +152,25 @@ class WorkerPool:
     # -- submitting --------------------------------------------------------------------
     def submit(self, job: Job) -> None:
         """Queue a job, or answer it at once: BUSY when the queue is full (with
-        ``details.retry_after`` [s]), SHUTTING_DOWN once :meth:`close` has begun."""
+        ``details.retry_after`` [s]), SHUTTING_DOWN once :meth:`close` has begun.
+
+        A ``frames`` job (a kept-scene attach's or detach's link poses: a millisecond's
+        work) goes to the head of the queue, full or not: the scene's applies are made one
+        at a time, so at most one of them waits, and a scene change is not refused for
+        the plans in the queue."""
         self.count("received")
         slot = None
+        urgent = job.kind == "frames"
         with self._cond:
-            stopping, full = self.stopping, len(self._jobs) >= self.queue_size
+            stopping = self.stopping
+            full = len(self._jobs) >= self.queue_size and not urgent
             if not (stopping or full):
                 if self._idle and not self._jobs:
                     slot = self._idle.pop()
                     job.handoff = threading.Event()
                     slot.handed = job
                 else:
-                    self._enqueue(job, first=False)
+                    self._enqueue(job, first=urgent)
             retry = max(0.05, self._service_time / self.workers)
         if slot is not None:
             slot.dispatch(job)

@@ -293,3 +293,31 @@ def test_the_pool_holds_no_reference_to_an_answered_job():
         wait_for(all_freed, timeout=10)
         held = pool.held()
         assert held["queued"] == 0 and held["running"] == 0, held
+
+
+@pytest.mark.slow
+def test_a_scene_attach_is_not_refused_for_a_full_queue(tmp_path):
+    # one worker planning, the one queue slot taken: a plan would be BUSY, but an attach's
+    # link poses (a 'frames' job) go to the head of the queue and the attach is applied
+    srv = start_server(["--workers", "1", "--queue", "1", "--timeout", "30",
+                        "--scene-file", str(tmp_path / "scene.json")])
+    try:
+        with PlannerClient(srv.endpoint, timeout=60) as c:
+            long_t, long_out = _in_thread(lambda: c.plan({**LONG_PLAN, "planning_time": 3.0}))
+            wait_for(lambda: c.health()["workers"][0]["busy"])
+            queued_t, queued_out = _in_thread(lambda: c.fk({"joint_1": 0.1}))
+            wait_for(lambda: c.health()["queue_depth"] == 1)
+            with pytest.raises(errors.ServiceBusy):
+                c.fk({"joint_1": 0.2})
+            cup = {"id": "cup", "shape": "box", "size": [0.02, 0.02, 0.02],
+                   "xyz": [0.0, 0.0, 0.1], "frame": "claw_support"}
+            reply = c.request("scene/apply", {
+                "state": {"joint_1": 0.0, "joint_2": 0.0, "joint_3": 0.0, "joint_4": 0.0},
+                "attach": [{"object": cup, "link": "claw_support", "mass": 0.05}]})
+            assert reply["attached"] == 1 and reply["state_source"] == "request"
+            long_t.join(30)
+            queued_t.join(30)
+            assert "value" in long_out and "value" in queued_out, (long_out, queued_out)
+            assert c.health()["counters"]["BUSY"] == 1  # the fk only
+    finally:
+        srv.stop()
