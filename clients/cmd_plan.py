@@ -211,8 +211,8 @@ def plot_trajectory(res: PlanReply, limits: AppliedLimits, out: str) -> None:
     """Positions, velocities, accelerations and efforts over time with their limits
     (dashed), one panel each (:mod:`viewer.plots`), saved to ``out``. Needs
     matplotlib (optional)."""
-    from viewer.plots import limit_notes, limits_of, plot_figure, plot_panels
-    from viewer.trajectory import PlaybackTrajectory
+    from clients.viewer.plots import limit_notes, limits_of, plot_figure, plot_panels
+    from clients.viewer.trajectory import PlaybackTrajectory
     traj = PlaybackTrajectory(res.joint_names, res.times, res.positions, res.velocities,
                               res.accelerations, res.efforts)
     panels = plot_panels(traj, limits_of(limits), notes=limit_notes(limits))

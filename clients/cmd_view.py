@@ -23,10 +23,10 @@ from .common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 from .errors import ServiceUnavailable
 
 if TYPE_CHECKING:  # the viewer's modules need the view extra: imported when it runs
+    from clients.viewer.scene_view import ViewerScene
+    from clients.viewer.task_view import TaskPlayback
+    from clients.viewer.trajectory import PlaybackTrajectory
     from description import Description
-    from viewer.scene_view import ViewerScene
-    from viewer.task_view import TaskPlayback
-    from viewer.trajectory import PlaybackTrajectory
 
     from .client import PlannerClient
 
@@ -130,8 +130,8 @@ def is_kept_scene(data: object) -> bool:
 
 
 def cmd_view(ns: argparse.Namespace) -> int:
-    from viewer import ViewerUnavailable
-    from viewer.trajectory import PlaybackTrajectory
+    from clients.viewer import ViewerUnavailable
+    from clients.viewer.trajectory import PlaybackTrajectory
 
     try:
         obstacles = read_obstacles(ns.obstacle, ns.scene)
@@ -154,8 +154,8 @@ def cmd_view(ns: argparse.Namespace) -> int:
 
 
 def _read_task(path: str, d: Description) -> TaskPlayback:
+    from clients.viewer.task_view import TaskPlayback
     from planner.kinematics.chain import Kinematics
-    from viewer.task_view import TaskPlayback
     try:
         body = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as e:
@@ -164,7 +164,7 @@ def _read_task(path: str, d: Description) -> TaskPlayback:
 
 
 def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory | None) -> int:
-    from viewer.plots import joint_limits, plot_panels, plot_png
+    from clients.viewer.plots import joint_limits, plot_panels, plot_png
 
     if traj is None:
         raise UsageError("--plot-png needs --trajectory FILE.json or --task FILE.json")
@@ -176,9 +176,9 @@ def _write_png(ns: argparse.Namespace, d: Description, traj: PlaybackTrajectory 
 
 def _write_still(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ...],
                  traj: PlaybackTrajectory | None, task: TaskPlayback | None) -> int:
+    from clients.viewer.geometry import link_meshes
+    from clients.viewer.still import still_bodies, still_png
     from planner.kinematics.chain import Kinematics
-    from viewer.geometry import link_meshes
-    from viewer.still import still_bodies, still_png
 
     if ns.follow:
         raise UsageError("--png draws the scene once: give --png or --follow, not both")
@@ -222,7 +222,7 @@ def read_kept_scene(ns: argparse.Namespace, d: Description) -> ViewerScene | Non
         raise UsageError(f"--scene {ns.scene} is a kept scene: the service plans around "
                          "its own (drawn with --connect); `arduinobot scene load "
                          f"{ns.scene}` makes it the service's, or view it with --local")
-    from viewer.scene_view import read_scene_file
+    from clients.viewer.scene_view import read_scene_file
     return read_scene_file(ns.scene, d)
 
 
@@ -240,7 +240,7 @@ def service_scene(ns: argparse.Namespace, d: Description
     endpoint = ns.connect or (DEFAULT_ENDPOINT if ns.follow else None)
     if endpoint is None:
         return None, None
-    from viewer.scene_view import ViewerScene
+    from clients.viewer.scene_view import ViewerScene
 
     from .client import PlannerClient
     try:
@@ -270,10 +270,10 @@ def service_scene(ns: argparse.Namespace, d: Description
 
 def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ...],
            traj: PlaybackTrajectory | None, task: TaskPlayback | None = None) -> int:
-    from viewer.app import RobotViewer
-    from viewer.plan_panel import PlanningPanel
-    from viewer.planning import LocalBackend, PlanBackend, RemoteBackend
-    from viewer.playback import PlaybackPanel
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.plan_panel import PlanningPanel
+    from clients.viewer.planning import LocalBackend, PlanBackend, RemoteBackend
+    from clients.viewer.playback import PlaybackPanel
 
     # the remote backend first: it refuses what the service cannot plan around before a
     # page opens
@@ -293,13 +293,13 @@ def _serve(ns: argparse.Namespace, d: Description, obstacles: tuple[Obstacle, ..
         closers.insert(0, playback.close)
         PlanningPanel(page, playback, backend)
         if task is not None:
-            from viewer.task_view import show_task
+            from clients.viewer.task_view import show_task
             show_task(page, playback, task)
         elif traj is not None:
             playback.load(traj, source=Path(ns.trajectory).name)
         if ns.follow:
-            from viewer.follow import JointStateFollower
-            from viewer.scene_follow import SceneFollower
+            from clients.viewer.follow import JointStateFollower
+            from clients.viewer.scene_follow import SceneFollower
             joints = JointStateFollower(page, ns.connect or DEFAULT_ENDPOINT, prefix=ns.prefix)
             closers.insert(0, joints.close)
             assert client is not None  # --follow opened one or raised (service_scene)

@@ -14,10 +14,10 @@ import pytest
 from clients.applied_limits import AppliedLimits
 from clients.cmd_plan import summary
 from clients.replies import PlanReply
+from clients.viewer.plots import joint_limits, limit_notes, plot_panels
+from clients.viewer.trajectory import PlaybackTrajectory
 from description import load_description
 from service.bodies import description_body
-from viewer.plots import joint_limits, limit_notes, plot_panels
-from viewer.trajectory import PlaybackTrajectory
 
 from .conftest import REPO
 

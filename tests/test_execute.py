@@ -359,8 +359,8 @@ def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
 @pytest.mark.slow
 def test_the_viewer_follows_a_running_execute(served, desc):
     pytest.importorskip("viser")  # the `view` extra
-    from viewer.app import RobotViewer
-    from viewer.follow import JointStateFollower
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.follow import JointStateFollower
 
     from .conftest import free_port
     viewer = RobotViewer(desc, port=free_port())

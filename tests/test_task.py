@@ -164,8 +164,8 @@ def test_pick_and_place_is_planned_as_one_task_and_run_on_the_twin(course_servic
     assert replies[-1]["report"]["outcome"] == "completed"
     # where the planner let the box go: inside the bin's walls, its bottom at the table's
     # height (the viewer's forward kinematics, from the reply alone)
+    from clients.viewer.task_view import TaskPlayback
     from planner.kinematics.chain import Kinematics
-    from viewer.task_view import TaskPlayback
     course = load_description(course_ws.xacro, package_dirs=[course_ws.src],
                               moveit_config=course_ws.moveit_pkg)
     kin = Kinematics(course.robot)

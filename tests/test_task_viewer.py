@@ -8,11 +8,11 @@ import socket
 import numpy as np
 import pytest
 
+from clients.viewer.task_view import TaskPlayback
 from description import load_description
 from planner.kinematics.chain import Kinematics
 from planner.tasks import plan_task, task_from_mapping
 from service.task_service import planned_body
-from viewer.task_view import TaskPlayback
 
 from .helpers.pick_place import pick_and_place
 
@@ -67,9 +67,9 @@ def _free_port() -> int:
 
 
 def test_the_page_moves_the_carried_box_with_the_scrubber(planned):
-    from viewer.app import RobotViewer
-    from viewer.playback import PlaybackPanel
-    from viewer.task_view import show_task
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.playback import PlaybackPanel
+    from clients.viewer.task_view import show_task
 
     d, _, body = planned
     viewer = RobotViewer(d, obstacles=TaskPlayback.from_reply(body, Kinematics(d.robot))

@@ -22,15 +22,15 @@ import trimesh
 from PIL import Image
 
 from clients.cmd_view import read_obstacles
+from clients.viewer.geometry import PALETTE, frame_box, matrix_to_wxyz
+from clients.viewer.planning import RemoteBackend
+from clients.viewer.plots import joint_limits, plot_panels, plot_png
+from clients.viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
 from description import load_description
 from description.model import rpy_matrix
 from planner.errors import InvalidRequest
 from planner.planning.goals import JointGoal, NamedGoal
 from planner.scene import Obstacle
-from viewer.geometry import PALETTE, frame_box, matrix_to_wxyz
-from viewer.planning import RemoteBackend
-from viewer.plots import joint_limits, plot_panels, plot_png
-from viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
 
 from .helpers.procs import wait_for
 
@@ -303,8 +303,8 @@ def _free_port() -> int:
 
 @pytest.mark.slow
 def test_page_shows_robot_and_collision_in_chromium(description, tmp_path):
-    from viewer.app import RobotViewer
-    from viewer.playback import PlaybackPanel
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.playback import PlaybackPanel
 
     viewer = RobotViewer(description, port=_free_port())
     playback = PlaybackPanel(viewer)

@@ -17,12 +17,12 @@ import trimesh
 from PIL import Image
 
 from clients.client import PlannerClient
+from clients.viewer.geometry import CARRIED_RGB, link_meshes
+from clients.viewer.scene_view import NO_REVISION, ViewerScene, read_scene_file
+from clients.viewer.still import still_bodies, still_png
 from description import load_description
 from planner.errors import InvalidRequest
 from planner.kinematics.chain import Kinematics
-from viewer.geometry import CARRIED_RGB, link_meshes
-from viewer.scene_view import NO_REVISION, ViewerScene, read_scene_file
-from viewer.still import still_bodies, still_png
 
 from .conftest import REPO, free_port, start_server
 from .helpers.fk import link_pose
@@ -129,7 +129,7 @@ def test_changes_name_what_to_draw_anew_and_what_goes(desc, tmp_path):
 
 
 def test_the_page_draws_the_scene_and_carries_the_cup_with_its_link(desc, tmp_path):
-    from viewer.app import RobotViewer
+    from clients.viewer.app import RobotViewer
 
     scene = ViewerScene.from_json(_scene(), desc, mesh_dir=tmp_path)
     page = RobotViewer(desc, scene=scene, port=free_port())
@@ -210,8 +210,8 @@ def _wait(cond, what: str, timeout: float = 30.0) -> None:
 
 @pytest.mark.slow
 def test_the_page_follows_the_services_scene(served, desc):
-    from viewer.app import RobotViewer
-    from viewer.scene_follow import SceneFollower
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.scene_follow import SceneFollower
 
     srv, c = served
     c.request("scene/apply", {"clear": True})
@@ -259,8 +259,8 @@ def test_the_page_follows_the_services_scene(served, desc):
 
 @pytest.mark.slow
 def test_a_missed_publication_is_caught_by_the_health_poll(served, desc, monkeypatch):
-    from viewer.app import RobotViewer
-    from viewer.scene_follow import SceneFollower
+    from clients.viewer.app import RobotViewer
+    from clients.viewer.scene_follow import SceneFollower
 
     srv, c = served
     c.request("scene/apply", {"clear": True})
@@ -308,8 +308,8 @@ def test_view_png_draws_the_services_scene_with_the_carried_cup(served, tmp_path
 
 
 def test_an_obstacle_and_a_scene_object_of_one_id_are_refused_by_name(desc, tmp_path):
+    from clients.viewer.app import RobotViewer
     from planner.scene import Obstacle
-    from viewer.app import RobotViewer
 
     scene = ViewerScene.from_json(_scene(), desc, mesh_dir=tmp_path)
     table = Obstacle.from_mapping({**TABLE, "xyz": [0, 2, 0.5]})
@@ -336,9 +336,9 @@ def test_view_png_of_a_saved_scene_and_no_saved_scene_with_connect(tmp_path, cap
 
 
 def test_in_process_plans_go_around_the_pages_kept_scene_and_what_it_carries(desc, tmp_path):
+    from clients.viewer.planning import LocalBackend
     from planner.errors import GoalInCollision
     from planner.planning.goals import JointGoal
-    from viewer.planning import LocalBackend
 
     # a crate 30 cm out along the claw's z axis at BENT: the arm misses it, a cup carried
     # there does not
@@ -382,7 +382,7 @@ def test_view_png_at_a_time_of_the_trajectory_carries_the_cup_there(tmp_path, ca
 
 @pytest.mark.slow
 def test_the_page_in_chromium_shows_the_cup_moving_with_the_claw(desc, tmp_path):
-    from viewer.app import RobotViewer
+    from clients.viewer.app import RobotViewer
 
     from .test_viewer import Browser, _scene_region
 
