@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.collision.certify import _CELLS, Certifier
+from planner.collision.certify import Certifier
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle
@@ -49,8 +49,8 @@ def test_the_fingers_are_one_dimensional(world):
     fresh = Certifier(CollisionWorld(world.description, obstacles=world.obstacles))
     fingers = world.pair_names.index(("gripper_right", "gripper_left"))
     # proven by cells from the first motion on, no walk needed first
-    assert fingers in fresh.one_dim_pairs(*_pieces(_motions(world, 1)[0]))
-    names = {world.pair_names[p]: j for p, j in c._one_dim.items()}
+    assert fingers in fresh.one_dim.proven(*_pieces(_motions(world, 1)[0]))
+    names = {world.pair_names[p]: j for p, j in c.one_dim.pairs.items()}
     assert names[("gripper_right", "gripper_left")] == 3  # joint_4 and its mimic
     # a pair two joints move is not; nor one with an obstacle (a scene's, not the robot's)
     assert ("base_link", "horizontal_arm") not in names
@@ -64,7 +64,7 @@ def test_cell_bounds_never_exceed_the_distance_on_the_motion(world):
         d = np.diff(path, axis=0)
         L = np.linalg.norm(d, axis=1)
         u = d / L[:, None]
-        got = c.one_dim_pairs(path[:-1], u, u, L)
+        got = c.one_dim.proven(path[:-1], u, u, L)
         qs = interpolate(path, 0.01)
         for p, bound in got.items():
             assert bound > world.padding
@@ -76,7 +76,7 @@ def test_cell_bounds_never_exceed_the_distance_on_the_motion(world):
 
 def test_same_verdicts_as_the_walk_and_cells_kept_with_the_world(world):
     on, off = Certifier(world, fraction=0.5), Certifier(world, fraction=0.5)
-    off._one_dim = {}  # the walk alone
+    off.one_dim.pairs = {}  # the walk alone
     motions = _motions(world, 4)
     hits = _motions(world, 4, free=False)
     # the proof alone decides (no samples first): a colliding motion is refused by the
@@ -84,10 +84,10 @@ def test_same_verdicts_as_the_walk_and_cells_kept_with_the_world(world):
     for path, free in [(m, True) for m in motions] + [(m, False) for m in hits]:
         a, b = on.path(path, sample_step=None), off.path(path, sample_step=None)
         assert a.free == b.free == free
-    n = len(_CELLS[world.bodies])
+    n = len(world.bodies.proofs["one_dim"].cells)
     assert n > 0
     Certifier(world, fraction=0.5).path(motions[0])  # a new certifier: no new cell
-    assert len(_CELLS[world.bodies]) == n
+    assert len(world.bodies.proofs["one_dim"].cells) == n
 
 
 def test_a_gripper_closing_to_its_limit_is_proven_by_cells(world):
@@ -98,7 +98,7 @@ def test_a_gripper_closing_to_its_limit_is_proven_by_cells(world):
     lim = world.description.robot.position_limits(world.kin.joint_names)
     assert lim[3, 1] == 0.0  # (the course's gripper closes at 0)
     path = np.array([[0.3, 0.2, -0.1, -0.5], [0.3, 0.2, -0.1, 0.0]])
-    got = c.one_dim_pairs(*_pieces(path))
+    got = c.one_dim.proven(*_pieces(path))
     assert fingers in got
     true = min(world.pair_distance(q, fingers) for q in interpolate(path, 0.005))
     assert world.padding < got[fingers] <= true
@@ -115,6 +115,6 @@ def test_motions_a_hair_past_the_limits_grow_the_row_on_either_side(world):
     lo, hi = world.description.robot.position_limits(world.kin.joint_names)[3]
     below = np.array([[0.3, 0.2, -0.1, lo - 0.015], [0.3, 0.2, -0.1, lo + 0.3]])
     above = np.array([[0.3, 0.2, -0.1, -0.4], [0.3, 0.2, -0.1, hi + 1e-9]])
-    first = c.one_dim_pairs(*_pieces(below))[fingers]
-    c.one_dim_pairs(*_pieces(above))  # (no cell proves past the closed limit)
-    assert c.one_dim_pairs(*_pieces(below))[fingers] == first
+    first = c.one_dim.proven(*_pieces(below))[fingers]
+    c.one_dim.proven(*_pieces(above))  # (no cell proves past the closed limit)
+    assert c.one_dim.proven(*_pieces(below))[fingers] == first

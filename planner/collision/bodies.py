@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
-from typing import TypeVar, cast
+from typing import Any, TypeVar, cast
 
 import fcl
 import numpy as np
@@ -72,6 +72,8 @@ class RobotBodies:
         hulls: each one's convex hull (link frame), for cheap distance bounds.
         shapes: the scene shapes' geometry built so far, by content, for every world
             of the robot.
+        proofs: what proofs keep for every world of the robot, by kind (the
+            one-dimensional pairs' cells: :class:`.one_dim.PairCells`).
     """
 
     description: Description
@@ -83,6 +85,7 @@ class RobotBodies:
     points: tuple[tuple[str, np.ndarray], ...]
     hulls: tuple[Hull, ...]
     shapes: ShapeCache = field(default_factory=ShapeCache, repr=False)
+    proofs: dict[str, Any] = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(cls, description: Description, kin: Kinematics, *,

@@ -24,15 +24,9 @@ The walk runs in numba, one call for the whole motion and every pair; Python onl
 computes the hull and FCL distances near contact (FCL stays the reference for exact
 contact).
 
-A pair of links whose relative motion is one-dimensional (its ``weight`` is zero but for
-one joint: the two fingers of a gripper along its mimic, a camera by the turntable) has a
-distance that is a function of that joint alone. Such a pair is proven
-once per cell of that joint's range (:meth:`Certifier.one_dim_pairs`: the hulls' bound at
-the cell's middle, or the trees' where the hulls touch, less ``weight`` times half its
-width, cells halved where that does not prove them), and the proof is kept per process
-for every request: a motion whose joint range the proven cells cover takes the smallest
-of their bounds for the pair, and the walk passes over it (a few cached cells instead of
-a walk of tree bounds, or near contact thousands of tiny steps).
+A pair of links whose relative motion is one-dimensional (the two fingers along their
+mimic) is proven before the walk, over cells of that joint kept for every request
+(:mod:`.one_dim`), and the walk passes over it.
 
 Where the trees prove a pair less than ``SOFT`` beyond the clearance, the walk asks
 Python for the hulls' bound (FCL's GJK) before taking the trees': the leaf boxes of CAD
@@ -43,7 +37,6 @@ toward the boxes' contact, certifying microns for paths that kept centimetres.
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -57,8 +50,9 @@ from .body_speed import local_rates, local_step
 from .compiled import Direct
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
+from .one_dim import OneDimProver
 from .resume import Motion, Proof, Status, Stop, new_walk
-from .table import Bodies, BodyKind, Pairs, place_carried
+from .table import Bodies, Pairs, place_carried
 from .world import CollisionWorld
 
 # [m] distance bounds are asked to prove at most this much: deeper proofs cost more
@@ -85,19 +79,6 @@ CARRY = 0.5
 # less than this is certified by its distance bound at the start less that motion
 # (CollisionWorld.still_distance: the hulls', FCL's where they touch)
 STILL = 1e-4
-# [rad] one-dimensional pairs are proven over cells of their joint this wide at first
-# (each halved, down to CELL / 2**CELL_LEVELS, where its bound does not prove it)
-CELL = 0.01
-CELL_LEVELS = 4
-# [m] a cell proven less than this beyond the clearance (the closed fingers, whose hulls
-# touch: the trees' bound) is proven again from exact distances chained along the joint
-# from a neighbour proven free, at states CELL / 2**CHAIN_LEVEL apart
-CHAIN_BELOW = 1e-3
-CHAIN_LEVEL = 2
-# cells a chain may cross to its cell (each costs 2**CHAIN_LEVEL exact distances, once)
-CHAIN_REACH = 8
-# refinements of a cell's hull direction (each from the extreme points the last one found)
-HULL_TRIES = 4
 # [m] a pair whose trees prove less than this beyond the clearance gets a hull query too
 # (the trees of CAD meshes are loose there: see _advance)
 SOFT = 0.002
@@ -147,33 +128,6 @@ def _eval_piece(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float
     h = x * x * x - 0.5 * x * x * x * x
     for j in range(start.shape[0]):
         out[j] = start[j] + u1[j] * sigma + (u2[j] - u1[j]) * length * h
-
-
-@numba.njit(cache=True, nogil=True)
-def _hull_bound(vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int,
-                ta: np.ndarray, b: int, tb: np.ndarray, n: np.ndarray, warm: bool) -> float:
-    # The hulls' bound [m] of bodies a and b (poses ta, tb) without leaving compiled
-    # code: from direction n if ``warm``, else from the line between their frames,
-    # refined HULL_TRIES times (each from the extreme points the last one found; n gets
-    # the best). Sound along any direction (see warm_bound).
-    if not warm:
-        norm = 0.0
-        for r in range(3):
-            n[r] = ta[r, 3] - tb[r, 3]
-            norm += n[r] * n[r]
-        norm = np.sqrt(norm)
-        if norm > 0.0:
-            for r in range(3):
-                n[r] /= norm
-        else:
-            n[0], n[1], n[2] = 1.0, 0.0, 0.0
-    d = -np.inf
-    for _ in range(HULL_TRIES):
-        e = warm_bound(vertices, offsets, radii, a, ta, b, tb, n)
-        if e <= d:
-            break  # no better direction found
-        d = e
-    return d
 
 
 @numba.njit(cache=True, nogil=True)
@@ -326,29 +280,6 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     return Status.DONE.value
 
 
-#: per robot geometry (a world's ``bodies``, shared by the worlds of its scenes), its
-#: one-dimensional link pairs' proven cells (:meth:`Certifier.one_dim_pairs`), by
-#: (padding, link, link, level, cell)
-_CELLS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str, int, int], float]] = \
-    weakref.WeakKeyDictionary()
-#: per robot geometry, the same level-0 cells as rows (:meth:`Certifier._row`)
-_ROWS: weakref.WeakKeyDictionary[Any, dict[tuple[float, str, str], tuple[int, np.ndarray]]] = \
-    weakref.WeakKeyDictionary()
-
-
-@numba.njit(cache=True, nogil=True)
-def _hull_at(q: np.ndarray, parent: np.ndarray, origin: np.ndarray, jtype: np.ndarray,
-             axis: np.ndarray, src: np.ndarray, scale: np.ndarray, offset: np.ndarray,
-             vertices: np.ndarray, offsets: np.ndarray, radii: np.ndarray, a: int, b: int,
-             fa: int, fb: int, poses: np.ndarray) -> float:
-    # The hulls' bound [m] of link bodies a and b (pose slots fa, fb) at state q: their
-    # separation along the line between their frames, refined HULL_TRIES times from the
-    # extreme points each direction picks (warm_bound). Sound along any direction.
-    _fk_into(q, parent, origin, jtype, axis, src, scale, offset, poses)
-    return _hull_bound(vertices, offsets, radii, a, poses[fa], b, poses[fb], np.empty(3),
-                       False)
-
-
 class Certifier:
     """Certifies motions in one :class:`CollisionWorld` (its robot, scene, padding and
     allowed pairs). The required clearance is the world's padding.
@@ -372,27 +303,9 @@ class Certifier:
         # (:mod:`.compiled`); its arguments are this certifier's and its world's, typed
         # the same on every call
         self._advance = Direct(_advance)
-        # the pairs whose relative motion one joint alone makes: pair -> that joint (the
-        # weights carry a 1e-12 floor: a joint that moves both bodies rigidly is ~0)
-        # Two links only: their cells hold for every scene of the robot and are few (an
-        # obstacle a link turns past about one axis would want cells over that joint's
-        # whole range, one scene's: measured slower than its walk through the service)
-        moving = world.table.pairs.weight > 1e-9
-        links = world.table.pairs.index
-        self._one_dim = {p: int(np.flatnonzero(moving[p])[0])
-                         for p in range(len(moving)) if moving[p].sum() == 1
-                         and world.table.kinds[links[p, 0]] == BodyKind.LINK
-                         and world.table.kinds[links[p, 1]] == BodyKind.LINK}
-        # (pair, level, cell) -> the bound [m] proven over that cell (-inf: none); kept
-        # with the world, so every certifier of it (and every request) reuses them
-        # Every one-dimensional pair gets them, from its first motion on: a gripper's
-        # range is some 160 cells, filled once per process in ~25 ms (hulls, trees
-        # where the hulls touch), looked up in ~0.3 ms a motion; walking the fingers
-        # cost 1.5-2.5 ms a proof of arm and gripper together (course_fingers, trees of
-        # 6k-triangle fingers ~30 us a bound)
-        self._cells = _CELLS.setdefault(world.bodies, {})
-        # (padding, link, link) -> (first cell, each level-0 cell's bound (nan: not yet))
-        self._rows = _ROWS.setdefault(world.bodies, {})
+        # the pairs whose relative motion one joint alone makes, proven by cells kept
+        # with the robot's geometry (:mod:`.one_dim`)
+        self.one_dim = OneDimProver(world, self._work, gap=GAP)
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -508,7 +421,7 @@ class Certifier:
         if self.fraction > 0:  # a clearance to report: still pairs at their own bound
             still = self._still_pairs(starts, u1, u2, lengths, clear)
         # pairs one joint moves, proven over its range by cached cells
-        for p, d in self.one_dim_pairs(starts, u1, u2, lengths).items():
+        for p, d in self.one_dim.proven(starts, u1, u2, lengths).items():
             if p not in still:
                 still[p] = d
         return still
@@ -533,139 +446,6 @@ class Certifier:
             if d > clear + GAP:  # else the walk decides (and refuses where it must)
                 out[int(p)] = d
         return out
-
-    def one_dim_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-                      lengths: np.ndarray) -> dict[int, float]:
-        """The one-dimensional pairs (see the module) proven over the whole motion, each
-        with its bound [m] (above the clearance): over every cell of its joint's range.
-
-        A piece's joint ``k`` stays within ``start_k + L [min(0, u1_k, u2_k), max(0,
-        u1_k, u2_k)]`` (its speed lies between ``u1_k`` and ``u2_k``). A cell's bound is
-        the convex hulls' at its middle (sound at any state, no contact premise needed;
-        where the hulls touch there is none) less the most the pair's distance changes
-        within half the cell (``weight``)."""
-        if not self._one_dim:
-            return {}
-        lo = (starts + lengths[:, None] * np.minimum(0.0, np.minimum(u1, u2))).min(axis=0)
-        hi = (starts + lengths[:, None] * np.maximum(0.0, np.maximum(u1, u2))).max(axis=0)
-        out = {}
-        for p, j in self._one_dim.items():
-            # the closed cells [k h, (k + 1) h] that hold [lo, hi] (a motion ending on a
-            # cell's edge, such as a closed gripper at its limit, needs no cell beyond)
-            first = int(np.floor(lo[j] / CELL))
-            last = max(first + 1, int(np.ceil(hi[j] / CELL)))
-            d = float(self._row(p, j, first, last, starts[0]).min())
-            if d > self.world.padding + GAP:
-                out[p] = d
-        return out
-
-    def _row(self, p: int, j: int, first: int, last: int, base: np.ndarray) -> np.ndarray:
-        # the bounds of pair p's cells first..last-1 (level 0, each the smallest of its
-        # halves where it was split), from a row kept per pair over its joint's range:
-        # a motion reads a slice (~microseconds), computing only the cells never read
-        key = (self.world.padding, *self.world.pair_names[p])
-        row = self._rows.get(key)
-        if row is None or first < row[0] or last > row[0] + len(row[1]):
-            lim = self.world.description.robot.position_limits(
-                (self.world.kin.joint_names[j],))[0]
-            lo = min(first, int(np.floor(lim[0] / CELL)))
-            hi = max(last, int(np.ceil(lim[1] / CELL)))
-            if row is not None:
-                lo, hi = min(lo, row[0]), max(hi, row[0] + len(row[1]))
-            grown = np.full(hi - lo, np.nan)
-            if row is not None:  # (a motion a hair past the limits: keep what was read)
-                grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
-            row = self._rows[key] = (lo, grown)
-        cells = row[1][first - row[0]:last - row[0]]  # a view: filled in place
-        todo = np.flatnonzero(np.isnan(cells))
-        for i in todo:
-            cells[i] = self._cell(p, j, 0, first + int(i), base)
-        for i in todo:
-            if not cells[i] > self.world.padding + CHAIN_BELOW:
-                self._chain(p, j, row, first + int(i), base)
-        return cells
-
-    def _chain(self, p: int, j: int, row: tuple[int, np.ndarray], k: int,
-               base: np.ndarray) -> None:
-        # Cell k (level 0) of pair p proven again, with its neighbours toward the nearest
-        # cell of the row proven by more than CHAIN_BELOW: the state at that cell's edge
-        # is free (proven), so FCL's exact distance there is a true distance; each step
-        # of e = CELL / 2**CHAIN_LEVEL on from a true distance D loses at most w e
-        # (``weight``): while D - w e stays above the clearance, the next state is
-        # reached without contact and its exact distance is true too. A step between
-        # true distances D0 and D1 keeps at least (D0 + D1 - w e) / 2. A cell takes the
-        # larger of that and its own bound.
-        w, (lo, bounds) = self.world, row
-        floor = w.padding + CHAIN_BELOW
-        for step in (-1, 1):
-            a = k + step
-            while 0 <= a - lo < len(bounds) and abs(a - k) <= CHAIN_REACH:
-                if np.isnan(bounds[a - lo]):
-                    bounds[a - lo] = self._cell(p, j, 0, a, base)
-                if bounds[a - lo] > floor:
-                    break
-                a += step
-            else:
-                continue  # no proven neighbour this way
-            weight = float(w.table.pairs.weight[p, j])
-            e = CELL / 2**CHAIN_LEVEL
-            per = 2**CHAIN_LEVEL
-            q = np.array(base, dtype=float)
-            # from the anchor's edge toward k: cells a - step, ..., k
-            edge = (a + 1) * CELL if step < 0 else a * CELL  # the anchor's, facing k
-            q[j] = edge
-            d0 = w.pair_distance(q, p)
-            c = a - step
-            while True:
-                kept = np.inf
-                for i in range(1, per + 1):
-                    if not d0 - weight * e > w.padding + GAP:
-                        return  # the chain stops: no later state is known free
-                    q[j] = edge - step * i * e
-                    d1 = w.pair_distance(q, p)
-                    kept = min(kept, (d0 + d1 - weight * e) / 2)
-                    d0 = d1
-                edge -= step * CELL
-                bounds[c - lo] = max(bounds[c - lo], kept)
-                if c == k:
-                    return
-                c -= step
-
-    def _cell(self, p: int, j: int, level: int, k: int, base: np.ndarray) -> float:
-        # the bound proven for pair p over joint j's cell [k h, (k + 1) h], h = CELL /
-        # 2**level; halved where it fails. ``base``: any state (the other joints move the
-        # pair's bodies together: the pair's distance does not depend on them).
-        key = (self.world.padding, *self.world.pair_names[p], level, k)
-        got = self._cells.get(key)
-        if got is not None:
-            return got
-        w = self.world
-        h = CELL / 2**level
-        q = np.array(base, dtype=float)
-        q[j] = (k + 0.5) * h
-        change = float(w.table.pairs.weight[p, j]) * h / 2  # [m] within half the cell
-        need = w.padding + GAP + change
-        # the hulls' separation along a few refined directions, or the trees' whole
-        # bound where the hulls touch (closed fingers): both sound at any state (an
-        # exact distance would hold only at a state reached without contact, which the
-        # middle of a cell need not be), microseconds each
-        a, b = (int(x) for x in w.table.pairs.index[p])
-        c, hp, frame, f = w.chain, w.hulls, w.table.bodies.frame, w.forest
-        wk = self._work
-        d = _hull_at(q, c.parent, c.origin, c.jtype, c.axis, c.src, c.scale, c.offset,
-                     hp.vertices, hp.offsets, hp.radii, a, b, int(frame[a]), int(frame[b]),
-                     wk.poses)
-        if not d > need:  # (_hull_at left the poses of q in the work buffer)
-            d = max(d, tree_lower_bound(wk.poses[frame[a]], f.root[a], wk.poses[frame[b]],
-                                        f.root[b], f.center, f.axes, f.half, f.left,
-                                        f.right, need, 1.0, wk.stack, wk.gaps,
-                                        np.empty((8, 3, 3))))
-        bound = d - change if d > need else -np.inf
-        if bound == -np.inf and level < CELL_LEVELS:
-            bound = min(self._cell(p, j, level + 1, 2 * k, base),
-                        self._cell(p, j, level + 1, 2 * k + 1, base))
-        self._cells[key] = bound
-        return bound
 
     def path(self, path: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
              ) -> Certificate:
