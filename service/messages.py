@@ -15,10 +15,11 @@ between the pool (:mod:`service.pool`, :mod:`service.slot`), the zygote
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import threading
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
-from typing import Any
+from typing import Any, Literal
 
 from planner.codes import Code
 from planner.errors import PlanningError
@@ -54,6 +55,25 @@ class Failure:
 
 #: what a job ends with
 Outcome = Success | Failure
+#: what the worker pool does
+JobKind = Literal["plan", "fk", "ik", "check", "task", "frames"]
+#: submits a job to the service's worker pool: ``submit(kind, data, respond)``
+#: (:meth:`service.server.PlannerService.submit`); ``respond`` gets its one outcome
+Submit = Callable[[JobKind, Mapping[str, Any], Callable[[Outcome], None]], None]
+
+
+def outcome_of(submit: Submit, kind: JobKind, data: Mapping[str, Any]) -> Outcome:
+    """Submit a job and wait for its outcome: the pool answers every job exactly once
+    (done, refused, or TIMEOUT past its deadline), so this returns."""
+    done = threading.Event()
+    box: list[Outcome] = []
+
+    def respond(outcome: Outcome) -> None:
+        box.append(outcome)
+        done.set()
+    submit(kind, data, respond)
+    done.wait()
+    return box[0]
 
 
 @dataclass(frozen=True)

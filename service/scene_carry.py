@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Callable, Mapping
-from typing import Any, Literal
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import orjson
@@ -24,7 +24,7 @@ from description import Description
 from planner.errors import PlanningError
 from planner.scene import AttachedObject, resolve_attached
 
-from .messages import Failure, Outcome
+from .messages import Failure, Submit, outcome_of
 from .requests import joint_values
 
 _log = logging.getLogger(__name__)
@@ -82,9 +82,6 @@ class RobotFrames:
         return sorted(set(out))
 
 
-#: submits a job to the service's pool (:meth:`service.server.PlannerService.submit`)
-Submit = Callable[[Literal["frames"], Mapping[str, Any], Callable[[Outcome], None]], None]
-
 
 class PooledFrames(RobotFrames):
     """:class:`RobotFrames` whose link poses and contacts a worker of the pool computes
@@ -107,15 +104,7 @@ class PooledFrames(RobotFrames):
         return [(x, y) for x, y in pairs]
 
     def _ask(self, data: Mapping[str, Any]) -> dict[str, Any]:
-        done = threading.Event()
-        box: list[Outcome] = []
-
-        def respond(outcome: Outcome) -> None:
-            box.append(outcome)
-            done.set()
-        self._submit("frames", data, respond)
-        done.wait()  # the pool answers every job once (TIMEOUT past its deadline)
-        out = box[0]
+        out = outcome_of(self._submit, "frames", data)
         if isinstance(out, Failure):
             err = PlanningError(f"the robot's frames could not be computed: {out.message}",
                                 details=dict(out.details))

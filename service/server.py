@@ -16,7 +16,7 @@ import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import zenoh
 
@@ -28,7 +28,7 @@ from .bodies import description_body
 from .job import SHUTTING_DOWN, Job
 from .keyguard import addressed_exactly
 from .memtrace import MemTrace, count_live
-from .messages import Failure, Outcome, Success
+from .messages import Failure, JobKind, Outcome, Success
 from .pool import WorkerPool
 from .scene_carry import PooledFrames
 from .scene_store import SceneSnapshot
@@ -46,7 +46,6 @@ VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
 #: what the pool does: the work kinds, the tasks of <prefix>/task, and the link poses and
 #: contacts of the kept scene's attach and detach
-JobKind = Literal["plan", "fk", "ik", "check", "task", "frames"]
 INFO_KINDS = ("description", "health", "schema")
 JSON = "application/json"
 #: a worker's default memory cap [bytes]. Measured resident sets: 223 MiB ready and

@@ -22,7 +22,7 @@ import threading
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 import orjson
 import zenoh
@@ -35,15 +35,11 @@ from planner.scene import Obstacle
 
 from . import wire
 from .keyguard import addressed_exactly
-from .messages import Failure, Outcome, Success
+from .messages import Failure, Outcome, Submit, Success, outcome_of
 from .scene_store import SceneSnapshot, with_scene
 
 if TYPE_CHECKING:  # the planner (OMPL) loads in the workers, never with `serve`
     from planner.tasks import Task, TaskResult
-
-#: submits a job to the service's worker pool: ``submit(kind, data, respond)``
-#: (:meth:`service.server.PlannerService.submit`); ``respond`` gets its one outcome
-Submit = Callable[[Literal["task"], Mapping[str, Any], Callable[[Outcome], None]], None]
 
 _log = logging.getLogger(__name__)
 
@@ -206,15 +202,7 @@ class TaskService:
     def _plan(self, job: Mapping[str, Any]) -> Outcome:
         """The task job's outcome, from the pool (which answers every job exactly once:
         planned, refused, or TIMEOUT past its deadline)."""
-        done = threading.Event()
-        box: list[Outcome] = []
-
-        def respond(outcome: Outcome) -> None:
-            box.append(outcome)
-            done.set()
-        self.submit("task", job, respond)
-        done.wait()
-        return box[0]
+        return outcome_of(self.submit, "task", job)
 
     def _robot_start(self) -> dict[str, float]:
         for reply in self.session.get(f"{self.prefix}/robot_state", timeout=30.0):

@@ -20,6 +20,7 @@ import orjson
 from description import load_description
 from planner.codes import Code
 from planner.errors import PlanningError
+from planner.ranges import RANGES
 
 from . import hoptrace, wire
 from .disk_cache import DiskCache
@@ -100,8 +101,7 @@ def task_planning_time(task: Any) -> float:
 
 
 def _seconds(value: Any, default: float) -> float:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0 < value <= 60
-    return float(value) if ok else default
+    return float(value) if value in RANGES["planning_time"] else default
 
 
 def serve_jobs(conn: Connection, handlers: Handlers) -> None:
