@@ -242,12 +242,15 @@ def _remote(ns: argparse.Namespace) -> int:
                                 consolidation=zenoh.ConsolidationMode.NONE,
                                 timeout=24 * 3600.0)
 
+        ended = threading.Event()
+
         def watch() -> None:
             cancel.wait()
-            if execution:
+            if execution and not ended.is_set():  # Ctrl-C while the robot moves
                 c.session.get(f"{ns.prefix}/execute/cancel",
                               payload=orjson.dumps({"execution": execution[0]}), timeout=5.0)
-        threading.Thread(target=watch, daemon=True).start()
+        watcher = threading.Thread(target=watch, daemon=True)
+        watcher.start()
         for r in replies:
             if r.ok is None:
                 raise error_from_reply(orjson.loads(r.err.payload.to_bytes()))
@@ -265,7 +268,9 @@ def _remote(ns: argparse.Namespace) -> int:
                 if body.get("objects"):  # the service's twin simulated them
                     out["execution"]["objects"] = body["objects"]
                     _print_objects(body["objects"])
+        ended.set()
         cancel.set()  # ends the watcher (nothing left to cancel)
+        watcher.join()  # before the session closes under it
     if not out:
         raise ServiceUnavailable(f"no reply on {ns.prefix}/task (is `arduinobot serve` "
                                  "running there?)", reason="no_route")
