@@ -6,7 +6,8 @@ request on CLOCK_MONOTONIC, the clock of every process on this host) and sends t
 scenes' seeded problems (bench/_lib/scenes.py, as ``./dev bench peer`` does) through the
 Python client's own steps, stamping the client's side too. Per request, in order:
 
-- ``client_encode``: the request to JSON (:func:`clients.client.encode_body`);
+- ``client_encode``: the request as the client sends it (:func:`clients.client.plan_body`:
+  the trajectory packed) to JSON (:func:`clients.client.encode_body`);
 - ``zenoh_in``: the get until the queryable's callback runs;
 - ``callback``: the callback (checks, the job queued); ``to_slot``: until a slot thread
   has it; ``pipe``: until the worker has read it; ``decode``: the worker's decode and
@@ -55,7 +56,7 @@ import zenoh
 from bench._lib.peer_models import make_model
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from clients.client import PlannerClient, decode_reply, encode_body
+from clients.client import PlannerClient, decode_reply, encode_body, plan_body
 from clients.replies import PlanReply
 from planner.planning.pipeline import MotionPlanner
 from service import hoptrace
@@ -82,7 +83,7 @@ def stats(xs: list[float]) -> dict[str, float | None]:
             "p95_ms": round(1e3 * float(np.percentile(xs, 95)), 4)}
 
 
-def plan_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: list[dict],
+def problem_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: list[dict],
               seed: int) -> dict[str, Any]:
     """bench/peer.py's request: start of every joint, an arm goal, scaling 1.0."""
     return {"start": dict(zip(names, map(float, a))),
@@ -95,7 +96,7 @@ def one(c: PlannerClient, body: dict[str, Any]) -> tuple[dict[str, float], PlanR
     """One plan through the client's own steps (:meth:`PlannerClient.plan`), stamped; and
     the reply's size [bytes]."""
     st = {"c_start": hoptrace.now()}
-    payload = encode_body(body)
+    payload = encode_body(plan_body(body))
     key = f"{c.prefix}/plan"
     st["c_sent"] = hoptrace.now()
     replies = c._get(key, payload, c.timeout + 1.0)
@@ -154,9 +155,9 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
                 from bench.scene import objects
                 c.request("scene/apply", {"clear": True, "add": objects(meshes=False)})
             for k, (a, b, _) in enumerate(probs[:args.workers * 2]):  # warm: not counted
-                one(c, plan_body(names, a, b, obs, 10_000 + k))
+                one(c, problem_body(names, a, b, obs, 10_000 + k))
             for i, (a, b, _) in enumerate(probs):
-                rows.append(one(c, plan_body(names, a, b, obs, i)))
+                rows.append(one(c, problem_body(names, a, b, obs, i)))
     finally:
         srv.stop()
     served = {}

@@ -166,12 +166,16 @@ class PlannerClient:
              instance: str | None = None, **fields: Any) -> PlanReply:
         """Plan: a whole v1 request, or its fields as keywords (``goal={"named": "home"}``).
 
+        The trajectory comes ``packed`` (each array in one base64 string: a smaller reply,
+        parsed without a Python number per value) unless the request sets
+        ``trajectory_format``; :attr:`PlanReply.raw` writes it as ``points`` either way.
+
         Raises:
             InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
             TrajectoryFailed, RequestTimeout, ServiceBusy, InternalError, ServiceUnavailable,
             MalformedReply.
         """
-        return PlanReply.parse(self.request("plan", {**(request or {}), **fields},
+        return PlanReply.parse(self.request("plan", plan_body(request, **fields),
                                             instance=instance))
 
     def fk(self, joints: Mapping[str, float] | None = None, *,
@@ -259,6 +263,12 @@ class PlannerClient:
 
     def schema(self) -> dict[str, Any]:
         return self.request("schema")
+
+
+def plan_body(request: Mapping[str, Any] | None = None, **fields: Any) -> dict[str, Any]:
+    """What :meth:`PlannerClient.plan` sends: ``request`` updated with ``fields``, its
+    trajectory ``packed`` unless it says otherwise."""
+    return {"trajectory_format": "packed", **(request or {}), **fields}
 
 
 def encode_body(body: Mapping[str, Any] | bytes | str | None) -> bytes | None:

@@ -12,6 +12,8 @@ leaves open (the verification's other figures) stays in :attr:`PlanReply.raw`.
 
 from __future__ import annotations
 
+import binascii
+import functools
 import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -20,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import jsonschema_rs
 import numpy as np
+import pybase64
 
 from planner.timing.trajectory import samples_csv
 from service.wire import field_path, validator
@@ -93,6 +96,47 @@ def _samples(points: Sequence[Any], width: int
     return times, q, qd, qdd, tau
 
 
+def _unpacked(packed: Mapping[str, Any], width: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The times (m,) and the sample arrays (m, width) of a schema-valid
+    ``trajectory.packed`` (base64 of little-endian float64, row-major), in
+    :data:`_SAMPLE_KEYS` order.
+
+    Raises:
+        MalformedReply: a string that is not base64, or not m (times) or m x width
+            numbers, or a number that is not finite.
+    """
+    m = packed["samples"]
+    out = []
+    for key in ("time_from_start", *_SAMPLE_KEYS):
+        where = f"trajectory.packed.{key}"
+        try:
+            raw = pybase64.b64decode(packed[key], validate=True)
+        except (binascii.Error, ValueError):
+            raise MalformedReply("plan", where, "is not base64") from None
+        count = m if key == "time_from_start" else m * width
+        if len(raw) != 8 * count:
+            raise MalformedReply("plan", where, f"holds {len(raw)} bytes, not {8 * count} "
+                                 f"({count} float64 for {m} samples)")
+        a = np.frombuffer(raw, "<f8").astype(float)
+        if not np.isfinite(a).all():
+            raise MalformedReply("plan", where, "holds a number that is not finite")
+        out.append(a if key == "time_from_start" else a.reshape(m, width))
+    return out[0], out[1], out[2], out[3], out[4]
+
+
+def _points_body(body: Mapping[str, Any]) -> Mapping[str, Any]:
+    """A plan reply's body with a ``packed`` trajectory written as ``points`` (the v1
+    form every reader of JSON takes); a body with points as it is."""
+    traj = body["trajectory"]
+    if "packed" not in traj:
+        return body
+    times, *arrays = _unpacked(traj["packed"], len(traj["joint_names"]))
+    rows = zip(*(a.tolist() for a in arrays), times.tolist())
+    points = [dict(zip((*_SAMPLE_KEYS, "time_from_start"), r)) for r in rows]
+    return {**body, "trajectory": {"joint_names": traj["joint_names"], "points": points}}
+
+
 def _number(v: float | None) -> float | None:
     return None if v is None else float(v)
 
@@ -135,7 +179,8 @@ class PlanReply:
         duration: [s]. path: the collision-checked waypoints, (k, dof) [rad].
         timing: seconds per stage. verification: the service's check of the motion.
         planner, request_id: who planned it, and the request's id.
-        raw: the reply as received.
+        raw: the reply as received, a ``packed`` trajectory written as ``points``
+            (the v1 JSON to save, replay or execute); ``received``: as it came.
         reached: the tool frame at the end and the residuals to the goal (the reply's
             ``reached``), if sent; ``line``: a straight-line move's report, if one.
     """
@@ -152,17 +197,23 @@ class PlanReply:
     verification: Verification
     planner: str
     request_id: str
-    raw: Mapping[str, Any] = field(repr=False)
+    received: Mapping[str, Any] = field(repr=False)
     reached: Mapping[str, Any] | None = None
     line: Mapping[str, Any] | None = None
+
+    @functools.cached_property
+    def raw(self) -> Mapping[str, Any]:
+        return _points_body(self.received)
 
     @classmethod
     def parse(cls, body: Any) -> PlanReply:
         """Raises: MalformedReply naming the first field that breaks the contract."""
         b = _validated("plan", body)
-        names, points = b["trajectory"]["joint_names"], b["trajectory"]["points"]
+        names = b["trajectory"]["joint_names"]
         n = len(names)
-        times, q, qd, qdd, tau = _samples(points, n)
+        packed = b["trajectory"].get("packed")
+        times, q, qd, qdd, tau = _samples(b["trajectory"]["points"], n) if packed is None \
+            else _unpacked(packed, n)
         v = b["verification"]
         return cls(tuple(names), times, q, qd, qdd, tau,
                    float(b["duration"]), _rows("plan", b["path"], n, "path"),

@@ -169,7 +169,8 @@ class Handlers:
              ) -> dict[str, Any]:
         """A v1 plan request (validated by the schema) -> the v1 response body."""
         from .plan_io import plan_response
-        return {**plan_response(self.solve(data, scene=scene)),
+        return {**plan_response(self.solve(data, scene=scene),
+                                trajectory_format=data.get("trajectory_format", "points")),
                 "scene_revision": scene.revision if scene is not None else 0}
 
     def frames(self, data: Mapping[str, Any]) -> dict[str, Any]:

@@ -7,10 +7,11 @@ request is parsed, refused and answered the same way in both.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import orjson
+import pybase64
 
 from description import Description
 from planner.errors import PlanningError
@@ -24,6 +25,9 @@ from .caps import MAX_SAMPLES
 from .requests import obstacles
 from .scene_store import SceneSnapshot, with_scene
 from .wire import check_finite
+
+#: the reply's trajectory: a sample object per point, or each array in one base64 string
+TrajectoryFormat = Literal["points", "packed"]
 
 #: a plan request's options, each as :class:`~planner.planning.pipeline.MotionRequest` takes it
 #: (JSON Schema counts 7.0 as an integer: the planner wants an int seed)
@@ -88,27 +92,33 @@ def plan_request(description: Description, data: Mapping[str, Any], *,
         **opts)
 
 
-def plan_response(result: Any) -> dict[str, Any]:
+def plan_response(result: Any, *, trajectory_format: TrajectoryFormat = "points"
+                  ) -> dict[str, Any]:
     """A :class:`planner.planning.pipeline.MotionResult` as the v1 response (without request_id):
-    trajectory (actuated joints), duration [s], path (waypoints in joint_names order),
-    timing (seconds per stage), verification, planner.
+    trajectory (actuated joints; ``points`` or, ``packed``, each array in one string),
+    duration [s], path (waypoints in joint_names order), timing (seconds per stage),
+    verification, planner.
 
     Raises:
         InvalidRequest: more than :data:`service.caps.MAX_SAMPLES` samples (field
             ``sample_rate``), before any of the reply is built.
     """
     traj = _checked(result)
-    # from the sample arrays (m, dof): much faster than per-point objects
-    columns = zip(traj.positions.tolist(), traj.velocities.tolist(),
-                  traj.accelerations.tolist(), traj.efforts.tolist(), traj.times.tolist())
-    points = [{"positions": q, "velocities": qd, "accelerations": qdd, "effort": tau,
-               "time_from_start": t} for q, qd, qdd, tau, t in columns]
-    body = _body(result, points)
+    if trajectory_format == "packed":
+        body = _body(result, None, packed=_packed(traj))
+    else:
+        # from the sample arrays (m, dof): much faster than per-point objects
+        columns = zip(traj.positions.tolist(), traj.velocities.tolist(),
+                      traj.accelerations.tolist(), traj.efforts.tolist(), traj.times.tolist())
+        body = _body(result, [{"positions": q, "velocities": qd, "accelerations": qdd,
+                               "effort": tau, "time_from_start": t}
+                              for q, qd, qdd, tau, t in columns])
     body["path"] = np.asarray(result.path, float).tolist()
     return body  # every number finite: wire.encode(..., finite=True) may take it
 
 
-def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0) -> bytes:
+def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0,
+               trajectory_format: TrajectoryFormat = "points") -> bytes:
     """:func:`plan_response`'s body with ``request_id``, encoded: the same JSON (keys,
     order and numbers; orjson writes a float64 of an array as it writes the float), built
     from the sample arrays without a Python object per sample (what a worker sends).
@@ -117,11 +127,30 @@ def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0) -> byte
         InvalidRequest: as :func:`plan_response`.
     """
     traj = _checked(result)
-    body = _body(result, orjson.Fragment(_points_json(traj)))
+    if trajectory_format == "packed":
+        body = _body(result, None, packed=_packed(traj))
+    else:
+        body = _body(result, orjson.Fragment(_points_json(traj)))
     body["path"] = np.ascontiguousarray(result.path, dtype=np.float64)
     body["scene_revision"] = scene_revision
     body["request_id"] = request_id
     return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)
+
+
+#: the arrays of a packed trajectory, in its order, and the trajectory's attribute of each
+PACKED_ARRAYS = (("time_from_start", "times"), ("positions", "positions"),
+                 ("velocities", "velocities"), ("accelerations", "accelerations"),
+                 ("effort", "efforts"))
+
+
+def _packed(traj: Any) -> dict[str, Any]:
+    """``trajectory.packed``: the sample count and each array as base64 of its
+    little-endian float64 bytes, row-major (what the schema says)."""
+    out: dict[str, Any] = {"samples": len(traj.times)}
+    for key, attr in PACKED_ARRAYS:
+        raw = np.ascontiguousarray(getattr(traj, attr), dtype="<f8").tobytes()
+        out[key] = pybase64.b64encode_as_string(raw)
+    return out
 
 
 #: what joins the parts of one sample: its row of each array, then its time
@@ -168,11 +197,14 @@ def _checked(result: Any) -> Any:
     return traj
 
 
-def _body(result: Any, points: Any) -> dict[str, Any]:
-    """The response's fields in their order, ``path`` still to fill."""
+def _body(result: Any, points: Any, *, packed: dict[str, Any] | None = None
+          ) -> dict[str, Any]:
+    """The response's fields in their order, ``path`` still to fill; the trajectory's
+    samples as ``points``, or ``packed`` if given."""
     traj = result.trajectory
+    samples = {"points": points} if packed is None else {"packed": packed}
     body = {
-        "trajectory": {"joint_names": list(traj.joint_names), "points": points},
+        "trajectory": {"joint_names": list(traj.joint_names), **samples},
         "duration": float(traj.duration),
         "path": None,
         "timing": {str(k): float(v) for k, v in dict(result.timing).items()},

@@ -158,8 +158,9 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
             result = handlers.solve(data, scene=job.scene)
             if stamps is not None:
                 stamps.append(hoptrace.now())
-            out = Success(plan_reply(result, job.job_id, scene_revision=0 if job.scene is None
-                                                 else job.scene.revision))
+            out = Success(plan_reply(
+                result, job.job_id, scene_revision=0 if job.scene is None else job.scene.revision,
+                trajectory_format=data.get("trajectory_format", "points")))
         else:
             body = handlers.handle(job.kind, data, scene=job.scene)
             if stamps is not None:

@@ -1,10 +1,13 @@
-"""Plan requests and replies on the wire (service/plan_io.py): the sample cap."""
+"""Plan requests and replies on the wire (service/plan_io.py): the sample cap, the reply
+built from the sample arrays, its packed form."""
 
 from __future__ import annotations
 
+import base64
 import json
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from planner.errors import InvalidRequest, PlanningError
@@ -106,3 +109,34 @@ def test_the_encoded_reply_of_one_sample_and_a_non_finite_one(planner):
     bad[1, 0] = float("nan")
     with pytest.raises(PlanningError, match="non-finite velocities"):
         plan_reply(replace(result, trajectory=replace(traj, velocities=bad)), "r")
+
+
+def test_a_packed_reply_holds_the_sample_arrays_bit_for_bit(planner):
+    """trajectory_format "packed": the worker's bytes are the dict reply's, schema-valid,
+    and each array decodes to the planner's own float64 values (little-endian,
+    row-major); "points" stays the default."""
+    result = _result(planner)
+    traj = result.trajectory
+    encoded = plan_reply(result, "r-2", trajectory_format="packed")
+    assert encoded == wire.encode({**plan_response(result, trajectory_format="packed"),
+                                   "scene_revision": 0, "request_id": "r-2"}, finite=True)
+    body = json.loads(encoded)
+    wire.validator("plan_response").validate(body)
+    packed = body["trajectory"]["packed"]
+    assert "points" not in body["trajectory"] and packed["samples"] == len(traj.times)
+    m, n = traj.positions.shape
+    for key, want in (("time_from_start", traj.times), ("positions", traj.positions),
+                      ("velocities", traj.velocities), ("accelerations", traj.accelerations),
+                      ("effort", traj.efforts)):
+        got = np.frombuffer(base64.b64decode(packed[key]), "<f8")
+        assert np.array_equal(got.reshape(want.shape), want), key
+    assert len(encoded) < len(plan_reply(result, "r-2")) / 1.5  # what packing is for
+    assert "points" in json.loads(plan_reply(result, "r-2"))["trajectory"]
+
+
+def test_a_request_asks_for_a_packed_trajectory_by_name():
+    assert wire.decode("plan", b'{"goal": {"named": "home"}, "trajectory_format": "packed"}'
+                       )["trajectory_format"] == "packed"
+    with pytest.raises(InvalidRequest) as e:
+        wire.decode("plan", b'{"goal": {"named": "home"}, "trajectory_format": "binary"}')
+    assert e.value.details["field"] == "trajectory_format"

@@ -4,6 +4,7 @@ schema is refused by the parser, naming the field, and only then."""
 
 from __future__ import annotations
 
+import base64
 import copy
 import json
 from collections.abc import Iterator
@@ -201,3 +202,62 @@ def test_plan_samples_land_in_their_own_arrays(replies):
     empty["trajectory"]["points"] = []
     parsed = PlanReply.parse(empty)
     assert parsed.positions.shape == (0, len(plan.joint_names)) and parsed.times.shape == (0,)
+
+
+@pytest.fixture(scope="module")
+def packed(replies) -> dict[str, Any]:
+    """The plan of ``replies``, asked for packed (same request, same seed)."""
+    local = LocalService(load_description())
+    return local.request("plan", {**REQUESTS["plan"], "trajectory_format": "packed"})
+
+
+def test_a_packed_plan_parses_to_the_same_arrays_and_writes_as_points(replies, packed):
+    _validator("plan").validate(packed)
+    assert "points" not in packed["trajectory"]
+    a, b = PlanReply.parse(replies["plan"]), PlanReply.parse(packed)
+    for attr in ("times", "positions", "velocities", "accelerations", "efforts", "path"):
+        assert np.array_equal(getattr(a, attr), getattr(b, attr)), attr
+        assert getattr(b, attr).flags.writeable and getattr(b, attr).dtype == np.float64
+    assert b.received is packed
+    assert b.raw["trajectory"] == replies["plan"]["trajectory"]  # the v1 points, number for number
+    assert {k: v for k, v in b.raw.items() if k != "timing"} == \
+        {k: v for k, v in replies["plan"].items() if k != "timing"}
+
+
+def test_a_packed_plan_off_its_contract_is_refused_naming_the_field(packed):
+    def parse_with(key: str, value: Any) -> MalformedReply:
+        bad = copy.deepcopy(packed)
+        bad["trajectory"]["packed"][key] = value
+        with pytest.raises(MalformedReply) as e:
+            PlanReply.parse(bad)
+        return e.value
+
+    p = packed["trajectory"]["packed"]
+    e = parse_with("velocities", "not base64!")
+    assert e.field == "trajectory.packed.velocities" and "is not base64" in e.message
+    short = base64.b64encode(base64.b64decode(p["effort"])[:-8]).decode()
+    e = parse_with("effort", short)
+    assert e.field == "trajectory.packed.effort" and "not " in e.message and "bytes" in e.message
+    nan = np.frombuffer(base64.b64decode(p["time_from_start"]), "<f8").copy()
+    nan[1] = np.nan
+    e = parse_with("time_from_start", base64.b64encode(nan.tobytes()).decode())
+    assert e.field == "trajectory.packed.time_from_start" and "not finite" in e.message
+    e = parse_with("samples", p["samples"] + 1)  # every array then holds too few bytes
+    assert e.field == "trajectory.packed.time_from_start"
+    both = copy.deepcopy(packed)
+    both["trajectory"]["points"] = []
+    with pytest.raises(MalformedReply, match=r"trajectory is invalid"):
+        PlanReply.parse(both)  # points or packed, never both
+    for how, path in _mutations(packed["trajectory"]["packed"], ("trajectory", "packed")):
+        bad = _mutated(packed, how, path)
+        assert not _validator("plan").is_valid(bad)
+        with pytest.raises(MalformedReply):
+            PlanReply.parse(bad)
+
+
+def test_the_client_asks_for_packed_plans_unless_told(client):
+    res = client.plan(REQUESTS["plan"])
+    assert "packed" in res.received["trajectory"] and "points" in res.raw["trajectory"]
+    plain = client.plan({**REQUESTS["plan"], "trajectory_format": "points"})
+    assert "points" in plain.received["trajectory"] and plain.raw is plain.received
+    assert np.array_equal(res.positions, plain.positions)
