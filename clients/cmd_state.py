@@ -99,7 +99,7 @@ def cmd_fk(ns: argparse.Namespace) -> int:
         print(f"{'tcp':<20} xyz ({_xyz(res.tcp)}) m")
     for oid, pose in res.carried.items():  # the kept scene's carried objects
         print(f"{oid:<20} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad  "
-              f"carried by {pose.link}")
+              f"{'fixed to' if pose.fixed else 'carried by'} {pose.link}")
     return EXIT_OK
 
 

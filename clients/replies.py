@@ -249,9 +249,11 @@ class Pose:
 
 @dataclass(frozen=True, eq=False)
 class CarriedPose(Pose):
-    """A carried object's pose in the world frame, and the ``link`` that holds it."""
+    """A carried object's pose in the world frame, and the ``link`` that holds it;
+    ``fixed``: added in that link's frame (fixed to it), not attached (picked up)."""
 
     link: str
+    fixed: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,7 +277,8 @@ class FkReply:
                     for k, p in b["links"].items()},
                    None if tcp is None else tuple(tcp), b["request_id"],
                    {k: CarriedPose(tuple(p["xyz"]), tuple(p["rpy"]),
-                                   np.array(p["matrix"], float), p["link"])
+                                   np.array(p["matrix"], float), p["link"],
+                                   p.get("fixed", False))
                     for k, p in (b.get("carried") or {}).items()})
 
 

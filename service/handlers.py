@@ -111,7 +111,7 @@ class Handlers:
         carried = tuple(scene.attached) if scene is not None else ()
         return {"joints": dict(zip(self.kin.joint_names, map(float, q))), "links": out,
                 "tcp": tcp_xyz,
-                **({"carried": self._carried_poses(q, carried)} if carried else {})}
+                **({"carried": self._carried_poses(q, carried, scene)} if carried else {})}
 
     def ik(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """Every tcp position IK branch within the joint limits (GOAL_OUT_OF_REACH if none)."""
@@ -145,16 +145,20 @@ class Handlers:
                 "closest": list(res.closest) if res.closest else None,
                 "joints": dict(zip(self.kin.joint_names, map(float, q))),
                 "scene_revision": revision,
-                **({"carried": self._carried_poses(q, carried)} if carried else {})}
+                **({"carried": self._carried_poses(q, carried, scene)} if carried else {})}
 
-    def _carried_poses(self, q: Any, carried: tuple[Any, ...]) -> dict[str, Any]:
-        # each carried object's world pose: its link's times its pose in that link
+    def _carried_poses(self, q: Any, carried: tuple[Any, ...], scene: SceneSnapshot | None
+                       ) -> dict[str, Any]:
+        # each carried object's world pose: its link's times its pose in that link; those
+        # added in a link's frame say so (fixed there, not picked up)
         poses = self.kin.link_poses(q)
+        fixed = scene.fixed if scene is not None else frozenset()
         out = {}
         for a in carried:
             t = poses[self.kin.link_index[a.link]] @ a.shape.pose()
             out[a.id] = {"link": a.link, "xyz": [float(v) for v in t[:3, 3]],
-                         "rpy": rpy_of(t[:3, :3]), "matrix": t.tolist()}
+                         "rpy": rpy_of(t[:3, :3]), "matrix": t.tolist(),
+                         **({"fixed": True} if a.id in fixed else {})}
         return out
 
     def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:

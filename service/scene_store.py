@@ -75,6 +75,8 @@ class SceneSnapshot:
     revision: int
     obstacles: tuple[Obstacle, ...] = ()
     attached: tuple[AttachedObject, ...] = ()
+    #: the ids among ``attached`` that are objects fixed in a link's frame (not picked up)
+    fixed: frozenset[str] = frozenset()
 
 
 @dataclass(frozen=True)
@@ -91,7 +93,8 @@ class SceneState:
         object.__setattr__(self, "snapshot", SceneSnapshot(
             self.revision, tuple(o.obstacle for o in self.objects if o.fixed is None),
             tuple(a.attached for a in self.attached)
-            + tuple(o.fixed for o in self.objects if o.fixed is not None)))
+            + tuple(o.fixed for o in self.objects if o.fixed is not None),
+            frozenset(o.id for o in self.objects if o.fixed is not None)))
 
     def to_json(self) -> dict[str, Any]:
         """The ``<prefix>/scene`` reply (and the scene file)."""

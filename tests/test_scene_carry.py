@@ -182,6 +182,7 @@ def test_fk_check_and_plan_carry_the_scene_attachment(desc, scene_builder):
     link_t = link_pose(desc.robot, link, _names(desc), _q(desc, state))
     local = _pose(s.to_json()["attached"][0]["object"])
     assert np.allclose(np.array(fk["carried"]["box"]["matrix"]), link_t @ local, atol=1e-9)
+    assert "fixed" not in fk["carried"]["box"]  # picked up, not fixed in the link's frame
     check = h.handle("check", wire.decode("check", json.dumps({"joints": state})),
                      scene=s.snapshot)
     assert check["valid"] and "box" in check["carried"] and check["scene_revision"] == 1

@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 
+from clients.replies import FkReply
 from planner.errors import InvalidRequest, StartInCollision
 from planner.scene import rigid_links
 from service import wire
@@ -56,6 +57,9 @@ def test_an_object_in_a_link_frame_moves_with_it(desc, scene_builder):
                            _q(desc, state))
         assert np.allclose(np.array(fk["carried"]["cam"]["matrix"]), link_t @ local,
                            atol=1e-9)
+        # fixed to its link, not picked up: the reply and the client say which
+        assert fk["carried"]["cam"]["fixed"] is True
+        assert FkReply.parse({**fk, "request_id": "r"}).carried["cam"].fixed
 
 
 def test_a_world_obstacle_in_its_way_is_a_contact_of_the_object_not_the_link(desc, scene_builder):

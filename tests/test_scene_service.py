@@ -304,6 +304,9 @@ def test_the_scene_command_as_a_user_types_it(tmp_path):
         assert sorted(json.loads(out.stdout)["pairs"]) == [["cam", "orb"]], out.stdout
         out = _cli("check-state", "--joints", "1,0,0", "--json", *con)
         assert json.loads(out.stdout)["valid"], out.stdout
+        out = _cli("fk", "--joints", "1,0,0", "--link", "claw_support", *con)
+        (line,) = [ln for ln in out.stdout.splitlines() if ln.startswith("cam ")]
+        assert line.endswith("fixed to claw_support"), line  # not "carried by": not picked up
         out = _cli("scene", "add", "box:x:1,1,1@5,5,5", "--touch-links", "base_link", *con)
         assert out.returncode == 2 and "--touch-links needs --frame" in out.stderr
     finally:
