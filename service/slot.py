@@ -18,7 +18,7 @@ from planner.codes import Code
 
 from . import hoptrace
 from .job import Job, Stop, failure, shutting_down, stopped, timed_out
-from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Outcome, Taken, receive
+from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Outcome, receive
 from .messages import Stop as StopMsg
 from .worker import DescriptionSpec
 from .zygote import WorkerProcess, Zygote, ZygoteError
@@ -168,6 +168,8 @@ class Slot:
         #: (worker, the scene snapshot it was sent last): a job against the same
         #: snapshot object sends HELD_SCENE instead of the snapshot again
         self._held: tuple[WorkerProcess | None, Any] = (None, None)
+        #: the number of the last job sent (its worker marks it taken: see TakenMark)
+        self._seq = 0
         #: a job the pool handed to this idle slot, sent to its worker by the submitting
         #: thread (guarded by the pool's condition)
         self.handed: Job | None = None
@@ -238,8 +240,9 @@ class Slot:
         trace = job.trace
         if trace is not None:
             trace["slot"] = hoptrace.now()
+        self._seq += 1  # one job at a time per slot: no other thread counts meanwhile
         w.conn.send(JobMsg(job.request_id, job.kind, job.payload, job.base_deadline,
-                           self._scene_for(w, job.scene)))
+                           self._scene_for(w, job.scene), self._seq))
         if trace is not None:
             trace["sent"] = hoptrace.now()
 
@@ -247,7 +250,7 @@ class Slot:
         q = self._queue
         q.set_busy(self, job)
         t0 = time.monotonic()
-        taken, outcome, stop = False, None, None
+        outcome, stop = None, None
         self._rss_due = t0  # a first look as it starts (a worker already over the cap)
         trace = job.trace
         try:
@@ -265,9 +268,7 @@ class Slot:
                 msg = receive(w.conn)
                 if msg is None:
                     break  # the worker died: below
-                if isinstance(msg, Taken):
-                    taken = True
-                elif isinstance(msg, Deadline):
+                if isinstance(msg, Deadline):
                     job.deadline = msg.deadline
                 elif isinstance(msg, Done):
                     outcome = msg.outcome
@@ -297,7 +298,7 @@ class Slot:
             q.finish(job, shutting_down(job))
             return
         q.count("worker_crashes")
-        if not taken and job.redispatched < q.workers:
+        if w.taken.seq != self._seq and job.redispatched < q.workers:
             # it died before receiving this job (killed while idle, the report not yet
             # in): the job is not the cause, so it goes first to the next worker (which
             # may have died the same way: once per worker, so a job that kills workers

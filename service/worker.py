@@ -24,7 +24,7 @@ from planner.ranges import RANGES
 
 from . import hoptrace, wire
 from .disk_cache import DiskCache
-from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Success, Taken, receive
+from .messages import HELD_SCENE, Deadline, Done, Failure, JobMsg, Success, TakenMark, receive
 
 if TYPE_CHECKING:  # the serving process imports this module, never the planner
     from .handlers import Handlers
@@ -104,14 +104,15 @@ def _seconds(value: Any, default: float) -> float:
     return float(value) if value in RANGES["planning_time"] else default
 
 
-def serve_jobs(conn: Connection, handlers: Handlers) -> None:
-    """Answer jobs until :class:`~service.messages.Stop` or EOF (see the module)."""
+def serve_jobs(conn: Connection, handlers: Handlers, taken: TakenMark) -> None:
+    """Answer jobs until :class:`~service.messages.Stop` or EOF (see the module), each
+    marked ``taken`` as it arrives."""
     held: Any = None  # the last scene snapshot sent (a job may say it uses it again)
     while (job := receive(conn)) is not None:
         if not isinstance(job, JobMsg):
             raise TypeError(f"a worker takes JobMsg, not {type(job).__name__}")
         stamps: list[float] | None = [hoptrace.now()] if hoptrace.ON else None
-        conn.send(Taken(job.job_id))
+        taken.mark(job.seq)
         if isinstance(job.scene, str) and job.scene == HELD_SCENE:
             if held is None:  # the slot's bookkeeping is wrong: a bug, never a guess
                 raise RuntimeError(f"job {job.job_id} refers to a held scene; none is held")

@@ -31,7 +31,7 @@ from multiprocessing import reduction
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
-from .messages import Exited, Fork, Forked, Ready, StartFailed, Stop, receive
+from .messages import Exited, Fork, Forked, Ready, StartFailed, Stop, TakenMark, receive
 from .worker import DescriptionSpec, build_handlers, serve_jobs
 
 _log = logging.getLogger(__name__)
@@ -45,10 +45,12 @@ class ZygoteError(RuntimeError):
 
 @dataclass(frozen=True)
 class WorkerProcess:
-    """A warm worker forked by the zygote: its pid and the pool's end of its socket."""
+    """A warm worker forked by the zygote: its pid, the pool's end of its socket, and
+    the mark it sets on each job it receives."""
 
     pid: int
     conn: Connection
+    taken: TakenMark
 
 
 def describe_status(status: int) -> str:
@@ -114,6 +116,7 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
 
 def _fork(conn: Connection, token: int, handlers: Any, wake: tuple[int, int]) -> None:
     ours, theirs = socket.socketpair()
+    taken, taken_fd = TakenMark.create()
     pid = os.fork()
     if pid == 0:  # the worker: never returns into the zygote's loop
         code = 0
@@ -125,7 +128,8 @@ def _fork(conn: Connection, token: int, handlers: Any, wake: tuple[int, int]) ->
             conn.close()
             ours.close()
             _die_with_parent()
-            serve_jobs(Connection(theirs.detach()), handlers)
+            os.close(taken_fd)
+            serve_jobs(Connection(theirs.detach()), handlers, taken)
         except BaseException:  # noqa: BLE001 -- logged; the pool sees the exit code
             _log.exception("worker %d failed outside a job", os.getpid())
             code = 1
@@ -135,7 +139,10 @@ def _fork(conn: Connection, token: int, handlers: Any, wake: tuple[int, int]) ->
     theirs.close()
     conn.send(Forked(token, pid))
     reduction.send_handle(conn, ours.fileno(), os.getppid())
+    reduction.send_handle(conn, taken_fd, os.getppid())
     ours.close()
+    os.close(taken_fd)
+    del taken  # the zygote's map of it (the worker and the pool keep theirs)
 
 
 def _report_exits(conn: Connection) -> None:
@@ -238,7 +245,12 @@ class Zygote:
             while (msg := receive(conn)) is not None:
                 if isinstance(msg, Forked):
                     fd = reduction.recv_handle(conn)
-                    worker = WorkerProcess(msg.pid, Connection(fd))
+                    taken_fd = reduction.recv_handle(conn)
+                    try:
+                        taken = TakenMark(taken_fd)
+                    finally:
+                        os.close(taken_fd)
+                    worker = WorkerProcess(msg.pid, Connection(fd), taken)
                     waiter = self._pending.get(msg.token)
                     if waiter is None:  # its requester gave up: do not leak it
                         worker.conn.close()

@@ -21,7 +21,7 @@ from clients import errors
 from description import load_description
 from planner.scene import Obstacle
 from service import wire
-from service.messages import HELD_SCENE, Done, JobMsg, Stop, Success, Taken
+from service.messages import HELD_SCENE, Done, JobMsg, Stop, Success, TakenMark
 from service.scene_store import SceneSnapshot
 from service.slot import Slot
 from service.worker import DEFAULT_PLANNING_TIME, job_deadline, serve_jobs
@@ -139,7 +139,7 @@ def test_a_slot_sends_a_scene_once_per_worker_and_snapshot():
     slot = Slot.__new__(Slot)  # only its scene bookkeeping: no pool, no worker process
     slot._held = (None, None)
     a, b = _snapshot(3, 20), _snapshot(4, 20)
-    w1, w2 = WorkerProcess(1, None), WorkerProcess(2, None)  # type: ignore[arg-type]
+    w1, w2 = WorkerProcess(1, None, None), WorkerProcess(2, None, None)  # type: ignore[arg-type]
     assert slot._scene_for(w1, a) is a
     assert slot._scene_for(w1, a) == HELD_SCENE
     # an equal snapshot that is another object is sent again: identity, not equality
@@ -160,37 +160,39 @@ class _Recorder:
         return {"kind": kind}
 
 
-def _serve(handlers: _Recorder) -> tuple[Any, threading.Thread, list[BaseException]]:
+def _serve(handlers: _Recorder) -> tuple[Any, threading.Thread, list[BaseException],
+                                         TakenMark]:
     ours, theirs = Pipe()
     errors: list[BaseException] = []
+    taken, fd = TakenMark.create()
+    os.close(fd)
 
     def run() -> None:
         try:
-            serve_jobs(theirs, handlers)  # type: ignore[arg-type]
+            serve_jobs(theirs, handlers, taken)  # type: ignore[arg-type]
         except BaseException as e:  # noqa: BLE001 -- the test reads it
             errors.append(e)
         theirs.close()
     t = threading.Thread(target=run, daemon=True)
     t.start()
-    return ours, t, errors
+    return ours, t, errors, taken
 
 
 def _outcome(conn: Any) -> Any:
-    while True:
-        msg = conn.recv()
-        if isinstance(msg, Done):
-            return msg.outcome
-        assert isinstance(msg, Taken)
+    msg = conn.recv()
+    assert isinstance(msg, Done)  # a job at the default deadline: no other message
+    return msg.outcome
 
 
 def test_a_worker_answers_a_held_scene_job_against_the_snapshot_it_holds():
     rec = _Recorder()
-    conn, t, errors = _serve(rec)
+    conn, t, errors, taken = _serve(rec)
     a, b = _snapshot(3, 20), _snapshot(4, 2)
     for i, scene in enumerate((a, HELD_SCENE, b, HELD_SCENE, None)):
-        conn.send(JobMsg(f"j{i}", "fk", {"joints": {}}, 1e12, scene))
+        conn.send(JobMsg(f"j{i}", "fk", {"joints": {}}, 1e12, scene, seq=i + 1))
         out = _outcome(conn)
         assert isinstance(out, Success) and orjson.loads(out.body)["request_id"] == f"j{i}"
+        assert taken.seq == i + 1  # marked as it arrived
     conn.send(Stop())
     t.join(5.0)
     assert not errors
@@ -200,10 +202,10 @@ def test_a_worker_answers_a_held_scene_job_against_the_snapshot_it_holds():
 
 
 def test_a_held_scene_job_for_a_worker_that_holds_none_ends_it():
-    conn, t, errors = _serve(_Recorder())
-    conn.send(JobMsg("j0", "fk", {"joints": {}}, 1e12, HELD_SCENE))
-    assert isinstance(conn.recv(), Taken)
+    conn, t, errors, taken = _serve(_Recorder())
+    conn.send(JobMsg("j0", "fk", {"joints": {}}, 1e12, HELD_SCENE, seq=7))
     t.join(5.0)
+    assert taken.seq == 7  # it had the job: a slot would not give it to another worker
     # a bug in the pool's bookkeeping: the worker ends (its job answered INTERNAL by the
     # slot, as for any worker that dies), it never answers against a guessed scene
     assert len(errors) == 1 and "none is held" in str(errors[0])
