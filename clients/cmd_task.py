@@ -185,7 +185,7 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, resu
                           move_to_start=ns.move_to_start, realtime=ns.realtime)
     on_tick, objects = None, ()
     if ns.sim:  # the task's scene in the twin, what it picks up a free body it grips
-        from execution.robots.sim_arduinobot import grasp_schedule, task_objects, without
+        from execution.robots.twin_tasks import grasp_schedule, task_objects, without
         objects = task_objects(task, result)
         robot.set_scene(without(result.start_obstacles, objects), loose=objects)
         on_tick = grasp_schedule(robot, result)

@@ -100,7 +100,8 @@ class Run:
         grasps = (self.req.twin or {}).get("grasps") or ()
         grip = None
         if grasps:  # a twin grips a task's objects (a real arm has no weld to switch)
-            from execution.robots.sim_arduinobot import SimArduinobot, grasp_schedule
+            from execution.robots.sim_arduinobot import SimArduinobot
+            from execution.robots.twin_tasks import grasp_schedule
             if isinstance(base.robot, SimArduinobot):
                 grip = grasp_schedule(base.robot, [(float(g["time"]), g["object"], g["hold"])
                                                    for g in grasps])

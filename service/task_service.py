@@ -100,7 +100,7 @@ def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str,
 def twin_body(task: Task, result: TaskResult) -> dict[str, Any]:
     """What a twin simulates of the task (execute's ``twin``): its obstacles, the objects
     it picks up as free bodies where its scene has them, when it grips and lets go."""
-    from execution.robots.sim_arduinobot import task_grasps, task_objects, without
+    from execution.robots.twin_tasks import task_grasps, task_objects, without
     objects = task_objects(task, result)
     return {"obstacles": [obstacle_json(o) for o in without(result.start_obstacles, objects)],
             "objects": [{"object": obstacle_json(a.shape), "link": a.link,

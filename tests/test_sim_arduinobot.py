@@ -171,8 +171,8 @@ def test_the_course_workspace_twin_and_port(course_ws):
     gains do not apply) is found, the twin holds the arm, and the serial port comes from
     the real-robot ros2_control block."""
     from execution.robots.base import PortNotFound
+    from execution.robots.controller_gains import find_controllers_yaml
     from execution.robots.serial_arduinobot import SerialArduinobot
-    from execution.robots.sim_arduinobot import find_controllers_yaml
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src])
     assert find_controllers_yaml(d).name == "arduinobot_controllers.yaml"
     sim = SimArduinobot(d, cache=CACHE)

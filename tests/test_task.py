@@ -371,7 +371,8 @@ def _resting_place(result, detach_index: int) -> np.ndarray:
 
 def test_the_twin_carries_the_box_from_the_table_into_the_bin(course_ws):
     from execution.executor import ExecuteOptions, Executor
-    from execution.robots.sim_arduinobot import SimArduinobot, grasp_schedule, task_objects, without
+    from execution.robots.sim_arduinobot import SimArduinobot
+    from execution.robots.twin_tasks import grasp_schedule, task_objects, without
     from execution.segments import SampledTrajectory
     from planner.planning.pipeline import MotionPlanner
 

@@ -16,19 +16,19 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from description import Description
 from planner.cache import ArtifactCache
 from planner.codes import Code
 
 from .base import JointState, MimicMap, Robot, RobotError, check_setpoint
+from .controller_gains import controller_gains, find_controllers_yaml
 from .mjcf import TIMESTEP, Gains, Progress, servo_ctrl, to_mjcf
 from .serial_arduinobot import initial_positions
 
@@ -72,58 +72,6 @@ class SimStats:
         return asdict(self)
 
 
-def find_controllers_yaml(description: Description) -> Path | None:
-    """A ros2_control controllers yaml next to the robot's config: a
-    ``config/*controllers*.yaml`` with ``ros__parameters`` (not MoveIt's controller list)
-    of the MoveIt package, the description package, or a ``<robot>_controller`` package."""
-    cfg = description.config
-    dirs = [p for p in (cfg.srdf.parent if cfg.srdf else None,
-                        cfg.moveit_package / "config" if cfg.moveit_package else None,
-                        description.package_root / "config" if description.package_root
-                        else None) if p is not None]
-    pkgs = description.packages.packages
-    for name in (f"{description.robot.name}_controller", f"{description.robot.name}_control"):
-        if name in pkgs:
-            dirs.append(Path(pkgs[name]) / "config")
-    for d in dict.fromkeys(dirs):
-        for f in sorted(d.glob("*controllers*.yaml")) if d.is_dir() else []:
-            try:
-                data = yaml.safe_load(f.read_text("utf-8"))
-            except yaml.YAMLError:
-                log.warning("%s is not valid YAML; ignored", f)
-                continue
-            # a ros2_control file, not MoveIt's moveit_controllers.yaml
-            if isinstance(data, dict) and ("controller_manager" in data or any(
-                    isinstance(v, dict) and "ros__parameters" in v for v in data.values())):
-                return f
-    return None
-
-
-def controller_gains(path: Path, joints: Sequence[str]) -> dict[str, Gains]:
-    """``gains: {joint: {p: .., d: ..}}`` of the controllers in a ros2_control yaml that
-    command ``effort`` (their PID output is a torque, so ``p`` [N m/rad] and ``d``
-    [N m s/rad] are a servo's stiffness and damping), for ``joints`` with a positive
-    ``p``. A position-commanded joint_trajectory_controller ignores its gains (the
-    hardware holds the position), and so does the twin: such joints keep the defaults."""
-    data = yaml.safe_load(path.read_text("utf-8"))
-    out: dict[str, Gains] = {}
-
-    def walk(node: Any) -> None:
-        if isinstance(node, dict):
-            g = node.get("gains")
-            cmd = node.get("command_interfaces") or []
-            if isinstance(g, dict) and isinstance(cmd, list) and "effort" in cmd:
-                for j, v in g.items():
-                    if j in joints and isinstance(v, dict):
-                        p, d = float(v.get("p", 0.0) or 0.0), float(v.get("d", 0.0) or 0.0)
-                        if p > 0 and math.isfinite(p) and math.isfinite(d):
-                            out[j] = Gains(p, max(0.0, d))
-            for v in node.values():
-                walk(v)
-    walk(data)
-    return out
-
-
 def _resolved(description: Description, attached: Sequence[Any]) -> tuple[Any, ...]:
     """Carried objects with their default touch links (what the planner excludes)."""
     if not attached:
@@ -143,7 +91,8 @@ class SimArduinobot(Robot):
             its link with its mass (:meth:`set_scene` changes both later).
         loose: objects a task picks up (AttachedObject posed in the world): free bodies
             with their mass, gripped and let go by :meth:`grasp` (:func:`task_objects`).
-        controllers: a controllers yaml (default: :func:`find_controllers_yaml`).
+        controllers: a controllers yaml (default:
+            :func:`~execution.robots.controller_gains.find_controllers_yaml`).
         initial: actuated positions [rad] to start at (default: initial_positions.yaml, else 0).
         bandwidth: [Hz] of the default servos.
         cache: keeps the meshes' convex pieces between runs (V-HACD takes seconds per
@@ -459,56 +408,3 @@ class SimArduinobot(Robot):
         d = self.data
         return sorted({self._pair(int(c.geom1), int(c.geom2))
                        for c in d.contact[:d.ncon] if c.dist <= 0})
-
-
-def task_objects(task: Any, result: Any) -> tuple[Any, ...]:
-    """The objects a planned task (:class:`planner.tasks.Task` and its
-    :class:`planner.tasks.TaskResult`) picks up, as the twin's ``loose`` objects: each
-    where the task's scene has it, held by the attach step's link with its mass."""
-    from planner.scene import AttachedObject
-    from planner.tasks.steps import AttachStep
-    scene = {o.id: o for o in result.start_obstacles}
-    out: dict[str, Any] = {}
-    for s in result.steps:
-        step = task.steps[s.index]
-        if s.kind == "attach" and isinstance(step, AttachStep) and s.object in scene \
-                and s.object not in out:
-            out[s.object] = AttachedObject(shape=scene[s.object], link=s.link,
-                                           touch_links=step.touch_links, mass=step.mass)
-    return tuple(out.values())
-
-
-def without(obstacles: Sequence[Any], objects: Sequence[Any]) -> list[Any]:
-    """``obstacles`` less the ``objects`` the twin simulates as loose bodies."""
-    ids = {a.id for a in objects}
-    return [o for o in obstacles if (o["id"] if isinstance(o, dict) else o.id) not in ids]
-
-
-#: a grip switch of a task: (task time [s], object id, held from then on)
-Grasp = tuple[float, str, bool]
-
-
-def task_grasps(result: Any) -> list[Grasp]:
-    """When a planned task grips and lets go of its objects: its attach and detach
-    steps' start times."""
-    return [(t0, s.object, s.kind == "attach")
-            for s, t0 in zip(result.steps, result.boundaries())
-            if s.kind in ("attach", "detach") and s.object is not None]
-
-
-def grasp_schedule(robot: SimArduinobot, grasps: Any) -> Callable[[Any], None]:
-    """An executor ``on_tick`` for ``robot`` running a task joined into one trajectory
-    (its time the task's): at the first tick at or past each grasp's time
-    (``grasps``, or a :class:`planner.tasks.TaskResult`: :func:`task_grasps`) the
-    object is welded to its link, or let go."""
-    pending = sorted(task_grasps(grasps) if hasattr(grasps, "steps") else grasps,
-                     key=lambda g: g[0])
-
-    def on_tick(tick: Any) -> None:
-        while pending and tick.phase in ("trajectory", "stop") \
-                and tick.trajectory_time >= pending[0][0] - 1e-9:
-            _, obj, hold = pending.pop(0)
-            robot.grasp(obj, hold)
-            log.info("twin: %s %s at %.3f s", "gripped" if hold else "let go", obj,
-                     tick.trajectory_time)
-    return on_tick
