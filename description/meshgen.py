@@ -37,23 +37,30 @@ import numpy as np
 import trimesh
 
 try:
-    from manifold3d import CrossSection, Manifold, OpType
+    from manifold3d import CrossSection, Manifold
 except ImportError as e:  # an optional extra: say which, not just the module's name
     raise ImportError("description.meshgen needs manifold3d, the 'meshgen' extra: "
                       "pip install -e '.[meshgen]'") from e
 
+from .csg import (
+    SEG,
+    SEG_FINE,
+    SEG_SMALL,
+    UNION,
+    Vec2,
+    Vec3,
+    circle,
+    extrude,
+    rect,
+    rounded_box,
+    rounded_rect,
+    rounded_slab,
+    stadium,
+    turned,
+)
+
 MESH_DIR: Path = Path(__file__).resolve().parent / "arduinobot_description" / "meshes"
 
-# Segments per full circle.  Multiples of 4 put a vertex on every axis
-# extreme, so cylinders and rounded ends hit the envelope faces exactly.
-SEG_FINE: int = 96
-SEG: int = 64
-SEG_SMALL: int = 32
-FILLET_STEPS: int = 4
-_UNION = OpType.Add
-
-Vec2 = tuple[float, float]
-Vec3 = tuple[float, float, float]
 
 # (xyz [m], rpy [quarter turns]) of each mesh's visual/collision origin in the
 # URDF.  The URDF writes pi as 3.14159, so its rotations differ from these
@@ -67,118 +74,6 @@ ORIGINS: dict[str, tuple[Vec3, Vec3]] = {
     "right_finger.STL": ((-0.1, 0.5, -0.1), (0.0, 0.0, -1.0)),
     "left_finger.STL": ((-0.04, 0.5, -0.1), (0.0, 0.0, -1.0)),
 }
-
-
-# ---------------------------------------------------------------- 2D helpers
-
-
-def circle(center: Vec2, radius: float, segments: int = SEG) -> CrossSection:
-    return CrossSection.circle(radius, segments).translate(center)
-
-
-def stadium(p0: Vec2, p1: Vec2, radius: float, segments: int = SEG) -> CrossSection:
-    return CrossSection.batch_hull([circle(p0, radius, segments), circle(p1, radius, segments)])
-
-
-def rect(lo: Vec2, hi: Vec2) -> CrossSection:
-    return CrossSection.square((hi[0] - lo[0], hi[1] - lo[1])).translate(lo)
-
-
-def rounded_rect(lo: Vec2, hi: Vec2, radius: float, segments: int = SEG_SMALL) -> CrossSection:
-    # Hull of corner circles keeps the extents exactly at lo/hi.
-    xs = (lo[0] + radius, hi[0] - radius)
-    ys = (lo[1] + radius, hi[1] - radius)
-    return CrossSection.batch_hull([circle((x, y), radius, segments) for x in xs for y in ys])
-
-
-# ------------------------------------------------------------ axis mapping
-
-# Cyclic permutations (det +1, so winding survives) taking a shape built
-# along local z, with cross-section coordinates (u, v), onto a world axis:
-#   z: (u, v) = (x, y)   x: (u, v) = (y, z)   y: (u, v) = (z, x)
-_AXIS_MATRIX: dict[str, np.ndarray] = {
-    "z": np.eye(3),
-    "x": np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
-    "y": np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]),
-}
-
-
-def along(shape: Manifold, axis: str) -> Manifold:
-    m = np.zeros((3, 4))
-    m[:, :3] = _AXIS_MATRIX[axis]
-    return shape.transform(m)
-
-
-def extrude(profile: CrossSection, axis: str, lo: float, hi: float) -> Manifold:
-    return along(Manifold.extrude(profile, hi - lo).translate((0.0, 0.0, lo)), axis)
-
-
-def rounded_slab(
-    profile: CrossSection,
-    axis: str,
-    lo: float,
-    hi: float,
-    fillet: float,
-    fillet_lo: bool = True,
-    fillet_hi: bool = True,
-) -> Manifold:
-    """Extrude a *convex* profile with quarter-round fillets on its rims.
-
-    Built as the hull of inset copies of the outline, which is exact for
-    convex outlines and far cheaper than a Minkowski sum.
-    """
-    points: list[tuple[float, float, float]] = []
-    for i in range(FILLET_STEPS + 1):
-        phi = 0.5 * math.pi * i / FILLET_STEPS
-        inset = fillet * (1.0 - math.sin(phi))
-        rise = fillet * (1.0 - math.cos(phi))
-        layer = profile.offset(-inset) if inset > 1e-9 else profile
-        for (u, v) in [tuple(p) for poly in layer.to_polygons() for p in poly]:
-            if fillet_lo:
-                points.append((u, v, lo + rise))
-            if fillet_hi:
-                points.append((u, v, hi - rise))
-    for (u, v) in [tuple(p) for poly in profile.to_polygons() for p in poly]:
-        if not fillet_lo:
-            points.append((u, v, lo))
-        if not fillet_hi:
-            points.append((u, v, hi))
-    return along(Manifold.hull_points(points), axis)
-
-
-def rounded_box(lo: Vec3, hi: Vec3, radius: float, segments: int = SEG_SMALL) -> Manifold:
-    corners = [
-        Manifold.sphere(radius, segments).translate((x, y, z))
-        for x in (lo[0] + radius, hi[0] - radius)
-        for y in (lo[1] + radius, hi[1] - radius)
-        for z in (lo[2] + radius, hi[2] - radius)
-    ]
-    return Manifold.batch_hull(corners)
-
-
-def turned(
-    axis: str,
-    center: Vec2,
-    r_in: float,
-    r_out: float,
-    lo: float,
-    hi: float,
-    fillet: float = 0.0,
-    segments: int = SEG,
-) -> Manifold:
-    """A lathe part (disc, boss or ring) about an axis through ``center``.
-
-    ``center`` is given in the axis' cross-section coordinates (see
-    ``_AXIS_MATRIX``); the outer rim is rounded by ``fillet``.
-    """
-    section = rect((r_in, lo), (r_out, hi))
-    if fillet > 0.0:
-        # Round only the outer rim: a rounded rectangle unioned with the
-        # square inner half keeps the bore and the faces flat.
-        inner = rect((r_in, lo), (0.5 * (r_in + r_out), hi))
-        section = inner + rounded_rect((r_in, lo), (r_out, hi), fillet, SEG_SMALL)
-    solid = Manifold.revolve(section, segments)
-    return along(solid.translate((center[0], center[1], 0.0)), axis)
 
 
 # ------------------------------------------------------------------- parts
@@ -197,7 +92,7 @@ def basement() -> Manifold:
         extrude(stadium((y, 11.0), (y, 19.0), 1.2, SEG_SMALL), "x", 40.0, 47.0)
         for y in np.arange(-30.0, 25.0, 6.0)
     ]
-    housing -= Manifold.batch_boolean(vents, _UNION)
+    housing -= Manifold.batch_boolean(vents, UNION)
     # Bearing ring and shaft boss on the joint_1 axis.  The ring top is at
     # 30.9 cm, 1 mm under the table's 31.0, and the turntable's underside 1 mm
     # over its table value, for a 5 mm gap instead of a 3 mm one.
@@ -208,7 +103,7 @@ def basement() -> Manifold:
         for x in (-42.0, 38.0)
         for y in (-42.0, 31.0)
     ]
-    return Manifold.batch_boolean([housing, ring, boss, *screw_heads], _UNION)
+    return Manifold.batch_boolean([housing, ring, boss, *screw_heads], UNION)
 
 
 def base_plate() -> Manifold:
@@ -218,7 +113,7 @@ def base_plate() -> Manifold:
         extrude(circle((24.0 * math.cos(a), 24.0 * math.sin(a)), 2.2, SEG_SMALL), "z", -1.0, 8.0)
         for a in np.radians([45.0, 135.0, 225.0, 315.0])
     ]
-    disc -= Manifold.batch_boolean(bolt_holes, _UNION)
+    disc -= Manifold.batch_boolean(bolt_holes, UNION)
     # Cable-clamp lugs at the rim fix the y extents of the envelope.
     lug_back = rounded_slab(rounded_rect((-6.0, -39.0), (6.0, -28.0), 3.0), "z", 0.9, 4.5, 0.8)
     lug_back -= extrude(stadium((-2.5, -34.5), (2.5, -34.5), 1.5, SEG_SMALL), "z", -1.0, 8.0)
@@ -237,7 +132,7 @@ def base_plate() -> Manifold:
             extrude(stadium((-12.0, 17.0), (12.0, 17.0), 4.0), "x", -45.0, 45.0),
             extrude(circle((0.0, 50.0), 3.5, SEG), "x", -45.0, 45.0),
         ],
-        _UNION,
+        UNION,
     )
     left_cheek = rounded_slab(cheek_outline, "x", -16.4, -12.8, 1.0) - cheek_holes
     right_cheek = rounded_slab(cheek_outline, "x", 17.4, 21.0, 1.0) - cheek_holes
@@ -248,7 +143,7 @@ def base_plate() -> Manifold:
     ears = rounded_box((-21.0, -14.0, 27.0), (-18.0, 14.0, 43.0), 0.8)
     plug = turned("x", (0.0, 29.0), 0.0, 2.5, -39.0, -36.5, fillet=0.5, segments=SEG_SMALL)
     return Manifold.batch_boolean(
-        [disc, lug_back, lug_front, left_cheek, right_cheek, bearing, servo, ears, plug], _UNION
+        [disc, lug_back, lug_front, left_cheek, right_cheek, bearing, servo, ears, plug], UNION
     )
 
 
@@ -279,7 +174,7 @@ def forward_drive_arm() -> Manifold:
             extrude(circle((0.0, 0.0), 1.5, SEG_SMALL), "x", -20.0, 20.0),
             extrude(circle((0.0, 80.0), 1.2, SEG_SMALL), "x", -20.0, 20.0),
         ],
-        _UNION,
+        UNION,
     )
     left_plate = rounded_slab(outline, "x", -6.8, -3.6, 0.8)
     right_plate = rounded_slab(outline, "x", 5.6, 8.8, 0.8)
@@ -291,7 +186,7 @@ def forward_drive_arm() -> Manifold:
     servo = rounded_box((8.4, -5.0, 66.0), (18.8, 5.0, 84.0), 1.0)
     ears = rounded_box((8.4, -5.6, 64.0), (12.0, 5.6, 68.5), 0.6)
     parts = [left_plate, right_plate, web, shoulder_left, shoulder_right, elbow_left, servo, ears]
-    return Manifold.batch_boolean(parts, _UNION) - holes
+    return Manifold.batch_boolean(parts, UNION) - holes
 
 
 def horizontal_arm() -> Manifold:
@@ -314,10 +209,10 @@ def horizontal_arm() -> Manifold:
             extrude(circle((80.0, 0.0), 0.7, SEG_SMALL), "x", -10.0, 10.0),
             extrude(circle((85.0, 0.0), 0.7, SEG_SMALL), "x", -10.0, 10.0),
         ],
-        _UNION,
+        UNION,
     )
     counterweight = rounded_box((-2.0, -39.9, -4.5), (4.0, -29.0, 9.1), 1.0)
-    return Manifold.batch_boolean([hub, beam, counterweight], _UNION) - slots
+    return Manifold.batch_boolean([hub, beam, counterweight], UNION) - slots
 
 
 def claw_support() -> Manifold:
@@ -341,7 +236,7 @@ def claw_support() -> Manifold:
     pivots = (left_pivot, right_pivot)
     bosses = [turned("z", p, 0.0, 2.4, -8.3, -6.0, fillet=0.4, segments=SEG) for p in pivots]
     pins = Manifold.batch_boolean(
-        [extrude(circle(p, 0.8, SEG_SMALL), "z", -12.0, -5.0) for p in pivots], _UNION
+        [extrude(circle(p, 0.8, SEG_SMALL), "z", -12.0, -5.0) for p in pivots], UNION
     )
     mount_outline = CrossSection.batch_hull(
         [rect((-4.9, -10.2), (7.0, 17.45)), circle((1.05, 17.45), 5.95, SEG_FINE)]
@@ -353,14 +248,14 @@ def claw_support() -> Manifold:
             extrude(circle((-1.5, 0.0), 0.6, SEG_SMALL), "x", -10.0, 10.0),
             extrude(circle((4.5, 0.0), 0.6, SEG_SMALL), "x", -10.0, 10.0),
         ],
-        _UNION,
+        UNION,
     )
     gusset = rounded_box((-6.0, -4.4, -8.5), (-2.5, 2.5, 2.0), 0.5)
     servo = rounded_box((-19.0, -4.7, -14.9), (-7.0, 3.5, 4.0), 0.8)
     ears = rounded_box((-21.5, -4.0, -8.3), (-4.5, 2.6, -6.8), 0.4)
     spline = turned("z", (-10.0, -0.7), 0.0, 1.2, 3.7, 5.5, fillet=0.3, segments=SEG_SMALL)
     parts = [palm, tongue, *bosses, mount, gusset, servo, ears, spline]
-    body = Manifold.batch_boolean(parts, _UNION)
+    body = Manifold.batch_boolean(parts, UNION)
     return body - pins - mount_holes
 
 
@@ -397,10 +292,10 @@ def finger(side: float) -> Manifold:
             extrude(circle((sx(reach + 0.35), y), 0.6, SEG_SMALL), "z", -12.0, 1.0)
             for y in (45.0, 46.6, 48.2)
         ],
-        _UNION,
+        UNION,
     )
     pin_hole = extrude(circle((0.0, 0.0), 1.0, SEG_SMALL), "z", -12.0, 1.0)
-    return Manifold.batch_boolean([hub, tail, prong, bend, pad], _UNION) - grooves - pin_hole
+    return Manifold.batch_boolean([hub, tail, prong, bend, pad], UNION) - grooves - pin_hole
 
 
 PARTS: dict[str, Callable[[], Manifold]] = {
