@@ -30,14 +30,19 @@ problems (at least half needing a detour). Per robot:
   pair within microns somewhere), and the proof's time (the reply's ``recheck`` stage)
   median for those and for the others;
 - ``--group all``: the arm and the gripper move together (the gripper's start and goal
-  drawn across its range; the request's group ``all``). MPlib is not run on those, and
-  no honest column exists: MPlib 0.2.1 loads the URDF's ``<mimic>`` joint_5 as a joint
-  of its own (its pinocchio model has five, joint_5 a plain ``JointModelRZ``: checked on
-  course_fingers), and a move group is the chain to one link, so joint_4 (right finger)
-  and joint_5 (left finger) are never in the same group: with the group ending at
-  gripper_right (joints 1-4) joint_5 keeps its start value while joint_4 moves, the left
-  finger not following. That is another problem (other finger poses, other contacts),
-  not ours with the mimic;
+  drawn across its range; the request's group ``all``; the left finger, the mimic joint_5,
+  follows joint_4 throughout). MPlib 0.2.1 cannot be given that problem: it loads the
+  URDF's ``<mimic>`` joint_5 as a joint of its own (its pinocchio model has five, joint_5
+  a plain ``JointModelRZ``, no mimic in its URDF parser, collision checker or OMPL state
+  space: checked on course_fingers), and a move group is the chain to one link, so
+  joint_4 (right finger) and joint_5 (left finger) are never in one group. Its column is
+  the nearest problem it takes, labelled "MPlib, joints 1-4, left finger held": the move
+  group ends at the right finger (joints 1-4 planned, to our goal's joints 1-4), joint_5
+  set to the mimic of joint_4's start value (so its start is ours) and held there: along
+  the motion and at the goal its left finger is not where ours is (other contacts, other
+  free space; its goal can be colliding for it where ours is free, or the reverse). Its
+  trajectories are re-checked on our model with the mimic applied (the left finger where
+  the robot would put it): the collisions found there are reported as they are;
 - every returned trajectory, ours and MPlib's, re-checked independently
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
@@ -250,12 +255,7 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                   ("lower", "upper", "velocity", "acceleration", "jerk", "effort")))
     toppra = toppra_durations(mp, replies, args.scaling)
     scale = scale_check(model, mp, names, folder, args.state_checks)
-    if args.group == "all":  # not MPlib's problem (see the module's notes)
-        mplib: dict[str, Any] = {s: {"success": None, "median_ms": None, "p95_ms": None,
-                                     "duration_s_median": None} for s in SCENES}
-        mplib_tasks: dict[str, list[tuple]] = {s: [] for s in SCENES}
-    else:
-        mplib, mplib_tasks = mplib_rows(model, names, probs_of, lim, folder, args, rl)
+    mplib, mplib_tasks = mplib_rows(model, names, probs_of, lim, folder, args, rl)
     rows: dict[str, Any] = {}
     ours_tasks: dict[str, list[tuple]] = {}
     for scene, rows_ in replies.items():
@@ -345,6 +345,9 @@ def report(name: str, res: dict[str, Any]) -> None:
           f"default {res['default_scaling']}); MPlib vs our checker on {sc['states']} states: "
           f"{sc['agree']} agree ({sc['ours_colliding']} colliding by ours, "
           f"{sc['mplib_colliding']} by MPlib)")
+    first = next(iter(res["scenes"].values()), None)
+    if first is not None:
+        print(f"  MPlib's column: {first['mplib']['problem']}")
     for scene, r in res["scenes"].items():
         o, m = r["ours"], r["mplib"]
         st = o["stage_median_ms"]
@@ -391,7 +394,7 @@ def main(argv: list[str] | None = None) -> None:
                     help="course,course_fingers,shipped (comma-separated)")
     ap.add_argument("--group", choices=("arm", "all"), default="arm",
                     help="arm: the arm moves, the gripper closed; all: arm and gripper "
-                         "together (no MPlib column)")
+                         "together (MPlib: joints 1-4, its left finger held)")
     ap.add_argument("--scaling", type=float, default=1.0,
                     help="velocity and acceleration scaling, both sides (default 1.0)")
     ap.add_argument("--planning-time", type=float, default=1.0, help="budget [s], both sides")

@@ -23,11 +23,33 @@ from .recheck import Limits
 from .scenes import SCENES, obstacle_dicts
 
 ARM = ("joint_1", "joint_2", "joint_3")
+# --group all: MPlib's move group is the chain to one link; the nearest to ours ends at the
+# right finger (joint_4's child), the left finger (the mimic joint_5) held at its start
+ALL = ("joint_1", "joint_2", "joint_3", "joint_4")
+PROBLEM = {"arm": "MPlib, joints 1-3, gripper closed (ours too)",
+           "all": "MPlib, joints 1-4, left finger held at its start (ours: it follows joint_4)"}
 
 
-def base_spec(model: PeerModel, output: Path) -> dict[str, Any]:
-    return {"urdf": str(model.urdf), "srdf": str(model.srdf), "move_group": "claw_support",
-            "output": str(output), "scenes": {}}
+def base_spec(model: PeerModel, output: Path, *, group: str = "arm") -> dict[str, Any]:
+    return {"urdf": str(model.urdf), "srdf": str(model.srdf),
+            "move_group": move_group_link(model, group), "output": str(output), "scenes": {}}
+
+
+def move_group_link(model: PeerModel, group: str) -> str:
+    """The link MPlib's move group ends at: the arm's end for ``arm``, the right finger
+    (joint_4's child) for ``all``."""
+    return "claw_support" if group == "arm" else model.description.robot.joints["joint_4"].child
+
+
+def mplib_start(model: PeerModel, names: tuple[str, ...], a: np.ndarray) -> dict[str, float]:
+    """Our start ``a`` (over ``names``) as MPlib's joints: with each mimic joint (MPlib
+    loads it as a joint of its own) at its leader's value through the mimic, so MPlib's
+    start is ours."""
+    start = dict(zip(names, map(float, a)))
+    for j in model.description.robot.joints.values():
+        if j.mimic is not None and j.mimic.joint in start:
+            start[j.name] = j.mimic.multiplier * start[j.mimic.joint] + j.mimic.offset
+    return start
 
 
 def scale_check(model: PeerModel, mp: MotionPlanner, names: tuple[str, ...], folder: Path,
@@ -62,20 +84,27 @@ def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, lis
                lim: JointLimits, folder: Path, args: argparse.Namespace, rl: Limits
                ) -> tuple[dict[str, dict[str, Any]], dict[str, list[tuple]]]:
     """MPlib on every problem: figures per scene, and re-check tasks per scene
-    (positions(ts), duration [s], limits, obstacles, step [rad])."""
-    spec = {**base_spec(model, folder / "mplib.json"),
-            "velocity": [float(lim.velocity[names.index(j)]) for j in ARM],
-            "acceleration": [float(lim.acceleration[names.index(j)]) for j in ARM],
+    (positions(ts), duration [s], limits, obstacles, step [rad]).
+
+    ``args.group`` ``arm``: MPlib plans joints 1-3 (the gripper closed, as ours). ``all``:
+    joints 1-4 (the group to the right finger), the left finger (joint_5) at its start
+    value, the mimic of joint_4's start, throughout: MPlib 0.2.1 cannot make it follow.
+    Its trajectory is re-checked on our model, where joint_5 follows joint_4."""
+    planned = ARM if args.group == "arm" else ALL
+    spec = {**base_spec(model, folder / "mplib.json", group=args.group),
+            "velocity": [float(lim.velocity[names.index(j)]) for j in planned],
+            "acceleration": [float(lim.acceleration[names.index(j)]) for j in planned],
             "time_step": 0.01, "warmup": True}
     for scene, probs in probs_of.items():
         spec["scenes"][scene] = {
             "obstacles": obstacle_dicts(list(SCENES[scene])),
-            "problems": [{"start": dict(zip(names, map(float, a))),
-                          "goal": dict(zip(ARM, map(float, b[:3]))),
+            "problems": [{"start": mplib_start(model, names, a),
+                          "goal": dict(zip(planned, map(float, b[:len(planned)]))),
                           "planning_time": args.planning_time} for a, b, _ in probs]}
     out = run_mplib(spec)
-    if tuple(out["move_group_joints"]) != ARM or tuple(out["joint_names"][:3]) != ARM:
-        raise RuntimeError(f"MPlib plans for {out['move_group_joints']}, not {ARM}")
+    k = len(planned)
+    if tuple(out["move_group_joints"]) != planned or tuple(out["joint_names"][:k]) != planned:
+        raise RuntimeError(f"MPlib plans for {out['move_group_joints']}, not {planned}")
     rows, tasks = {}, {}
     for scene, results in out["scenes"].items():
         obs = obstacle_dicts(list(SCENES[scene]))
@@ -88,13 +117,14 @@ def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, lis
         for a, r in ok:
             timing = MplibTiming(r, len(names), np.asarray(a, float))
             rebuild = max(rebuild, float(np.max(np.abs(
-                timing.evaluate(np.array(r["sample_times"]))[0][:, :3]
+                timing.evaluate(np.array(r["sample_times"]))[0][:, :k]
                 - np.array(r["sample_positions"])))))
             scene_tasks.append((lambda ts, tm=timing: tm.evaluate(ts)[0], timing.duration,
                                 rl, obs, args.recheck_step))
         tasks[scene] = scene_tasks
         totals = [r["total_s"] for r in results]
         rows[scene] = {
+            "problem": PROBLEM[args.group],
             "success": len(ok) / len(results), "failures": status,
             "start_valid": sum(r["start_valid"] for r in results),
             "median_ms": 1e3 * statistics.median(totals),
