@@ -8,6 +8,7 @@ toppra data by ``MplibTiming`` for the re-check.
 from __future__ import annotations
 
 import argparse
+import re
 import statistics
 from pathlib import Path
 from typing import Any
@@ -80,11 +81,43 @@ def scale_check(model: PeerModel, mp: MotionPlanner, names: tuple[str, ...], fol
                             for q, o, f in zip(states, ours, found) if o != bool(f)][:3]}
 
 
+def held_model(model: PeerModel, names: tuple[str, ...]) -> tuple[Path, tuple[str, ...]]:
+    """MPlib's own robot for ``--group all``: our URDF with joint_5's ``<mimic>`` taken
+    out (next to ours: the mesh paths are relative), and its actuated joints (``names``,
+    ours, then joint_5)."""
+    text = model.urdf.read_text()
+    held, n = re.subn(r'(<joint name="joint_5".*?)<mimic [^>]*/>', r"\1", text, flags=re.S)
+    if n != 1:
+        raise ValueError("joint_5's <mimic> not found in the URDF")
+    urdf = model.urdf.with_name(model.urdf.stem + "-left-finger-held.urdf")
+    urdf.write_text(held)
+    return urdf, (*names, "joint_5")
+
+
+def _held(task: tuple, a: np.ndarray, names: tuple[str, ...], model: PeerModel) -> tuple:
+    # ``task`` (on our robot) as on MPlib's own: joint_5 at the mimic of joint_4's start,
+    # held (its limits joint_5's position range, joint_4's others)
+    positions, duration, rl, obs, step = task
+    j5 = model.description.robot.joints["joint_5"]
+    assert j5.mimic is not None
+    v5 = j5.mimic.multiplier * float(a[names.index(j5.mimic.joint)]) + j5.mimic.offset
+    lo, hi = model.description.robot.position_limits(("joint_5",))[0]
+    k = names.index(j5.mimic.joint)
+    held = Limits(np.append(rl.lower, lo), np.append(rl.upper, hi),
+                  *(np.append(getattr(rl, f), getattr(rl, f)[k])
+                    for f in ("velocity", "acceleration", "jerk", "effort")))
+    return (lambda ts, f=positions: np.column_stack([f(ts), np.full(len(np.atleast_1d(ts)),
+                                                                    v5)]),
+            duration, held, obs, step)
+
+
 def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, list],
                lim: JointLimits, folder: Path, args: argparse.Namespace, rl: Limits
-               ) -> tuple[dict[str, dict[str, Any]], dict[str, list[tuple]]]:
+               ) -> tuple[dict[str, dict[str, Any]], dict[str, list[tuple]],
+                          dict[str, list[tuple]]]:
     """MPlib on every problem: figures per scene, and re-check tasks per scene
-    (positions(ts), duration [s], limits, obstacles, step [rad]).
+    (positions(ts), duration [s], limits, obstacles, step [rad]) on our robot, and with
+    ``--group all`` the same on MPlib's own (:func:`held_model`; else none).
 
     ``args.group`` ``arm``: MPlib plans joints 1-3 (the gripper closed, as ours). ``all``:
     joints 1-4 (the group to the right finger), the left finger (joint_5) at its start
@@ -105,7 +138,7 @@ def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, lis
     k = len(planned)
     if tuple(out["move_group_joints"]) != planned or tuple(out["joint_names"][:k]) != planned:
         raise RuntimeError(f"MPlib plans for {out['move_group_joints']}, not {planned}")
-    rows, tasks = {}, {}
+    rows, tasks, held = {}, {}, {}
     for scene, results in out["scenes"].items():
         obs = obstacle_dicts(list(SCENES[scene]))
         ok = [(a, r) for (a, _, _), r in zip(probs_of[scene], results) if r["success"]]
@@ -122,6 +155,8 @@ def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, lis
             scene_tasks.append((lambda ts, tm=timing: tm.evaluate(ts)[0], timing.duration,
                                 rl, obs, args.recheck_step))
         tasks[scene] = scene_tasks
+        held[scene] = [_held(t, a, names, model) for t, (a, _) in zip(scene_tasks, ok)] \
+            if args.group == "all" else []
         totals = [r["total_s"] for r in results]
         rows[scene] = {
             "problem": PROBLEM[args.group],
@@ -134,4 +169,4 @@ def mplib_rows(model: PeerModel, names: tuple[str, ...], probs_of: dict[str, lis
             "duration_s_median": statistics.median([r["duration"] for _, r in ok])
             if ok else None,
             "rebuild_max_diff_rad": rebuild}
-    return rows, tasks
+    return rows, tasks, held
