@@ -30,14 +30,21 @@ problems (at least half needing a detour). Per robot:
   pair within microns somewhere), and the proof's time (the reply's ``recheck`` stage)
   median for those and for the others;
 - ``--group all``: the arm and the gripper move together (the gripper's start and goal
-  drawn across its range; the request's group ``all``). MPlib is not run on those, and
-  no honest column exists: MPlib 0.2.1 loads the URDF's ``<mimic>`` joint_5 as a joint
-  of its own (its pinocchio model has five, joint_5 a plain ``JointModelRZ``: checked on
-  course_fingers), and a move group is the chain to one link, so joint_4 (right finger)
-  and joint_5 (left finger) are never in the same group: with the group ending at
-  gripper_right (joints 1-4) joint_5 keeps its start value while joint_4 moves, the left
-  finger not following. That is another problem (other finger poses, other contacts),
-  not ours with the mimic;
+  drawn across its range; the request's group ``all``; the left finger, the mimic joint_5,
+  follows joint_4 throughout). MPlib 0.2.1 cannot be given that problem: it loads the
+  URDF's ``<mimic>`` joint_5 as a joint of its own (its pinocchio model has five, joint_5
+  a plain ``JointModelRZ``, no mimic in its URDF parser, collision checker or OMPL state
+  space: checked on course_fingers), and a move group is the chain to one link, so
+  joint_4 (right finger) and joint_5 (left finger) are never in one group. Its column is
+  the nearest problem it takes, labelled "MPlib, joints 1-4, left finger held": the move
+  group ends at the right finger (joints 1-4 planned, to our goal's joints 1-4), joint_5
+  set to the mimic of joint_4's start value (so its start is ours) and held there: along
+  the motion and at the goal its left finger is not where ours is (other contacts, other
+  free space; its goal can be colliding for it where ours is free, or the reverse). Its
+  trajectories are re-checked on our model with the mimic applied (the left finger where
+  the robot would put it): the collisions found there are reported as they are, beside
+  the same re-check on MPlib's own problem (our URDF without joint_5's ``<mimic>``, the
+  left finger held where MPlib held it);
 - every returned trajectory, ours and MPlib's, re-checked independently
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
@@ -63,7 +70,7 @@ from typing import Any
 import numpy as np
 
 from bench._lib.peer_models import PeerModel, make_model
-from bench._lib.peer_mplib import mplib_rows, scale_check
+from bench._lib.peer_mplib import held_model, mplib_rows, scale_check
 from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.sampled import SampledPositions
@@ -208,11 +215,13 @@ def _recheck_task(i: int) -> Any:
                    enforce_jerk=False, step=step)
 
 
-def recheck_all(model: PeerModel, names: tuple[str, ...], tasks: list[tuple]) -> list[Any]:
-    """Re-check ``tasks`` in two forked processes, each loading the model once."""
+def recheck_all(model: PeerModel, names: tuple[str, ...], tasks: list[tuple], *,
+                urdf: Path | None = None) -> list[Any]:
+    """Re-check ``tasks`` in two forked processes, each loading the model (``urdf``
+    instead of the model's, if given) once."""
     global MODEL_FILES
     TASKS[:] = tasks
-    MODEL_FILES = (model.urdf, model.srdf, names)
+    MODEL_FILES = (model.urdf if urdf is None else urdf, model.srdf, names)
     if not tasks:
         return []
     with mp_.get_context("fork").Pool(2) as pool:
@@ -250,12 +259,7 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
                   ("lower", "upper", "velocity", "acceleration", "jerk", "effort")))
     toppra = toppra_durations(mp, replies, args.scaling)
     scale = scale_check(model, mp, names, folder, args.state_checks)
-    if args.group == "all":  # not MPlib's problem (see the module's notes)
-        mplib: dict[str, Any] = {s: {"success": None, "median_ms": None, "p95_ms": None,
-                                     "duration_s_median": None} for s in SCENES}
-        mplib_tasks: dict[str, list[tuple]] = {s: [] for s in SCENES}
-    else:
-        mplib, mplib_tasks = mplib_rows(model, names, probs_of, lim, folder, args, rl)
+    mplib, mplib_tasks, mplib_held = mplib_rows(model, names, probs_of, lim, folder, args, rl)
     rows: dict[str, Any] = {}
     ours_tasks: dict[str, list[tuple]] = {}
     for scene, rows_ in replies.items():
@@ -326,6 +330,15 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
         k = len(mplib_tasks[scene])
         rows[scene]["mplib"]["recheck"] = summarise(reports[at:at + k])
         at += k
+    if args.group == "all":  # MPlib's trajectories on its own problem (left finger held)
+        urdf, held_names = held_model(model, names)
+        held = recheck_all(model, held_names, [t for s in SCENES for t in mplib_held[s]],
+                           urdf=urdf)
+        at = 0
+        for scene in SCENES:
+            k = len(mplib_held[scene])
+            rows[scene]["mplib"]["recheck_own_problem"] = summarise(held[at:at + k])
+            at += k
     return {"source": model.source, "group": args.group, "scaling": args.scaling,
             "recheck_step": args.recheck_step,
             "default_scaling": desc.get("default_scaling"),
@@ -345,11 +358,14 @@ def report(name: str, res: dict[str, Any]) -> None:
           f"default {res['default_scaling']}); MPlib vs our checker on {sc['states']} states: "
           f"{sc['agree']} agree ({sc['ours_colliding']} colliding by ours, "
           f"{sc['mplib_colliding']} by MPlib)")
+    first = next(iter(res["scenes"].values()), None)
+    if first is not None:
+        print(f"  MPlib's column: {first['mplib']['problem']}")
     for scene, r in res["scenes"].items():
         o, m = r["ours"], r["mplib"]
         st = o["stage_median_ms"]
         print(f"  {scene:8s} n={r['problems']}  success ours {o['success']:.2f} "
-              f"{o['failures'] or ''} mplib {fmt(m['success'], '.2f')}")
+              f"{o['failures'] or ''} mplib {fmt(m['success'], '.2f')} {m['failures'] or ''}")
         print(f"    wall ms median/p95: ours {fmt(o['median_ms'])}/{fmt(o['p95_ms'])}  "
               f"mplib (plan+TOPP) {fmt(m['median_ms'])}/{fmt(m['p95_ms'])}  ours/mplib "
               f"{fmt(r['ours_over_mplib_median'], '.2f')}x  (ours over the wire: "
@@ -375,7 +391,11 @@ def report(name: str, res: dict[str, Any]) -> None:
         ro, rm = o["recheck"], m["recheck"]
         print(f"    re-check at {res['recheck_step']} rad, trajectories with a collision: ours "
               f"{ro['with_collision']}/{ro['checked']}  mplib {rm['with_collision']}/"
-              f"{rm['checked']}")
+              f"{rm['checked']}" + (
+                  "" if "recheck_own_problem" not in m else
+                  f" on our robot (left finger following), "
+                  f"{m['recheck_own_problem']['with_collision']}/"
+                  f"{m['recheck_own_problem']['checked']} on its own problem (held)"))
 
         def worst(rc: dict[str, Any]) -> str:
             return " ".join(f"{k} {v:.3f}" for k, v in rc["worst_ratio"].items())
@@ -391,7 +411,7 @@ def main(argv: list[str] | None = None) -> None:
                     help="course,course_fingers,shipped (comma-separated)")
     ap.add_argument("--group", choices=("arm", "all"), default="arm",
                     help="arm: the arm moves, the gripper closed; all: arm and gripper "
-                         "together (no MPlib column)")
+                         "together (MPlib: joints 1-4, its left finger held)")
     ap.add_argument("--scaling", type=float, default=1.0,
                     help="velocity and acceleration scaling, both sides (default 1.0)")
     ap.add_argument("--planning-time", type=float, default=1.0, help="budget [s], both sides")

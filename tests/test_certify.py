@@ -293,3 +293,31 @@ def test_a_grazing_path_is_planned_again_with_finer_samples_then_certified_edges
     strict = finer._retry()
     assert strict.certify_edges and strict.step == FINEST_STEP
     assert pp._retry() is finer  # built once
+
+
+def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course_ws):
+    # the claw coming down over the course base: the hulls' bound shrinks geometrically
+    # toward the hulls' contact while the meshes stay >= 12 mm apart; the walk used to
+    # take it and certify 5 um (a false near contact, and its bounds); the exact
+    # distance, asked once neither trees nor hulls prove EXACT_BELOW, proves the gap
+    # (half the last hull bound above it is what the walk certified before it)
+    from planner.collision import certify
+    d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
+    world = CollisionWorld(d)
+    edge = np.array([[-1.2003252626449796, -0.41068828429081816, -0.8292884824147762,
+                      -1.5144790307794396],
+                     [-1.2630821198876434, -0.4732668406887417, -0.8518578215078093,
+                      -1.474029975400117]])
+    pair = world.pair_names.index(("base_link", "claw_support"))
+    true_gap = min(world.pair_distance(q, pair) for q in interpolate(edge, 0.001))
+    assert true_gap > 0.01
+    cert = Certifier(world, fraction=0.5).path(edge, sample_step=None)
+    assert cert.free and cert.closest == ("base_link", "claw_support")
+    assert 0.0005 < cert.certified_clearance <= true_gap
+    # the hulls alone (as before EXACT_BELOW): the same verdict, microns certified
+    old, certify.EXACT_BELOW = certify.EXACT_BELOW, -np.inf
+    try:
+        hulls_only = Certifier(world, fraction=0.5).path(edge, sample_step=None)
+    finally:
+        certify.EXACT_BELOW = old
+    assert hulls_only.free and hulls_only.certified_clearance < 1e-4

@@ -118,3 +118,56 @@ def test_motions_a_hair_past_the_limits_grow_the_row_on_either_side(world):
     first = c.one_dim.proven(*_pieces(below))[fingers]
     c.one_dim.proven(*_pieces(above))  # (no cell proves past the closed limit)
     assert c.one_dim.proven(*_pieces(below))[fingers] == first
+
+
+class _Kept:
+    """An artifact cache in memory, counting what is stored and read by kind."""
+
+    def __init__(self) -> None:
+        self.items: dict[tuple[str, str], dict[str, np.ndarray]] = {}
+        self.stored: dict[str, int] = {}
+        self.read: dict[str, int] = {}
+
+    def load(self, kind: str, key: str) -> dict[str, np.ndarray] | None:
+        got = self.items.get((kind, key))
+        if got is not None:
+            self.read[kind] = self.read.get(kind, 0) + 1
+        return got
+
+    def store(self, kind: str, key: str, arrays: dict[str, np.ndarray]) -> None:
+        self.stored[kind] = self.stored.get(kind, 0) + 1
+        self.items[(kind, key)] = {k: np.array(v) for k, v in arrays.items()}
+
+
+def test_rows_are_kept_in_the_artifact_cache_by_content(world):
+    # with a cache, a pair's whole row is proven at its first motion and kept by
+    # content: a world built later (a fresh worker) reads it and proves no cell; another
+    # clearance is another key
+    kept = _Kept()
+    d, obstacles = world.description, world.obstacles
+    motion = _pieces(_motions(world, 1)[0])
+    first = Certifier(CollisionWorld(d, obstacles=obstacles, cache=kept))
+    proven = first.one_dim.proven(*motion)
+    assert proven and kept.stored["one-dim-cells"] == len(first.one_dim.pairs)
+    rows = {k: v[1] for k, v in first.one_dim._rows.items()}
+    assert all(not np.isnan(r).any() for r in rows.values())  # whole, not as read
+
+    later = Certifier(CollisionWorld(d, obstacles=obstacles, cache=kept))
+
+    def no_cell(*args):
+        raise AssertionError("a cell was proven again")
+
+    later.one_dim._cell = no_cell  # type: ignore[method-assign]
+    assert later.one_dim.proven(*motion) == proven
+    assert kept.read["one-dim-cells"] == len(first.one_dim.pairs)
+    for k, r in later.one_dim._rows.items():
+        assert np.array_equal(r[1], rows[k])
+    # a world without a cache proves the same pairs, cell by cell as motions read them
+    # (here by no more: the whole rows chained every weak cell)
+    lazy = Certifier(CollisionWorld(d, obstacles=obstacles)).one_dim.proven(*motion)
+    assert lazy.keys() == proven.keys()
+    assert all(proven[p] >= lazy[p] - 1e-12 for p in proven)
+
+    padded = Certifier(CollisionWorld(d, obstacles=obstacles, padding=0.001, cache=kept))
+    padded.one_dim.proven(*motion)
+    assert kept.stored["one-dim-cells"] == 2 * len(first.one_dim.pairs)

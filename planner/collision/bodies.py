@@ -74,6 +74,9 @@ class RobotBodies:
             of the robot.
         proofs: what proofs keep for every world of the robot, by kind (the
             one-dimensional pairs' cells: :class:`.one_dim.PairCells`).
+        cache: where artifacts are kept between runs by content (the trees and hulls
+            were read from it; the one-dimensional pairs' cells are kept there), if
+            anywhere.
     """
 
     description: Description
@@ -86,6 +89,7 @@ class RobotBodies:
     hulls: tuple[Hull, ...]
     shapes: ShapeCache = field(default_factory=ShapeCache, repr=False)
     proofs: dict[str, Any] = field(default_factory=dict, repr=False)
+    cache: ArtifactCache | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def build(cls, description: Description, kin: Kinematics, *,
@@ -110,4 +114,4 @@ class RobotBodies:
             points.append((link, np.asarray(mesh.vertices, float)))
             hulls.append(mesh_hull(points[-1][1], cache))
         return cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
-                   tuple(statics), tuple(points), tuple(hulls))
+                   tuple(statics), tuple(points), tuple(hulls), cache=cache)

@@ -7,15 +7,16 @@ at the cell's middle, or the trees' where the hulls touch, less ``weight`` times
 width; cells halved where that does not prove them, and cells proven less than
 ``CHAIN_BELOW`` proven again from exact distances chained along the joint from a
 neighbour proven free. The cells are kept with the robot's geometry (a world's
-``bodies``, shared by the worlds of its scenes) for every request: a motion whose joint
-range they cover takes the smallest of their bounds for the pair, and the certifier's
-walk passes over it (a few cached cells instead of a walk of tree bounds, or near contact
-thousands of tiny steps).
+``bodies``, shared by the worlds of its scenes) for every request, a pair's whole row
+at its first motion, and in the robot's artifact cache by content (a worker started
+later reads them): a motion whose joint range they cover takes the smallest of their
+bounds for the pair, and the certifier's walk passes over it (a few cached cells instead
+of a walk of tree bounds, or near contact thousands of tiny steps).
 
 Two links only: their cells hold for every scene of the robot and are few (an obstacle a
 link turns past about one axis would want cells over that joint's whole range, one
 scene's: measured slower than its walk through the service). A gripper's range is some
-160 cells, filled once per process in ~25 ms, looked up in ~0.3 ms a motion; walking the
+160 cells, filled in ~25 ms (once per robot and machine), looked up in ~0.3 ms a motion; walking the
 fingers cost 1.5-2.5 ms a proof of arm and gripper together (course_fingers, trees of
 6k-triangle fingers ~30 us a bound).
 """
@@ -25,6 +26,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ..cache import content_key
 from ..kinematics.chain import _fk_into
 from .advance import Work, tree_lower_bound
 from .hulls import warm_bound
@@ -44,6 +46,8 @@ CHAIN_LEVEL = 2
 CHAIN_REACH = 8
 # refinements of a cell's hull direction (each from the extreme points the last one found)
 HULL_TRIES = 4
+#: bump when the cells' proof changes: rows kept on disk by an older one are never read
+CELLS_VERSION = "1"
 
 
 @numba.njit(cache=True, nogil=True)
@@ -150,20 +154,18 @@ class OneDimProver:
 
     def _row(self, p: int, j: int, first: int, last: int, base: np.ndarray) -> np.ndarray:
         # the bounds of pair p's cells first..last-1 (level 0, each the smallest of its
-        # halves where it was split), from a row kept per pair over its joint's range:
-        # a motion reads a slice (~microseconds), computing only the cells never read
+        # halves where it was split), from a row kept per pair over its joint's range
+        # (with an artifact cache whole from the first motion on, else each cell as a
+        # motion first reads it): a motion reads a slice (~microseconds)
         key = (self.world.padding, *self.world.pair_names[p])
         row = self._rows.get(key)
-        if row is None or first < row[0] or last > row[0] + len(row[1]):
-            lim = self.world.description.robot.position_limits(
-                (self.world.kin.joint_names[j],))[0]
-            lo = min(first, int(np.floor(lim[0] / CELL)))
-            hi = max(last, int(np.ceil(lim[1] / CELL)))
-            if row is not None:
-                lo, hi = min(lo, row[0]), max(hi, row[0] + len(row[1]))
+        if row is None:
+            row = self._rows[key] = self._new_row(p, j, base)
+        if first < row[0] or last > row[0] + len(row[1]):
+            # (a motion a hair past the limits: its cells beyond are computed as read)
+            lo, hi = min(first, row[0]), max(last, row[0] + len(row[1]))
             grown = np.full(hi - lo, np.nan)
-            if row is not None:  # (a motion a hair past the limits: keep what was read)
-                grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
+            grown[row[0] - lo:row[0] - lo + len(row[1])] = row[1]
             row = self._rows[key] = (lo, grown)
         cells = row[1][first - row[0]:last - row[0]]  # a view: filled in place
         todo = np.flatnonzero(np.isnan(cells))
@@ -173,6 +175,52 @@ class OneDimProver:
             if not cells[i] > self.world.padding + CHAIN_BELOW:
                 self._chain(p, j, row, first + int(i), base)
         return cells
+
+    def _new_row(self, p: int, j: int, base: np.ndarray) -> tuple[int, np.ndarray]:
+        # (first cell, bounds) of pair p over its joint's limits. With an artifact
+        # cache, every cell proven (and chained where weak) at once and kept there by
+        # content, so a worker started later reads them (~1 ms) instead of paying for
+        # them over its first requests (~0.4 s in all on course_fingers, 0.37 s of it
+        # for a pair whose cells collide at some values); without one, none yet (each
+        # proven as a motion first reads it: a library user's worlds pay only for what
+        # they read)
+        w = self.world
+        lim = w.description.robot.position_limits((w.kin.joint_names[j],))[0]
+        lo, hi = int(np.floor(lim[0] / CELL)), int(np.ceil(lim[1] / CELL))
+        row = (lo, np.full(hi - lo, np.nan))
+        cache = w.bodies.cache
+        if cache is None:
+            return row
+        ckey = self._content(p, j, lo, hi)
+        hit = cache.load("one-dim-cells", ckey)
+        if hit is not None and hit["bounds"].shape == (hi - lo,):
+            return lo, np.array(hit["bounds"], dtype=float)
+        bounds = row[1]
+        for i in range(hi - lo):
+            bounds[i] = self._cell(p, j, 0, lo + i, base)
+        for i in range(hi - lo):
+            if not bounds[i] > w.padding + CHAIN_BELOW:
+                self._chain(p, j, row, lo + i, base)
+        cache.store("one-dim-cells", ckey, {"bounds": bounds.copy()})
+        return row
+
+    def _content(self, p: int, j: int, lo: int, hi: int) -> str:
+        # the key of pair p's row: everything its bounds follow from (the two links'
+        # geometry as the proofs read it, the whole chain, the pair's weights, the
+        # clearance, the cells' settings and the range)
+        w = self.world
+        parts: list[bytes | str | np.ndarray] = [
+            "one-dim-cells", CELLS_VERSION, *w.pair_names[p],
+            np.array([w.padding, self.gap, CELL, CELL_LEVELS, CHAIN_BELOW, CHAIN_LEVEL,
+                      CHAIN_REACH, HULL_TRIES, j, lo, hi], float),
+            *w.chain, np.asarray(w.table.pairs.weight[p])]
+        b = w.bodies
+        for link in w.pair_names[p]:
+            i = b.names.index(link)
+            t, h = b.trees[i], b.hulls[i]
+            parts += [np.array([b.frames[i], h.radius], float), b.points[i][1],
+                      t.center, t.axes, t.half, t.left, t.right, h.vertices]
+        return content_key(parts)
 
     def _chain(self, p: int, j: int, row: tuple[int, np.ndarray], k: int,
                base: np.ndarray) -> None:
