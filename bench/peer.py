@@ -321,24 +321,17 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
     reports = recheck_all(model, names, flat)
     print(f"  re-checked {len(flat)} trajectories in {time.perf_counter() - t0:.0f} s",
           flush=True)
-    at = 0
-    for scene in SCENES:
-        k = len(ours_tasks[scene])
-        rows[scene]["ours"]["recheck"] = summarise(reports[at:at + k])
-        at += k
-    for scene in SCENES:
-        k = len(mplib_tasks[scene])
-        rows[scene]["mplib"]["recheck"] = summarise(reports[at:at + k])
-        at += k
+    counts = [len(ours_tasks[s]) for s in SCENES] + [len(mplib_tasks[s]) for s in SCENES]
+    parts = _split(reports, counts)
+    for i, scene in enumerate(SCENES):
+        rows[scene]["ours"]["recheck"] = summarise(parts[i])
+        rows[scene]["mplib"]["recheck"] = summarise(parts[len(SCENES) + i])
     if args.group == "all":  # MPlib's trajectories on its own problem (left finger held)
         urdf, held_names = held_model(model, names)
         held = recheck_all(model, held_names, [t for s in SCENES for t in mplib_held[s]],
                            urdf=urdf)
-        at = 0
-        for scene in SCENES:
-            k = len(mplib_held[scene])
-            rows[scene]["mplib"]["recheck_own_problem"] = summarise(held[at:at + k])
-            at += k
+        for scene, part in zip(SCENES, _split(held, [len(mplib_held[s]) for s in SCENES])):
+            rows[scene]["mplib"]["recheck_own_problem"] = summarise(part)
     return {"source": model.source, "group": args.group, "scaling": args.scaling,
             "recheck_step": args.recheck_step,
             "default_scaling": desc.get("default_scaling"),
@@ -402,6 +395,15 @@ def report(name: str, res: dict[str, Any]) -> None:
         print(f"      other findings (limits by finite differences; ours on the interpolated "
               f"samples, indicative): ours {ro['kinds']} worst/limit {worst(ro)}; mplib "
               f"{rm['kinds']} worst/limit {worst(rm)}")
+
+
+def _split(items: list[Any], counts: list[int]) -> list[list[Any]]:
+    """``items`` cut into consecutive runs of ``counts`` (the re-checks, per scene)."""
+    out, at = [], 0
+    for k in counts:
+        out.append(items[at:at + k])
+        at += k
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:
