@@ -24,6 +24,9 @@ Python client's own steps, stamping the client's side too. Per request, in order
   :class:`~clients.replies.PlanReply`;
 - ``hop``: end to end (encode to typed reply) minus the reply's ``timing.total``.
 
+Each plan is sent again right after with ``"trajectory_format": "points"`` (a sample object
+per point on the wire, the v1 default): its hop is printed beside, the peer of packing.
+
 With ``--kept``, the service keeps bench/scene.py's 20 primitives (a ring out of the arm's
 way) in its scene while the plans run: every job is answered against them (the worker
 receives the scene once per revision, not with each job).
@@ -93,8 +96,8 @@ def problem_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles
 
 
 def one(c: PlannerClient, body: dict[str, Any]) -> tuple[dict[str, float], PlanReply, int]:
-    """One plan through the client's own steps (:meth:`PlannerClient.plan`), stamped; and
-    the reply's size [bytes]."""
+    """One plan through the client's own steps (:meth:`PlannerClient.plan`: the trajectory
+    packed unless ``body`` says otherwise), stamped; and the reply's size [bytes]."""
     st = {"c_start": hoptrace.now()}
     payload = encode_body(plan_body(body))
     key = f"{c.prefix}/plan"
@@ -149,6 +152,7 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
                         "--cache-dir", str(cache)], timeout=600,
                        env={**os.environ, hoptrace.ENV: str(trace)})
     rows: list[tuple[dict[str, float], PlanReply, int]] = []
+    as_points: list[float] = []
     try:
         with PlannerClient(srv.endpoint, timeout=120) as c:
             if args.kept:
@@ -158,6 +162,10 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
                 one(c, problem_body(names, a, b, obs, 10_000 + k))
             for i, (a, b, _) in enumerate(probs):
                 rows.append(one(c, problem_body(names, a, b, obs, i)))
+                # the same plan with points on the wire, right after: the peer of packing
+                st, reply, _ = one(c, {**problem_body(names, a, b, obs, i),
+                                       "trajectory_format": "points"})
+                as_points.append(st["c_parsed"] - st["c_start"] - reply.timing["total"])
     finally:
         srv.stop()
     served = {}
@@ -179,7 +187,8 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
     big = max(rows, key=lambda r: r[2])[1]
     return {"model": args.model, "scene": args.scene, "kept_objects": 20 if args.kept else 0,
             "problems": len(rows),
-            "workers": args.workers, "hop": stats(hop), "total": stats(totals),
+            "workers": args.workers, "hop": stats(hop), "hop_points": stats(as_points),
+            "total": stats(totals),
             "split": split, "reply_bytes_median": statistics.median(n for _, _, n in rows),
             "points_median": statistics.median(len(r.times) for _, r, _ in rows),
             "zenoh_floor": zenoh_floor(orjson.dumps(dict(big.raw)), args.floor_repeats),
@@ -203,6 +212,10 @@ def report(res: dict[str, Any]) -> None:
     h, f = res["hop"], res["zenoh_floor"]
     print(f"  hop (end to end - timing.total): median {h['median_ms']:.3f} ms, p95 "
           f"{h['p95_ms']:.3f} ms (target: median <= 1 ms)")
+    p = res["hop_points"]
+    print(f"  the same plans with points on the wire (trajectory_format \"points\", each "
+          f"right after its packed one): hop median {p['median_ms']:.3f} ms, p95 "
+          f"{p['p95_ms']:.3f} ms")
     g = res["zenoh_floor_after_gap"]
     print(f"  bare Zenoh get/reply of the largest reply: median {f['median_ms']:.3f} ms, "
           f"p95 {f['p95_ms']:.3f} ms back to back; after an idle gap of the median total: "
