@@ -61,6 +61,11 @@ class RuckigProfile:
         self.duration = t
         self._end = (s_off + pieces[-1][1].profiles[0][0].pf) if pieces else 0.0
 
+    def polynomial(self) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """(phase start times, (p, v, a, j) at each, shape (n, 4), duration, end s): what
+        :mod:`planner.timing.curve_eval` evaluates (as :meth:`evaluate` does)."""
+        return self._start, self._c, self.duration, self._end
+
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ts = np.clip(np.asarray(ts, float), 0.0, self.duration)
         k = np.clip(np.searchsorted(self._start, ts, side="right") - 1, 0, len(self._start) - 1)
