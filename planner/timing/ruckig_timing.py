@@ -22,6 +22,7 @@ import logging
 import math
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
@@ -100,6 +101,96 @@ def _max_speed_within(v_other: float, dist: float, a: float, j: float, cap: floa
     return lo
 
 
+@numba.njit(cache=True, nogil=True)
+def _least(budget, use, lo, hi):
+    # min over samples [lo, hi) and joints of budget / use where use > _TINY (inf if
+    # nothing is used): budget and use shape (m, dof)
+    r = np.inf
+    for i in range(lo, hi):
+        for d in range(use.shape[1]):
+            if use[i, d] > _TINY:
+                x = budget[i, d] / use[i, d]
+                if x < r:
+                    r = x
+    return r
+
+
+@numba.njit(cache=True, nogil=True)
+def _piece_bounds(d1, d2, d3, mt, bt, gt, V, A, J, E, first, line, vs, as_, js):
+    """:meth:`JerkLimitedTiming.piece_limits`' bounds into ``vs, as_, js`` (each (n,)):
+    per piece ``p``, samples ``first[p]:first[p + 1]`` of the |derivatives| ``d1, d2,
+    d3`` and |torque coefficients| ``mt, bt, gt`` (each (m, dof)). Returns (0, -1), or
+    (1, piece) where gravity alone exceeds the effort limit, or (2, piece) where no
+    speed is feasible. The same arithmetic in the same order as the numpy it replaced
+    (a minimum is exact in any order), so the same bounds."""
+    n = first.shape[0] - 1
+    m, dof = d1.shape
+    slack = np.empty((m, dof))
+    for i in range(m):
+        for d in range(dof):
+            slack[i, d] = E[d] - gt[i, d]
+    for p in range(n):
+        for i in range(first[p], first[p + 1]):
+            for d in range(dof):
+                if slack[i, d] <= 0:
+                    return 1, p
+    bud = np.empty((m, dof))
+    use = np.empty((m, dof))
+    for p in range(n):
+        lo, hi = first[p], first[p + 1]
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = V[d]
+        lv = _least(bud, d1, lo, hi)
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = 0.5 * A[d]
+        la = _least(bud, d2, lo, hi)
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = 0.5 * slack[i, d]
+        le = _least(bud, bt, lo, hi)
+        v = min(lv, np.sqrt(min(la, le)))  # leave half of the a and effort budgets for sdd
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = J[d]
+        j_free = _least(bud, d1, lo, hi)
+        done = False
+        for _ in range(30):
+            w = v
+            w3 = w ** 3.0
+            for i in range(lo, hi):
+                for d in range(dof):
+                    bud[i, d] = A[d] - d2[i, d] * w * w
+            a = _least(bud, d1, lo, hi)
+            for i in range(lo, hi):
+                for d in range(dof):
+                    bud[i, d] = slack[i, d] - bt[i, d] * w * w
+            a = min(a, _least(bud, mt, lo, hi))
+            if not line[p]:
+                # a blend's jerk has a term 3 q'' sd sdd: sdd keeps only what leaves
+                # half the jerk budget to sddd (see piece_limits)
+                for i in range(lo, hi):
+                    for d in range(dof):
+                        bud[i, d] = 0.5 * (J[d] - d3[i, d] * w3)
+                        use[i, d] = 3 * d2[i, d] * w
+                a = min(a, _least(bud, use, lo, hi))
+            j = -1.0
+            if a > 0:
+                for i in range(lo, hi):
+                    for d in range(dof):
+                        bud[i, d] = J[d] - 3 * d2[i, d] * w * max(a, 0.0) - d3[i, d] * w3
+                j = _least(bud, d1, lo, hi)
+            if a > 0 and j > 0 and (line[p] or j > 0.25 * j_free):
+                vs[p], as_[p], js[p] = v, a, j
+                done = True
+                break
+            v = 0.8 * v
+        if not done:
+            return 2, p
+    return 0, -1
+
+
 class JerkLimitedTiming:
     """Jerk-limited time parameterisation of a :class:`Curve`.
 
@@ -121,46 +212,22 @@ class JerkLimitedTiming:
         sigma = np.concatenate([np.linspace(0.0, L, m) for L, m in zip(curve.lengths, counts)])
         q, d1, d2, d3 = curve.jet(own, sigma)
         mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
-        V, A, J, E = limits.velocity, limits.acceleration, limits.jerk, limits.effort
-        d1, d2, d3, mt, bt, gt = (np.abs(x) for x in (d1, d2, d3, mt, bt, gt))
-        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-
-        def least(budget: np.ndarray, use: np.ndarray) -> np.ndarray:
-            # per piece: min over its samples and joints of budget / use where use > 0
-            # (inf if nothing is used), shape (n,); all pieces at once, not a loop
-            with np.errstate(divide="ignore", invalid="ignore"):
-                r = np.where(use > _TINY, np.broadcast_to(budget, use.shape) / use, np.inf)
-            return np.minimum.reduceat(r.min(axis=1), first)
-
-        slack_e = E - gt
-        short = np.flatnonzero(np.minimum.reduceat((slack_e <= 0).any(axis=1), first))
-        if len(short):
-            raise TrajectoryError("gravity alone exceeds the effort limit on the path",
-                                  details={"stage": "ruckig", "piece": int(short[0])})
-        # leave half of the acceleration and effort budgets for sdd
-        v = np.minimum(least(V, d1), np.sqrt(np.minimum(least(0.5 * A, d2),
-                                                        least(0.5 * slack_e, bt))))
+        V, A, J, E = (np.ascontiguousarray(x, dtype=float) for x in
+                      (limits.velocity, limits.acceleration, limits.jerk, limits.effort))
+        d1, d2, d3, mt, bt, gt = (np.ascontiguousarray(np.abs(x)) for x in
+                                  (d1, d2, d3, mt, bt, gt))
+        first = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         line = np.array([kind == "line" for kind in curve.kinds])
-        j_free = least(J, d1)
-        done = np.zeros(n, dtype=bool)
-        vs, as_, js = v.copy(), np.zeros(n), np.zeros(n)
-        for _ in range(30):
-            w = v[own][:, None]
-            a = np.minimum(least(A - d2 * w * w, d1), least(slack_e - bt * w * w, mt))
-            # a blend's jerk has a term 3 q'' sd sdd: sdd at its bound would leave a
-            # sharp blend almost no speed, yet a blend mostly cruises; so sdd keeps only
-            # what leaves half the jerk budget to sddd, and the speed stays high
-            a = np.where(line, a, np.minimum(a, least(0.5 * (J - d3 * w**3), 3 * d2 * w)))
-            j = np.where(a > 0, least(J - 3 * d2 * w * np.maximum(a, 0)[own][:, None]
-                                      - d3 * w**3, d1), -1.0)
-            ok = ~done & (a > 0) & (j > 0) & (line | (j > 0.25 * j_free))
-            vs[ok], as_[ok], js[ok] = v[ok], a[ok], j[ok]
-            done |= ok
-            if done.all():
-                return vs, as_, js
-            v = np.where(done, v, 0.8 * v)
-        raise TrajectoryError("no feasible path speed on a curve piece",
-                              details={"stage": "ruckig", "piece": int(np.argmin(done))})
+        vs, as_, js = np.zeros(n), np.zeros(n), np.zeros(n)
+        code, piece = _piece_bounds(d1, d2, d3, mt, bt, gt, V, A, J, E, first, line,
+                                    vs, as_, js)
+        if code == 1:
+            raise TrajectoryError("gravity alone exceeds the effort limit on the path",
+                                  details={"stage": "ruckig", "piece": int(piece)})
+        if code == 2:
+            raise TrajectoryError("no feasible path speed on a curve piece",
+                                  details={"stage": "ruckig", "piece": int(piece)})
+        return vs, as_, js
 
     def section(self, curve: PathCurve, limits: ActiveLimits, *,
                 blend_speed: bool = True,
