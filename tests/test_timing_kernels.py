@@ -11,6 +11,7 @@ import pytest
 from planner.errors import TrajectoryError
 from planner.path_limits import ActiveLimits, Derating, torque_coefficients
 from planner.timing.curve import PathCurve, build_curve
+from planner.timing.profiles import JerkLimited
 from planner.timing.ruckig_timing import _BLEND_SAMPLES, _LINE_SAMPLES, _TINY, JerkLimitedTiming
 from planner.timing.trajectory import JointTrajectory
 from planner.timing.verify import Verifier, _ratio
@@ -80,6 +81,20 @@ def _paths(seed: int, count: int) -> list[np.ndarray]:
     lo, hi = np.array(LIM.lower), np.array(LIM.upper)
     return [rng.uniform(lo, hi, size=(int(rng.integers(2, 7)), len(NAMES)))
             for _ in range(count)]
+
+
+def _gentle_paths(seed: int, count: int) -> list[np.ndarray]:
+    # polylines with mild corners (as a shortcut planner's): long edges, small turns
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        d = rng.normal(size=len(NAMES))
+        pts = [rng.uniform(-0.5, 0.5, size=len(NAMES))]
+        for _ in range(int(rng.integers(2, 5))):
+            d = d / np.linalg.norm(d) + 0.3 * rng.normal(size=len(NAMES))
+            pts.append(pts[-1] + rng.uniform(0.3, 1.0) * d / np.linalg.norm(d))
+        out.append(np.array(pts))
+    return out
 
 
 def _derated(i: int) -> ActiveLimits:
@@ -162,3 +177,31 @@ def test_reused_sample_efforts_give_the_same_report():
         a = Verifier(LIM, DYN, WORLD).verify(traj).to_dict()
         b = Verifier(LIM, _OwnDynamics(), WORLD).verify(traj).to_dict()
         assert a == b
+
+
+def test_stop_floor_bounds_the_stops_and_keeps_the_choice():
+    # the floor never exceeds the stop-at-every-waypoint timing, so skipping that timing
+    # when the floor already loses leaves the profile's choice as it was
+    profile = JerkLimited(DYN)
+    timing = profile.timing
+    skipped = 0
+    for i, path in enumerate(_paths(5, 20) + _gentle_paths(6, 20)):
+        # every other one at the request's limits (effort rarely biting: the floor is tight)
+        lim = _derated(i) if i % 2 else ActiveLimits.from_limits(LIM)
+        edges = build_curve(path, None, max_radius=0.0)
+        stops = timing.parameterise(edges, lim)
+        floor = timing.rest_to_rest_floor(edges, lim)
+        assert 0.0 < floor <= stops.duration * (1 + 1e-12)
+        curve = build_curve(path, None)
+        blended = timing.parameterise(curve, lim)
+        before = stops if stops.duration < blended.duration else blended  # as it was
+        got = profile.parameterise(curve, path, lim)
+        assert got.duration == before.duration
+        skipped += floor * (1 - 1e-9) >= blended.duration
+    assert skipped >= 5  # the floor does spare the stops' timing
+
+
+def test_stop_floor_is_zero_for_a_blended_curve():
+    curve = build_curve(WP, None)
+    assert any(k == "blend" for s in curve.sections for k in s.kinds)
+    assert JerkLimitedTiming(DYN).rest_to_rest_floor(curve, _derated(0)) == 0.0
