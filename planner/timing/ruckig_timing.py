@@ -206,17 +206,22 @@ class JerkLimitedTiming:
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Constant (v, a, j) bounds on (sd, sdd, sddd) per piece, each shape (n,)."""
         n = len(curve.lengths)
-        counts = [_BLEND_SAMPLES if kind == "blend" else _LINE_SAMPLES for kind in curve.kinds]
+        counts = np.where(np.array([kind == "blend" for kind in curve.kinds]),
+                          _BLEND_SAMPLES, _LINE_SAMPLES)
         own = np.repeat(np.arange(n), counts)
-        # each sample evaluated inside its own piece (by s, a piece's end is the next's start)
-        sigma = np.concatenate([np.linspace(0.0, L, m) for L, m in zip(curve.lengths, counts)])
+        first = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        # each sample evaluated inside its own piece (by s, a piece's end is the next's
+        # start): np.linspace(0, L, m) of every piece at once, as it computes it (i times
+        # L / (m - 1), the last exactly L)
+        i = np.arange(first[-1]) - first[:-1][own]
+        sigma = i * (curve.lengths / (counts - 1))[own] + 0.0
+        sigma[first[1:] - 1] = curve.lengths
         q, d1, d2, d3 = curve.jet(own, sigma)
         mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
         V, A, J, E = (np.ascontiguousarray(x, dtype=float) for x in
                       (limits.velocity, limits.acceleration, limits.jerk, limits.effort))
         d1, d2, d3, mt, bt, gt = (np.ascontiguousarray(np.abs(x)) for x in
                                   (d1, d2, d3, mt, bt, gt))
-        first = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         line = np.array([kind == "line" for kind in curve.kinds])
         vs, as_, js = np.zeros(n), np.zeros(n), np.zeros(n)
         code, piece = _piece_bounds(d1, d2, d3, mt, bt, gt, V, A, J, E, first, line,
