@@ -141,7 +141,11 @@ def _ratio(limit: np.ndarray, *values: np.ndarray, centre: np.ndarray | None = N
     """Worst |value - centre| / limit per joint over every array of ``values`` (each
     shape (m, dof)), shape (dof,); a zero limit with motion is inf."""
     limit = np.asarray(limit, float)
-    peak = _peak(values, centre, len(limit))
+    return _of_peaks(limit, _peak(values, centre, len(limit)))
+
+
+def _of_peaks(limit: np.ndarray, peak: np.ndarray) -> np.ndarray:
+    # peak / limit elementwise, any shape; a zero limit with motion is inf
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(limit > 0, peak / np.where(limit > 0, limit, 1.0),
                         np.where(peak > 0, np.inf, 0.0))
@@ -276,13 +280,13 @@ class Verifier:
                                float)
         jerk = (np.diff(qdd, axis=0) / np.diff(t)[:, None]) if len(t) > 1 \
             else np.zeros((0, q.shape[1]))
-        ratios = {
-            "position": _ratio(half, q, qf, centre=mid),
-            "velocity": _ratio(lim.velocity, qd, qdf),
-            "acceleration": _ratio(lim.acceleration, qdd, qddf),
-            "jerk": _ratio(lim.jerk, jerk),
-            "effort": _ratio(lim.effort, tau, tau_dense),
-        }
+        dof = len(half)
+        peaks = np.array([_peak((q, qf), mid, dof), _peak((qd, qdf), None, dof),
+                          _peak((qdd, qddf), None, dof), _peak((jerk,), None, dof),
+                          _peak((tau, tau_dense), None, dof)])
+        limits = np.array([half, lim.velocity, lim.acceleration, lim.jerk, lim.effort],
+                          float)
+        ratios = dict(zip(QUANTITIES, _of_peaks(limits, peaks)))  # QUANTITIES' order
         enforced = QUANTITIES if enforce_jerk else tuple(k for k in QUANTITIES if k != "jerk")
         worst = {k: float(np.max(v)) for k, v in ratios.items()}
         violations = tuple(k for k in enforced if worst[k] > 1.0 + TOLERANCE)
