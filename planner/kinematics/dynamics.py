@@ -3,7 +3,7 @@
 ``tau = M(q) qdd + c(q, qd) + g(q)`` for the actuated joints, gravity -9.81 m/s^2 along
 the root frame's z. The tree is flattened by :class:`~planner.kinematics.chain.Kinematics` (one
 convention for joint order, mimics and held joints) and walked by numba kernels, since a
-trajectory check evaluates every sample: a batch costs about 0.25 us per sample.
+trajectory check evaluates every sample: a batch costs about 0.12 us per sample (five joints).
 
 Mimic joints move with their leader (value, velocity and acceleration times the
 multiplier) and their torque is folded into the leader's: ``tau_leader += multiplier *

@@ -17,10 +17,13 @@ start point, tangents ``u1``, ``u2``).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numba
 import numpy as np
+
+if TYPE_CHECKING:
+    from .curve import PathCurve
 
 
 class Packed(NamedTuple):
@@ -44,8 +47,8 @@ class Packed(NamedTuple):
     duration: float
 
 
-def pack(t0: np.ndarray, sections: Sequence[tuple[object, tuple[np.ndarray, np.ndarray, float,
-                                                                float]]],
+def pack(t0: np.ndarray,
+         sections: Sequence[tuple[PathCurve, tuple[np.ndarray, np.ndarray, float, float]]],
          goal: np.ndarray, duration: float) -> Packed:
     """``sections``: (PathCurve, (phase starts, phase coefficients (n, 4), duration, end s))."""
     ph0, pc0 = [0], [0]

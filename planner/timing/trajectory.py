@@ -29,6 +29,7 @@ from ..ranges import check_range
 
 if TYPE_CHECKING:  # toppra, ~1 s to import: not for the client's CSV (samples_csv)
     from .curve import PathCurve
+    from .curve_eval import Packed
 
 # Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
 TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
@@ -92,14 +93,19 @@ class CurveTiming:
         self.duration = float(durs.sum())
         self.dof = self.sections[0][0].dof
         self.goal = self.sections[-1][0].end if goal is None else np.asarray(goal, float)
-        self._packed = None  # the compiled evaluator's arrays, made at the first evaluate
+        # the compiled evaluator's arrays, made at the first evaluate
+        self._packed: Packed | None = None
 
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if self._packed is None and all(hasattr(p, "polynomial") for _, p in self.sections):
-            # piecewise-cubic profiles (ruckig's, a rest): one compiled pass a state
-            from .curve_eval import pack
-            self._packed = pack(self.t0, [(c, p.polynomial()) for c, p in self.sections],
-                                self.goal, self.duration)
+        if self._packed is None:
+            found = (getattr(p, "polynomial", None) for _, p in self.sections)
+            polys = [f for f in found if f is not None]
+            if len(polys) == len(self.sections):
+                # piecewise-cubic profiles (ruckig's, a rest): one compiled pass a state
+                from .curve_eval import pack
+                self._packed = pack(self.t0, [(c, f()) for (c, _), f in
+                                              zip(self.sections, polys)],
+                                    self.goal, self.duration)
         if self._packed is not None:
             from .curve_eval import states
             return states(self._packed, ts)
