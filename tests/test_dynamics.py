@@ -251,6 +251,21 @@ _URDF = """\
 """
 
 
+def test_a_state_has_the_same_torques_in_any_batch(arduinobot, tmp_path):
+    # the kernel works through blocks of states: a state's torques are bit for bit the
+    # same alone, at any place in a block, in a batch of any size (blocks part-filled)
+    path = tmp_path / "mixed.urdf"
+    path.write_text(textwrap.dedent(_URDF))
+    for dyn in (arduinobot[0], InverseDynamics(load_description(path).robot)):
+        qs, qds, qdds = random_states(np.random.default_rng(6), dyn.dof, 200)
+        alone = np.array([dyn.torques(*s) for s in zip(qs, qds, qdds)])
+        for n in (1, 3, 63, 64, 65, 129, 200):
+            for start in (0, 7):
+                sl = slice(start, start + n)
+                np.testing.assert_array_equal(
+                    dyn.torques_batch(qs[sl], qds[sl], qdds[sl]), alone[sl])
+
+
 def test_matches_mujoco_on_a_mixed_robot(tmp_path):
     path = tmp_path / "mixed.urdf"
     path.write_text(textwrap.dedent(_URDF))

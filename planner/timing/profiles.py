@@ -66,10 +66,14 @@ class JerkLimited:
         timing = self.timing.parameterise(curve, limits)
         if any(c.kind == "blend" for c in curve.corners):
             # conservative per-piece bounds can make a sharp blend slower than stopping
-            # at the corner on straight, re-checked edges: keep the faster
-            stops = self.timing.parameterise(build_curve(path, None, max_radius=0.0), limits)
-            if stops.duration < timing.duration:
-                return stops
+            # at the corner on straight, re-checked edges: keep the faster. Timing the
+            # stops (inverse dynamics along every edge) is needed only where its floor
+            # leaves it a chance (the margin: far above ruckig's rounding)
+            edges = build_curve(path, None, max_radius=0.0)
+            if self.timing.rest_to_rest_floor(edges, limits) * (1 - 1e-9) < timing.duration:
+                stops = self.timing.parameterise(edges, limits)
+                if stops.duration < timing.duration:
+                    return stops
         return timing
 
 

@@ -22,6 +22,7 @@ import logging
 import math
 from collections.abc import Sequence
 
+import numba
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
@@ -61,6 +62,11 @@ class RuckigProfile:
         self.duration = t
         self._end = (s_off + pieces[-1][1].profiles[0][0].pf) if pieces else 0.0
 
+    def polynomial(self) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """(phase start times, (p, v, a, j) at each, shape (n, 4), duration, end s): what
+        :mod:`planner.timing.curve_eval` evaluates (as :meth:`evaluate` does)."""
+        return self._start, self._c, self.duration, self._end
+
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         ts = np.clip(np.asarray(ts, float), 0.0, self.duration)
         k = np.clip(np.searchsorted(self._start, ts, side="right") - 1, 0, len(self._start) - 1)
@@ -95,6 +101,96 @@ def _max_speed_within(v_other: float, dist: float, a: float, j: float, cap: floa
     return lo
 
 
+@numba.njit(cache=True, nogil=True)
+def _least(budget, use, lo, hi):
+    # min over samples [lo, hi) and joints of budget / use where use > _TINY (inf if
+    # nothing is used): budget and use shape (m, dof)
+    r = np.inf
+    for i in range(lo, hi):
+        for d in range(use.shape[1]):
+            if use[i, d] > _TINY:
+                x = budget[i, d] / use[i, d]
+                if x < r:
+                    r = x
+    return r
+
+
+@numba.njit(cache=True, nogil=True)
+def _piece_bounds(d1, d2, d3, mt, bt, gt, V, A, J, E, first, line, vs, as_, js):
+    """:meth:`JerkLimitedTiming.piece_limits`' bounds into ``vs, as_, js`` (each (n,)):
+    per piece ``p``, samples ``first[p]:first[p + 1]`` of the |derivatives| ``d1, d2,
+    d3`` and |torque coefficients| ``mt, bt, gt`` (each (m, dof)). Returns (0, -1), or
+    (1, piece) where gravity alone exceeds the effort limit, or (2, piece) where no
+    speed is feasible. The same arithmetic in the same order as the numpy it replaced
+    (a minimum is exact in any order), so the same bounds."""
+    n = first.shape[0] - 1
+    m, dof = d1.shape
+    slack = np.empty((m, dof))
+    for i in range(m):
+        for d in range(dof):
+            slack[i, d] = E[d] - gt[i, d]
+    for p in range(n):
+        for i in range(first[p], first[p + 1]):
+            for d in range(dof):
+                if slack[i, d] <= 0:
+                    return 1, p
+    bud = np.empty((m, dof))
+    use = np.empty((m, dof))
+    for p in range(n):
+        lo, hi = first[p], first[p + 1]
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = V[d]
+        lv = _least(bud, d1, lo, hi)
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = 0.5 * A[d]
+        la = _least(bud, d2, lo, hi)
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = 0.5 * slack[i, d]
+        le = _least(bud, bt, lo, hi)
+        v = min(lv, np.sqrt(min(la, le)))  # leave half of the a and effort budgets for sdd
+        for i in range(lo, hi):
+            for d in range(dof):
+                bud[i, d] = J[d]
+        j_free = _least(bud, d1, lo, hi)
+        done = False
+        for _ in range(30):
+            w = v
+            w3 = w ** 3.0
+            for i in range(lo, hi):
+                for d in range(dof):
+                    bud[i, d] = A[d] - d2[i, d] * w * w
+            a = _least(bud, d1, lo, hi)
+            for i in range(lo, hi):
+                for d in range(dof):
+                    bud[i, d] = slack[i, d] - bt[i, d] * w * w
+            a = min(a, _least(bud, mt, lo, hi))
+            if not line[p]:
+                # a blend's jerk has a term 3 q'' sd sdd: sdd keeps only what leaves
+                # half the jerk budget to sddd (see piece_limits)
+                for i in range(lo, hi):
+                    for d in range(dof):
+                        bud[i, d] = 0.5 * (J[d] - d3[i, d] * w3)
+                        use[i, d] = 3 * d2[i, d] * w
+                a = min(a, _least(bud, use, lo, hi))
+            j = -1.0
+            if a > 0:
+                for i in range(lo, hi):
+                    for d in range(dof):
+                        bud[i, d] = J[d] - 3 * d2[i, d] * w * max(a, 0.0) - d3[i, d] * w3
+                j = _least(bud, d1, lo, hi)
+            if a > 0 and j > 0 and (line[p] or j > 0.25 * j_free):
+                vs[p], as_[p], js[p] = v, a, j
+                done = True
+                break
+            v = 0.8 * v
+        if not done:
+            return 2, p
+    return 0, -1
+
+
 class JerkLimitedTiming:
     """Jerk-limited time parameterisation of a :class:`Curve`.
 
@@ -110,52 +206,33 @@ class JerkLimitedTiming:
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Constant (v, a, j) bounds on (sd, sdd, sddd) per piece, each shape (n,)."""
         n = len(curve.lengths)
-        counts = [_BLEND_SAMPLES if kind == "blend" else _LINE_SAMPLES for kind in curve.kinds]
+        counts = np.where(np.array([kind == "blend" for kind in curve.kinds]),
+                          _BLEND_SAMPLES, _LINE_SAMPLES)
         own = np.repeat(np.arange(n), counts)
-        # each sample evaluated inside its own piece (by s, a piece's end is the next's start)
-        sigma = np.concatenate([np.linspace(0.0, L, m) for L, m in zip(curve.lengths, counts)])
+        first = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        # each sample evaluated inside its own piece (by s, a piece's end is the next's
+        # start): np.linspace(0, L, m) of every piece at once, as it computes it (i times
+        # L / (m - 1), the last exactly L)
+        i = np.arange(first[-1]) - first[:-1][own]
+        sigma = i * (curve.lengths / (counts - 1))[own] + 0.0
+        sigma[first[1:] - 1] = curve.lengths
         q, d1, d2, d3 = curve.jet(own, sigma)
         mt, bt, gt = torque_coefficients(self.dynamics, q, d1, d2)
-        V, A, J, E = limits.velocity, limits.acceleration, limits.jerk, limits.effort
-        d1, d2, d3, mt, bt, gt = (np.abs(x) for x in (d1, d2, d3, mt, bt, gt))
-        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
-
-        def least(budget: np.ndarray, use: np.ndarray) -> np.ndarray:
-            # per piece: min over its samples and joints of budget / use where use > 0
-            # (inf if nothing is used), shape (n,); all pieces at once, not a loop
-            with np.errstate(divide="ignore", invalid="ignore"):
-                r = np.where(use > _TINY, np.broadcast_to(budget, use.shape) / use, np.inf)
-            return np.minimum.reduceat(r.min(axis=1), first)
-
-        slack_e = E - gt
-        short = np.flatnonzero(np.minimum.reduceat((slack_e <= 0).any(axis=1), first))
-        if len(short):
-            raise TrajectoryError("gravity alone exceeds the effort limit on the path",
-                                  details={"stage": "ruckig", "piece": int(short[0])})
-        # leave half of the acceleration and effort budgets for sdd
-        v = np.minimum(least(V, d1), np.sqrt(np.minimum(least(0.5 * A, d2),
-                                                        least(0.5 * slack_e, bt))))
+        V, A, J, E = (np.ascontiguousarray(x, dtype=float) for x in
+                      (limits.velocity, limits.acceleration, limits.jerk, limits.effort))
+        d1, d2, d3, mt, bt, gt = (np.ascontiguousarray(np.abs(x)) for x in
+                                  (d1, d2, d3, mt, bt, gt))
         line = np.array([kind == "line" for kind in curve.kinds])
-        j_free = least(J, d1)
-        done = np.zeros(n, dtype=bool)
-        vs, as_, js = v.copy(), np.zeros(n), np.zeros(n)
-        for _ in range(30):
-            w = v[own][:, None]
-            a = np.minimum(least(A - d2 * w * w, d1), least(slack_e - bt * w * w, mt))
-            # a blend's jerk has a term 3 q'' sd sdd: sdd at its bound would leave a
-            # sharp blend almost no speed, yet a blend mostly cruises; so sdd keeps only
-            # what leaves half the jerk budget to sddd, and the speed stays high
-            a = np.where(line, a, np.minimum(a, least(0.5 * (J - d3 * w**3), 3 * d2 * w)))
-            j = np.where(a > 0, least(J - 3 * d2 * w * np.maximum(a, 0)[own][:, None]
-                                      - d3 * w**3, d1), -1.0)
-            ok = ~done & (a > 0) & (j > 0) & (line | (j > 0.25 * j_free))
-            vs[ok], as_[ok], js[ok] = v[ok], a[ok], j[ok]
-            done |= ok
-            if done.all():
-                return vs, as_, js
-            v = np.where(done, v, 0.8 * v)
-        raise TrajectoryError("no feasible path speed on a curve piece",
-                              details={"stage": "ruckig", "piece": int(np.argmin(done))})
+        vs, as_, js = np.zeros(n), np.zeros(n), np.zeros(n)
+        code, piece = _piece_bounds(d1, d2, d3, mt, bt, gt, V, A, J, E, first, line,
+                                    vs, as_, js)
+        if code == 1:
+            raise TrajectoryError("gravity alone exceeds the effort limit on the path",
+                                  details={"stage": "ruckig", "piece": int(piece)})
+        if code == 2:
+            raise TrajectoryError("no feasible path speed on a curve piece",
+                                  details={"stage": "ruckig", "piece": int(piece)})
+        return vs, as_, js
 
     def section(self, curve: PathCurve, limits: ActiveLimits, *,
                 blend_speed: bool = True,
@@ -209,6 +286,37 @@ class JerkLimitedTiming:
                                   details={"stage": "ruckig", "min": ext.min, "max": ext.max,
                                            "length": float(length)})
         return tr
+
+    def rest_to_rest_floor(self, curve: Curve, limits: ActiveLimits) -> float:
+        """A lower bound [s] on :meth:`parameterise`'s duration for a ``curve`` of straight
+        lines (every section's pieces lines, as a curve that stops at each waypoint).
+
+        A line's piece bounds (:meth:`piece_limits`) are at most its kinematic ones,
+        ``min_i V_i / |u_i|`` (likewise for A and J; effort and the 0.8 rounds only
+        lower them), and a section is some rest-to-rest motion of ``s`` over its length
+        within its pieces' bounds; so it takes at least ruckig's time-optimal
+        rest-to-rest time over that length under the loosest of those kinematic bounds.
+        Without inverse dynamics: ~10 us a section. 0 if a section is not all lines."""
+        secs = [c for c in curve.sections if c.length > _TINY]
+        if not secs:
+            return 0.0
+        if any(k != "line" for c in secs for k in c.kinds):
+            return 0.0
+        lim = np.array([limits.velocity, limits.acceleration, limits.jerk], float)
+        use = np.abs(np.concatenate([c.u1 for c in secs]))[None]  # (1, pieces, dof)
+        with np.errstate(divide="ignore"):
+            piece = np.where(use > _TINY, lim[:, None, :] / use, np.inf).min(axis=2)
+        first = np.concatenate([[0], np.cumsum([len(c.lengths) for c in secs])[:-1]])
+        loosest = np.maximum.reduceat(piece, first, axis=1)  # (3, sections)
+        if not (np.all(np.isfinite(loosest)) and np.all(loosest > 0)):
+            return 0.0
+        total = 0.0
+        for c, (v, a, j) in zip(secs, loosest.T):
+            try:
+                total += self._piece(c.length, 0.0, 0.0, float(v), float(a), float(j)).duration
+            except TrajectoryError:  # no floor then: the caller times the curve
+                return 0.0
+        return total
 
     def parameterise(self, curve: Curve, limits: ActiveLimits, *,
                      blend_speed: bool = True) -> CurveTiming:

@@ -29,6 +29,7 @@ from ..ranges import check_range
 
 if TYPE_CHECKING:  # toppra, ~1 s to import: not for the client's CSV (samples_csv)
     from .curve import PathCurve
+    from .curve_eval import Packed
 
 # Inverse dynamics on a batch: (qs, qds, qdds), each (m, dof) -> torques (m, dof) [N m].
 TorqueFn = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
@@ -65,6 +66,11 @@ class RestProfile:
 
     duration = 0.0
 
+    def polynomial(self) -> tuple[np.ndarray, np.ndarray, float, float]:
+        """As :meth:`RuckigProfile.polynomial <planner.timing.ruckig_timing.RuckigProfile.
+        polynomial>`: one phase at rest, at s = 0."""
+        return np.zeros(1), np.zeros((1, 4)), 0.0, 0.0
+
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         z = np.zeros(len(np.atleast_1d(ts)))
         return z, z.copy(), z.copy()
@@ -87,8 +93,26 @@ class CurveTiming:
         self.duration = float(durs.sum())
         self.dof = self.sections[0][0].dof
         self.goal = self.sections[-1][0].end if goal is None else np.asarray(goal, float)
+        # the compiled evaluator's arrays, made at the first evaluate
+        self._packed: Packed | None = None
 
     def evaluate(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._packed is None:
+            found = (getattr(p, "polynomial", None) for _, p in self.sections)
+            polys = [f for f in found if f is not None]
+            if len(polys) == len(self.sections):
+                # piecewise-cubic profiles (ruckig's, a rest): one compiled pass a state
+                from .curve_eval import pack
+                self._packed = pack(self.t0, [(c, f()) for (c, _), f in
+                                              zip(self.sections, polys)],
+                                    self.goal, self.duration)
+        if self._packed is not None:
+            from .curve_eval import states
+            return states(self._packed, ts)
+        return self.evaluate_numpy(ts)
+
+    def evaluate_numpy(self, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`evaluate` in numpy for any profile (the compiled pass's reference)."""
         ts = np.clip(np.atleast_1d(np.asarray(ts, float)), 0.0, self.duration)
         k = np.clip(np.searchsorted(self.t0, ts, side="right") - 1, 0, len(self.sections) - 1)
         q = np.empty((len(ts), self.dof))
