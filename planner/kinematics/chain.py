@@ -50,7 +50,8 @@ class Chain(NamedTuple):
 def joint_rotation(origin: np.ndarray, x: float, y: float, z: float, v: float,
                    out: np.ndarray) -> None:
     """``out[:3, :3] = origin[:3, :3] @ R``, R the rotation by ``v`` [rad] about the unit
-    axis (x, y, z) (Rodrigues). Shared by the FK and inverse dynamics kernels."""
+    axis (x, y, z) (Rodrigues). The FK kernel's (inverse dynamics inlines the same
+    arithmetic: a call per state made its kernel ~40% slower)."""
     c_, s_ = np.cos(v), np.sin(v)
     t_ = 1.0 - c_
     j00 = t_ * x * x + c_
