@@ -31,6 +31,8 @@ from ..collision.motion_check import (
 )
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, NoPathFound, StartInCollision
+from ..timing.curve import Curve
+from .blended import prove_blended
 from .goal_states import check_limits, resolve_goal, resolve_group
 from .goals import Goal, check_goal
 from .room import Guarded, StateChecker, short_of_room
@@ -121,6 +123,9 @@ class PathResult:
         certificate: the proof that every segment is free, with its certified clearance
             (:class:`planner.collision.certify.Certificate`); reused for anything that follows the
             segments, such as the straight parts of a blended curve.
+        curve: when solved with ``blend``, the path's corners blended as
+            :func:`planner.timing.curve.build_curve` would (default radii), every blend
+            covered by ``certificate`` too; None: blend them yourself.
     """
 
     joint_names: tuple[str, ...]
@@ -131,6 +136,7 @@ class PathResult:
     straight_line: bool = False
     length: float = 0.0
     certificate: Certificate | None = None
+    curve: Curve | None = None
 
 
 def _path_length(path: np.ndarray) -> float:
@@ -242,8 +248,10 @@ class PathPlanner:
         return start, goals, joints
 
     # -- solve ------------------------------------------------------------------------
-    def solve(self, request: PathRequest) -> PathResult:
-        """Plan a path for ``request``.
+    def solve(self, request: PathRequest, *, blend: bool = False) -> PathResult:
+        """Plan a path for ``request``; with ``blend``, also its corners blended and
+        proven with it in one walk where that succeeds (``PathResult.curve``,
+        :mod:`.blended`).
 
         Raises:
             InvalidRequest, JointLimitViolation: a malformed request.
@@ -278,7 +286,11 @@ class PathPlanner:
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
         # every edge was checked at its samples as it was accepted: the proof alone
-        cert = self.proof.path(path, sample_step=None)
+        curve = None
+        if blend:
+            cert, curve = prove_blended(self.proof, path, self.world)
+        else:
+            cert = self.proof.path(path, sample_step=None)
         t5 = time.perf_counter()
         timings["recheck"] = t5 - t4
         if not cert.free and not self.certify_edges:
@@ -289,14 +301,14 @@ class PathPlanner:
             _log.info("path not certified (%s); re-planning with %s", cert.failure,
                       "certified edges" if retry.certify_edges
                       else f"edges sampled {retry.step:g} rad apart")
-            result = retry.solve(request)
+            result = retry.solve(request, blend=blend)
             return PathResult(joint_names=result.joint_names, path=result.path,
                               planner=result.planner,
                               timings={k: timings.get(k, 0.0) + v
                                        for k, v in result.timings.items()},
                               checks=self.world.checks - checks0,
                               straight_line=result.straight_line, length=result.length,
-                              certificate=result.certificate)
+                              certificate=result.certificate, curve=result.curve)
         if not cert.free:
             # cannot happen when every edge was certified; never return it
             raise NoPathFound("the path failed its certified re-check",
@@ -304,7 +316,7 @@ class PathPlanner:
         return PathResult(joint_names=self.world.kin.joint_names, path=path,
                           planner=planner_name, timings=timings,
                           checks=self.world.checks - checks0, straight_line=straight,
-                          length=_path_length(path), certificate=cert)
+                          length=_path_length(path), certificate=cert, curve=curve)
 
     def _retry(self) -> PathPlanner:
         # the planner a path that failed its proof is planned again with (kept: its
