@@ -16,6 +16,8 @@ shrinks a colliding blend).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..collision.certify import SAMPLE_STEP, Certificate, Certifier
@@ -50,8 +52,10 @@ def prove_blended(proof: Certifier, path: np.ndarray, samples: StateChecker
     piece, _, _, dist = cert.failure
     if not is_blend[piece] and np.isfinite(dist):
         # a point of an edge closer than the clearance: the path is refused (a walk of
-        # its edges alone would converge on the same graze, at the same cost again)
-        return cert, None
+        # its edges alone would converge on the same graze, at the same cost again);
+        # the failure names the path's edge, as the path's own proof would
+        edge = int(np.count_nonzero(~is_blend[:piece]))
+        return replace(cert, failure=(edge, *cert.failure[1:])), None
     # a blend refused, or a budget spent: the path's own proof decides it, the corners
     # built as before
     return proof.path(path, sample_step=None), None
