@@ -25,15 +25,16 @@ from ..collision.motion_check import StateChecker
 from ..timing.curve import Curve, build_curve
 
 
-def prove_blended(proof: Certifier, path: np.ndarray, samples: StateChecker
-                  ) -> tuple[Certificate, Curve | None]:
+def prove_blended(proof: Certifier, path: np.ndarray, samples: StateChecker, *,
+                  step: float = SAMPLE_STEP) -> tuple[Certificate, Curve | None]:
     """The certificate of ``path`` (shape (k, dof), its edges already checked at their
     samples) and, when the proof covers them too, its corners blended at
     ``build_curve``'s default radii (None: blend them with ``build_curve``).
 
-    ``samples``: the world the blends' states are checked in first, ``SAMPLE_STEP``
-    [rad] apart (a blend that really collides is refused there, not by a walk that
-    converges on the contact)."""
+    ``samples``: the world the blends' states are checked in first, ``step`` [rad]
+    apart (a blend that really collides is refused there, not by a walk that converges
+    on the contact; one that grazes between them is refused by the walk, and then
+    blended by ``build_curve`` as before)."""
     curve = build_curve(path, None)
     starts, u1, u2, lengths, blends = _pieces(curve)
     if not blends.any():
@@ -41,7 +42,7 @@ def prove_blended(proof: Certifier, path: np.ndarray, samples: StateChecker
         cert = proof.path(path, sample_step=None)
         return cert, curve if cert.free else None
     states = np.concatenate([
-        _blend_states(starts[k], u1[k], u2[k], lengths[k]) for k in np.flatnonzero(blends)])
+        _blend_states(starts[k], u1[k], u2[k], lengths[k], step) for k in np.flatnonzero(blends)])
     if samples.first_invalid(states) >= 0:
         return proof.path(path, sample_step=None), None
     *motion, is_blend = _with_edges(path, starts, u1, u2, lengths, blends)
@@ -70,10 +71,10 @@ def _pieces(curve: Curve) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
             np.concatenate([[k == "blend" for k in s.kinds] for s in secs]))
 
 
-def _blend_states(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float
-                  ) -> np.ndarray:
-    # |q'| <= 1 along a blend: parameter steps of SAMPLE_STEP are joint steps <= it
-    n = max(1, int(np.ceil(length / SAMPLE_STEP)))
+def _blend_states(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float,
+                  step: float) -> np.ndarray:
+    # |q'| <= 1 along a blend: parameter steps of ``step`` are joint steps <= it
+    n = max(1, int(np.ceil(length / step)))
     x = np.linspace(0.0, 1.0, n + 1)[:, None]
     return start + u1 * (length * x) + (u2 - u1) * (length * (x**3 - 0.5 * x**4))
 

@@ -301,7 +301,7 @@ class PathPlanner:
         # every edge was checked at its samples as it was accepted: the proof alone
         curve = None
         if blend:
-            cert, curve = prove_blended(self.proof, path, self.world)
+            cert, curve = prove_blended(self.proof, path, self.world, step=self.step)
         else:
             cert = self.proof.path(path, sample_step=None)
         t5 = time.perf_counter()
