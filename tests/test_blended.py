@@ -56,3 +56,19 @@ def test_a_grazing_edge_is_refused_with_its_blends(env):
     assert w.first_invalid(interpolate(bad, 0.01)) >= 0
     cert, curve = prove_blended(pp.proof, bad, w)
     assert not cert.free and curve is None
+
+
+def test_an_edge_refused_in_a_request_is_not_taken_again(env):
+    # what a re-plan after a failed proof is given: the failed edge, refused unchecked
+    # (the same seed would draw an escape edge, or a shortcut, exactly as before)
+    w, pp = env
+    goal = JointGoal(dict(zip(w.kin.joint_names[:3], GOAL[:3])))
+    req = PathRequest(start=START, goal=goal, seed=7)
+    first = pp.solve(req)
+    a, b = first.path[0], first.path[1]
+    again = pp._solve(req, blend=False, refused=frozenset({(a.tobytes(), b.tobytes())}))
+    assert not np.array_equal(again.path[1], b)
+    assert again.certificate is not None and again.certificate.free
+    assert w.first_invalid(interpolate(again.path, 0.002)) == -1
+    # and the next request starts with nothing refused
+    assert np.array_equal(pp.solve(req).path, first.path)
