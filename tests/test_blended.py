@@ -21,7 +21,15 @@ GOAL = np.array([-1.2, -0.6, -0.6, 0.0])
 def env():
     d = load_description()
     w = CollisionWorld(d, obstacles=[PILLAR])
-    return w, PathPlanner(w, d)
+    pp = PathPlanner(w, d)
+    # one plan first: kernels compiled into a cold cache inside the timed search can cost
+    # it its budget with room, and the same seed then gives another path
+    pp.solve(PathRequest(start=START, goal=_goal(w), seed=0), blend=True)
+    return w, pp
+
+
+def _goal(w):
+    return JointGoal(dict(zip(w.kin.joint_names[:3], GOAL[:3])))
 
 
 def _dense(curve, step=0.002):
@@ -31,7 +39,7 @@ def _dense(curve, step=0.002):
 @pytest.mark.parametrize("seed", [3, 7, 11])
 def test_blended_curve_is_the_one_separate_proofs_build(env, seed):
     w, pp = env
-    goal = JointGoal(dict(zip(w.kin.joint_names[:3], GOAL[:3])))
+    goal = _goal(w)
     res = pp.solve(PathRequest(start=START, goal=goal, seed=seed), blend=True)
     assert not res.straight_line and len(res.path) >= 3
     assert res.curve is not None and res.certificate is not None and res.certificate.free
@@ -62,7 +70,7 @@ def test_an_edge_refused_in_a_request_is_not_taken_again(env):
     # what a re-plan after a failed proof is given: the failed edge, refused unchecked
     # (the same seed would draw an escape edge, or a shortcut, exactly as before)
     w, pp = env
-    goal = JointGoal(dict(zip(w.kin.joint_names[:3], GOAL[:3])))
+    goal = _goal(w)
     req = PathRequest(start=START, goal=goal, seed=7)
     first = pp.solve(req)
     a, b = first.path[0], first.path[1]
