@@ -46,14 +46,19 @@ class FromRest:
         t1 = time.perf_counter()
         res = paths.solve(PathRequest(start=start, goal=request.goal, group=request.group,
                                       planner=request.planner,
-                                      planning_time=request.planning_time, seed=request.seed))
+                                      planning_time=request.planning_time, seed=request.seed),
+                          blend=True)
         t2 = time.perf_counter()
-        # blends certified as they are made; with the path's proof, that certifies the
-        # whole curve: its straight parts lie on the path's proven segments
-        curve = build_curve(res.path, paths.proof)
-        proof = combine([res.certificate, *(c.certificate for c in curve.corners
-                                            if c.certificate is not None)]) \
-            if res.certificate else None
+        if res.curve is not None:
+            # the blends were proven with the path, in one walk
+            curve, proof = res.curve, res.certificate
+        else:
+            # blends certified as they are made; with the path's proof, that certifies
+            # the whole curve: its straight parts lie on the path's proven segments
+            curve = build_curve(res.path, paths.proof)
+            proof = combine([res.certificate, *(c.certificate for c in curve.corners
+                                                if c.certificate is not None)]) \
+                if res.certificate else None
         t3 = time.perf_counter()
         lim = context.limits(*context.scaling(request))
         traj, report, t_param, t_verify = context.time_path(

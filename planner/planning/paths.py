@@ -31,6 +31,8 @@ from ..collision.motion_check import (
 )
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, NoPathFound, StartInCollision
+from ..timing.curve import Curve
+from .blended import prove_blended
 from .goal_states import check_limits, resolve_goal, resolve_group
 from .goals import Goal, check_goal
 from .room import Guarded, StateChecker, short_of_room
@@ -121,6 +123,9 @@ class PathResult:
         certificate: the proof that every segment is free, with its certified clearance
             (:class:`planner.collision.certify.Certificate`); reused for anything that follows the
             segments, such as the straight parts of a blended curve.
+        curve: when solved with ``blend``, the path's corners blended as
+            :func:`planner.timing.curve.build_curve` would (default radii), every blend
+            covered by ``certificate`` too; None: blend them yourself.
     """
 
     joint_names: tuple[str, ...]
@@ -131,6 +136,7 @@ class PathResult:
     straight_line: bool = False
     length: float = 0.0
     certificate: Certificate | None = None
+    curve: Curve | None = None
 
 
 def _path_length(path: np.ndarray) -> float:
@@ -160,6 +166,8 @@ class PathPlanner:
         self._roomy: dict[tuple[str, ...], CollisionWorld] = {}
         self._guarded: dict[tuple[tuple[str, ...], tuple[tuple[str, str], ...]], Guarded] = {}
         self._fallback: PathPlanner | None = None
+        # edges (a, b) by their bytes whose proof failed in this request (see _solve)
+        self._refused: frozenset[tuple[bytes, bytes]] = frozenset()
         self.certifier = Certifier(world)
         # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
         self.proof = Certifier(world, fraction=0.5)
@@ -208,6 +216,8 @@ class PathPlanner:
 
     def _edge_free(self, a: np.ndarray, b: np.ndarray, world: StateChecker | None = None
                    ) -> bool:
+        if self._refused and (a.tobytes(), b.tobytes()) in self._refused:
+            return False
         if world is not None:
             return sampled_motion_valid(world, a, b, self.step)
         if self.certify_edges:
@@ -242,8 +252,10 @@ class PathPlanner:
         return start, goals, joints
 
     # -- solve ------------------------------------------------------------------------
-    def solve(self, request: PathRequest) -> PathResult:
-        """Plan a path for ``request``.
+    def solve(self, request: PathRequest, *, blend: bool = False) -> PathResult:
+        """Plan a path for ``request``; with ``blend``, also its corners blended and
+        proven with it in one walk where that succeeds (``PathResult.curve``,
+        :mod:`.blended`).
 
         Raises:
             InvalidRequest, JointLimitViolation: a malformed request.
@@ -251,6 +263,15 @@ class PathPlanner:
             GoalOutOfReach: no IK solution for a position goal.
             NoPathFound: no path within the time budget.
         """
+        return self._solve(request, blend=blend, refused=frozenset())
+
+    def _solve(self, request: PathRequest, *, blend: bool,
+               refused: frozenset[tuple[bytes, bytes]]) -> PathResult:
+        # ``refused``: the edges whose proof failed in this request's earlier attempts,
+        # refused without a check: an escape edge is drawn again exactly as it was (same
+        # seed), and its finer samples pass again where it grazes between them (each
+        # failed proof of a graze costs ~0.1-0.2 s on CAD meshes)
+        self._refused = refused
         timings: dict[str, float] = {}
         checks0 = self.world.checks
         t0 = time.perf_counter()
@@ -278,7 +299,11 @@ class PathPlanner:
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
         # every edge was checked at its samples as it was accepted: the proof alone
-        cert = self.proof.path(path, sample_step=None)
+        curve = None
+        if blend:
+            cert, curve = prove_blended(self.proof, path, self.world, step=self.step)
+        else:
+            cert = self.proof.path(path, sample_step=None)
         t5 = time.perf_counter()
         timings["recheck"] = t5 - t4
         if not cert.free and not self.certify_edges:
@@ -289,14 +314,18 @@ class PathPlanner:
             _log.info("path not certified (%s); re-planning with %s", cert.failure,
                       "certified edges" if retry.certify_edges
                       else f"edges sampled {retry.step:g} rad apart")
-            result = retry.solve(request)
+            k = cert.failure[0] if cert.failure is not None else -1
+            if 0 <= k < len(path) - 1:
+                a, b = path[k], path[k + 1]
+                refused = refused | {(a.tobytes(), b.tobytes()), (b.tobytes(), a.tobytes())}
+            result = retry._solve(request, blend=blend, refused=refused)
             return PathResult(joint_names=result.joint_names, path=result.path,
                               planner=result.planner,
                               timings={k: timings.get(k, 0.0) + v
                                        for k, v in result.timings.items()},
                               checks=self.world.checks - checks0,
                               straight_line=result.straight_line, length=result.length,
-                              certificate=result.certificate)
+                              certificate=result.certificate, curve=result.curve)
         if not cert.free:
             # cannot happen when every edge was certified; never return it
             raise NoPathFound("the path failed its certified re-check",
@@ -304,7 +333,7 @@ class PathPlanner:
         return PathResult(joint_names=self.world.kin.joint_names, path=path,
                           planner=planner_name, timings=timings,
                           checks=self.world.checks - checks0, straight_line=straight,
-                          length=_path_length(path), certificate=cert)
+                          length=_path_length(path), certificate=cert, curve=curve)
 
     def _retry(self) -> PathPlanner:
         # the planner a path that failed its proof is planned again with (kept: its
@@ -440,7 +469,13 @@ class PathPlanner:
         the course model, 40 attempts and no second pass left 3.5 waypoints (median) and
         0.9 s motions in the table scene; 10 attempts and the second pass leave 3 and
         0.6 s, with half the planning time."""
-        pts = self._reduce(path, world)
+        # the second pass re-tries edges of the first, remembered (the same verdicts:
+        # measured no faster, 46 -> 45 ms over 20 self problems of course_fingers, as
+        # most re-tried edges are refused early); with no shortcut taken it is skipped,
+        # as it would change nothing
+        memo: dict[tuple[bytes, bytes], bool] = {}
+        pts = self._reduce(path, world, memo)
+        taken = False
         rng = np.random.default_rng(seed)
         idle = 0
         for _ in range(attempts):
@@ -462,16 +497,24 @@ class PathPlanner:
                 continue
             if self._edge_free(qa, qb, world):
                 pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
-                idle = 0
-        return self._reduce(pts, world)
+                idle, taken = 0, True
+        return self._reduce(pts, world, memo) if taken else pts
 
-    def _reduce(self, path: np.ndarray, world: StateChecker | None) -> np.ndarray:
+    def _reduce(self, path: np.ndarray, world: StateChecker | None,
+                memo: dict[tuple[bytes, bytes], bool]) -> np.ndarray:
         # greedy: from each kept waypoint, straight to the farthest one a free edge reaches
         kept = list(path)
+
+        def free(a: np.ndarray, b: np.ndarray) -> bool:
+            key = (a.tobytes(), b.tobytes())
+            if key not in memo:
+                memo[key] = self._edge_free(a, b, world)
+            return memo[key]
+
         i = 0
         while i < len(kept) - 2:
             j = len(kept) - 1
-            while j > i + 1 and not self._edge_free(kept[i], kept[j], world):
+            while j > i + 1 and not free(kept[i], kept[j]):
                 j -= 1
             del kept[i + 1:j]
             i += 1
