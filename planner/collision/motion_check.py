@@ -53,9 +53,11 @@ def sampled_motion_valid(world: StateChecker, a: np.ndarray, b: np.ndarray,
     # the end and the middle first: most edges a search tries are refused, and walking
     # them in order from a costs half of one on average (pillars, arm and gripper: 729
     # of 1033 edges refused, 64% of the time spent on edges); same verdict either way
-    if not world.is_valid(b) or (n >= 4 and not world.is_valid(a + (n // 2) / n * (b - a))):
+    mid = n // 2 if n >= 4 else 0
+    if not world.is_valid(b) or (mid and not world.is_valid(a + mid / n * (b - a))):
         return False
-    t = np.arange(1, n + 1)[:, None] / n
+    k = np.arange(1, n)  # the rest: b and the middle are free already
+    t = (k[k != mid] if mid else k)[:, None] / n
     return world.first_invalid(a + t * (b - a)) < 0
 
 
