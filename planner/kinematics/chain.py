@@ -46,23 +46,25 @@ class Chain(NamedTuple):
     offset: np.ndarray
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def rodrigues(x: float, y: float, z: float, v: float
+              ) -> tuple[float, float, float, float, float, float, float, float, float]:
+    """The rotation by ``v`` [rad] about the unit axis (x, y, z), row-major (9 floats).
+    Inlined into its callers by numba (the inverse dynamics kernel's lanes: a call per
+    state made it ~40% slower)."""
+    c_, s_ = np.cos(v), np.sin(v)
+    t_ = 1.0 - c_
+    return (t_ * x * x + c_, t_ * x * y - s_ * z, t_ * x * z + s_ * y,
+            t_ * x * y + s_ * z, t_ * y * y + c_, t_ * y * z - s_ * x,
+            t_ * x * z - s_ * y, t_ * y * z + s_ * x, t_ * z * z + c_)
+
+
 @numba.njit(cache=True, nogil=True)
 def joint_rotation(origin: np.ndarray, x: float, y: float, z: float, v: float,
                    out: np.ndarray) -> None:
     """``out[:3, :3] = origin[:3, :3] @ R``, R the rotation by ``v`` [rad] about the unit
-    axis (x, y, z) (Rodrigues). The FK kernel's (inverse dynamics inlines the same
-    arithmetic: a call per state made its kernel ~40% slower)."""
-    c_, s_ = np.cos(v), np.sin(v)
-    t_ = 1.0 - c_
-    j00 = t_ * x * x + c_
-    j01 = t_ * x * y - s_ * z
-    j02 = t_ * x * z + s_ * y
-    j10 = t_ * x * y + s_ * z
-    j11 = t_ * y * y + c_
-    j12 = t_ * y * z - s_ * x
-    j20 = t_ * x * z - s_ * y
-    j21 = t_ * y * z + s_ * x
-    j22 = t_ * z * z + c_
+    axis (x, y, z) (:func:`rodrigues`)."""
+    j00, j01, j02, j10, j11, j12, j20, j21, j22 = rodrigues(x, y, z, v)
     for i in range(3):
         a0, a1, a2 = origin[i, 0], origin[i, 1], origin[i, 2]
         out[i, 0] = a0 * j00 + a1 * j10 + a2 * j20

@@ -26,7 +26,7 @@ from description.model import Robot, rpy_matrix
 
 from ..errors import InvalidRequest
 from ..path_limits import torque_coefficients
-from .chain import FIXED, PRISMATIC, REVOLUTE, ChainArrays, Kinematics
+from .chain import FIXED, PRISMATIC, REVOLUTE, ChainArrays, Kinematics, rodrigues
 
 # _rnea_batch's model arrays: the chain's (ChainArrays) then mass, com, inertia
 _DynamicsArrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -91,18 +91,8 @@ def _rnea_batch(qs, qds, qdds, gravity, parent, origin, jtype, axis, src, scale,
             o = origin[k]
             # local transform child-in-parent: origin, then the joint motion
             if jtype[k] == REVOLUTE:
-                for b in range(L):  # joint_rotation inlined (a call and a 3x3 scratch a lane: +40%)
-                    c_, s_ = np.cos(v[b]), np.sin(v[b])
-                    t_ = 1.0 - c_
-                    j00 = t_ * x * x + c_
-                    j01 = t_ * x * y - s_ * z
-                    j02 = t_ * x * z + s_ * y
-                    j10 = t_ * x * y + s_ * z
-                    j11 = t_ * y * y + c_
-                    j12 = t_ * y * z - s_ * x
-                    j20 = t_ * x * z - s_ * y
-                    j21 = t_ * y * z + s_ * x
-                    j22 = t_ * z * z + c_
+                for b in range(L):  # rodrigues is inlined (no 3x3 scratch a lane)
+                    j00, j01, j02, j10, j11, j12, j20, j21, j22 = rodrigues(x, y, z, v[b])
                     for i in range(3):
                         a0, a1, a2 = o[i, 0], o[i, 1], o[i, 2]
                         rot[k, 3 * i, b] = a0 * j00 + a1 * j10 + a2 * j20
