@@ -36,6 +36,7 @@ from .blended import prove_blended
 from .goal_states import check_limits, resolve_goal, resolve_group
 from .goals import Goal, check_goal
 from .room import Guarded, StateChecker, short_of_room
+from .shortcut import shortcut_path
 
 _log = logging.getLogger(__name__)
 
@@ -295,7 +296,8 @@ class PathPlanner:
         t3 = time.perf_counter()
         timings["plan"] = t3 - t2
         if not straight:
-            path = self._shortcut(path, seed=request.seed, world=room)
+            path = shortcut_path(path, lambda a, b: self._edge_free(a, b, room),
+                                 seed=request.seed)
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
         # every edge was checked at its samples as it was accepted: the proof alone
@@ -457,65 +459,3 @@ class PathPlanner:
         # keep the svc/mv alive until OMPL is done with them
         del svc, mv
         return out
-
-    def _shortcut(self, path: np.ndarray, *, seed: int | None, attempts: int = 10,
-                  patience: int = 4, world: StateChecker | None = None) -> np.ndarray:
-        """Drop waypoints a straight segment can skip, then random shortcuts (seeded),
-        stopping after ``attempts`` or ``patience`` attempts in a row that gained nothing,
-        then drop waypoints again.
-
-        A random shortcut joins two points inside segments, so it adds two corners, and a
-        jerk-limited motion pays more for a corner than for a little length: measured on
-        the course model, 40 attempts and no second pass left 3.5 waypoints (median) and
-        0.9 s motions in the table scene; 10 attempts and the second pass leave 3 and
-        0.6 s, with half the planning time."""
-        # the second pass re-tries edges of the first, remembered (the same verdicts:
-        # measured no faster, 46 -> 45 ms over 20 self problems of course_fingers, as
-        # most re-tried edges are refused early); with no shortcut taken it is skipped,
-        # as it would change nothing
-        memo: dict[tuple[bytes, bytes], bool] = {}
-        pts = self._reduce(path, world, memo)
-        taken = False
-        rng = np.random.default_rng(seed)
-        idle = 0
-        for _ in range(attempts):
-            if len(pts) < 3 or idle >= patience:
-                break
-            idle += 1
-            seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-            cum = np.concatenate([[0.0], np.cumsum(seg)])
-            ta, tb = np.sort(rng.uniform(0, cum[-1], 2))
-            ia, ib = np.searchsorted(cum, ta) - 1, np.searchsorted(cum, tb) - 1
-            ia, ib = max(ia, 0), max(ib, 0)
-            if ib <= ia:
-                continue
-            qa = pts[ia] + (ta - cum[ia]) / max(seg[ia], 1e-12) * (pts[ia + 1] - pts[ia])
-            qb = pts[ib] + (tb - cum[ib]) / max(seg[ib], 1e-12) * (pts[ib + 1] - pts[ib])
-            old = (np.linalg.norm(qa - pts[ia + 1]) + cum[ib] - cum[ia + 1]
-                   + np.linalg.norm(qb - pts[ib]))
-            if np.linalg.norm(qb - qa) >= old - 1e-9:
-                continue
-            if self._edge_free(qa, qb, world):
-                pts = np.concatenate([pts[:ia + 1], [qa, qb], pts[ib + 1:]])
-                idle, taken = 0, True
-        return self._reduce(pts, world, memo) if taken else pts
-
-    def _reduce(self, path: np.ndarray, world: StateChecker | None,
-                memo: dict[tuple[bytes, bytes], bool]) -> np.ndarray:
-        # greedy: from each kept waypoint, straight to the farthest one a free edge reaches
-        kept = list(path)
-
-        def free(a: np.ndarray, b: np.ndarray) -> bool:
-            key = (a.tobytes(), b.tobytes())
-            if key not in memo:
-                memo[key] = self._edge_free(a, b, world)
-            return memo[key]
-
-        i = 0
-        while i < len(kept) - 2:
-            j = len(kept) - 1
-            while j > i + 1 and not free(kept[i], kept[j]):
-                j -= 1
-            del kept[i + 1:j]
-            i += 1
-        return np.array(kept)
