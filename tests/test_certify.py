@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from description import load_description
-from planner.collision.certify import Certificate, Certifier, combine
+from planner.collision.certificate import Certificate, combine
+from planner.collision.certify import Certifier
 from planner.collision.motion_check import interpolate
 from planner.collision.world import CollisionWorld
 from planner.scene import Obstacle

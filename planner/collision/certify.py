@@ -38,7 +38,6 @@ toward the boxes' contact, certifying microns for paths that kept centimetres.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numba
@@ -47,6 +46,7 @@ import numpy as np
 from ..kinematics.chain import Chain, _fk_into
 from .advance import Work, tree_lower_bound
 from .body_speed import local_rates, local_step
+from .certificate import Certificate
 from .compiled import Direct
 from .hulls import HullPack, warm_bound
 from .obbtree import Forest
@@ -102,36 +102,6 @@ HOLD = 0.25
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
-
-
-@dataclass(frozen=True)
-class Certificate:
-    """The outcome of certifying a motion.
-
-    Attributes:
-        free: every point of the motion is farther than ``clearance`` (plus ``GAP / 2``)
-            from contact for every checked pair.
-        clearance: the clearance [m] that was required.
-        certified_clearance: a lower bound [m] on the distance over the whole motion and
-            every checked pair (``>= clearance`` when free; half the tightest bound at
-            worst, exact at the closest points FCL measured, and with a clearance to
-            report (``fraction`` > 0) a pair the motion barely moves, such as the fingers
-            in an arm motion, at its distance at the start less that motion).
-        closest: the pair that bound belongs to.
-        failure: when not free, (piece index, sigma [rad], pair, distance [m]) where the
-            proof failed (a contact, a point closer than the clearance, or a query
-            budget spent: distance NaN).
-        bounds: OBB-tree distance bounds evaluated; ``exact``: FCL distance queries made
-            (where the hulls could not prove the pair apart).
-    """
-
-    free: bool
-    clearance: float
-    certified_clearance: float
-    closest: tuple[str, str] | None
-    failure: tuple[int, float, tuple[str, str], float] | None
-    bounds: int
-    exact: int
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -496,17 +466,3 @@ class Certifier:
                            np.concatenate([c.u1 for c in sections]),
                            np.concatenate([c.u2 for c in sections]),
                            np.concatenate([c.lengths for c in sections]))
-
-
-def combine(certificates: Sequence[Certificate]) -> Certificate:
-    """One certificate for a motion made of the certified ones (the union of their
-    motions): free if all are, the smallest certified clearance, the first failure."""
-    if not certificates:
-        raise ValueError("combine needs at least one certificate")
-    worst = min(certificates, key=lambda c: c.certified_clearance)
-    failed = next((c for c in certificates if not c.free), None)
-    return Certificate(failed is None, certificates[0].clearance,
-                       worst.certified_clearance if failed is None else failed.certified_clearance,
-                       worst.closest if failed is None else failed.closest,
-                       None if failed is None else failed.failure,
-                       sum(c.bounds for c in certificates), sum(c.exact for c in certificates))

@@ -23,7 +23,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..collision.certify import SAMPLE_STEP, Certificate, Certifier
+from ..collision.certificate import Certificate
+from ..collision.certify import SAMPLE_STEP, Certifier
 from ..collision.motion_check import StateChecker
 from ..timing.curve import Curve, build_curve
 

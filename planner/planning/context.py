@@ -32,7 +32,8 @@ from description import Description
 from ..cache import ArtifactCache
 from ..checks import check_joint_names, check_positions
 from ..collision.acm_proof import proven_never_pairs
-from ..collision.certify import Certificate, Certifier
+from ..collision.certificate import Certificate
+from ..collision.certify import Certifier
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, TrajectoryError
 from ..kinematics.dynamics import InverseDynamics

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ..collision.certify import combine
+from ..collision.certificate import combine
 from ..timing.curve import build_curve
 from .context import PlanningContext
 from .goals import JointGoal, NamedGoal, PoseGoal, PositionGoal

@@ -21,7 +21,8 @@ import ompl.util as ou
 
 from description import Description
 
-from ..collision.certify import Certificate, Certifier
+from ..collision.certificate import Certificate
+from ..collision.certify import Certifier
 from ..collision.motion_check import (
     MotionChecker,
     StateCodec,
@@ -122,7 +123,7 @@ class PathResult:
         straight_line: the straight line to the goal was free.
         length: joint-space path length [rad] (sum of Euclidean segment lengths).
         certificate: the proof that every segment is free, with its certified clearance
-            (:class:`planner.collision.certify.Certificate`); reused for anything that follows the
+            (:class:`planner.collision.certificate.Certificate`); reused for anything that follows the
             segments, such as the straight parts of a blended curve.
         curve: when solved with ``blend``, the path's corners blended as
             :func:`planner.timing.curve.build_curve` would (default radii), every blend

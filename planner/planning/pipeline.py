@@ -22,7 +22,7 @@ import numpy as np
 from description import Description
 
 from ..cache import ArtifactCache
-from ..collision.certify import Certificate
+from ..collision.certificate import Certificate
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest
 from ..kinematics.dynamics import InverseDynamics

@@ -36,7 +36,8 @@ import numpy as np
 from description import Tcp
 from description.moveit_config import CartesianLimits, read_cartesian_limits
 
-from ..collision.certify import Certificate, Certifier, combine
+from ..collision.certificate import Certificate, combine
+from ..collision.certify import Certifier
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, LineInterrupted, StartInCollision, TrajectoryError
 from ..kinematics.ik_numeric import Chain, build_chain

@@ -34,7 +34,7 @@ from ..checks import CHECK_STEP
 from ..errors import InvalidRequest
 
 if TYPE_CHECKING:
-    from ..collision.certify import Certificate
+    from ..collision.certificate import Certificate
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +54,7 @@ class CornerReport:
 
     ``radius`` [rad] is the blend radius kept (0 unless blended); ``shrinks`` counts halvings.
     ``certificate``: the kept blend's proof when a certifier checked it
-    (:class:`planner.collision.certify.Certificate`), else None.
+    (:class:`planner.collision.certificate.Certificate`), else None.
     """
 
     index: int

@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from ..checks import CHECK_STEP
-from ..collision.certify import Certificate
+from ..collision.certificate import Certificate
 from ..path_limits import BatchDynamics, Derating, LimitsLike
 from .trajectory import JointTrajectory
 
