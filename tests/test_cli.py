@@ -190,6 +190,16 @@ def test_the_plan_summary_names_the_robot_and_the_service(server, capsys):
     assert "robot 'arduinobot', planned in this process (--local)" in capsys.readouterr().out
 
 
+def test_a_saved_plan_holds_points_though_the_client_asked_for_it_packed(server, tmp_path):
+    from clients.replies import PlanReply
+    traj = tmp_path / "traj.json"
+    assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--connect",
+                 server.endpoint, "--json", str(traj)]) == 0
+    saved = json.loads(traj.read_text())
+    assert "points" in saved["trajectory"] and "packed" not in saved["trajectory"]
+    assert PlanReply.parse(saved).positions.shape == (len(saved["trajectory"]["points"]), 4)
+
+
 def test_written_files_are_announced(tmp_path, capsys):
     traj, csv = tmp_path / "traj.json", tmp_path / "traj.csv"
     assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--local",
