@@ -140,6 +140,7 @@ def fuzz(endpoint: str, instances: list[str], cases: int, seed: int = 28) -> dic
         *carry_seeds()]  # attach, detach and state (issue 28)
     counts: collections.Counter[str] = collections.Counter()
     valid_failed = 0
+    busy: list[str] = []
     with PlannerClient(endpoint, timeout=60) as c:
         for i in range(cases):
             inst = instances[i % len(instances)]
@@ -165,9 +166,12 @@ def fuzz(endpoint: str, instances: list[str], cases: int, seed: int = 28) -> dic
                 counts["missing"] += 1
             except errors.ServiceError as e:
                 counts[str(e.code)] += 1
+                if str(e.code) == "BUSY":  # a retry, not a refusal: say why it came
+                    busy.append(e.message)
         scenes = [c.request("scene", instance=inst) for inst in instances]
     return {"cases": cases, "replies": dict(counts), "internal": counts.get("INTERNAL", 0),
             "missing": counts.get("missing", 0), "valid_failed": valid_failed,
+            "busy": busy,
             "instances_agree": all(sc == scenes[0] for sc in scenes)}
 
 
@@ -275,6 +279,8 @@ def main() -> None:
             print(f"fuzz: {fz['cases']} hostile applies: {fz['replies']}; INTERNAL "
                   f"{fz['internal']}, missing {fz['missing']}, valid failed "
                   f"{fz['valid_failed']}, instances agree: {fz['instances_agree']}")
+            for m in fz["busy"]:
+                print(f"  BUSY (retry): {m}")
             pl = plans(endpoint, live[0], ns.plans)
             for name, fig in pl.items():
                 print(f"plan {name}: median {fig['median']} ms, p95 {fig['p95']} ms "

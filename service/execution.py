@@ -38,8 +38,8 @@ from description import Description
 from execution.executor import ExecuteOptions, ExecutionBusy, Executor, TooLate, plan_start
 from execution.joint_states import tick_message
 from execution.report import Tick
-from execution.robots.base import Robot
-from execution.robots.spec import RobotSpec
+from execution.robots.base import JointState, Robot
+from execution.robots.spec import RobotSpec, twin_start
 from execution.segments import SampledTrajectory
 from planner.errors import InvalidRequest
 
@@ -110,8 +110,8 @@ class ExecuteService:
         s = self.session
         self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
         self._entities.append(self._publisher)
-        # execute and robot_state may build the twin (~1.5 s) or wait for the pool: they
-        # run on their own threads, never on Zenoh's callback thread
+        # execute builds the twin on first use (seconds on CAD meshes) or waits for the
+        # pool, robot_state may wait for a port: on their own threads, never on Zenoh's
         for key, fn, threaded in ((f"{p}/execute", self._on_execute, True),
                                   (f"{p}/execute/cancel", self._on_cancel, False),
                                   (f"{p}/robot_state", self._on_state, True)):
@@ -201,8 +201,15 @@ class ExecuteService:
         return on_query
 
     def _on_state(self, query: zenoh.Query) -> None:
-        query.reply(f"{self.prefix}/robot_state", wire.encode(self.robot().state().to_dict()),
+        query.reply(f"{self.prefix}/robot_state", wire.encode(self.state().to_dict()),
                     encoding=JSON)
+
+    def state(self) -> JointState:
+        """The robot's state. A twin not opened yet is where it will start: said without
+        opening it (seconds on CAD meshes: longer than a scene attach waits for it)."""
+        if self.spec.kind == "sim" and self._executor is None:
+            return twin_start(self.description)
+        return self.robot().state()
 
     def _on_cancel(self, query: zenoh.Query) -> None:
         raw = payload_of(query)

@@ -30,8 +30,8 @@ _log = logging.getLogger(__name__)
 MAX_APPLY_PAYLOAD = 16 * 2**20
 #: Deepest nesting of a scene apply (``add[i].scale[j]`` is 4 deep).
 MAX_APPLY_DEPTH = 8
-#: How long an attach or detach without a state waits for the executing robot's [s]
-#: (a twin opens on its first use, ~1.5 s); no robot answers at once.
+#: How long an attach or detach without a state waits for the executing robot's [s] (a
+#: twin not opened yet answers where it starts, at once; no robot answers at once too).
 ROBOT_STATE_TIMEOUT = 5.0
 
 

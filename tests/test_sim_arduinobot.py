@@ -216,3 +216,18 @@ def test_convex_pieces_are_cached_and_cover_the_mesh(tmp_path):
     pieces = cluster_parts(path, (0.01, 0.01, 0.01), 16)
     have = {tuple(np.round(v, 9)) for p in pieces for v in p}
     assert all(tuple(np.round(v, 9)) in have for v in np.asarray(m.vertices) * 0.01)
+
+
+def test_the_twin_before_it_opens_is_where_it_opens(desc):
+    """What the service answers on robot_state before the twin is built (twin_start):
+    the state the twin has when it opens, mimics following, at rest."""
+    from dataclasses import replace
+
+    from execution.robots.spec import twin_start
+    d = replace(desc, initial_positions={"joint_1": 0.3, "joint_3": -0.2, "joint_4": -0.4})
+    before = twin_start(d)
+    opened = SimArduinobot(d, cache=CACHE).state()
+    assert before.names == opened.names and "joint_5" in before.names
+    assert np.allclose(before.positions, opened.positions, atol=1e-12)
+    assert before.positions[before.names.index("joint_5")] == pytest.approx(0.4)
+    assert before.velocities == (0.0,) * len(before.names) and before.efforts is None

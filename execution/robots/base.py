@@ -118,6 +118,12 @@ class MimicMap:
         return np.concatenate([q, np.array(extra, float)])
 
 
+def initial_positions(description: Description, names: Sequence[str]) -> np.ndarray:
+    """The positions [rad] ``names`` start at: ``initial_positions.yaml``'s, else 0."""
+    init: Mapping[str, float] = description.initial_positions or {}
+    return np.array([float(init.get(n, 0.0)) for n in names], float)
+
+
 def check_setpoint(values: Sequence[float] | np.ndarray, names: Sequence[str],
                    what: str = "positions") -> np.ndarray:
     """``values`` as an array of shape (len(names),), all finite.

@@ -25,7 +25,7 @@ import logging
 import math
 import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from lxml import etree
@@ -41,6 +41,7 @@ from .base import (
     Robot,
     UnsupportedRobot,
     check_setpoint,
+    initial_positions,
 )
 
 log = logging.getLogger(__name__)
@@ -240,9 +241,3 @@ class SerialArduinobot(Robot):
         s = getattr(self, "_serial", None)
         if s is not None and s.is_open:
             s.close()
-
-
-def initial_positions(description: Description, names: Sequence[str]) -> np.ndarray:
-    """The positions [rad] ``names`` start at: ``initial_positions.yaml``'s, else 0."""
-    init: Mapping[str, float] = description.initial_positions or {}
-    return np.array([float(init.get(n, 0.0)) for n in names], float)

@@ -27,10 +27,9 @@ from description import Description
 from planner.cache import ArtifactCache
 from planner.codes import Code
 
-from .base import JointState, MimicMap, Robot, RobotError, check_setpoint
+from .base import JointState, MimicMap, Robot, RobotError, check_setpoint, initial_positions
 from .controller_gains import controller_gains, find_controllers_yaml
 from .mjcf import TIMESTEP, Gains, Progress, servo_ctrl, to_mjcf
-from .serial_arduinobot import initial_positions
 
 log = logging.getLogger(__name__)
 

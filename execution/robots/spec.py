@@ -14,7 +14,7 @@ from typing import Any, Literal
 from description import Description
 from planner.cache import ArtifactCache
 
-from .base import Robot, RobotError
+from .base import JointState, MimicMap, Robot, RobotError, initial_positions
 from .mjcf import Progress
 
 RobotKind = Literal["sim", "serial", "none"]
@@ -60,3 +60,12 @@ class RobotSpec:
         # details.robot: what the kept scene reads as "no robot state" (all joints 0)
         raise RobotError("this service drives no robot (serve --no-robot)",
                          details={"robot": "none"})
+
+
+def twin_start(description: Description) -> JointState:
+    """The twin's state before it is opened: where it starts (``initial_positions.yaml``'s,
+    else 0, the mimic joints following), at rest, at its clock's zero; efforts unknown.
+    Said without building it (MuJoCo on a model's CAD meshes takes seconds)."""
+    mimic = MimicMap.from_description(description)
+    q = mimic.expand(initial_positions(description, mimic.actuated))
+    return JointState(mimic.names, tuple(map(float, q)), (0.0,) * len(q), None, 0.0)
