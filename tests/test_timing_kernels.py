@@ -14,7 +14,7 @@ from planner.timing.curve import PathCurve, build_curve
 from planner.timing.profiles import JerkLimited
 from planner.timing.ruckig_timing import _BLEND_SAMPLES, _LINE_SAMPLES, _TINY, JerkLimitedTiming
 from planner.timing.trajectory import JointTrajectory
-from planner.timing.verify import Verifier, _ratio
+from planner.timing.verify import Verifier, _of_peaks, _peak
 
 from .timing_helpers import DYN, NAMES, WORLD, WP, active_limits
 
@@ -63,8 +63,14 @@ def _reference_piece_limits(dynamics, curve: PathCurve, limits: ActiveLimits):
     return ("speed", int(np.argmin(done)))
 
 
+def _ratio(limit, *values, centre=None):
+    # what Verifier.verify computes of one quantity: its peaks, over its limit
+    limit = np.asarray(limit, float)
+    return _of_peaks(limit, _peak(values, centre, len(limit)))
+
+
 def _reference_ratio(limit, *values):
-    # verify._ratio as it was in numpy
+    # verify's ratio as it was in numpy
     limit = np.asarray(limit, float)
     peak = np.zeros(len(limit))
     for v in values:

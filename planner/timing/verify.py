@@ -136,14 +136,6 @@ def _peak(values: tuple[np.ndarray, ...], centre: np.ndarray | None, dof: int) -
     return peak
 
 
-def _ratio(limit: np.ndarray, *values: np.ndarray, centre: np.ndarray | None = None
-           ) -> np.ndarray:
-    """Worst |value - centre| / limit per joint over every array of ``values`` (each
-    shape (m, dof)), shape (dof,); a zero limit with motion is inf."""
-    limit = np.asarray(limit, float)
-    return _of_peaks(limit, _peak(values, centre, len(limit)))
-
-
 def _of_peaks(limit: np.ndarray, peak: np.ndarray) -> np.ndarray:
     # peak / limit elementwise, any shape; a zero limit with motion is inf
     with np.errstate(divide="ignore", invalid="ignore"):
