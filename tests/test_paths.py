@@ -54,6 +54,21 @@ def test_seed_makes_results_reproducible(env):
     assert np.array_equal(a.path, b.path)
 
 
+def test_seed_zero_is_a_seed_too(env):
+    # OMPL ignores a seed of 0 (its generator goes on from where it was): 0 must not
+    _, _, pp = env
+    a = pp.solve(PathRequest(start=START, goal=GOAL, seed=0))
+    b = pp.solve(PathRequest(start=START, goal=GOAL, seed=0))
+    assert np.array_equal(a.path, b.path)
+
+
+def test_seed_beyond_32_bits_names_the_field(env):
+    _, _, pp = env
+    with pytest.raises(InvalidRequest) as e:
+        pp.solve(PathRequest(start=START, goal=GOAL, seed=2**32))
+    assert e.value.field == "seed" and "4294967295" in str(e.value)
+
+
 @pytest.mark.parametrize("name", ["RRT", "PRM", "KPIECE1", "LBKPIECE1", "BITstar"])
 def test_other_planners(env, name):
     _, w, pp = env

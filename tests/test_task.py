@@ -93,6 +93,21 @@ def test_a_bad_step_is_refused_naming_its_field():
     with pytest.raises(InvalidRequest) as e:
         task_from_mapping({"steps": [{"wait": -1}]})
     assert e.value.field == "steps[0].wait"
+    for seed in (-1, 2**32):  # OMPL's seeds are 32-bit
+        with pytest.raises(InvalidRequest) as e:
+            task_from_mapping({"steps": [{"wait": 1}], "seed": seed})
+        assert e.value.field == "seed" and "4294967295" in e.value.message
+
+
+def test_each_motion_of_a_task_gets_a_seed_in_range():
+    from planner.planning.goals import NamedGoal
+    from planner.planning.paths import MAX_SEED
+    from planner.tasks.sequence import MotionOptions, _request
+
+    task = task_from_mapping({"steps": [{"wait": 1}], "seed": MAX_SEED})
+    seeds = [_request(task, MotionOptions(), NamedGoal("home"), None, {}, [], [], i).seed
+             for i in range(3)]
+    assert seeds == [MAX_SEED, 0, 1]
 
 
 def test_the_task_request_schema_round_trips():

@@ -47,7 +47,7 @@ from ..timing.trajectory import CurveTiming, JointTrajectory
 from ..timing.verify import VerificationReport, Verifier, derate
 from .goal_states import resolve_group
 from .motion import MotionRequest, Profile
-from .paths import PathPlanner
+from .paths import MAX_SEED, PathPlanner
 
 log = logging.getLogger(__name__)
 
@@ -233,8 +233,9 @@ class PlanningContext:
             raise InvalidRequest(f"'{req.profile}' is not one of "
                                  f"{', '.join(self.profiles)}", field="profile")
         if req.seed is not None and (isinstance(req.seed, bool) or not isinstance(req.seed, int)
-                                     or req.seed < 0):
-            raise InvalidRequest(f"{req.seed!r} must be an integer >= 0", field="seed")
+                                     or not 0 <= req.seed <= MAX_SEED):
+            raise InvalidRequest(f"{req.seed!r} must be an integer in [0, {MAX_SEED}]",
+                                 field="seed")
         return self._start(req.start)
 
     def _start(self, given: Mapping[str, float] | None) -> np.ndarray:

@@ -57,6 +57,8 @@ ROOM = 0.002
 # [rad] a path that grazes between its edges' samples is planned again with them twice
 # as close, down to this step, and below it with certified edges
 FINEST_STEP = 0.01
+# the largest seed a request may give (OMPL's seeds are 32-bit, as the wire schema's)
+MAX_SEED = 2**32 - 1
 
 
 def available_planners() -> tuple[str, ...]:
@@ -233,8 +235,10 @@ class PathPlanner:
                                  f"{', '.join(available_planners())})", field="planner")
         if not (np.isfinite(req.planning_time) and req.planning_time > 0):
             raise InvalidRequest(f"{req.planning_time!r} must be > 0 [s]", field="planning_time")
-        if req.seed is not None and (not isinstance(req.seed, int) or req.seed < 0):
-            raise InvalidRequest(f"{req.seed!r} must be an integer >= 0", field="seed")
+        if req.seed is not None and (not isinstance(req.seed, int)
+                                     or not 0 <= req.seed <= MAX_SEED):
+            raise InvalidRequest(f"{req.seed!r} must be an integer in [0, {MAX_SEED}]",
+                                 field="seed")
         group = resolve_group(self.description, req.group, req.goal)
         joints = self.group_joints(group)
         if not joints:
@@ -424,7 +428,9 @@ class PathPlanner:
         names = self.world.kin.joint_names
         gidx = np.array([names.index(j) for j in joints], dtype=np.int64)
         if req.seed is not None:
-            ou.RNG.setSeed(int(req.seed))
+            # OMPL ignores a seed of 0 (its generator goes on, unseeded): 0 seeds with
+            # the one value past MAX_SEED, which no other request can name
+            ou.RNG.setSeed(int(req.seed) or MAX_SEED + 1)
         space = ob.RealVectorStateSpace(len(gidx))
         bounds = ob.RealVectorBounds(len(gidx))
         for i, j in enumerate(gidx):

@@ -26,6 +26,7 @@ from ..errors import InvalidRequest, PlanningError
 from ..kinematics.rotations import rpy_of_matrix
 from ..planning.goals import Goal, JointGoal, NamedGoal
 from ..planning.motion import MotionRequest, MotionResult
+from ..planning.paths import MAX_SEED
 from ..scene import AttachedObject, Obstacle
 from .steps import (
     AttachStep,
@@ -307,4 +308,5 @@ def _request(task: Task, options: MotionOptions, goal: Goal, group: str | None,
         planning_time=options.planning_time or task.planning_time,
         velocity_scaling=options.velocity_scaling or task.velocity_scaling,
         acceleration_scaling=options.acceleration_scaling or task.acceleration_scaling,
-        seed=None if task.seed is None else task.seed + index)
+        # each motion its own seed, in the seeds' range
+        seed=None if task.seed is None else (task.seed + index) % (MAX_SEED + 1))
