@@ -422,7 +422,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--state-checks", type=int, default=40,
                     help="random states MPlib and our checker both judge (per model)")
     args = ap.parse_args(argv)
-    from planner.planning.paths import set_ompl_log_level
+    from planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
     out: dict[str, Any] = {"n": args.n, "planning_time": args.planning_time}

@@ -88,7 +88,7 @@ def suite(d: Description, n: int) -> dict[str, dict]:
 
 
 def main(n: int = 30) -> None:
-    from planner.planning.paths import set_ompl_log_level
+    from planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     summary = suite(load_description(), n)
     with tempfile.TemporaryDirectory() as tmp:

@@ -14,7 +14,7 @@ import time
 def main() -> int:
     t0 = time.perf_counter()
     from description import load_description
-    from planner.planning.paths import set_ompl_log_level
+    from planner.planning.search import set_ompl_log_level
 
     from .handlers import Handlers
     set_ompl_log_level("none")

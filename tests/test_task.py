@@ -101,7 +101,7 @@ def test_a_bad_step_is_refused_naming_its_field():
 
 def test_each_motion_of_a_task_gets_a_seed_in_range():
     from planner.planning.goals import NamedGoal
-    from planner.planning.paths import MAX_SEED
+    from planner.planning.search import MAX_SEED
     from planner.tasks.sequence import MotionOptions, _request
 
     task = task_from_mapping({"steps": [{"wait": 1}], "seed": MAX_SEED})

@@ -47,7 +47,8 @@ from ..timing.trajectory import CurveTiming, JointTrajectory
 from ..timing.verify import VerificationReport, Verifier, derate
 from .goal_states import resolve_group
 from .motion import MotionRequest, Profile
-from .paths import MAX_SEED, PathPlanner
+from .paths import PathPlanner
+from .search import MAX_SEED
 
 log = logging.getLogger(__name__)
 

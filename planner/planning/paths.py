@@ -12,24 +12,14 @@ import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
-import ompl.base as ob
-import ompl.geometric as og
-import ompl.util as ou
 
 from description import Description
 
 from ..collision.certificate import Certificate
 from ..collision.certify import Certifier
-from ..collision.motion_check import (
-    MotionChecker,
-    StateCodec,
-    ValidityChecker,
-    motion_valid,
-    sampled_motion_valid,
-)
+from ..collision.motion_check import motion_valid, sampled_motion_valid
 from ..collision.world import CollisionWorld
 from ..errors import InvalidRequest, NoPathFound, StartInCollision
 from ..timing.curve import Curve
@@ -37,13 +27,16 @@ from .blended import prove_blended
 from .goal_states import check_limits, resolve_goal, resolve_group
 from .goals import Goal, check_goal
 from .room import Guarded, StateChecker, short_of_room
+from .search import MAX_SEED, available_planners, search
 from .shortcut import shortcut_path
 
 _log = logging.getLogger(__name__)
 
-PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
-            "LBKPIECE1", "BKPIECE1", "EST", "FMT", "BFMT", "InformedRRTstar", "SORRTstar",
-            "AORRTC")
+__all__ = ["FINEST_STEP", "PLAN_STEP", "ROOM", "PathPlanner", "PathRequest", "PathResult"]
+
+# edges (a, b), by their bytes, whose proof failed in a request's earlier attempts
+Refused = frozenset[tuple[bytes, bytes]]
+
 # [rad] edges are checked at states this far apart while searching and shortcutting; the
 # path found is then certified over its whole length (and re-planned with finer samples,
 # then certified edges, in the rare case it grazes between samples)
@@ -57,34 +50,6 @@ ROOM = 0.002
 # [rad] a path that grazes between its edges' samples is planned again with them twice
 # as close, down to this step, and below it with certified edges
 FINEST_STEP = 0.01
-# the largest seed a request may give (OMPL's seeds are 32-bit, as the wire schema's)
-MAX_SEED = 2**32 - 1
-
-
-def available_planners() -> tuple[str, ...]:
-    """The planner names this OMPL build offers."""
-    return tuple(p for p in PLANNERS if hasattr(og, p))
-
-
-OmplLogLevel = Literal["debug", "info", "warn", "error", "none"]
-
-
-def set_ompl_log_level(level: OmplLogLevel) -> None:
-    """How much OMPL writes to the console by itself (it logs past Python's logging).
-
-    Process-wide, as OMPL has one log: applications call it once at start (the
-    ``arduinobot`` command and the service's workers use "none" by default, as every
-    failure reaches the caller as a :class:`PlanningError`; "info" with -v). OMPL
-    reports a reseed after its first plan as an *error* ("Random number generation
-    already started"), although every planner and sampler created after the reseed
-    does draw from the new seed: that line is noise.
-    """
-    levels = {"debug": ou.LogLevel.LOG_DEBUG, "info": ou.LogLevel.LOG_INFO,
-              "warn": ou.LogLevel.LOG_WARN, "error": ou.LogLevel.LOG_ERROR,
-              "none": ou.LogLevel.LOG_NONE}
-    if level not in levels:
-        raise InvalidRequest(f"'{level}' is not one of {', '.join(levels)}", field="level")
-    ou.setLogLevel(levels[level])
 
 
 @dataclass(frozen=True)
@@ -170,8 +135,6 @@ class PathPlanner:
         self._roomy: dict[tuple[str, ...], CollisionWorld] = {}
         self._guarded: dict[tuple[tuple[str, ...], tuple[tuple[str, str], ...]], Guarded] = {}
         self._fallback: PathPlanner | None = None
-        # edges (a, b) by their bytes whose proof failed in this request (see _solve)
-        self._refused: frozenset[tuple[bytes, bytes]] = frozenset()
         self.certifier = Certifier(world)
         # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
         self.proof = Certifier(world, fraction=0.5)
@@ -218,9 +181,9 @@ class PathPlanner:
             g = self._guarded[(joints, lost)] = Guarded(roomy, guard, lost)
         return g
 
-    def _edge_free(self, a: np.ndarray, b: np.ndarray, world: StateChecker | None = None
-                   ) -> bool:
-        if self._refused and (a.tobytes(), b.tobytes()) in self._refused:
+    def _edge_free(self, a: np.ndarray, b: np.ndarray, refused: Refused,
+                   world: StateChecker | None = None) -> bool:
+        if refused and (a.tobytes(), b.tobytes()) in refused:
             return False
         if world is not None:
             return sampled_motion_valid(world, a, b, self.step)
@@ -272,12 +235,11 @@ class PathPlanner:
         return self._solve(request, blend=blend, refused=frozenset())
 
     def _solve(self, request: PathRequest, *, blend: bool,
-               refused: frozenset[tuple[bytes, bytes]]) -> PathResult:
+               refused: Refused) -> PathResult:
         # ``refused``: the edges whose proof failed in this request's earlier attempts,
         # refused without a check: an escape edge is drawn again exactly as it was (same
         # seed), and its finer samples pass again where it grazes between them (each
         # failed proof of a graze costs ~0.1-0.2 s on CAD meshes)
-        self._refused = refused
         timings: dict[str, float] = {}
         checks0 = self.world.checks
         t0 = time.perf_counter()
@@ -288,7 +250,7 @@ class PathPlanner:
         order = np.argsort(np.linalg.norm(goals - start, axis=1))
         path = None
         for k in order:
-            if self._edge_free(start, goals[k]):
+            if self._edge_free(start, goals[k], refused):
                 path = np.array([start, goals[k]])
                 break
         t2 = time.perf_counter()
@@ -296,12 +258,12 @@ class PathPlanner:
         straight = path is not None
         planner_name = "straight line"
         if path is None:
-            path, room = self._detour(request, start, goals, joints)
+            path, room = self._detour(request, start, goals, joints, refused)
             planner_name = request.planner
         t3 = time.perf_counter()
         timings["plan"] = t3 - t2
         if not straight:
-            path = shortcut_path(path, lambda a, b: self._edge_free(a, b, room),
+            path = shortcut_path(path, lambda a, b: self._edge_free(a, b, refused, room),
                                  seed=request.seed)
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
@@ -353,7 +315,8 @@ class PathPlanner:
         return self._fallback
 
     def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
-                joints: tuple[str, ...]) -> tuple[np.ndarray, StateChecker | None]:
+                joints: tuple[str, ...], refused: Refused
+                ) -> tuple[np.ndarray, StateChecker | None]:
         # With room first (half the budget), then without. An end that lacks the room
         # (a start a hair from the base) is joined by a short free edge to a nearby state
         # that has it, so only that edge comes close. Where no such edge leaves it (a
@@ -365,8 +328,8 @@ class PathPlanner:
             roomy: StateChecker = self.roomy(joints)
             cols = np.array([self.world.kin.joint_names.index(j) for j in joints])
             rng = np.random.default_rng(req.seed)
-            head = self._escape(start, goals[0], cols, roomy, rng)
-            tails = [(g, self._escape(g, start, cols, roomy, rng)) for g in goals]
+            head = self._escape(start, goals[0], cols, roomy, rng, refused)
+            tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
             tails = [(g, e) for g, e in tails if e is not None]
             # an end stuck without room: the pairs exactly short of it there lose it
             # alone; if the trees still doubt others, those too
@@ -380,14 +343,14 @@ class PathPlanner:
                     continue
                 roomy = self.guarded(joints, lost)
                 _log.info("%d pairs lose the room alone: %s", len(lost), lost)
-                head = self._escape(start, goals[0], cols, roomy, rng)
-                tails = [(g, self._escape(g, start, cols, roomy, rng)) for g in goals]
+                head = self._escape(start, goals[0], cols, roomy, rng, refused)
+                tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
                 tails = [(g, e) for g, e in tails if e is not None]
             if head is not None and tails:
                 t0 = time.perf_counter()
                 try:
-                    mid = self._plan(req, head, np.array([e for _, e in tails]), joints,
-                                     roomy, budget / 2)
+                    mid = self._search(req, head, np.array([e for _, e in tails]), joints,
+                                       roomy, budget / 2, refused)
                 except NoPathFound:
                     budget -= time.perf_counter() - t0
                     _log.info("no detour with %.1f mm of room; searching without",
@@ -397,10 +360,11 @@ class PathPlanner:
                     # the escape edges, where an end needed one
                     return np.vstack([[start]] * (head is not start) + [mid]
                                      + [[goal]] * (end is not goal)), roomy
-        return self._plan(req, start, goals, joints, None, budget), None
+        return self._search(req, start, goals, joints, None, budget, refused), None
 
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
-                roomy: StateChecker, rng: np.random.Generator) -> np.ndarray | None:
+                roomy: StateChecker, rng: np.random.Generator, refused: Refused
+                ) -> np.ndarray | None:
         # ``end`` if it has the room, else a state with room that a free straight edge
         # reaches from it, at the shortest distance [rad] where one does: the first of
         # the directions tried (towards ``toward``, then seeded random ones of the
@@ -418,51 +382,15 @@ class PathPlanner:
                     continue
                 e = end.copy()
                 e[cols] = np.clip(end[cols] + r * d / n, lim[:, 0], lim[:, 1])
-                if roomy.is_valid(e) and self._edge_free(end, e):
+                if roomy.is_valid(e) and self._edge_free(end, e, refused):
                     return e
         return None
 
-    def _plan(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
-              joints: tuple[str, ...], roomy: StateChecker | None, budget: float
-              ) -> np.ndarray:
+    def _search(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
+                joints: tuple[str, ...], roomy: StateChecker | None, budget: float,
+                refused: Refused) -> np.ndarray:
         names = self.world.kin.joint_names
-        gidx = np.array([names.index(j) for j in joints], dtype=np.int64)
-        if req.seed is not None:
-            # OMPL ignores a seed of 0 (its generator goes on, unseeded): 0 seeds with
-            # the one value past MAX_SEED, which no other request can name
-            ou.RNG.setSeed(int(req.seed) or MAX_SEED + 1)
-        space = ob.RealVectorStateSpace(len(gidx))
-        bounds = ob.RealVectorBounds(len(gidx))
-        for i, j in enumerate(gidx):
-            bounds.setLow(i, float(self._limits[j, 0]))
-            bounds.setHigh(i, float(self._limits[j, 1]))
-        space.setBounds(bounds)
-        ss = og.SimpleSetup(space)
-        si = ss.getSpaceInformation()
-        codec = StateCodec(gidx, start)
-        svc = ValidityChecker(si, roomy or self.world, codec)
-        mv = MotionChecker(si, lambda a, b: self._edge_free(a, b, roomy), codec)
-        ss.setStateValidityChecker(svc)
-        si.setMotionValidator(mv)
-        s = si.allocState()
-        codec.put(start, s)
-        ss.setStartState(s)
-        gs = ob.GoalStates(si)
-        for g in goals:
-            st = si.allocState()
-            codec.put(g, st)
-            gs.addState(st)
-        ss.setGoal(gs)
-        planner = getattr(og, req.planner)(si)
-        ss.setPlanner(planner)
-        ss.setup()
-        status = ss.solve(budget)
-        if not ss.haveExactSolutionPath():
-            raise NoPathFound(f"{req.planner} found no path in {req.planning_time:g} s "
-                              f"({status})", details={"planner": req.planner,
-                                                      "planning_time": req.planning_time})
-        p = ss.getSolutionPath()
-        out = np.array([codec.full(p.getState(i)) for i in range(p.getStateCount())])
-        # keep the svc/mv alive until OMPL is done with them
-        del svc, mv
-        return out
+        return search(roomy or self.world, lambda a, b: self._edge_free(a, b, refused, roomy),
+                      start, goals, np.array([names.index(j) for j in joints], dtype=np.int64),
+                      self._limits, planner=req.planner, seed=req.seed, budget=budget,
+                      planning_time=req.planning_time)

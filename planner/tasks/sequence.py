@@ -26,7 +26,7 @@ from ..errors import InvalidRequest, PlanningError
 from ..kinematics.rotations import rpy_of_matrix
 from ..planning.goals import Goal, JointGoal, NamedGoal
 from ..planning.motion import MotionRequest, MotionResult
-from ..planning.paths import MAX_SEED
+from ..planning.search import MAX_SEED
 from ..scene import AttachedObject, Obstacle
 from .steps import (
     AttachStep,

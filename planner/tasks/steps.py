@@ -26,7 +26,7 @@ from typing import Any, Literal
 from ..errors import InvalidRequest
 from ..kinematics.rotations import quaternion_of_rpy
 from ..planning.goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal
-from ..planning.paths import MAX_SEED
+from ..planning.search import MAX_SEED
 from ..scene import Obstacle
 
 StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]

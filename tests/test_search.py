@@ -1,0 +1,64 @@
+"""The OMPL search layer: planners offered, log level, seeds, a search's failure."""
+
+import numpy as np
+import pytest
+
+from description import load_description
+from planner.collision.motion_check import sampled_motion_valid
+from planner.collision.world import CollisionWorld
+from planner.errors import InvalidRequest, NoPathFound
+from planner.planning.search import (
+    MAX_SEED,
+    PLANNERS,
+    available_planners,
+    search,
+    set_ompl_log_level,
+)
+from planner.scene import Obstacle
+
+
+@pytest.fixture(scope="module")
+def world():
+    d = load_description()
+    w = CollisionWorld(d, obstacles=[Obstacle("pillar", "box", size=(0.15, 0.15, 3.0),
+                                              xyz=(0.0, 0.9, 0.6))])
+    return w, d.robot.position_limits(w.kin.joint_names)
+
+
+def test_the_planners_offered_are_ompls():
+    offered = available_planners()
+    assert "RRTConnect" in offered and set(offered) <= set(PLANNERS)
+
+
+def test_a_log_level_not_offered_names_the_field():
+    with pytest.raises(InvalidRequest) as e:
+        set_ompl_log_level("loud")  # type: ignore[arg-type]
+    assert e.value.field == "level"
+    set_ompl_log_level("none")
+
+
+def _search(world, seed, *, budget=1.0, goal=(-1.2, -0.6, -0.6, 0.0)):
+    w, lim = world
+    start = np.array([1.2, -0.6, -0.6, 0.0])
+    return search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), start,
+                  np.array([goal]), np.array([0, 1, 2]), lim, planner="RRTConnect",
+                  seed=seed, budget=budget, planning_time=budget)
+
+
+@pytest.mark.parametrize("seed", [0, 5, MAX_SEED])
+def test_a_seeded_search_repeats_itself(world, seed):
+    a = _search(world, seed)
+    _search(world, 99)  # another search in between draws from OMPL's generator
+    b = _search(world, seed)
+    assert np.array_equal(a, b)
+    assert np.allclose(a[0], [1.2, -0.6, -0.6, 0.0]) and np.allclose(a[-1, :3], [-1.2, -0.6, -0.6])
+    assert np.all(a[:, 3] == 0.0)  # the joint outside the columns keeps the start's value
+
+
+def test_no_path_is_an_error_not_an_approximation(world):
+    w, _ = world
+    inside = (0.0, 0.0, 0.0, 0.0)  # upright, in the pillar: never reached
+    assert not w.is_valid(np.array(inside))
+    with pytest.raises(NoPathFound) as e:
+        _search(world, 1, budget=0.05, goal=inside)
+    assert e.value.details["planner"] == "RRTConnect"
