@@ -48,3 +48,20 @@ def test_shortcuts_keep_edges_free_shorten_and_repeat_with_their_seed():
         assert np.array_equal(out, shortcut_path(path, _wall, seed=3))
         tried += 1
     assert tried >= 10
+
+
+def test_an_edge_known_blocked_is_never_asked_again():
+    around = np.array([[0.0, 0.0], [0.3, 1.0], [0.7, 1.0], [1.0, 0.0]])
+    asked: list[tuple[float, ...]] = []
+
+    def judge(a: np.ndarray, b: np.ndarray) -> bool:
+        asked.append((*a, *b))
+        return _wall(a, b)
+
+    out = shortcut_path(around, judge, seed=3, blocked=[(around[0], around[-1])])
+    assert (0.0, 0.0, 1.0, 0.0) not in asked and asked  # the others still judged
+    assert all(_wall(a, b) for a, b in zip(out[:-1], out[1:]))
+    asked.clear()
+    again = shortcut_path(around, judge, seed=3)
+    assert (0.0, 0.0, 1.0, 0.0) in asked  # without it, asked first
+    assert np.array_equal(out, again)  # same verdicts, same path

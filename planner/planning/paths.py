@@ -263,8 +263,10 @@ class PathPlanner:
         t3 = time.perf_counter()
         timings["plan"] = t3 - t2
         if not straight:
+            # the straight lines to the goals collide (in the exact world, so with room
+            # too): the first edge shortcutting would try
             path = shortcut_path(path, lambda a, b: self._edge_free(a, b, refused, room),
-                                 seed=request.seed)
+                                 seed=request.seed, blocked=[(start, g) for g in goals])
         t4 = time.perf_counter()
         timings["simplify"] = t4 - t3
         # every edge was checked at its samples as it was accepted: the proof alone

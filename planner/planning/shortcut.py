@@ -5,7 +5,7 @@ waypoints a straight edge can skip (:func:`reduce_vertices`), then random shortc
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -14,7 +14,8 @@ EdgeFree = Callable[[np.ndarray, np.ndarray], bool]
 
 
 def shortcut_path(path: np.ndarray, edge_free: EdgeFree, *, seed: int | None,
-                  attempts: int = 10, patience: int = 4) -> np.ndarray:
+                  attempts: int = 10, patience: int = 4,
+                  blocked: Iterable[tuple[np.ndarray, np.ndarray]] = ()) -> np.ndarray:
     """``path`` (shape (k, dof)) with waypoints a straight edge can skip dropped, then
     random shortcuts (seeded), stopping after ``attempts`` or ``patience`` attempts in a
     row that gained nothing, then waypoints dropped again.
@@ -23,12 +24,16 @@ def shortcut_path(path: np.ndarray, edge_free: EdgeFree, *, seed: int | None,
     jerk-limited motion pays more for a corner than for a little length: measured on
     the course model, 40 attempts and no second pass left 3.5 waypoints (median) and
     0.9 s motions in the table scene; 10 attempts and the second pass leave 3 and
-    0.6 s, with half the planning time."""
+    0.6 s, with half the planning time.
+
+    ``blocked``: edges (a, b) the caller knows are not free (the straight line a search
+    was asked for because it collides), never checked again."""
     # the second pass re-tries edges of the first, remembered (the same verdicts:
     # measured no faster, 46 -> 45 ms over 20 self problems of course_fingers, as
     # most re-tried edges are refused early); with no shortcut taken it is skipped,
     # as it would change nothing
-    memo: dict[tuple[bytes, bytes], bool] = {}
+    memo: dict[tuple[bytes, bytes], bool] = {(a.tobytes(), b.tobytes()): False
+                                              for a, b in blocked}
     pts = reduce_vertices(path, edge_free, memo)
     taken = False
     rng = np.random.default_rng(seed)
