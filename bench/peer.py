@@ -71,6 +71,7 @@ import numpy as np
 
 from bench._lib.peer_models import PeerModel, make_model
 from bench._lib.peer_mplib import held_model, mplib_rows, scale_check
+from bench._lib.peer_report import NEAR, STAGES, report
 from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.sampled import SampledPositions
@@ -86,9 +87,6 @@ from service.disk_cache import DiskCache
 from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
-# [m] a certified clearance under this: the motion came within microns of some contact
-NEAR = 1e-4
-STAGES = ("validate", "plan", "simplify", "recheck", "parameterise", "verify", "total")
 
 
 def ms(xs: list[float]) -> dict[str, float | None]:
@@ -338,63 +336,6 @@ def run_model(model: PeerModel, folder: Path, args: argparse.Namespace) -> dict[
             "limits_velocity": [float(v) for v in lim.velocity],
             "limits_acceleration": [float(v) for v in lim.acceleration],
             "scale_check": scale, "scenes": rows}
-
-
-def fmt(x: float | None, spec: str = ".1f") -> str:
-    return "-" if x is None else format(x, spec)
-
-
-def report(name: str, res: dict[str, Any]) -> None:
-    sc = res["scale_check"]
-    print(f"\n== {name}, group {res['group']}: {res['source']}; scaling {res['scaling']} "
-          f"on both sides (model "
-          f"default {res['default_scaling']}); MPlib vs our checker on {sc['states']} states: "
-          f"{sc['agree']} agree ({sc['ours_colliding']} colliding by ours, "
-          f"{sc['mplib_colliding']} by MPlib)")
-    first = next(iter(res["scenes"].values()), None)
-    if first is not None:
-        print(f"  MPlib's column: {first['mplib']['problem']}")
-    for scene, r in res["scenes"].items():
-        o, m = r["ours"], r["mplib"]
-        st = o["stage_median_ms"]
-        print(f"  {scene:8s} n={r['problems']}  success ours {o['success']:.2f} "
-              f"{o['failures'] or ''} mplib {fmt(m['success'], '.2f')} {m['failures'] or ''}")
-        print(f"    wall ms median/p95: ours {fmt(o['median_ms'])}/{fmt(o['p95_ms'])}  "
-              f"mplib (plan+TOPP) {fmt(m['median_ms'])}/{fmt(m['p95_ms'])}  ours/mplib "
-              f"{fmt(r['ours_over_mplib_median'], '.2f')}x  (ours over the wire: "
-              f"{fmt(o['wire_overhead_ms_median'])} ms beyond the reply's total)")
-        print("    ours stages median ms: " + " ".join(f"{k} {fmt(st[k])}" for k in STAGES)
-              + f"; verify share {fmt(o['verify_share_median'], '.0%')}")
-        pr = o["proof_ms_median"]
-        print(f"    near contact (certified clearance < {1e3 * NEAR:g} mm): "
-              f"{fmt(o['near_contact_share'], '.0%')} of motions, wall median "
-              f"{fmt(o['wall_ms_median_near'])} ms; proof (recheck) median ms: all "
-              f"{fmt(pr['all'])} near {fmt(pr['near'])} others {fmt(pr['others'])}")
-        c = o["min_clearance_m"]
-        print(f"    certified min clearance m: min {fmt(c['min'], '.4f')} median "
-              f"{fmt(c['median'], '.4f')} (all certified: {o['certified_all']})")
-        print(f"    duration s median: ours {fmt(o['duration_s_median'], '.3f')} toppra same "
-              f"path {fmt(o['toppra_duration_s_median'], '.3f')} -> ratio median "
-              f"{fmt(o['jerk_limited_over_toppra_median'], '.3f')} max "
-              f"{fmt(o['jerk_limited_over_toppra_max'], '.3f')} (target <= 1.2); mplib "
-              f"{fmt(m['duration_s_median'], '.3f')}")
-        print(f"      jerk floor (slowest joint's own time-optimal jerk-limited move over its "
-              f"travel) / toppra median {fmt(o['jerk_floor_over_toppra_median'], '.3f')}; "
-              f"ours / floor median {fmt(o['jerk_limited_over_floor_median'], '.3f')}")
-        ro, rm = o["recheck"], m["recheck"]
-        print(f"    re-check at {res['recheck_step']} rad, trajectories with a collision: ours "
-              f"{ro['with_collision']}/{ro['checked']}  mplib {rm['with_collision']}/"
-              f"{rm['checked']}" + (
-                  "" if "recheck_own_problem" not in m else
-                  f" on our robot (left finger following), "
-                  f"{m['recheck_own_problem']['with_collision']}/"
-                  f"{m['recheck_own_problem']['checked']} on its own problem (held)"))
-
-        def worst(rc: dict[str, Any]) -> str:
-            return " ".join(f"{k} {v:.3f}" for k, v in rc["worst_ratio"].items())
-        print(f"      other findings (limits by finite differences; ours on the interpolated "
-              f"samples, indicative): ours {ro['kinds']} worst/limit {worst(ro)}; mplib "
-              f"{rm['kinds']} worst/limit {worst(rm)}")
 
 
 def _split(items: list[Any], counts: list[int]) -> list[list[Any]]:
