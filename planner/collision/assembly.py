@@ -1,6 +1,7 @@
 """Assembling a world's bodies: the robot's links (shared, :mod:`.bodies`), the objects
 it carries and the scene's obstacles, in the body table's order, with what each needs (OBB tree, FCL
-object, convex hull, the points its motion bounds read), and the pairs worth checking.
+object, convex hull, part hulls, the points its motion bounds read), and the pairs worth
+checking.
 """
 
 from __future__ import annotations
@@ -21,9 +22,10 @@ from .acm import AllowedCollisionMatrix
 from .bodies import RobotBodies, ShapeCache, bvh
 from .hulls import Hull, mesh_hull, primitive_hull
 from .obbtree import ObbTree, box_tree, build_tree
+from .parts import Parts, mesh_parts
 from .table import BodyKind, checked_kinds
 
-_Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
+_Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull, Parts]
 
 
 def _shape_key(o: Obstacle) -> tuple:
@@ -45,17 +47,22 @@ def _build_geometry(o: Obstacle) -> _Geometry:
     # Obstacle checked that its shape's dimensions (or mesh file) are set
     if o.shape == "box":
         assert o.size is not None
-        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
+        hull = primitive_hull(o)
+        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), hull, Parts.of_hull(hull)
     if o.shape == "sphere":
         assert o.radius is not None
-        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
+        hull = primitive_hull(o)
+        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), hull, Parts.of_hull(hull)
     if o.shape == "cylinder":
         assert o.radius is not None and o.length is not None
+        hull = primitive_hull(o)
         return (fcl.Cylinder(o.radius, o.length),
-                box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
+                box_tree(np.array([o.radius, o.radius, o.length / 2])), hull,
+                Parts.of_hull(hull))
     mesh = cast("trimesh.Trimesh", trimesh.load(o.mesh_path, force="mesh"))  # force: one mesh
-    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
-            mesh_hull(np.asarray(mesh.vertices, float)))
+    hull = mesh_hull(np.asarray(mesh.vertices, float))
+    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces), hull,
+            mesh_parts(mesh.vertices, mesh.faces, hull))
 
 
 def _box_surface(size: tuple[float, float, float]) -> fcl.BVHModel:
@@ -93,6 +100,7 @@ class SceneBodies:
         statics: whether a body never moves.
         points: (link name or None, vertices in its frame) for the motion bounds.
         hulls: convex hulls (body frame).
+        parts: part hulls (body frame; a convex body: its hull alone).
         poses: shape (n, 4, 4): an obstacle's world pose, a carried object's pose in
             its link's frame, identity for a link.
     """
@@ -106,6 +114,7 @@ class SceneBodies:
     statics: tuple[bool, ...]
     points: tuple[tuple[str | None, np.ndarray], ...]
     hulls: tuple[Hull, ...]
+    parts: tuple[Parts, ...]
     poses: np.ndarray
 
     @classmethod
@@ -119,7 +128,7 @@ class SceneBodies:
         kinds = [BodyKind.LINK] * len(names)
         trees, statics = list(robot.trees), list(robot.statics)
         points: list[tuple[str | None, np.ndarray]] = list(robot.points)
-        hulls = list(robot.hulls)
+        hulls, parts = list(robot.hulls), list(robot.parts)
         objs = [fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
         surfaces: dict[int, fcl.CollisionObject] = {}
         poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles), 1, 1))
@@ -127,7 +136,7 @@ class SceneBodies:
         for a in attached:
             if link_index is None or a.link not in link_index:
                 raise ValueError(f"carried object '{a.id}' on unknown link '{a.link}'")
-            geom, tree, hull = _obstacle_geometry(a.shape, robot.shapes)
+            geom, tree, hull, part = _obstacle_geometry(a.shape, robot.shapes)
             offset = a.shape.pose()  # in the link's frame
             poses[len(names)] = offset
             names.append(a.id)
@@ -140,8 +149,9 @@ class SceneBodies:
             local = _enclosing_points(tree)
             points.append((a.link, local @ offset[:3, :3].T + offset[:3, 3]))
             hulls.append(hull)
+            parts.append(part)
         for o in obstacles:
-            geom, tree, hull = _obstacle_geometry(o, robot.shapes)
+            geom, tree, hull, part = _obstacle_geometry(o, robot.shapes)
             pose = o.pose()
             poses[len(names)] = pose
             names.append(o.id)
@@ -157,8 +167,9 @@ class SceneBodies:
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
             hulls.append(hull)
+            parts.append(part)
         return cls(tuple(names), tuple(kinds), tuple(links), tuple(trees), tuple(objs),
-                   surfaces, tuple(statics), tuple(points), tuple(hulls), poses)
+                   surfaces, tuple(statics), tuple(points), tuple(hulls), tuple(parts), poses)
 
     def checked_pairs(self, acm: AllowedCollisionMatrix,
                       touch: Sequence[tuple[str, str]] = ()

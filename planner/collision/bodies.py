@@ -1,5 +1,6 @@
 """The robot's collision geometry, built once per description: each link's mesh as an
-OBB tree (:mod:`.obbtree`), an FCL BVH and a convex hull (:mod:`.hulls`).
+OBB tree (:mod:`.obbtree`), an FCL BVH, a convex hull (:mod:`.hulls`) and, for a concave
+mesh, part hulls (:mod:`.parts`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..cache import ArtifactCache
 from ..kinematics.chain import Kinematics
 from .hulls import Hull, mesh_hull
 from .obbtree import ObbTree, cached_tree
+from .parts import Parts, mesh_parts
 
 _T = TypeVar("_T")
 
@@ -70,6 +72,8 @@ class RobotBodies:
         statics: whether the link never moves (no movable joint above it).
         points: (link, vertices) for the motion bounds.
         hulls: each one's convex hull (link frame), for cheap distance bounds.
+        parts: each one's part hulls (link frame; a convex enough link: its hull
+            alone), for cheap bounds where the hulls touch.
         shapes: the scene shapes' geometry built so far, by content, for every world
             of the robot.
         proofs: what proofs keep for every world of the robot, by kind (the
@@ -87,6 +91,7 @@ class RobotBodies:
     statics: tuple[bool, ...]
     points: tuple[tuple[str, np.ndarray], ...]
     hulls: tuple[Hull, ...]
+    parts: tuple[Parts, ...]
     shapes: ShapeCache = field(default_factory=ShapeCache, repr=False)
     proofs: dict[str, Any] = field(default_factory=dict, repr=False)
     cache: ArtifactCache | None = field(default=None, repr=False, compare=False)
@@ -94,10 +99,11 @@ class RobotBodies:
     @classmethod
     def build(cls, description: Description, kin: Kinematics, *,
               cache: ArtifactCache | None = None) -> RobotBodies:
-        """Build every link's geometry; trees and hulls come from ``cache`` when it has
-        them."""
+        """Build every link's geometry; trees, hulls and parts come from ``cache`` when
+        it has them."""
         robot = description.robot
         names, frames, trees, geoms, statics, points, hulls = [], [], [], [], [], [], []
+        parts: list[Parts] = []
         for link in kin.link_names:
             shapes = robot.links[link].collisions
             if not shapes:
@@ -113,5 +119,6 @@ class RobotBodies:
             statics.append(not any(j.movable for j in robot.link_path(link)))
             points.append((link, np.asarray(mesh.vertices, float)))
             hulls.append(mesh_hull(points[-1][1], cache))
+            parts.append(mesh_parts(mesh.vertices, mesh.faces, hulls[-1], cache))
         return cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
-                   tuple(statics), tuple(points), tuple(hulls), cache=cache)
+                   tuple(statics), tuple(points), tuple(hulls), tuple(parts), cache=cache)
