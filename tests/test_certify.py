@@ -306,7 +306,6 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     from dataclasses import replace
 
     from planner.collision import certify
-    from planner.collision.parts import Parts
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
     world = CollisionWorld(d)
     edge = np.array([[-1.2003252626449796, -0.41068828429081816, -0.8292884824147762,
@@ -321,8 +320,7 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     assert 0.001 < cert.certified_clearance <= true_gap
     assert cert.exact == 0
     # without parts (each link its hull alone): the exact distance proves the gap
-    hulls = replace(world.bodies, parts=tuple(Parts.of_hull(h) for h in world.bodies.hulls))
-    no_parts = CollisionWorld(d, bodies=hulls)
+    no_parts = CollisionWorld(d, bodies=replace(world.bodies, split=False))
     exact = Certifier(no_parts, fraction=0.5).path(edge, sample_step=None)
     assert exact.free and 0.0005 < exact.certified_clearance <= true_gap
     assert exact.exact > 0

@@ -5,6 +5,8 @@ and a convex mesh keeps its hull alone."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 import trimesh
@@ -140,7 +142,8 @@ def test_parts_are_cached_by_content_and_a_convex_mesh_keeps_its_hull(course):
     # the same bound from either
     tb = np.eye(4)
     tb[:3, 3] = (0.0, 0.0, 0.6)
-    bounds = [PartBounds([parts, parts]).bound(0, np.eye(4), 1, tb) for parts in (first, again)]
+    bounds = [PartBounds([partial(lambda p: p, parts)] * 2).bound(0, np.eye(4), 1, tb)
+              for parts in (first, again)]
     assert bounds[0] == bounds[1]
     # a sphere: its hull strays microns from it, one part, the hull itself
     ball = trimesh.creation.icosphere(3, radius=0.05)
@@ -156,9 +159,9 @@ def test_two_convex_parts_get_their_distance(seed):
     ta, tb = np.eye(4), np.eye(4)
     ta[:3, :3] = trimesh.transformations.random_rotation_matrix(rng.random(3))[:3, :3]
     tb[:3, 3] = (0.3, 0.0, 0.0) + rng.normal(size=3) * 0.05
-    pb = PartBounds([Parts.of([(np.asarray(box.vertices), 0.0)], np.array([-1]),
-                              np.array([-1])),
-                     Parts.of([(np.zeros((1, 3)), 0.05)], np.array([-1]), np.array([-1]))])
+    one = np.array([-1])
+    pb = PartBounds([lambda: Parts.of([(np.asarray(box.vertices), 0.0)], one, one),
+                     lambda: Parts.of([(np.zeros((1, 3)), 0.05)], one, one)])
     # the box's distance to the ball's centre, by dense sampling of its surface
     placed = box.copy()
     placed.apply_transform(ta)

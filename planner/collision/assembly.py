@@ -1,13 +1,13 @@
 """Assembling a world's bodies: the robot's links (shared, :mod:`.bodies`), the objects
 it carries and the scene's obstacles, in the body table's order, with what each needs (OBB tree, FCL
-object, convex hull, part hulls, the points its motion bounds read), and the pairs worth
-checking.
+object, convex hull, how to get its part hulls, the points its motion bounds read), and
+the pairs worth checking.
 """
 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from itertools import combinations
@@ -22,10 +22,10 @@ from .acm import AllowedCollisionMatrix
 from .bodies import RobotBodies, ShapeCache, bvh
 from .hulls import Hull, mesh_hull, primitive_hull
 from .obbtree import ObbTree, box_tree, build_tree
-from .parts import Parts, mesh_parts
+from .parts import Parts
 from .table import BodyKind, checked_kinds
 
-_Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull, Parts]
+_Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
 
 
 def _shape_key(o: Obstacle) -> tuple:
@@ -47,22 +47,17 @@ def _build_geometry(o: Obstacle) -> _Geometry:
     # Obstacle checked that its shape's dimensions (or mesh file) are set
     if o.shape == "box":
         assert o.size is not None
-        hull = primitive_hull(o)
-        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), hull, Parts.of_hull(hull)
+        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
     if o.shape == "sphere":
         assert o.radius is not None
-        hull = primitive_hull(o)
-        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), hull, Parts.of_hull(hull)
+        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
     if o.shape == "cylinder":
         assert o.radius is not None and o.length is not None
-        hull = primitive_hull(o)
         return (fcl.Cylinder(o.radius, o.length),
-                box_tree(np.array([o.radius, o.radius, o.length / 2])), hull,
-                Parts.of_hull(hull))
+                box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
     mesh = cast("trimesh.Trimesh", trimesh.load(o.mesh_path, force="mesh"))  # force: one mesh
-    hull = mesh_hull(np.asarray(mesh.vertices, float))
-    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces), hull,
-            mesh_parts(mesh.vertices, mesh.faces, hull))
+    return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
+            mesh_hull(np.asarray(mesh.vertices, float)))
 
 
 def _box_surface(size: tuple[float, float, float]) -> fcl.BVHModel:
@@ -100,7 +95,9 @@ class SceneBodies:
         statics: whether a body never moves.
         points: (link name or None, vertices in its frame) for the motion bounds.
         hulls: convex hulls (body frame).
-        parts: part hulls (body frame; a convex body: its hull alone).
+        parts: how to get each body's part hulls (body frame): a link's built on first
+            use (:meth:`.RobotBodies.parts_of`), an obstacle's or carried object's its
+            hull alone.
         poses: shape (n, 4, 4): an obstacle's world pose, a carried object's pose in
             its link's frame, identity for a link.
     """
@@ -114,7 +111,7 @@ class SceneBodies:
     statics: tuple[bool, ...]
     points: tuple[tuple[str | None, np.ndarray], ...]
     hulls: tuple[Hull, ...]
-    parts: tuple[Parts, ...]
+    parts: tuple[Callable[[], Parts], ...]
     poses: np.ndarray
 
     @classmethod
@@ -128,7 +125,9 @@ class SceneBodies:
         kinds = [BodyKind.LINK] * len(names)
         trees, statics = list(robot.trees), list(robot.statics)
         points: list[tuple[str | None, np.ndarray]] = list(robot.points)
-        hulls, parts = list(robot.hulls), list(robot.parts)
+        hulls = list(robot.hulls)
+        parts: list[Callable[[], Parts]] = [partial(robot.parts_of, i)
+                                            for i in range(len(robot.names))]
         objs = [fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
         surfaces: dict[int, fcl.CollisionObject] = {}
         poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles), 1, 1))
@@ -136,7 +135,7 @@ class SceneBodies:
         for a in attached:
             if link_index is None or a.link not in link_index:
                 raise ValueError(f"carried object '{a.id}' on unknown link '{a.link}'")
-            geom, tree, hull, part = _obstacle_geometry(a.shape, robot.shapes)
+            geom, tree, hull = _obstacle_geometry(a.shape, robot.shapes)
             offset = a.shape.pose()  # in the link's frame
             poses[len(names)] = offset
             names.append(a.id)
@@ -149,9 +148,9 @@ class SceneBodies:
             local = _enclosing_points(tree)
             points.append((a.link, local @ offset[:3, :3].T + offset[:3, 3]))
             hulls.append(hull)
-            parts.append(part)
+            parts.append(partial(Parts.of_hull, hull))
         for o in obstacles:
-            geom, tree, hull, part = _obstacle_geometry(o, robot.shapes)
+            geom, tree, hull = _obstacle_geometry(o, robot.shapes)
             pose = o.pose()
             poses[len(names)] = pose
             names.append(o.id)
@@ -167,7 +166,7 @@ class SceneBodies:
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
             hulls.append(hull)
-            parts.append(part)
+            parts.append(partial(Parts.of_hull, hull))
         return cls(tuple(names), tuple(kinds), tuple(links), tuple(trees), tuple(objs),
                    surfaces, tuple(statics), tuple(points), tuple(hulls), tuple(parts), poses)
 

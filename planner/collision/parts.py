@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import heapq
 import logging
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -38,7 +39,7 @@ from .hulls import _SLACK, Hull, _along, _qhull
 _log = logging.getLogger(__name__)
 
 #: bump when the part builder changes: cached parts of an older builder are never read
-PARTS_VERSION = "3"
+PARTS_VERSION = "4"
 # [m] a cluster whose hull strays farther than this from its triangles (sampled at the
 # hull's largest facets) is split again (the worst first); a mesh whose whole hull
 # strays less keeps one part: its hull
@@ -52,8 +53,8 @@ LONGEST = 1 / 64
 # hull facets sampled per cluster for its gap (the largest: where a hull bridges a
 # hollow), against at most this many of its triangles (evenly strided: a gap measured
 # against fewer is never smaller)
-_SAMPLED_FACETS = 64
-_SAMPLED_TRIANGLES = 2048
+_SAMPLED_FACETS = 32
+_SAMPLED_TRIANGLES = 1024
 # the integer arrays of a PartPack
 _INDEX = ("offsets", "left", "right", "part")
 # GJK: iterations at most, and the relative progress below which it stops
@@ -253,8 +254,8 @@ def _split(tri: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     centroids along their longest extent (as the OBB trees)."""
     c = tri[idx].mean(axis=1)
     axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
-    order = np.argsort(c[:, axis], kind="mergesort")
     mid = len(idx) // 2
+    order = np.argpartition(c[:, axis], mid)  # (deterministic: introselect)
     return idx[order[:mid]], idx[order[mid:]]
 
 
@@ -558,26 +559,32 @@ def parts_bound(a: PartPack, ta: np.ndarray, b: PartPack, tb: np.ndarray,
 
 class PartBounds:
     """Part-hull distance bounds between the bodies of one world (index order of its
-    bodies).
+    bodies), each body's parts got on first use.
 
     Args:
-        parts: one per body (a convex body's: its hull alone).
+        parts: per body, how to get its parts (a convex body's: its hull alone).
     """
 
-    def __init__(self, parts: list[Parts]) -> None:
-        self._split = [p.count > 1 for p in parts]
-        self._packs = [p.pack() for p in parts]
+    def __init__(self, parts: Sequence[Callable[[], Parts]]) -> None:
+        self._get = list(parts)
+        self._packs: list[PartPack | None] = [None] * len(parts)
+
+    def _pack(self, a: int) -> PartPack:
+        found = self._packs[a]
+        if found is None:
+            found = self._packs[a] = self._get[a]().pack()
+        return found
 
     def split(self, a: int, b: int) -> bool:
         """Whether body ``a`` or ``b`` has more than one part (else their hulls' bound
         is as good)."""
-        return self._split[a] or self._split[b]
+        return len(self._pack(a).radii) > 1 or len(self._pack(b).radii) > 1
 
     def bound(self, a: int, ta: np.ndarray, b: int, tb: np.ndarray, *,
               cap: float = np.inf) -> float:
         """A lower bound [m] on the distance between bodies ``a`` and ``b`` at poses
         ``ta``, ``tb`` (shape (4, 4)), at most ``cap`` [m]; 0 or less where some of their
         parts touch."""
-        return float(parts_bound(self._packs[a], np.ascontiguousarray(ta, float),
-                                 self._packs[b], np.ascontiguousarray(tb, float),
+        return float(parts_bound(self._pack(a), np.ascontiguousarray(ta, float),
+                                 self._pack(b), np.ascontiguousarray(tb, float),
                                  float(cap)))
