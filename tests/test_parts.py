@@ -14,14 +14,9 @@ from scipy.spatial import ConvexHull, QhullError
 
 from description import load_description
 from description.meshes import shape_mesh
+from planner.collision.gjk import gjk_direction
 from planner.collision.hulls import mesh_hull
-from planner.collision.parts import (
-    PartBounds,
-    Parts,
-    build_parts,
-    gjk_direction,
-    mesh_parts,
-)
+from planner.collision.parts import PartBounds, Parts, build_parts, mesh_parts
 from planner.collision.world import CollisionWorld
 
 
