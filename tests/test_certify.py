@@ -299,9 +299,12 @@ def test_a_grazing_path_is_planned_again_with_finer_samples_then_certified_edges
 def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course_ws):
     # the claw coming down over the course base: the hulls' bound shrinks geometrically
     # toward the hulls' contact while the meshes stay >= 12 mm apart; the walk used to
-    # take it and certify 5 um (a false near contact, and its bounds); the exact
-    # distance, asked once neither trees nor hulls prove EXACT_BELOW, proves the gap
-    # (half the last hull bound above it is what the walk certified before it)
+    # take it and certify 5 um (a false near contact, and its bounds); the part hulls,
+    # asked where the hulls prove little, prove the gap without an exact query (and the
+    # exact distance, asked once neither trees nor hulls prove EXACT_BELOW, where there
+    # are no parts)
+    from dataclasses import replace
+
     from planner.collision import certify
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
     world = CollisionWorld(d)
@@ -314,11 +317,17 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     assert true_gap > 0.01
     cert = Certifier(world, fraction=0.5).path(edge, sample_step=None)
     assert cert.free and cert.closest == ("base_link", "claw_support")
-    assert 0.0005 < cert.certified_clearance <= true_gap
+    assert 0.001 < cert.certified_clearance <= true_gap
+    assert cert.exact == 0
+    # without parts (each link its hull alone): the exact distance proves the gap
+    no_parts = CollisionWorld(d, bodies=replace(world.bodies, split=False))
+    exact = Certifier(no_parts, fraction=0.5).path(edge, sample_step=None)
+    assert exact.free and 0.0005 < exact.certified_clearance <= true_gap
+    assert exact.exact > 0
     # the hulls alone (as before EXACT_BELOW): the same verdict, microns certified
     old, certify.EXACT_BELOW = certify.EXACT_BELOW, -np.inf
     try:
-        hulls_only = Certifier(world, fraction=0.5).path(edge, sample_step=None)
+        hulls_only = Certifier(no_parts, fraction=0.5).path(edge, sample_step=None)
     finally:
         certify.EXACT_BELOW = old
     assert hulls_only.free and hulls_only.certified_clearance < 1e-4

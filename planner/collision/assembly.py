@@ -1,12 +1,13 @@
 """Assembling a world's bodies: the robot's links (shared, :mod:`.bodies`), the objects
 it carries and the scene's obstacles, in the body table's order, with what each needs (OBB tree, FCL
-object, convex hull, the points its motion bounds read), and the pairs worth checking.
+object, convex hull, how to get its part hulls, the points its motion bounds read), and
+the pairs worth checking.
 """
 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from itertools import combinations
@@ -21,6 +22,7 @@ from .acm import AllowedCollisionMatrix
 from .bodies import RobotBodies, ShapeCache, bvh
 from .hulls import Hull, mesh_hull, primitive_hull
 from .obbtree import ObbTree, box_tree, build_tree
+from .parts import Parts
 from .table import BodyKind, checked_kinds
 
 _Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
@@ -93,6 +95,9 @@ class SceneBodies:
         statics: whether a body never moves.
         points: (link name or None, vertices in its frame) for the motion bounds.
         hulls: convex hulls (body frame).
+        parts: how to get each body's part hulls (body frame): a link's built on first
+            use (:meth:`.RobotBodies.parts_of`), an obstacle's or carried object's its
+            hull alone.
         poses: shape (n, 4, 4): an obstacle's world pose, a carried object's pose in
             its link's frame, identity for a link.
     """
@@ -106,6 +111,7 @@ class SceneBodies:
     statics: tuple[bool, ...]
     points: tuple[tuple[str | None, np.ndarray], ...]
     hulls: tuple[Hull, ...]
+    parts: tuple[Callable[[], Parts], ...]
     poses: np.ndarray
 
     @classmethod
@@ -120,6 +126,8 @@ class SceneBodies:
         trees, statics = list(robot.trees), list(robot.statics)
         points: list[tuple[str | None, np.ndarray]] = list(robot.points)
         hulls = list(robot.hulls)
+        parts: list[Callable[[], Parts]] = [partial(robot.parts_of, i)
+                                            for i in range(len(robot.names))]
         objs = [fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
         surfaces: dict[int, fcl.CollisionObject] = {}
         poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles), 1, 1))
@@ -140,6 +148,7 @@ class SceneBodies:
             local = _enclosing_points(tree)
             points.append((a.link, local @ offset[:3, :3].T + offset[:3, 3]))
             hulls.append(hull)
+            parts.append(partial(Parts.of_hull, hull))
         for o in obstacles:
             geom, tree, hull = _obstacle_geometry(o, robot.shapes)
             pose = o.pose()
@@ -157,8 +166,9 @@ class SceneBodies:
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
             hulls.append(hull)
+            parts.append(partial(Parts.of_hull, hull))
         return cls(tuple(names), tuple(kinds), tuple(links), tuple(trees), tuple(objs),
-                   surfaces, tuple(statics), tuple(points), tuple(hulls), poses)
+                   surfaces, tuple(statics), tuple(points), tuple(hulls), tuple(parts), poses)
 
     def checked_pairs(self, acm: AllowedCollisionMatrix,
                       touch: Sequence[tuple[str, str]] = ()

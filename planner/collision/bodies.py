@@ -1,5 +1,6 @@
 """The robot's collision geometry, built once per description: each link's mesh as an
-OBB tree (:mod:`.obbtree`), an FCL BVH and a convex hull (:mod:`.hulls`).
+OBB tree (:mod:`.obbtree`), an FCL BVH, a convex hull (:mod:`.hulls`) and, on first use,
+its part hulls (:mod:`.parts`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..cache import ArtifactCache
 from ..kinematics.chain import Kinematics
 from .hulls import Hull, mesh_hull
 from .obbtree import ObbTree, cached_tree
+from .parts import Parts, mesh_parts
 
 _T = TypeVar("_T")
 
@@ -70,13 +72,17 @@ class RobotBodies:
         statics: whether the link never moves (no movable joint above it).
         points: (link, vertices) for the motion bounds.
         hulls: each one's convex hull (link frame), for cheap distance bounds.
+        faces: each one's triangles (shape (f, 3), into its ``points``' vertices), for
+            its part hulls (:meth:`parts_of`).
         shapes: the scene shapes' geometry built so far, by content, for every world
             of the robot.
         proofs: what proofs keep for every world of the robot, by kind (the
             one-dimensional pairs' cells: :class:`.one_dim.PairCells`).
         cache: where artifacts are kept between runs by content (the trees and hulls
-            were read from it; the one-dimensional pairs' cells are kept there), if
-            anywhere.
+            were read from it; the one-dimensional pairs' cells and the part hulls are
+            kept there), if anywhere.
+        split: False: every link keeps its hull alone, never split into parts (to
+            measure what the parts buy).
     """
 
     description: Description
@@ -87,17 +93,22 @@ class RobotBodies:
     statics: tuple[bool, ...]
     points: tuple[tuple[str, np.ndarray], ...]
     hulls: tuple[Hull, ...]
+    faces: tuple[np.ndarray, ...]
     shapes: ShapeCache = field(default_factory=ShapeCache, repr=False)
     proofs: dict[str, Any] = field(default_factory=dict, repr=False)
     cache: ArtifactCache | None = field(default=None, repr=False, compare=False)
+    split: bool = field(default=True, compare=False)
+    _parts: dict[int, Parts] = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def build(cls, description: Description, kin: Kinematics, *,
               cache: ArtifactCache | None = None) -> RobotBodies:
         """Build every link's geometry; trees and hulls come from ``cache`` when it has
-        them."""
+        them, and with a cache the links' part hulls too (from it, else built now:
+        without one they are built on first use, :meth:`parts_of`)."""
         robot = description.robot
         names, frames, trees, geoms, statics, points, hulls = [], [], [], [], [], [], []
+        faces: list[np.ndarray] = []
         for link in kin.link_names:
             shapes = robot.links[link].collisions
             if not shapes:
@@ -113,5 +124,25 @@ class RobotBodies:
             statics.append(not any(j.movable for j in robot.link_path(link)))
             points.append((link, np.asarray(mesh.vertices, float)))
             hulls.append(mesh_hull(points[-1][1], cache))
-        return cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
-                   tuple(statics), tuple(points), tuple(hulls), cache=cache)
+            faces.append(np.asarray(mesh.faces, np.int64))
+        bodies = cls(description, tuple(names), tuple(frames), tuple(trees), tuple(geoms),
+                     tuple(statics), tuple(points), tuple(hulls), tuple(faces), cache=cache)
+        if cache is not None:
+            # a long-lived caller (the service's zygote, before it forks its workers):
+            # every link's parts now, read from the cache after the first start, rather
+            # than seconds into the first plan near a concave link
+            for i in range(len(names)):
+                bodies.parts_of(i)
+        return bodies
+
+    def parts_of(self, i: int) -> Parts:
+        """Link ``i``'s part hulls (:func:`.parts.mesh_parts`), built on first use (1-3
+        s for a concave CAD link of 20-50k triangles; most worlds without a cache never
+        need them) and kept for every world of the robot, and in ``cache``."""
+        if not self.split:
+            return Parts.of_hull(self.hulls[i])
+        found = self._parts.get(i)
+        if found is None:
+            found = self._parts[i] = mesh_parts(self.points[i][1], self.faces[i],
+                                                self.hulls[i], self.cache)
+        return found

@@ -32,6 +32,7 @@ from .body_speed import moving_by_static
 from .compiled import Direct
 from .hulls import HullBounds
 from .obbtree import Forest, pair_candidates, state_candidates
+from .parts import PartBounds
 from .table import BodyKind, BodyTable
 
 _log = logging.getLogger(__name__)
@@ -118,6 +119,7 @@ class CollisionWorld:
         self._hull_bounds = HullBounds(list(scene.hulls), scene.poses)
         #: every body's convex hull packed, for the kernels
         self.hulls = self._hull_bounds.pack
+        self._part_bounds = PartBounds(list(scene.parts))
         #: the kinematic chain, for the kernels
         self.chain = self.kin.chain
         index, fixed = scene.checked_pairs(self.acm, carried_touch(self.attached))
@@ -284,8 +286,8 @@ class CollisionWorld:
     def still_distance(self, q: ArrayLike, pair: int, *, above: float) -> float:
         """A lower bound [m] on the distance of checked pair ``pair`` at a free state
         ``q``: :meth:`pair_bound`'s with ``above`` (the convex hulls', exact but for
-        rounding on convex links; FCL's exact distance where they are not above it, as
-        for the shipped fingers, whose hulls touch) where the joints that move the pair
+        rounding on convex links; the part hulls', else FCL's exact distance, where they
+        are not above it, as for the shipped fingers, whose hulls touch) where the joints that move the pair
         relative to itself (weight above ``_MOVES`` [m/rad]) are as in ``q`` and the
         others 0, less how far those others' values in ``q`` can move it. Remembered by
         the moving joints' values, so a pair no joint of a motion moves (the fingers in
@@ -312,14 +314,31 @@ class CollisionWorld:
         return self._hull_bounds.bound(int(a), self.body_pose(poses, a), int(b),
                                        self.body_pose(poses, b), direction=direction)
 
+    def pair_parts_bound(self, q: ArrayLike, pair: int) -> float:
+        """The part hulls' lower bound [m] on the distance of checked pair ``pair`` at a
+        state ``q`` (:mod:`.parts`, tens of us; tight near a concave body, where the
+        hulls touch); -inf where neither body has parts (the hulls' bound is as good)."""
+        a, b = (int(x) for x in self.table.pairs.index[pair])
+        if not self._part_bounds.split(a, b):
+            return -np.inf
+        poses = self._poses_of(q)
+        return self._part_bounds.bound(a, self.body_pose(poses, a), b,
+                                       self.body_pose(poses, b))
+
     def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
+                   parts_below: float | None = None,
                    direction: np.ndarray | None = None) -> tuple[float, bool]:
         """A lower bound [m] on the distance of checked pair ``pair`` at a state ``q``
         reached without contact (as for :meth:`pair_distance`): the bodies' convex
-        hulls' (:mod:`.hulls`, ~20 us) when that is above ``above``, else FCL's exact
-        distance (0.3-2 ms on CAD links). The flag says which (True: exact).
-        ``direction``: as for :meth:`.HullBounds.bound`."""
+        hulls' (:mod:`.hulls`, ~20 us) when that is above ``above`` and ``parts_below``
+        (default: ``above``), else the better of it and their part hulls'
+        (:meth:`pair_parts_bound`) when that is above ``above``, else FCL's exact
+        distance (0.3-4 ms on CAD links). The flag says which (True: exact).
+        ``direction``: as for :meth:`.HullBounds.bound` (the hulls')."""
         d = self.pair_hull_bound(q, pair, direction=direction)
+        if d > above and d > (above if parts_below is None else parts_below):
+            return d, False
+        d = max(d, self.pair_parts_bound(q, pair))
         if d > above:
             return d, False
         return self.pair_distance(q, pair), True  # (FK again: microseconds beside FCL)
