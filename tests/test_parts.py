@@ -171,3 +171,36 @@ def test_two_convex_parts_get_their_distance(seed):
 def test_a_tree_must_match_its_parts():
     with pytest.raises(ValueError, match="2 parts for a tree of 1 leaves"):
         Parts.of([(np.zeros((1, 3)), 0.0)] * 2, np.array([-1]), np.array([-1]))
+
+
+# -- the builder's shortcuts give what the plain numpy gives ----------------------------------
+
+def test_unique_rows_is_numpys_unique_by_rows():
+    from planner.collision.parts import _unique_rows
+
+    rng = np.random.default_rng(5)
+    pts = rng.integers(-3, 4, size=(2000, 3)).astype(float) / 7  # many repeats
+    pts[::97] = -0.0  # signed zeros compare equal
+    rows, inverse = _unique_rows(pts)
+    want, want_inverse = np.unique(pts, axis=0, return_inverse=True)
+    assert np.array_equal(rows, want) and np.array_equal(inverse, want_inverse.ravel())
+    assert np.array_equal(rows[inverse], pts)
+
+
+def test_largest_is_the_head_of_a_stable_argsort():
+    from planner.collision.parts import _largest
+
+    rng = np.random.default_rng(6)
+    for n in (5, 32, 33, 500):
+        x = rng.integers(0, 9, size=n).astype(float)  # ties at the cut
+        assert np.array_equal(_largest(x, 32), np.argsort(-x, kind="stable")[:32])
+
+
+def test_gap_stops_early_at_the_same_farthest_point():
+    from planner.collision.parts import _gap, _point_triangle
+
+    rng = np.random.default_rng(7)
+    tri = rng.uniform(-1, 1, size=(300, 3, 3))
+    pts = rng.uniform(-2, 2, size=(40, 3))
+    brute = max(min(_point_triangle(p, t) for t in tri) for p in pts)
+    assert _gap(pts, tri) == np.sqrt(brute)
