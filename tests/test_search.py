@@ -25,6 +25,17 @@ def world():
     return w, d.robot.position_limits(w.kin.joint_names)
 
 
+def test_a_seed_out_of_range_names_its_field():
+    from planner.planning.search import check_seed
+
+    for seed in (None, 0, MAX_SEED):
+        check_seed(seed)
+    for bad in (-1, MAX_SEED + 1, True, 1.0, "7"):
+        with pytest.raises(InvalidRequest) as e:
+            check_seed(bad, "steps[2].seed")
+        assert e.value.field == "steps[2].seed" and "4294967295" in e.value.message
+
+
 def test_the_planners_offered_are_ompls():
     offered = available_planners()
     assert "RRTConnect" in offered and set(offered) <= set(PLANNERS)

@@ -287,12 +287,12 @@ class CollisionWorld:
         """A lower bound [m] on the distance of checked pair ``pair`` at a free state
         ``q``: :meth:`pair_bound`'s with ``above`` (the convex hulls', exact but for
         rounding on convex links; the part hulls', else FCL's exact distance, where they
-        are not above it, as for the shipped fingers, whose hulls touch) where the joints that move the pair
-        relative to itself (weight above ``_MOVES`` [m/rad]) are as in ``q`` and the
-        others 0, less how far those others' values in ``q`` can move it. Remembered by
-        the moving joints' values, so a pair no joint of a motion moves (the fingers in
-        an arm motion) is measured once, and the same whatever was asked before (the
-        others only ever add their rounding floor)."""
+        are not above it, as for the shipped fingers, whose hulls touch) where the
+        joints that move the pair relative to itself (weight above ``_MOVES`` [m/rad])
+        are as in ``q`` and the others 0, less how far those others' values in ``q`` can
+        move it. Remembered by the moving joints' values, so a pair no joint of a motion
+        moves (the fingers in an arm motion) is measured once, and the same whatever was
+        asked before (the others only ever add their rounding floor)."""
         q = np.asarray(q, float)
         weight = self.table.pairs.weight[pair]
         at = np.where(weight > _MOVES, q, 0.0)
@@ -336,7 +336,7 @@ class CollisionWorld:
         distance (0.3-4 ms on CAD links). The flag says which (True: exact).
         ``direction``: as for :meth:`.HullBounds.bound` (the hulls')."""
         d = self.pair_hull_bound(q, pair, direction=direction)
-        if d > above and d > (above if parts_below is None else parts_below):
+        if d > max(above, above if parts_below is None else parts_below):
             return d, False
         d = max(d, self.pair_parts_bound(q, pair))
         if d > above:

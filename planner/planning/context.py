@@ -48,7 +48,7 @@ from ..timing.verify import VerificationReport, Verifier, derate
 from .goal_states import resolve_group
 from .motion import MotionRequest, Profile
 from .paths import PathPlanner
-from .search import MAX_SEED
+from .search import check_seed
 
 log = logging.getLogger(__name__)
 
@@ -233,10 +233,7 @@ class PlanningContext:
         if req.profile not in self.profiles:
             raise InvalidRequest(f"'{req.profile}' is not one of "
                                  f"{', '.join(self.profiles)}", field="profile")
-        if req.seed is not None and (isinstance(req.seed, bool) or not isinstance(req.seed, int)
-                                     or not 0 <= req.seed <= MAX_SEED):
-            raise InvalidRequest(f"{req.seed!r} must be an integer in [0, {MAX_SEED}]",
-                                 field="seed")
+        check_seed(req.seed)
         return self._start(req.start)
 
     def _start(self, given: Mapping[str, float] | None) -> np.ndarray:

@@ -27,7 +27,7 @@ from .blended import prove_blended
 from .goal_states import check_limits, resolve_goal, resolve_group
 from .goals import Goal, check_goal
 from .room import Guarded, StateChecker, short_of_room
-from .search import MAX_SEED, available_planners, search
+from .search import available_planners, check_seed, search
 from .shortcut import shortcut_path
 
 _log = logging.getLogger(__name__)
@@ -198,10 +198,7 @@ class PathPlanner:
                                  f"{', '.join(available_planners())})", field="planner")
         if not (np.isfinite(req.planning_time) and req.planning_time > 0):
             raise InvalidRequest(f"{req.planning_time!r} must be > 0 [s]", field="planning_time")
-        if req.seed is not None and (not isinstance(req.seed, int)
-                                     or not 0 <= req.seed <= MAX_SEED):
-            raise InvalidRequest(f"{req.seed!r} must be an integer in [0, {MAX_SEED}]",
-                                 field="seed")
+        check_seed(req.seed)
         group = resolve_group(self.description, req.group, req.goal)
         joints = self.group_joints(group)
         if not joints:

@@ -20,7 +20,7 @@ import ompl.util as ou
 from ..collision.motion_check import MotionChecker, StateChecker, StateCodec, ValidityChecker
 from ..errors import InvalidRequest, NoPathFound
 
-__all__ = ["MAX_SEED", "OmplLogLevel", "PLANNERS", "available_planners", "search",
+__all__ = ["MAX_SEED", "OmplLogLevel", "PLANNERS", "available_planners", "check_seed", "search",
            "set_ompl_log_level"]
 
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
@@ -30,6 +30,14 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE
 MAX_SEED = 2**32 - 1
 
 OmplLogLevel = Literal["debug", "info", "warn", "error", "none"]
+
+
+def check_seed(seed: object, field: str = "seed") -> None:
+    """Raise :class:`InvalidRequest` naming ``field`` unless ``seed`` is None or an
+    integer OMPL can take, in [0, MAX_SEED]."""
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)
+                             or not 0 <= seed <= MAX_SEED):
+        raise InvalidRequest(f"{seed!r} must be an integer in [0, {MAX_SEED}]", field=field)
 
 
 def available_planners() -> tuple[str, ...]:

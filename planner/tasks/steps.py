@@ -26,7 +26,7 @@ from typing import Any, Literal
 from ..errors import InvalidRequest
 from ..kinematics.rotations import quaternion_of_rpy
 from ..planning.goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal
-from ..planning.search import MAX_SEED
+from ..planning.search import check_seed
 from ..scene import Obstacle
 
 StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
@@ -275,10 +275,7 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None)
     if not isinstance(obstacles, Sequence) or isinstance(obstacles, str):
         raise InvalidRequest("must be a list of obstacles", field=f"{pre}obstacles")
     seed = data.get("seed")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)
-                             or not 0 <= seed <= MAX_SEED):
-        raise InvalidRequest(f"{seed!r} must be an integer in [0, {MAX_SEED}]",
-                             field=f"{pre}seed")
+    check_seed(seed, f"{pre}seed")
     vs, acc = data.get("velocity_scaling"), data.get("acceleration_scaling")
     return Task(
         steps=tuple(step_from_mapping(s, f"{pre}steps[{i}]") for i, s in enumerate(steps)),
