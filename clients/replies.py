@@ -12,7 +12,6 @@ leaves open (the verification's other figures) stays in :attr:`PlanReply.raw`.
 
 from __future__ import annotations
 
-import binascii
 import functools
 import operator
 from collections.abc import Mapping, Sequence
@@ -22,8 +21,8 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import jsonschema_rs
 import numpy as np
-import pybase64
 
+from planner.packed import PackedError, unpack
 from planner.timing.trajectory import samples_csv
 from service.wire import field_path, validator
 
@@ -99,30 +98,18 @@ def _samples(points: Sequence[Any], width: int
 def _unpacked(packed: Mapping[str, Any], width: int
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The times (m,) and the sample arrays (m, width) of a schema-valid
-    ``trajectory.packed`` (base64 of little-endian float64, row-major), in
-    :data:`_SAMPLE_KEYS` order.
+    ``trajectory.packed`` (:func:`planner.packed.unpack`), in :data:`_SAMPLE_KEYS` order.
 
     Raises:
         MalformedReply: a string that is not base64, or not m (times) or m x width
             numbers, or a number that is not finite.
     """
-    m = packed["samples"]
-    out = []
-    for key in ("time_from_start", *_SAMPLE_KEYS):
-        where = f"trajectory.packed.{key}"
-        try:
-            raw = pybase64.b64decode(packed[key], validate=True)
-        except (binascii.Error, ValueError):
-            raise MalformedReply("plan", where, "is not base64") from None
-        count = m if key == "time_from_start" else m * width
-        if len(raw) != 8 * count:
-            raise MalformedReply("plan", where, f"holds {len(raw)} bytes, not {8 * count} "
-                                 f"({count} float64 for {m} samples)")
-        a = np.frombuffer(raw, "<f8").astype(float)
-        if not np.isfinite(a).all():
-            raise MalformedReply("plan", where, "holds a number that is not finite")
-        out.append(a if key == "time_from_start" else a.reshape(m, width))
-    return out[0], out[1], out[2], out[3], out[4]
+    try:
+        times, q, qd, qdd, tau = unpack(packed, width)
+    except PackedError as e:
+        raise MalformedReply("plan", e.field, e.problem) from None
+    assert qd is not None and qdd is not None and tau is not None  # none is optional here
+    return times, q, qd, qdd, tau
 
 
 def _points_body(body: Mapping[str, Any]) -> Mapping[str, Any]:

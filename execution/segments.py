@@ -25,6 +25,7 @@ from ruckig import ControlInterface, InputParameter, Result, Ruckig, Synchroniza
 from description import Description
 from planner.codes import Code
 from planner.errors import TrajectoryError
+from planner.packed import OPTIONAL, PackedError, unpack
 from planner.timing.braking import brake_to_rest
 
 from .robots.base import RobotError
@@ -111,6 +112,10 @@ def parse_trajectory(body: object) -> tuple[tuple[str, ...], np.ndarray, dict[st
     if not (isinstance(names, list | tuple) and names
             and all(isinstance(n, str) for n in names)):
         raise _bad("trajectory.joint_names", "must be a non-empty list of names")
+    if "packed" in body:
+        if points is not None:
+            raise _bad("trajectory", "holds both points and packed: send one")
+        return _parse_packed(tuple(names), body["packed"])
     if not (isinstance(points, list | tuple) and points):
         raise _bad("trajectory.points", "must be a non-empty list")
     dof = len(names)
@@ -137,6 +142,25 @@ def parse_trajectory(body: object) -> tuple[tuple[str, ...], np.ndarray, dict[st
     if np.any(np.diff(times) < 0):
         raise _bad("trajectory.points", "time_from_start must not decrease")
     return tuple(names), times, cols
+
+
+def _parse_packed(names: tuple[str, ...], packed: object
+                  ) -> tuple[tuple[str, ...], np.ndarray, dict[str, np.ndarray]]:
+    """:func:`parse_trajectory` of ``trajectory.packed`` (:mod:`planner.packed`)."""
+    if not isinstance(packed, Mapping):
+        raise _bad("trajectory.packed", "must be an object")
+    try:
+        times, *arrays = unpack(packed, len(names), optional=OPTIONAL)
+    except PackedError as e:
+        raise _bad(e.field, e.problem) from None
+    if len(times) == 0:
+        raise _bad("trajectory.packed.samples", "must be at least 1")
+    m, dof = len(times), len(names)
+    cols = {k: (a if a is not None else np.full((m, dof), np.nan))
+            for k, a in zip(COLUMNS, arrays)}
+    if np.any(np.diff(times) < 0):
+        raise _bad("trajectory.packed.time_from_start", "must not decrease")
+    return names, times, cols
 
 
 def read_json(path: str | Path) -> Any:

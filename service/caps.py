@@ -16,6 +16,10 @@ from planner.errors import InvalidRequest
 
 #: Largest request payload [bytes].
 MAX_PAYLOAD = 256 * 1024
+#: Largest execute request [bytes]: it carries a whole trajectory, and must take any the
+#: service plans (:data:`MAX_SAMPLES` samples as JSON points: ~13 MB for a 7-joint arm;
+#: packed, a third of that).
+MAX_EXECUTE_PAYLOAD = 16 * 1024 * 1024
 #: Deepest nesting of arrays and objects (the root object counts as 1). The deepest
 #: valid request, ``obstacles[i].size[j]``, nests 4 deep.
 MAX_DEPTH = 8
@@ -54,7 +58,9 @@ def check_structure(value: Any, *, counts: bool = True) -> None:
 
     Args:
         counts: False for a payload that is no plan/fk/ik/check request, such as a
-            trajectory to execute, which only :data:`MAX_PAYLOAD` bounds.
+            trajectory to execute, which only its payload cap bounds: its element counts
+            and the length of its strings (a packed trajectory's arrays are long base64
+            strings) are not capped; its keys and its depth are.
 
     Raises:
         InvalidRequest: naming the field where the cap was passed and ``details.limit``.
@@ -69,7 +75,8 @@ def check_structure(value: Any, *, counts: bool = True) -> None:
         elif isinstance(node, list):
             items = enumerate(node)
         else:
-            _check_scalar(node, path)
+            if counts:
+                _check_scalar(node, path)
             continue
         if depth > MAX_DEPTH:
             raise _over("MAX_DEPTH", f"nested deeper than {MAX_DEPTH} levels of arrays and "
@@ -86,7 +93,7 @@ def check_structure(value: Any, *, counts: bool = True) -> None:
                 raise _over("MAX_STRING", f"a key longer than {MAX_STRING} characters", path)
             if isinstance(v, (dict, list)):
                 stack.append((v, (*path, k), depth + 1))
-            elif isinstance(v, str) and len(v) > MAX_STRING:
+            elif counts and isinstance(v, str) and len(v) > MAX_STRING:
                 _check_scalar(v, (*path, k))
 
 

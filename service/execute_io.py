@@ -67,6 +67,8 @@ def answering(query: zenoh.Query, where: str, internal: str) -> Iterator[None]:
     try:
         yield
     except (PlanningError, RobotError) as e:
+        # said in the service's log too: a refused motion is news to whoever watches it
+        _log.warning("%s: refused %s: %s", where, e.code, e.message)
         reply_err(query, e.code, e.message, e.details)
     except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
         _log.exception("%s: %s", where, internal)

@@ -11,11 +11,11 @@ from typing import Any, Literal
 
 import numpy as np
 import orjson
-import pybase64
 
 from description import Description
 from planner.errors import PlanningError
 from planner.kinematics.rotations import quaternion_of_rpy
+from planner.packed import pack
 from planner.planning.goals import Goal, JointGoal, LineGoal, NamedGoal, PoseGoal, PositionGoal
 from planner.planning.pipeline import MotionRequest
 from planner.scene import AttachedObject, resolve_attached
@@ -137,20 +137,9 @@ def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0,
     return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)
 
 
-#: the arrays of a packed trajectory, in its order, and the trajectory's attribute of each
-PACKED_ARRAYS = (("time_from_start", "times"), ("positions", "positions"),
-                 ("velocities", "velocities"), ("accelerations", "accelerations"),
-                 ("effort", "efforts"))
-
-
 def _packed(traj: Any) -> dict[str, Any]:
-    """``trajectory.packed``: the sample count and each array as base64 of its
-    little-endian float64 bytes, row-major (what the schema says)."""
-    out: dict[str, Any] = {"samples": len(traj.times)}
-    for key, attr in PACKED_ARRAYS:
-        raw = np.ascontiguousarray(getattr(traj, attr), dtype="<f8").tobytes()
-        out[key] = pybase64.b64encode_as_string(raw)
-    return out
+    """``trajectory.packed`` (:func:`planner.packed.pack`: what the schema says)."""
+    return pack(traj.times, traj.positions, traj.velocities, traj.accelerations, traj.efforts)
 
 
 #: what joins the parts of one sample: its row of each array, then its time

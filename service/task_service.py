@@ -31,6 +31,7 @@ from description import Description
 from description.moveit_config import NamedTask, find_task, read_tasks
 from planner.codes import Code
 from planner.errors import InvalidRequest, PlanningError
+from planner.packed import pack
 from planner.scene import Obstacle
 
 from . import wire
@@ -90,11 +91,10 @@ def obstacle_json(o: Obstacle) -> dict[str, Any]:
 
 
 def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str, Any]:
-    """The whole task as one ``{joint_names, points}`` trajectory (execute's form)."""
+    """The whole task as one ``{joint_names, packed}`` trajectory (execute's form; packed,
+    a third the size of points: an 18 s task is ~130 KB)."""
     ts, q, qd, qdd = result.samples(sample_rate)
-    points = [{"positions": a, "velocities": b, "accelerations": c, "time_from_start": t}
-              for a, b, c, t in zip(q.tolist(), qd.tolist(), qdd.tolist(), ts.tolist())]
-    return {"joint_names": list(result.joint_names), "points": points}
+    return {"joint_names": list(result.joint_names), "packed": pack(ts, q, qd, qdd)}
 
 
 def twin_body(task: Task, result: TaskResult) -> dict[str, Any]:
@@ -232,7 +232,10 @@ class TaskService:
             if reply.ok is not None:
                 query.reply(key, reply.ok.payload.to_bytes(), encoding=JSON)
             else:
-                query.reply_err(reply.err.payload.to_bytes(), encoding=JSON)
+                raw = reply.err.payload.to_bytes()
+                _log.warning("task: the service's execute refused the task's motion: %s",
+                             raw[:300].decode("utf-8", "replace"))
+                query.reply_err(raw, encoding=JSON)
         if not got:
             _reply_err(query, Code.ROBOT_ERROR, "the service's <prefix>/execute did not "
                        "answer (serve --no-robot?)")

@@ -24,10 +24,10 @@ import orjson
 
 from planner.errors import InvalidRequest
 
-from .caps import MAX_DEPTH, MAX_PAYLOAD, check_structure, field_path
+from .caps import MAX_DEPTH, MAX_EXECUTE_PAYLOAD, MAX_PAYLOAD, check_structure, field_path
 
-__all__ = ["MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite", "check_size",
-           "decode", "encode", "field_path", "parse_json", "schema", "validate",
+__all__ = ["MAX_EXECUTE_PAYLOAD", "MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite", "check_size",
+           "decode", "encode", "field_path", "parse_json", "payload_cap", "schema", "validate",
            "validator"]
 
 Kind = Literal["plan", "fk", "ik", "check", "execute", "task"]
@@ -74,14 +74,21 @@ def validator(name: str) -> jsonschema_rs.Draft202012Validator:
     return jsonschema_rs.Draft202012Validator(s)
 
 
-def check_size(size: int) -> None:
-    """Refuse a payload of ``size`` bytes over :data:`MAX_PAYLOAD`."""
-    if size > MAX_PAYLOAD:
-        raise InvalidRequest(f"payload of {size} bytes exceeds the {MAX_PAYLOAD}-byte cap",
-                             details={"size": size, "limit": MAX_PAYLOAD})
+def payload_cap(kind: str) -> int:
+    """The largest payload [bytes] of a ``kind`` request: :data:`MAX_EXECUTE_PAYLOAD` for
+    an execute request (a whole trajectory), :data:`MAX_PAYLOAD` for every other."""
+    return MAX_EXECUTE_PAYLOAD if kind == "execute" else MAX_PAYLOAD
 
 
-def parse_json(payload: bytes | str, *, counts: bool = False) -> Any:
+def check_size(size: int, *, limit: int = MAX_PAYLOAD) -> None:
+    """Refuse a payload of ``size`` bytes over ``limit`` (:func:`payload_cap`)."""
+    if size > limit:
+        raise InvalidRequest(f"payload of {size} bytes exceeds the {limit}-byte cap",
+                             details={"size": size, "limit": limit})
+
+
+def parse_json(payload: bytes | str, *, counts: bool = False, limit: int = MAX_PAYLOAD
+               ) -> Any:
     """Decode a payload: at most :data:`MAX_PAYLOAD` bytes, UTF-8, strict JSON, nested
     at most :data:`service.caps.MAX_DEPTH` deep, no string over
     :data:`service.caps.MAX_STRING`.
@@ -90,6 +97,7 @@ def parse_json(payload: bytes | str, *, counts: bool = False) -> Any:
         counts: also cap element counts (:data:`service.caps.MAX_ITEMS` per array or
             object, :data:`service.caps.MAX_ELEMENTS` in all), as for plan/fk/ik/check
             requests; off for payloads such as a trajectory to execute.
+        limit: the size cap [bytes] (:func:`payload_cap`).
 
     Raises:
         InvalidRequest: over the size cap (``details.limit``), not UTF-8, malformed JSON
@@ -102,7 +110,7 @@ def parse_json(payload: bytes | str, *, counts: bool = False) -> Any:
         except UnicodeEncodeError as e:  # a str holding lone surrogates
             raise InvalidRequest(f"payload is not UTF-8: {e.reason}") from None
     size = len(payload)
-    check_size(size)
+    check_size(size, limit=limit)
     if size == 0:
         raise InvalidRequest("empty payload: send a JSON object")
     try:
@@ -272,7 +280,8 @@ def decode(kind: Kind, payload: bytes | str) -> dict[str, Any]:
     """:func:`parse_json` (with the count caps, but for an execute request's trajectory)
     then :func:`validate`: the whole cheap, description-free check, bounded to a few
     milliseconds whatever the payload."""
-    return validate(kind, parse_json(payload, counts=kind not in _UNCOUNTED))
+    return validate(kind, parse_json(payload, counts=kind not in _UNCOUNTED,
+                                     limit=payload_cap(kind)))
 
 
 def encode(value: Any, *, finite: bool = False) -> bytes:

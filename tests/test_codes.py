@@ -24,7 +24,7 @@ NOT_CODES = frozenset({
     "MAX_DEPTH", "MAX_ITEMS", "MAX_ELEMENTS", "MAX_STRING", "MAX_SAMPLES",
     # environment and sysconf names, __all__ entries
     "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME",
-    "ARDUINOBOT_HOPTRACE", "SC_PAGE_SIZE", "MAX_PAYLOAD", "SCHEMA_NAMES",
+    "ARDUINOBOT_HOPTRACE", "SC_PAGE_SIZE", "MAX_PAYLOAD", "MAX_EXECUTE_PAYLOAD", "SCHEMA_NAMES",
     "INSTALL_HINT",
     # the model's file format, named in `arduinobot limits` (clients/applied_limits.py)
     "URDF",

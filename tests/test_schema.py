@@ -300,4 +300,4 @@ def test_the_execute_request_schema_is_published_and_its_ranges_are_the_services
     tol = s["properties"]["start_tolerance"]
     assert tol["default"] == DEFAULT_START_TOLERANCE
     assert s["properties"]["client"]["maxLength"] <= caps.MAX_NAME
-    assert str(wire.MAX_PAYLOAD // 1024) in s["description"]
+    assert f"{wire.MAX_EXECUTE_PAYLOAD // 2**20} MiB" in s["description"]
