@@ -27,9 +27,9 @@ from typing import Any
 
 import zenoh
 
+from arduinobot.contract.zconfig import zenoh_config
 from bench._lib.fuzz_cases import KINDS, VALID, Generator
 from bench._lib.report import emit
-from service.zconfig import zenoh_config
 from tests.helpers.serve import start_server
 
 CODES = {"INVALID_REQUEST", "START_IN_COLLISION", "GOAL_IN_COLLISION", "GOAL_OUT_OF_REACH",

@@ -1,27 +1,27 @@
 """The service hop: where a plan request's time goes outside the planner, piece by piece.
 
 Starts a real ``arduinobot serve`` (127.0.0.1 on a free port, multicast scouting off) with
-the hop probe on (:mod:`service.hoptrace`: the service stamps each stage of every work
+the hop probe on (:mod:`arduinobot.service.hoptrace`: the service stamps each stage of every work
 request on CLOCK_MONOTONIC, the clock of every process on this host) and sends the bench
 scenes' seeded problems (bench/_lib/scenes.py, as ``./dev bench peer`` does) through the
 Python client's own steps, stamping the client's side too. Per request, in order:
 
-- ``client_encode``: the request as the client sends it (:func:`clients.client.plan_body`:
-  the trajectory packed) to JSON (:func:`clients.client.encode_body`);
+- ``client_encode``: the request as the client sends it (:func:`arduinobot.client.client.plan_body`:
+  the trajectory packed) to JSON (:func:`arduinobot.client.client.encode_body`);
 - ``zenoh_in``: the get until the queryable's callback runs;
 - ``callback``: the callback (checks, the job queued); ``to_slot``: until a slot thread
   has it; ``pipe``: until the worker has read it; ``decode``: the worker's decode and
   validation;
 - ``handler_outside_total``: the handler's time beyond the reply's ``timing.total``
   (building the planner's request); ``encode``: the reply built from the sample arrays
-  and encoded (:func:`service.plan_io.plan_reply`; before it, the reply's dict was built
+  and encoded (:func:`arduinobot.service.plan.plan_io.plan_reply`; before it, the reply's dict was built
   in the handler: compare the two pieces' sum);
 - ``back_to_slot``: until the slot thread has the outcome; ``reply``: until
   ``query.reply`` returned; ``final``: the query finalised;
 - ``zenoh_out``: from the reply until the client's get returned (reply and finalisation
   on the wire);
 - ``client_decode``, ``client_parse``: the reply's JSON, then the typed, checked
-  :class:`~clients.replies.PlanReply`;
+  :class:`~arduinobot.client.replies.PlanReply`;
 - ``hop``: end to end (encode to typed reply) minus the reply's ``timing.total``.
 
 Each plan is sent again right after with ``"trajectory_format": "points"`` (a sample object
@@ -56,15 +56,15 @@ import numpy as np
 import orjson
 import zenoh
 
+from arduinobot.client.client import PlannerClient, decode_reply, encode_body, plan_body
+from arduinobot.client.replies import PlanReply
+from arduinobot.contract.zconfig import zenoh_config
+from arduinobot.planner.planning.pipeline import MotionPlanner
+from arduinobot.service import hoptrace
+from arduinobot.service.process.disk_cache import DiskCache
 from bench._lib.peer_models import make_model
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from clients.client import PlannerClient, decode_reply, encode_body, plan_body
-from clients.replies import PlanReply
-from planner.planning.pipeline import MotionPlanner
-from service import hoptrace
-from service.disk_cache import DiskCache
-from service.zconfig import zenoh_config
 from tests.helpers.serve import free_port, start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
@@ -235,7 +235,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--keep", metavar="DIR",
                     help="generate the model and its cache here and keep them (faster reruns)")
     args = ap.parse_args(argv)
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     folder = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench-hop-"))
     folder.mkdir(parents=True, exist_ok=True)

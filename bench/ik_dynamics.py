@@ -10,11 +10,11 @@ import time
 
 import numpy as np
 
+from arduinobot.description import load_description
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.planner.kinematics.dynamics import InverseDynamics
+from arduinobot.planner.kinematics.ik import position_ik
 from bench._lib.report import emit
-from description import load_description
-from planner.kinematics.chain import Kinematics
-from planner.kinematics.dynamics import InverseDynamics
-from planner.kinematics.ik import position_ik
 
 
 def per_call(fn, n: int) -> float:

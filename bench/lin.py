@@ -21,12 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
+from arduinobot.contract.errors import LineInterrupted
+from arduinobot.description import load_description
+from arduinobot.planner.planning.goals import LineGoal
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
-from description import load_description
-from planner.errors import LineInterrupted
-from planner.planning.goals import LineGoal
-from planner.planning.pipeline import MotionPlanner, MotionRequest
 from tests.helpers.course_workspace import make_course_workspace
 
 ARM = ("joint_1", "joint_2", "joint_3")

@@ -29,16 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract.errors import PlanningError
+from arduinobot.description import Description, load_description
+from arduinobot.description.loader import read_model_text
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
 from bench._lib.args import problems_per_scene
 from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from clients.client import PlannerClient
-from description import Description, load_description
-from description.loader import read_model_text
-from planner.errors import PlanningError
-from planner.planning.goals import JointGoal
-from planner.planning.pipeline import MotionPlanner, MotionRequest
 from tests.helpers.course_workspace import make_course_workspace
 from tests.helpers.serve import start_server
 
@@ -116,7 +116,7 @@ def no_srdf_suite(d: Description, n: int, folder: Path) -> dict[str, dict]:
 
 
 def main(n: int = 40) -> None:
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-own-robot-"))
     t0 = time.perf_counter()

@@ -69,6 +69,14 @@ from typing import Any
 
 import numpy as np
 
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
+from arduinobot.client.replies import PlanReply
+from arduinobot.contract.errors import PlanningError
+from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.planning.pipeline import MotionPlanner
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.service.process.disk_cache import DiskCache
 from bench._lib.peer_models import PeerModel, make_model
 from bench._lib.peer_mplib import held_model, mplib_rows, scale_check
 from bench._lib.peer_report import NEAR, STAGES, report
@@ -76,14 +84,6 @@ from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.sampled import SampledPositions
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from clients import errors
-from clients.client import PlannerClient
-from clients.replies import PlanReply
-from planner.collision.certify import Certifier
-from planner.errors import PlanningError
-from planner.planning.pipeline import MotionPlanner
-from planner.timing.curve import build_curve
-from service.disk_cache import DiskCache
 from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
@@ -363,7 +363,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--state-checks", type=int, default=40,
                     help="random states MPlib and our checker both judge (per model)")
     args = ap.parse_args(argv)
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
     out: dict[str, Any] = {"n": args.n, "planning_time": args.planning_time}

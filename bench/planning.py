@@ -17,20 +17,20 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from arduinobot.contract.errors import PlanningError
+from arduinobot.description import Description, load_description
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.paths import PathPlanner, PathRequest
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, problems
-from description import Description, load_description
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.errors import PlanningError
-from planner.planning.goals import JointGoal
-from planner.planning.paths import PathPlanner, PathRequest
 
 
 def fine_variant(tmp: Path, *, min_faces: int = 50_000) -> tuple[Description, dict[str, int]]:
     """The arduinobot with every non-finger mesh subdivided to >= ``min_faces`` triangles."""
-    src = Path(__file__).resolve().parents[1] / "description" / "arduinobot_description"
+    src = Path(__file__).resolve().parents[1] / "src" / "arduinobot" / "description" / "arduinobot_description"
     dst = tmp / "arduinobot_description"
     shutil.copytree(src, dst)
     faces = {}
@@ -88,7 +88,7 @@ def suite(d: Description, n: int) -> dict[str, dict]:
 
 
 def main(n: int = 30) -> None:
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     summary = suite(load_description(), n)
     with tempfile.TemporaryDirectory() as tmp:

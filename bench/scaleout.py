@@ -1,7 +1,7 @@
 """Scale-out benchmark: throughput of 1, 2 and 4 `arduinobot serve` instances behind one
 router, with clients that spread by liveliness and load (``PlannerClient(spread=True)``).
 
-Starts a router (``python -m service.router``) and the instances (``--mode client
+Starts a router (``python -m arduinobot.service.router``) and the instances (``--mode client
 --connect <router>``, each ``--workers W``) on loopback, multicast scouting off. The same
 clients (threads, each with its own session) send the same plans to every setup.
 Prints a table, then one line of JSON. On a machine with fewer cores than instances x
@@ -19,8 +19,8 @@ import threading
 import time
 from collections import Counter
 
+from arduinobot.client.client import PlannerClient
 from bench._lib.report import emit
-from clients.client import PlannerClient
 from tests.helpers.procs import stop_processes
 from tests.helpers.serve import Server, free_port, launch_serves
 from tests.helpers.zrouter import start_router

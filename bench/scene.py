@@ -37,10 +37,10 @@ from pathlib import Path
 import trimesh
 import zenoh
 
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract.zconfig import zenoh_config
 from bench._lib.report import emit
-from clients import errors
-from clients.client import PlannerClient
-from service.zconfig import zenoh_config
 from tests.helpers.scene_fuzz import b64, carry_seeds, mutate
 from tests.helpers.serve import Server, free_port, launch_serves
 

@@ -16,11 +16,11 @@ import statistics
 import threading
 import time
 
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract import wire
+from arduinobot.description import load_description
+from arduinobot.service.plan.handlers import Handlers
 from bench._lib.report import emit
-from clients.client import PlannerClient
-from description import load_description
-from service import wire
-from service.handlers import Handlers
 from tests.helpers.serve import Server, start_server
 
 # A 100 Hz trajectory of about 2 s (base swing from reach_right to reach_left).
@@ -100,7 +100,7 @@ def throughput(workers: int, clients: int, requests: int, rounds: int) -> tuple[
 
 
 def main() -> None:
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=30)

@@ -2,7 +2,7 @@
 
 Per scene (bench/_lib/scenes.py: the planning benchmark's scenes and seeded problems), each
 problem is planned with ``MotionPlanner.solve`` (jerk-limited, and time-optimal with
-toppra) and replayed on the twin (execution/robots/sim_arduinobot.py: effort-capped
+toppra) and replayed on the twin (src/arduinobot/execution/robots/sim_arduinobot.py: effort-capped
 position servos with computed-torque feed-forward, contacts on, the scene's obstacles
 in the world) at 100 Hz, faster than real time. Figures per trajectory: tracking error
 (max |simulated - commanded| while playing), final error after settling, the torque the
@@ -20,24 +20,24 @@ import time
 
 import numpy as np
 
+from arduinobot.contract.errors import PlanningError
+from arduinobot.description import load_description
+from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+from arduinobot.execution.segments import SampledTrajectory
+from arduinobot.execution.simulate import simulate
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
+from arduinobot.service.process.disk_cache import DiskCache
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from description import load_description
-from execution.robots.sim_arduinobot import SimArduinobot
-from execution.segments import SampledTrajectory
-from execution.simulate import simulate
-from planner.errors import PlanningError
-from planner.planning.goals import JointGoal
-from planner.planning.pipeline import MotionPlanner, MotionRequest
-from service.disk_cache import DiskCache
 
 ARM = ("joint_1", "joint_2", "joint_3")
 PROFILES = ("jerk_limited", "time_optimal")
 
 
 def main(n: int = 8) -> None:
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     d = load_description()
     mp = MotionPlanner(d)

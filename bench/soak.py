@@ -15,7 +15,7 @@ scenes' detours take seconds each, and a shared 2-core machine stretches them.
     ./dev bench soak --minutes 1 --clients 4 --kills 5
     ./dev bench soak --minutes 2 --kills 0 --memtrace 20  # where memory goes
 
-``--memtrace`` runs the server with its memory probe (service/memtrace.py: resident set by
+``--memtrace`` runs the server with its memory probe (src/arduinobot/service/process/memtrace.py: resident set by
 kind, Python's traced memory, glibc's heap, live jobs, tracemalloc diffs) and prints it.
 """
 
@@ -31,11 +31,11 @@ from collections import Counter
 
 import numpy as np
 
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
+from arduinobot.service.process.pool import rss_bytes
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from clients import errors
-from clients.client import PlannerClient
-from service.pool import rss_bytes
 from tests.helpers.procs import process_tree, wait_for, wait_for_cpu
 from tests.helpers.serve import start_server
 
@@ -101,8 +101,8 @@ class RssSampler:
 
 def requests(seed: int) -> list[tuple[str, object, set[str] | None]]:
     """A seeded mix: (kind, body, allowed error codes; None: must succeed)."""
-    from description import load_description
-    from planner.collision.world import CollisionWorld
+    from arduinobot.description import load_description
+    from arduinobot.planner.collision.world import CollisionWorld
     desc = load_description()
     rng = np.random.default_rng(seed)
     mix: list[tuple[str, object, set[str] | None]] = []
@@ -219,7 +219,7 @@ def main() -> None:
                     help="seconds of load before the RSS baseline [s]")
     ap.add_argument("--memtrace", type=float, default=0.0,
                     help="run the server with its memory probe every this many seconds "
-                    "(service/memtrace.py) and print what it logged [s]")
+                    "(src/arduinobot/service/process/memtrace.py) and print what it logged [s]")
     ap.add_argument("--sample-every", type=float, default=10.0,
                     help="seconds between RSS samples during the run [s]")
     a = ap.parse_args()

@@ -17,11 +17,11 @@ import time
 from pathlib import Path
 from typing import Any
 
+from arduinobot.description import load_description
+from arduinobot.planner.planning.pipeline import MotionPlanner
+from arduinobot.planner.tasks import TaskStepFailed, plan_task, task_from_mapping
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
-from description import load_description
-from planner.planning.pipeline import MotionPlanner
-from planner.tasks import TaskStepFailed, plan_task, task_from_mapping
 from tests.helpers.course_workspace import make_course_workspace
 from tests.helpers.pick_place import pick_and_place, variants
 

@@ -11,7 +11,7 @@ Per scene (bench/_lib/scenes.py, the planning benchmark's scenes and seeded prob
   (.bench-venvs/mplib, created on demand) through bench/_lib/mplib_runner.py, on the same
   problems with the same budget and our velocity/acceleration limits: plan + TOPP time;
 - violations in every returned trajectory, both ours and MPlib's, by our verifier
-  (planner.timing.verify.Verifier) and by the independent re-check (bench/_lib/recheck.py).
+  (arduinobot.planner.timing.verify.Verifier) and by the independent re-check (bench/_lib/recheck.py).
   MPlib's trajectories are rebuilt from its toppra data (checked against its samples).
 
 Both sides get one warm-up problem per scene that is not counted. Usage:
@@ -28,18 +28,18 @@ from pathlib import Path
 
 import numpy as np
 
+from arduinobot.contract.errors import PlanningError
+from arduinobot.description import load_description
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.planner.timing.trajectory import JointTrajectory
+from arduinobot.planner.timing.verify import Verifier
 from bench._lib.args import problems_per_scene
 from bench._lib.mplib_venv import MplibTiming, mplib_python, run_mplib
 from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems, write_model
-from description import load_description
-from planner.errors import PlanningError
-from planner.planning.goals import JointGoal
-from planner.planning.pipeline import MotionPlanner, MotionRequest
-from planner.timing.curve import build_curve
-from planner.timing.trajectory import JointTrajectory
-from planner.timing.verify import Verifier
 
 PLANNING_TIME = 1.0
 ARM = ("joint_1", "joint_2", "joint_3")
@@ -66,7 +66,7 @@ def _recheck_task(i: int):
 
 
 def main(n: int = 8) -> None:
-    from planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.search import set_ompl_log_level
     set_ompl_log_level("none")
     global MODEL_FILES
     d = load_description()

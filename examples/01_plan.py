@@ -9,9 +9,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from clients import errors
-from clients.client import PlannerClient
-from clients.replies import PlanReply
+from arduinobot import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.replies import PlanReply
 
 endpoint = sys.argv[1] if len(sys.argv) > 1 else "tcp/127.0.0.1:7447"
 

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import trimesh
 
-from description import load_description
-from description.checks import check_model
-from service.local import LocalService
+from arduinobot.description import load_description
+from arduinobot.description.checks import check_model
+from arduinobot.service.local import LocalService
 
 PACKAGE = "my_arm_description"
 XACRO = f"""<?xml version="1.0"?>

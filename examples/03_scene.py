@@ -8,8 +8,8 @@ robot's base frame, in metres); the service keeps nothing between requests.
 
 import sys
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot import PlannerClient
+from arduinobot.client import errors
 
 endpoint = sys.argv[1] if len(sys.argv) > 1 else "tcp/127.0.0.1:7447"
 

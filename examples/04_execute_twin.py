@@ -10,10 +10,10 @@ model decomposes its meshes for MuJoCo (seconds); the cache keeps them for the n
 
 import sys
 
-from clients.client import PlannerClient
-from description import load_description
-from execution.executor import ExecuteOptions, Executor, plan_start
-from execution.robots.sim_arduinobot import SimArduinobot
+from arduinobot import PlannerClient
+from arduinobot.description import load_description
+from arduinobot.execution.executor import ExecuteOptions, Executor, plan_start
+from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
 
 endpoint = sys.argv[1] if len(sys.argv) > 1 else "tcp/127.0.0.1:7447"
 desc = load_description()  # the shipped arduinobot: the model `serve` runs by default

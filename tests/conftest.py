@@ -32,7 +32,7 @@ def server() -> Iterator[Server]:
 
 @pytest.fixture(scope="session")
 def client(server: Server):
-    from clients.client import PlannerClient
+    from arduinobot.client.client import PlannerClient
     with PlannerClient(server.endpoint, timeout=30) as c:
         yield c
 
@@ -47,15 +47,15 @@ def course_ws(tmp_path_factory):
 @pytest.fixture(scope="session")
 def desc():
     """The shipped arduinobot as `load_description` gives it with no environment."""
-    from description import load_description
+    from arduinobot.description import load_description
     return load_description(env={})
 
 
 @pytest.fixture
 def scene_builder(desc, tmp_path):
     """A kept scene's builder for the shipped arm (it can attach and fix objects to links)."""
-    from service.scene_carry import RobotFrames
-    from service.scene_store import SceneBuilder
+    from arduinobot.service.scene.carry import RobotFrames
+    from arduinobot.service.scene.store import SceneBuilder
     return SceneBuilder(tuple(desc.robot.links), tmp_path / "meshes", robot=RobotFrames(desc))
 
 

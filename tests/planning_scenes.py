@@ -11,7 +11,7 @@ real NO_PATH_FOUND, not a start or goal in collision.
 
 from __future__ import annotations
 
-from planner.scene import Obstacle
+from arduinobot.scene.obstacles import Obstacle
 
 _X, _T, _Y, _Z = -0.02, 0.04, 0.62, 1.12  # the plane, the wall's thickness, the window
 

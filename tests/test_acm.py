@@ -1,6 +1,6 @@
-from description import load_description
-from planner.collision.acm import AllowedCollisionMatrix
-from planner.collision.acm_gen import compute_acm
+from arduinobot.description import load_description
+from arduinobot.planner.collision.acm import AllowedCollisionMatrix
+from arduinobot.planner.collision.acm_gen import compute_acm
 
 
 def test_from_srdf_and_pairs_are_unordered():
@@ -43,7 +43,7 @@ def test_joint_connected_and_rigidly_attached_links_are_always_allowed(tmp_path)
       <joint name="h" type="revolute"><parent link="base"/><child link="hub"/><axis xyz="0 0 1"/>
         <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
       <joint name="a" type="fixed"><parent link="hub"/><child link="arm"/></joint></robot>""")
-    from description import load_description as load
+    from arduinobot.description import load_description as load
     acm = AllowedCollisionMatrix.for_description(load(tmp_path / "r.urdf", env={}))
     assert acm.allowed("base", "cam") and acm.allowed("cam", "bracket")
     assert acm.allowed("base", "bracket")  # rigid through a chain of fixed joints
@@ -64,8 +64,8 @@ def test_srdf_pairs_add_to_the_adjacent_ones():
 def test_proven_pairs_never_collide_anywhere_sampled():
     import numpy as np
 
-    from planner.collision.acm_proof import prove_never
-    from planner.collision.world import CollisionWorld
+    from arduinobot.planner.collision.acm_proof import prove_never
+    from arduinobot.planner.collision.world import CollisionWorld
     world = CollisionWorld(_no_srdf(load_description()))
     r = prove_never(world, seed=3)
     assert len(r.proven) >= 3  # the sphere bound of acm_gen proved none of them
@@ -83,9 +83,9 @@ def test_proven_pairs_never_collide_anywhere_sampled():
 
 
 def test_proof_is_cached_by_content(tmp_path):
-    from planner.collision.acm_proof import proven_never_pairs
-    from planner.collision.world import CollisionWorld
-    from service.disk_cache import DiskCache
+    from arduinobot.planner.collision.acm_proof import proven_never_pairs
+    from arduinobot.planner.collision.world import CollisionWorld
+    from arduinobot.service.process.disk_cache import DiskCache
     world = CollisionWorld(_no_srdf(load_description()))
     cache = DiskCache(tmp_path)
     first = proven_never_pairs(world, cache=cache)
@@ -102,7 +102,7 @@ def test_proof_is_cached_by_content(tmp_path):
 
 
 def test_planner_without_srdf_skips_only_adjacent_and_proven_pairs():
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     mp = MotionPlanner(_no_srdf(load_description()))
     reasons = {e.reason for e in mp.world(()).acm}
     assert reasons == {"Adjacent", "Never-proven"}

@@ -4,12 +4,12 @@ import fcl
 import numpy as np
 import pytest
 
-from description import load_description
-from description.meshes import shape_mesh
-from planner.collision.advance import tree_lower_bound
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.scene import Obstacle
+from arduinobot.description import load_description
+from arduinobot.description.meshes import shape_mesh
+from arduinobot.planner.collision.advance import tree_lower_bound
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.scene.obstacles import Obstacle
 from tests.helpers.fcl_bodies import fcl_objects, place
 
 

@@ -11,13 +11,13 @@ import sys
 import numpy as np
 import pytest
 
-from clients.applied_limits import AppliedLimits
-from clients.cmd_plan import summary
-from clients.replies import PlanReply
-from clients.viewer.plots import joint_limits, limit_notes, plot_panels
-from clients.viewer.trajectory import PlaybackTrajectory
-from description import load_description
-from service.bodies import description_body
+from arduinobot.cli.applied_limits import AppliedLimits
+from arduinobot.cli.commands.plan import summary
+from arduinobot.client.replies import PlanReply
+from arduinobot.description import load_description
+from arduinobot.service.plan.bodies import description_body
+from arduinobot.viewer.plots import joint_limits, limit_notes, plot_panels
+from arduinobot.viewer.trajectory import PlaybackTrajectory
 
 from .conftest import REPO
 
@@ -68,7 +68,7 @@ def test_shipped_model_reply_and_info_say_what_its_size_means():
     assert "0.307 m" in note and "0.0307 m" in note and "ten times" in note
     assert "Joint goals are the same" in note and "your own workspace" in note
     assert body["limit_sources"]["joint_1"]["jerk"] == "config/joint_limits.yaml"
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "info"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "info"], capture_output=True,
                        text=True, cwd=REPO, env=os.environ | {"ROS_PACKAGE_PATH": ""},
                        timeout=300)
     assert r.returncode == 0, r.stderr
@@ -78,7 +78,7 @@ def test_shipped_model_reply_and_info_say_what_its_size_means():
 def test_info_shows_the_applied_limits_and_their_origins(course_ws):
     env = {k: v for k, v in os.environ.items()
            if k not in ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH")}
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "info", str(course_ws.xacro)],
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "info", str(course_ws.xacro)],
                        capture_output=True, text=True, cwd=REPO, env=env, timeout=300)
     assert r.returncode == 0, r.stderr
     out = r.stdout
@@ -121,7 +121,7 @@ def test_plot_panels_carry_the_applied_limits_and_their_origins(course):
          "effort": [0] * 4, "time_from_start": 0.0},
         {"positions": [0.5, 0, 0, 0], "velocities": [0, 0, 0, 0], "accelerations": [0] * 4,
          "effort": [0] * 4, "time_from_start": 1.0}]})
-    from clients.applied_limits import applied_limits
+    from arduinobot.cli.applied_limits import applied_limits
     applied = applied_limits(course, JOINTS)
     panels = plot_panels(t, joint_limits(course, JOINTS), notes=limit_notes(applied))
     by = {p.quantity: p for p in panels}
@@ -132,7 +132,7 @@ def test_plot_panels_carry_the_applied_limits_and_their_origins(course):
 
 
 def test_plan_plot_writes_a_png_with_the_applied_limits(course_reply, tmp_path):
-    from clients.cmd_plan import plot_trajectory
+    from arduinobot.cli.commands.plan import plot_trajectory
     res = PlanReply.parse(_plan_body())
     out = tmp_path / "plan.png"
     plot_trajectory(res, AppliedLimits.from_description_reply(course_reply, res.joint_names),

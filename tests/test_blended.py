@@ -1,16 +1,16 @@
-"""planner.planning.blended: a path's blends proven with it in one walk."""
+"""arduinobot.planner.planning.blended: a path's blends proven with it in one walk."""
 
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.planning.blended import prove_blended
-from planner.planning.goals import JointGoal
-from planner.planning.paths import PathPlanner, PathRequest
-from planner.scene import Obstacle
-from planner.timing.curve import build_curve
+from arduinobot.description import load_description
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.planning.blended import prove_blended
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.scene.obstacles import Obstacle
 
 PILLAR = Obstacle("pillar", "box", size=(0.15, 0.15, 3.0), xyz=(0.0, 0.9, 0.6))
 START = np.array([1.2, -0.6, -0.6, 0.0])

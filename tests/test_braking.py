@@ -1,4 +1,4 @@
-"""Braking to rest within the effort limits (planner.timing.braking), shared by the moving
+"""Braking to rest within the effort limits (arduinobot.planner.timing.braking), shared by the moving
 start and the clients' stops."""
 
 from __future__ import annotations
@@ -6,11 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.errors import TrajectoryError
-from planner.kinematics.dynamics import InverseDynamics
-from planner.planning.pipeline import MotionPlanner
-from planner.timing.braking import EFFORT_MARGIN, brake_to_rest, effort_ratio, effort_safe
+from arduinobot.contract.errors import TrajectoryError
+from arduinobot.description import load_description
+from arduinobot.planner.kinematics.dynamics import InverseDynamics
+from arduinobot.planner.planning.pipeline import MotionPlanner
+from arduinobot.planner.timing.braking import (
+    EFFORT_MARGIN,
+    brake_to_rest,
+    effort_ratio,
+    effort_safe,
+)
 
 Q0 = np.array([0.3, 0.2, -0.1, 0.0])
 V0 = np.array([0.8, -0.5, 0.6, 0.0])

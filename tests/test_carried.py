@@ -14,11 +14,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.errors import InvalidRequest, StartInCollision
-from planner.planning.goals import JointGoal
-from planner.planning.motion import MotionRequest
-from planner.scene import AttachedObject, Obstacle, default_touch_links
+from arduinobot.contract.errors import InvalidRequest, StartInCollision
+from arduinobot.description import load_description
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.motion import MotionRequest
+from arduinobot.scene.obstacles import AttachedObject, Obstacle, default_touch_links
 
 from .helpers.carry import CarryCase, shipped_case
 from .helpers.fk import link_pose
@@ -204,8 +204,8 @@ def test_a_start_where_the_carried_box_is_in_the_table_is_refused(shipped):
 def test_a_plan_request_on_the_wire_carries_attached_for_itself(shipped):
     import json
 
-    from service import wire
-    from service.plan_io import plan_request, plan_response
+    from arduinobot.contract import wire
+    from arduinobot.service.plan.plan_io import plan_request, plan_response
 
     t = shipped.table
     item = shipped.attached(PAYLOAD).to_mapping()
@@ -231,8 +231,8 @@ def test_a_plan_request_on_the_wire_carries_attached_for_itself(shipped):
 def test_a_check_reports_the_carried_box_pose_and_its_contact(shipped):
     import json
 
-    from service import wire
-    from service.handlers import Handlers
+    from arduinobot.contract import wire
+    from arduinobot.service.plan.handlers import Handlers
 
     t = shipped.table
     h = Handlers(shipped.d)

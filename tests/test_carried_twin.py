@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from execution.robots.sim_arduinobot import SimArduinobot
-from planner.scene import Obstacle
-from service.disk_cache import DiskCache
+from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+from arduinobot.scene.obstacles import Obstacle
+from arduinobot.service.process.disk_cache import DiskCache
 
 from .helpers.carry import shipped_case
 from .helpers.fk import link_pose
@@ -75,9 +75,9 @@ def test_set_scene_puts_scene_objects_in_the_world_and_reports_the_carried_conta
 
 
 def test_the_execute_service_gives_its_twin_the_kept_scene_when_it_changes(case):
-    from execution.robots.spec import RobotSpec
-    from service.execution import ExecuteService
-    from service.scene_store import SceneSnapshot
+    from arduinobot.execution.robots.spec import RobotSpec
+    from arduinobot.service.execute.execution import ExecuteService
+    from arduinobot.service.scene.store import SceneSnapshot
 
     sim = SimArduinobot(case.d, cache=CACHE)
     svc = ExecuteService(None, "p", case.d, RobotSpec())  # no session: nothing served
@@ -99,18 +99,18 @@ def test_the_execute_service_gives_its_twin_the_kept_scene_when_it_changes(case)
 
 
 def test_a_blend_gives_the_twin_its_world_at_the_switch_and_the_arm_moves_on(case):
-    """The service's blend hook (service.twin_scene) on an executor over the twin: the
+    """The service's blend hook (arduinobot.service.execute.twin_scene) on an executor over the twin: the
     kept scene changed while the arm moved (it now carries the box) and the blend's plan
     has a post of its own; at the switch tick, not before, the twin takes both, and the
     arm goes on moving as it was (no velocity drop, the simulation's clock runs on)."""
-    from execution.executor import ExecuteOptions, Executor
-    from execution.robots.mjcf import TIMESTEP
-    from execution.segments import SampledTrajectory
-    from planner.planning.goals import NamedGoal
-    from planner.planning.motion import MotionRequest
-    from service import wire
-    from service.scene_store import SceneSnapshot
-    from service.twin_scene import TwinScene
+    from arduinobot.contract import wire
+    from arduinobot.execution.executor import ExecuteOptions, Executor
+    from arduinobot.execution.robots.mjcf import TIMESTEP
+    from arduinobot.execution.segments import SampledTrajectory
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.motion import MotionRequest
+    from arduinobot.service.execute.twin_scene import TwinScene
+    from arduinobot.service.scene.store import SceneSnapshot
 
     sim = SimArduinobot(case.d, cache=CACHE)
     twin = TwinScene()
@@ -160,8 +160,8 @@ def test_a_blend_gives_the_twin_its_world_at_the_switch_and_the_arm_moves_on(cas
 
 
 def test_a_blend_leaves_a_running_tasks_objects_as_the_twin_has_them(case):
-    from service.scene_store import SceneSnapshot
-    from service.twin_scene import TwinScene
+    from arduinobot.service.execute.twin_scene import TwinScene
+    from arduinobot.service.scene.store import SceneSnapshot
 
     sim = SimArduinobot(case.d, cache=CACHE)
     twin = TwinScene()
@@ -179,7 +179,7 @@ def test_a_blend_through_serve_gives_the_twin_the_scene_it_was_planned_in(case, 
     (the service says so) and the arm ends at the blend's goal, within every limit."""
     import threading
 
-    from clients.client import PlannerClient
+    from arduinobot.client.client import PlannerClient
 
     from .conftest import start_servers
 

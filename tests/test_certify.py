@@ -1,17 +1,17 @@
-"""Certified collision checking between samples (planner.collision.certify), against FCL."""
+"""Certified collision checking between samples (arduinobot.planner.collision.certify), against FCL."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.certificate import Certificate, combine
-from planner.collision.certify import Certifier
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.scene import Obstacle
-from planner.timing.curve import build_curve
+from arduinobot.description import load_description
+from arduinobot.planner.collision.certificate import Certificate, combine
+from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.scene.obstacles import Obstacle
 
 NEEDLE = """<robot name="needle">
   <link name="base"/>
@@ -121,9 +121,9 @@ def test_a_blend_whose_bulge_crosses_an_obstacle_is_refused(needle):
 
 
 def test_the_planner_never_returns_a_path_that_grazes_between_samples(needle):
-    from planner.errors import NoPathFound
-    from planner.planning.goals import JointGoal
-    from planner.planning.paths import PathPlanner, PathRequest
+    from arduinobot.contract.errors import NoPathFound
+    from arduinobot.planner.planning.goals import JointGoal
+    from arduinobot.planner.planning.paths import PathPlanner, PathRequest
     pp = PathPlanner(needle, needle.description)
     # the straight line's samples are free, so the sampled search accepts it; its
     # certification fails, and a certified re-plan finds no way around in one joint
@@ -286,7 +286,7 @@ def test_a_grazing_path_is_planned_again_with_finer_samples_then_certified_edges
     # (the search samples edges 0.02 rad apart; a path grazing between samples is planned
     # again 0.01 rad apart, as before that step was doubled, and only then with every
     # edge certified: several times slower)
-    from planner.planning.paths import FINEST_STEP, PLAN_STEP, PathPlanner
+    from arduinobot.planner.planning.paths import FINEST_STEP, PLAN_STEP, PathPlanner
     pp = PathPlanner(needle, needle.description)
     finer = pp._retry()
     assert pp.step == PLAN_STEP and finer.step == PLAN_STEP / 2 == FINEST_STEP
@@ -305,7 +305,7 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     # are no parts)
     from dataclasses import replace
 
-    from planner.collision import certify
+    from arduinobot.planner.collision import certify
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
     world = CollisionWorld(d)
     edge = np.array([[-1.2003252626449796, -0.41068828429081816, -0.8292884824147762,

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import yourdfpy
 
-from description import load_description
-from planner.errors import InvalidRequest
-from planner.kinematics.chain import Kinematics
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.planner.kinematics.chain import Kinematics
 
 from .helpers.user_package import make_user_package
 

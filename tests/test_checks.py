@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from description.checks import check_model
+from arduinobot.description.checks import check_model
 
 from .helpers.user_package import make_user_package
 
@@ -106,7 +106,7 @@ def test_user_package_checks_clean(tmp_path):
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
                           text=True, cwd=ROOT)
 
 
@@ -155,7 +155,7 @@ def test_cad_traits_warn_and_name_the_fix(tmp_path):
 
 
 def test_the_shipped_models_inertia_warnings_say_why_they_are_expected(tmp_path):
-    from description.checks import SHIPPED_INERTIA_NOTE
+    from arduinobot.description.checks import SHIPPED_INERTIA_NOTE
     warns = [f for f in check_model(env={}).findings if f.check == "inertial.plausible"]
     assert len(warns) == 6
     assert all(f.message.endswith(f"({SHIPPED_INERTIA_NOTE})") for f in warns)

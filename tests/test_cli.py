@@ -10,8 +10,8 @@ import sys
 
 import pytest
 
-from clients.argtypes import Mimic, UsageError, joint_map
-from clients.cli import build_parser, main
+from arduinobot.cli.argtypes import Mimic, UsageError, joint_map
+from arduinobot.cli.main import build_parser, main
 
 from .conftest import REPO
 
@@ -79,7 +79,7 @@ def test_goal_start_joints_and_position_take_negative_values_as_typed(capsys):
 
 
 def test_a_negative_goal_through_the_installed_command_line():
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "fk", "--joints",
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "fk", "--joints",
                         "-0.4,-0.3,0.2", "--link", "base_plate", "--local"],
                        cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
@@ -162,7 +162,7 @@ def test_a_mistyped_flag_shows_its_commands_usage_and_the_closest_flag(capsys):
 # -- what the command says (issue 27.10) ---------------------------------------------------
 
 def _run(*args: str, timeout: float = 120) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], cwd=REPO,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], cwd=REPO,
                           capture_output=True, text=True, timeout=timeout)
 
 
@@ -191,7 +191,7 @@ def test_the_plan_summary_names_the_robot_and_the_service(server, capsys):
 
 
 def test_a_saved_plan_holds_points_though_the_client_asked_for_it_packed(server, tmp_path):
-    from clients.replies import PlanReply
+    from arduinobot.client.replies import PlanReply
     traj = tmp_path / "traj.json"
     assert main(["plan", "--goal", "-0.3,0.2,0.1", "--seed", "1", "--connect",
                  server.endpoint, "--json", str(traj)]) == 0

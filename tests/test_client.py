@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import zenoh
 
-from clients import errors
-from clients.argtypes import UsageError, joint_map, joint_values, obstacle
-from clients.cli import build_parser, main
-from clients.client import PlannerClient, encode_body
-from clients.replies import PlanReply
-from service.zconfig import zenoh_config
+from arduinobot.cli.argtypes import UsageError, joint_map, joint_values, obstacle
+from arduinobot.cli.main import build_parser, main
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient, encode_body
+from arduinobot.client.replies import PlanReply
+from arduinobot.contract.zconfig import zenoh_config
 
 from .conftest import REPO as ROOT
 from .conftest import free_port
@@ -219,7 +219,7 @@ def test_flags_that_do_not_go_together_are_usage_errors(capsys, tmp_path):
 def test_the_plan_command_imports_no_planner_machinery(server):
     # the client path of `arduinobot plan` talks to the service: it must not pay for
     # (or need) the planner's libraries
-    code = ("import sys\nfrom clients.cli import main\n"
+    code = ("import sys\nfrom arduinobot.cli.main import main\n"
             f"rc = main(['plan', '--named', 'reach_left', '--connect', {server.endpoint!r}])\n"
             "heavy = sorted(m for m in ('trimesh', 'numba', 'ompl', 'fcl', 'toppra', "
             "'mujoco', 'scipy', 'matplotlib') if m in sys.modules)\n"

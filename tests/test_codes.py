@@ -1,8 +1,8 @@
-"""One registry of error codes (planner/codes.py): every layer's codes come from it.
+"""One registry of error codes (src/arduinobot/contract/codes.py): every layer's codes come from it.
 
 Fails if the planner's exceptions, the service's replies (any code-like string in
-service/ or clients/), service/schema/error.json, the error table of docs/service.md or
-the client's exception classes drift from :class:`planner.codes.Code`.
+src/arduinobot/service/ or src/arduinobot/client/), src/arduinobot/contract/schema/error.json, the error table of docs/service.md or
+the client's exception classes drift from :class:`arduinobot.contract.codes.Code`.
 """
 
 from __future__ import annotations
@@ -12,23 +12,24 @@ import json
 import re
 from pathlib import Path
 
-import clients.errors as cerr
-import planner.errors as perr
-from planner.codes import PLAN_SERVICE_CODES, Code
+import arduinobot.client.errors as cerr
+import arduinobot.contract.errors as perr
+from arduinobot.contract.codes import PLAN_SERVICE_CODES, Code
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# Upper-case string constants in service/ and clients/ that are not error codes.
+# Upper-case string constants in src/arduinobot/service/ and src/arduinobot/client/ that are not error codes.
 NOT_CODES = frozenset({
-    # structure caps named in an error's details.cap (service/caps.py, plan_io.py)
+    # structure caps named in an error's details.cap (src/arduinobot/contract/caps.py, plan_io.py)
     "MAX_DEPTH", "MAX_ITEMS", "MAX_ELEMENTS", "MAX_STRING", "MAX_SAMPLES",
     # environment and sysconf names, __all__ entries
     "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME",
     "ARDUINOBOT_HOPTRACE", "SC_PAGE_SIZE", "MAX_PAYLOAD", "MAX_EXECUTE_PAYLOAD", "SCHEMA_NAMES",
+    "ARRAYS", "OPTIONAL", "RANGES",
     "INSTALL_HINT",
-    # the model's file format, named in `arduinobot limits` (clients/applied_limits.py)
+    # the model's file format, named in `arduinobot limits` (src/arduinobot/cli/applied_limits.py)
     "URDF",
-    # the kept scene (service/scene_store.py): its state folder and its object cap
+    # the kept scene (src/arduinobot/service/scene/store.py): its state folder and its object cap
     "ARDUINOBOT_STATE", "XDG_STATE_HOME", "MAX_SCENE_OBJECTS",
     # `arduinobot check` outcomes (printed, never on the wire)
     "PASS", "WARN", "FAIL", "FAILED",
@@ -73,7 +74,7 @@ def test_planner_exceptions_use_registry_codes() -> None:
 
 
 def test_error_schema_enum_is_the_registry() -> None:
-    schema = json.loads((ROOT / "service/schema/error.json").read_text("utf-8"))
+    schema = json.loads((ROOT / "src/arduinobot/contract/schema/error.json").read_text("utf-8"))
     enum = schema["properties"]["error"]["properties"]["code"]["enum"]
     assert enum == [c.value for c in PLAN_SERVICE_CODES]
 
@@ -104,15 +105,17 @@ def test_planner_error_reaches_the_client_as_its_class() -> None:
 
 
 def test_every_code_string_in_service_and_clients_is_registered() -> None:
-    found = {**_code_like_strings("service"), **_code_like_strings("clients"),
-             **_code_like_strings("execution")}
+    found: dict[str, list[str]] = {}
+    for pkg in ("service", "client", "cli", "viewer", "execution", "contract", "scene"):
+        found |= _code_like_strings(f"src/arduinobot/{pkg}")
     unknown = {s: where for s, where in found.items()
                if s not in NOT_CODES and s not in set(Code)}
-    assert not unknown, f"codes not in planner/codes.py (add them there): {unknown}"
+    assert not unknown, f"codes not in src/arduinobot/contract/codes.py (add them there): {unknown}"
 
 
 def test_the_scan_sees_codes() -> None:
-    """The scan above is not vacuous: upper-case constants in service/ are seen (the
+    """The scan above is not vacuous: upper-case constants in src/arduinobot/service/ are seen (the
     pool's codes are no longer hand-written strings: it takes them from Code)."""
-    found = _code_like_strings("service")
+    found = _code_like_strings("src/arduinobot/service")
+    found |= _code_like_strings("src/arduinobot/contract")
     assert "MAX_DEPTH" in found and "ARDUINOBOT_CACHE" in found

@@ -16,11 +16,11 @@ import pytest
 import trimesh
 import yaml
 
-from description import load_description
-from description.meshes import shape_mesh
-from description.packages import SHIPPED_PACKAGE_DIR, build_package_index
-from description.xacro_expand import expand_xacro
-from planner.kinematics.chain import Kinematics
+from arduinobot.description import load_description
+from arduinobot.description.meshes import shape_mesh
+from arduinobot.description.packages import SHIPPED_PACKAGE_DIR, build_package_index
+from arduinobot.description.xacro_expand import expand_xacro
+from arduinobot.planner.kinematics.chain import Kinematics
 
 from .conftest import REPO
 from .helpers.course_workspace import PARTS, make_course_workspace

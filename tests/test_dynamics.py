@@ -9,10 +9,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from description import Robot, load_description
-from description.model import rpy_matrix
-from planner.errors import InvalidRequest
-from planner.kinematics.dynamics import InverseDynamics
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import Robot, load_description
+from arduinobot.description.model import rpy_matrix
+from arduinobot.planner.kinematics.dynamics import InverseDynamics
 
 
 def _quat(rot: np.ndarray) -> str:

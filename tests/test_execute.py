@@ -14,11 +14,11 @@ import time
 import numpy as np
 import pytest
 
-from description import load_description
-from execution.executor import ExecuteOptions, Executor, NotAtStart
-from execution.robots.sim_arduinobot import SimArduinobot
-from execution.segments import SampledTrajectory
-from service.disk_cache import DiskCache
+from arduinobot.description import load_description
+from arduinobot.execution.executor import ExecuteOptions, Executor, NotAtStart
+from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+from arduinobot.execution.segments import SampledTrajectory
+from arduinobot.service.process.disk_cache import DiskCache
 
 from .conftest import REPO, start_server
 
@@ -33,8 +33,8 @@ def desc():
 
 @pytest.fixture(scope="module")
 def planned(desc):
-    from planner.planning.goals import NamedGoal
-    from planner.planning.pipeline import MotionPlanner, MotionRequest
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     return {name: mp.solve(MotionRequest(goal=NamedGoal(name), seed=11)).trajectory
             for name in ("reach_left", "reach_forward")}
@@ -146,7 +146,7 @@ class StateListener:
     def __init__(self, endpoint: str) -> None:
         import zenoh
 
-        from service.zconfig import zenoh_config
+        from arduinobot.contract.zconfig import zenoh_config
         self.session = zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[]))
         self.msgs: list[tuple[float, dict]] = []
         self.sub = self.session.declare_subscriber(
@@ -168,7 +168,7 @@ class StateListener:
 
 
 def _execute(endpoint: str, *args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "clients.cli", "execute", "--remote",
+    return subprocess.Popen([sys.executable, "-m", "arduinobot.cli.main", "execute", "--remote",
                              "--connect", endpoint, *args], cwd=REPO,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -301,7 +301,7 @@ def test_a_new_goal_blends_in_through_serve(served, tmp_path):
 def test_execute_cli_on_the_local_twin(planned, tmp_path):
     f = tmp_path / "traj.json"
     f.write_text(json.dumps({"trajectory": planned["reach_forward"].to_dict()}))
-    run = [sys.executable, "-m", "clients.cli", "execute", str(f), "--sim", "--fast",
+    run = [sys.executable, "-m", "arduinobot.cli.main", "execute", str(f), "--sim", "--fast",
            "--no-publish"]
     r = subprocess.run(run, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
@@ -315,8 +315,8 @@ def test_execute_cli_on_the_local_twin(planned, tmp_path):
 
 
 def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
-    from planner.planning.goals import NamedGoal
-    from planner.planning.pipeline import MotionPlanner, MotionRequest
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     first = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=11)).trajectory
     sim = SimArduinobot(desc, cache=CACHE)
@@ -359,8 +359,8 @@ def test_a_new_goal_while_moving_blends_in_without_a_jump(desc):
 @pytest.mark.slow
 def test_the_viewer_follows_a_running_execute(served, desc):
     pytest.importorskip("viser")  # the `view` extra
-    from clients.viewer.app import RobotViewer
-    from clients.viewer.follow import JointStateFollower
+    from arduinobot.viewer.app import RobotViewer
+    from arduinobot.viewer.follow import JointStateFollower
 
     from .conftest import free_port
     viewer = RobotViewer(desc, port=free_port())
@@ -386,9 +386,10 @@ SLOW_PLAN = {"goal": {"named": "reach_left"}, "velocity_scaling": 0.05,
              "acceleration_scaling": 0.05, "seed": 5}
 
 
+@pytest.mark.slow
 def test_a_second_execute_while_moving_is_busy_and_another_client_cancels_it(served):
-    from clients.client import PlannerClient
-    from clients.errors import ServiceBusy
+    from arduinobot.client.client import PlannerClient
+    from arduinobot.client.errors import ServiceBusy
 
     events, outcome = [], {}
     started = threading.Event()

@@ -20,7 +20,7 @@ GOAL = {"goal": {"joints": {"joint_1": 0.5, "joint_2": 0.3, "joint_3": 0.2}}, "s
 
 
 def _cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
                           text=True, cwd=REPO, timeout=600, env=env)
 
 
@@ -69,6 +69,7 @@ def test_plan_simulate_through_a_service_replays_on_the_services_robot(
     assert _needs(served.stdout) != _needs(shipped.stdout)
 
 
+@pytest.mark.slow
 def test_execute_sim_through_a_service_runs_on_the_services_robot(
         course_service, course_model, tmp_path):
     req = tmp_path / "req.json"
@@ -95,9 +96,9 @@ def test_execute_takes_the_model_file_and_a_group_like_plan(course_model):
 
 @pytest.fixture(scope="module")
 def shipped_plan(tmp_path_factory):
-    from description import load_description
-    from planner.planning.goals import NamedGoal
-    from planner.planning.pipeline import MotionPlanner, MotionRequest
+    from arduinobot.description import load_description
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
     res = MotionPlanner(load_description()).solve(MotionRequest(goal=NamedGoal("reach_left"),
                                                                 seed=3))
     return {"trajectory": res.trajectory.to_dict()}

@@ -7,7 +7,7 @@ import math
 import pytest
 from lxml import etree
 
-from description import DEFAULT_MODEL, load_description
+from arduinobot.description import DEFAULT_MODEL, load_description
 
 PI = 3.14159
 XACRO_NS = "{http://www.ros.org/wiki/xacro}"

@@ -1,11 +1,16 @@
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.world import CollisionWorld
-from planner.errors import GoalInCollision, GoalOutOfReach, InvalidRequest, JointLimitViolation
-from planner.planning.goal_states import resolve_goal
-from planner.planning.goals import JointGoal, NamedGoal, PositionGoal
+from arduinobot.contract.errors import (
+    GoalInCollision,
+    GoalOutOfReach,
+    InvalidRequest,
+    JointLimitViolation,
+)
+from arduinobot.description import load_description
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.planning.goal_states import resolve_goal
+from arduinobot.planner.planning.goals import JointGoal, NamedGoal, PositionGoal
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +56,7 @@ def test_position_goal_gives_collision_free_ik(env):
 
 
 def test_groups_come_from_the_robot(env):
-    from planner.planning.goal_states import resolve_group
+    from arduinobot.planner.planning.goal_states import resolve_group
     desc = env[0]
     assert resolve_group(desc, None, NamedGoal("gripper_open")) == "gripper"
     assert resolve_group(desc, None, JointGoal({"joint_1": 0.1})) == "arm"
@@ -69,7 +74,7 @@ ARM = ("joint_1", "joint_2", "joint_3")
 
 def _edge_of_reach(env, direction):
     """A point 5 mm beyond the workspace's edge along ``direction`` from the shoulder."""
-    from planner.kinematics.ik import position_ik
+    from arduinobot.planner.kinematics.ik import position_ik
 
     d, w = env
     shoulder = w.kin.link_pose(np.zeros(4), "forward_drive_arm")[:3, 3]
@@ -98,7 +103,7 @@ def test_position_tolerance_reaches_inside_the_sphere(env):
 
 
 def test_position_tolerance_through_the_planner(env):
-    from planner.planning.pipeline import MotionPlanner, MotionRequest
+    from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
 
     d, _ = env
     goal = tuple(_edge_of_reach(env, (0.3, 1.0, 0.4)))
@@ -132,8 +137,8 @@ def test_joint_tolerances_take_a_free_state_nearby(env):
 
 
 def test_pose_goal_refused_by_the_position_only_arm_naming_its_axes(env):
-    from planner.errors import OrientationNotControllable
-    from planner.planning.goals import PoseGoal
+    from arduinobot.contract.errors import OrientationNotControllable
+    from arduinobot.planner.planning.goals import PoseGoal
 
     d, w = env
     q = np.array([0.3, 0.4, -0.3, 0.0])
@@ -155,8 +160,8 @@ def test_pose_goal_refused_by_the_position_only_arm_naming_its_axes(env):
 
 
 def test_pose_goal_the_position_already_gives_is_reached_exactly(env):
-    from planner.kinematics.rotations import quaternion_of_matrix
-    from planner.planning.goals import PoseGoal
+    from arduinobot.planner.kinematics.rotations import quaternion_of_matrix
+    from arduinobot.planner.planning.goals import PoseGoal
 
     d, w = env
     q = np.array([0.3, 0.4, -0.3, 0.0])
@@ -171,7 +176,7 @@ def test_pose_goal_the_position_already_gives_is_reached_exactly(env):
 
 @pytest.fixture(scope="module")
 def six(tmp_path_factory):
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.planning.pipeline import MotionPlanner
 
     from .helpers.six_joint import make_six_joint
 
@@ -183,9 +188,9 @@ SIX_START = {"j2": 0.5, "j3": 1.0, "j5": 0.8}
 
 
 def test_pose_goal_reached_within_tolerance_on_a_six_joint_arm(six):
-    from planner.kinematics.rotations import quaternion_of_matrix, rotation_error
-    from planner.planning.goals import PoseGoal
-    from planner.planning.pipeline import MotionRequest
+    from arduinobot.planner.kinematics.rotations import quaternion_of_matrix, rotation_error
+    from arduinobot.planner.planning.goals import PoseGoal
+    from arduinobot.planner.planning.pipeline import MotionRequest
 
     from .helpers.fk import tool_frames
 
@@ -205,8 +210,8 @@ def test_pose_goal_reached_within_tolerance_on_a_six_joint_arm(six):
 
 
 def test_free_axis_pose_on_a_six_joint_arm(six):
-    from planner.planning.goals import PoseGoal
-    from planner.planning.pipeline import MotionRequest
+    from arduinobot.planner.planning.goals import PoseGoal
+    from arduinobot.planner.planning.pipeline import MotionRequest
 
     from .helpers.fk import tool_frames
 
@@ -220,8 +225,8 @@ def test_free_axis_pose_on_a_six_joint_arm(six):
 def test_a_six_joint_line_holds_the_orientation(six):
     from scipy.spatial.transform import Rotation
 
-    from planner.planning.goals import LineGoal
-    from planner.planning.pipeline import MotionRequest
+    from arduinobot.planner.planning.goals import LineGoal
+    from arduinobot.planner.planning.pipeline import MotionRequest
 
     from .helpers.fk import tool_frames
 
@@ -233,9 +238,9 @@ def test_a_six_joint_line_holds_the_orientation(six):
 
 
 def test_the_wire_parses_the_new_goals():
-    from planner.planning.goals import LineGoal, PoseGoal
-    from service.plan_io import goal as parse_goal
-    from service.wire import validate
+    from arduinobot.contract.wire import validate
+    from arduinobot.planner.planning.goals import LineGoal, PoseGoal
+    from arduinobot.service.plan.plan_io import goal as parse_goal
 
     d = load_description()
 

@@ -1,4 +1,4 @@
-"""service/hoptrace.py: with ARDUINOBOT_HOPTRACE set, a real serve stamps every stage of
+"""src/arduinobot/service/hoptrace.py: with ARDUINOBOT_HOPTRACE set, a real serve stamps every stage of
 each work request it answers, in order, on the clock clients on this host read too."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from clients.client import PlannerClient
-from service import hoptrace
+from arduinobot.client.client import PlannerClient
+from arduinobot.service import hoptrace
 from tests.helpers.serve import start_server
 
 #: the stamps a planned request gets, in the order they are taken ("sent", after the

@@ -7,10 +7,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from description import Tcp, load_description
-from planner.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
-from planner.kinematics.chain import Kinematics
-from planner.kinematics.ik import IkSolution, position_ik
+from arduinobot.contract.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
+from arduinobot.description import Tcp, load_description
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.planner.kinematics.ik import IkSolution, position_ik
 
 ARM = ("joint_1", "joint_2", "joint_3")
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import yaml
 
-from description import InvalidModel, load_description
-from planner.errors import InvalidRequest, LimitsError
-from planner.kinematics.dynamics import InverseDynamics
-from planner.kinematics.limits import (
+from arduinobot.contract.errors import InvalidRequest, LimitsError
+from arduinobot.description import InvalidModel, load_description
+from arduinobot.planner.kinematics.dynamics import InverseDynamics
+from arduinobot.planner.kinematics.limits import (
     ACCELERATION_MARGIN,
     DERIVATION_SAMPLES,
     DERIVATION_SEED,
@@ -273,7 +273,7 @@ def test_an_empty_or_malformed_position_range_is_refused(tmp_path):
 
 
 def test_check_reports_a_position_range_it_cannot_apply(tmp_path):
-    from description.checks import check_model
+    from arduinobot.description.checks import check_model
     p = _limits_yaml(tmp_path, {"joint_3": {"max_position": 3.0}})
     report = check_model(joint_limits=p, env={})
     warns = [f for f in report.findings if f.check == "joint_limits"]

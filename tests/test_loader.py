@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from description import (
+from arduinobot.description import (
     DescriptionError,
     InvalidModel,
     MalformedXml,
@@ -19,7 +19,7 @@ from description import (
     PackageNotFound,
     load_description,
 )
-from description.meshes import shape_mesh
+from arduinobot.description.meshes import shape_mesh
 
 from .helpers.user_package import PACKAGE, make_user_package
 
@@ -205,7 +205,7 @@ def test_cli_reports_one_clear_line_without_traceback(tmp_path, case):
             "missing_arg": '<robot name="a" xmlns:xacro="http://www.ros.org/wiki/xacro">'
                            '<link name="$(arg side)"/></robot>'}[case]
     p = _write(tmp_path, "m.urdf.xacro", text)
-    out = subprocess.run([sys.executable, "-m", "clients.cli", "info", str(p)],
+    out = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "info", str(p)],
                          capture_output=True, text=True, cwd=Path(__file__).parent.parent)
     assert out.returncode == 1
     assert "Traceback" not in out.stderr

@@ -1,5 +1,5 @@
-"""service/local.py: `--local` answers through the service's own request -> reply path,
-without Zenoh, the server or the pool; clients/ never reaches into the server's internals."""
+"""src/arduinobot/service/local.py: `--local` answers through the service's own request -> reply path,
+without Zenoh, the server or the pool; src/arduinobot/client/ never reaches into the server's internals."""
 
 from __future__ import annotations
 
@@ -12,14 +12,14 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from description import load_description
-from planner.codes import Code
-from planner.errors import InvalidRequest, JointLimitViolation
-from service.local import LOCAL_REQUEST_ID, LocalService
+from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import InvalidRequest, JointLimitViolation
+from arduinobot.description import load_description
+from arduinobot.service.local import LOCAL_REQUEST_ID, LocalService
 
 ROOT = Path(__file__).resolve().parent.parent
 # the modules a --local command must not load: the server, its pool and Zenoh
-SERVER_SIDE = ("zenoh", "service.server", "service.pool", "service.worker", "service.zygote")
+SERVER_SIDE = ("zenoh", "arduinobot.service.server", "arduinobot.service.process.pool", "arduinobot.service.process.worker", "arduinobot.service.process.zygote")
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +28,7 @@ def local() -> LocalService:
 
 
 def _schema(name: str) -> dict:
-    return json.loads((ROOT / "service/schema" / f"{name}.json").read_text("utf-8"))
+    return json.loads((ROOT / "src/arduinobot/contract/schema" / f"{name}.json").read_text("utf-8"))
 
 
 def test_fk_reply_is_the_services_and_validates(local: LocalService) -> None:
@@ -60,7 +60,7 @@ def test_the_description_reply_limits_every_actuated_joint(local: LocalService) 
 def test_local_cli_loads_neither_zenoh_nor_the_server() -> None:
     code = (
         "import sys, io, contextlib\n"
-        "from clients.cli import main\n"
+        "from arduinobot.cli.main import main\n"
         "out = io.StringIO()\n"
         "with contextlib.redirect_stdout(out):\n"
         "    rc = main(['fk', '--local', '--joints', '0.1,0.2', '--json'])\n"
@@ -85,13 +85,14 @@ def _imports(path: Path) -> set[str]:
 
 
 def test_clients_import_nothing_from_the_servers_internals() -> None:
-    """Only `arduinobot serve` (clients/cmd_serve.py) starts the server, so only it may
-    import it; nothing in clients/ imports the handlers."""
+    """Only `arduinobot serve` (src/arduinobot/cli/commands/serve.py) starts the server, so only it may
+    import it; nothing in src/arduinobot/client/ imports the handlers."""
     bad = {}
-    for path in sorted((ROOT / "clients").rglob("*.py")):
-        forbidden = {"service.handlers"}
-        if path.name != "cmd_serve.py":
-            forbidden |= {"service.server", "service.pool", "service.worker"}
+    pkg = ROOT / "src" / "arduinobot"
+    for path in sorted(p for d in ("client", "cli", "viewer") for p in (pkg / d).rglob("*.py")):
+        forbidden = {"arduinobot.service.plan.handlers"}
+        if path != pkg / "cli" / "commands" / "serve.py":
+            forbidden |= {"arduinobot.service.server", "arduinobot.service.process.pool", "arduinobot.service.process.worker"}
         hit = _imports(path) & forbidden
         if hit:
             bad[str(path.relative_to(ROOT))] = sorted(hit)

@@ -12,14 +12,14 @@ import sys
 import numpy as np
 import pytest
 
-from planner.packed import PackedError, pack, unpack
+from arduinobot.contract.packed import PackedError, pack, unpack
 
 from .conftest import REPO, start_server
 from .helpers.pick_place import pick_and_place
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
                           text=True, cwd=REPO, timeout=900)
 
 
@@ -59,7 +59,7 @@ def test_a_bad_packed_array_is_named(change, field):
 
 
 def test_execute_reads_a_packed_trajectory_as_its_points():
-    from execution.segments import InvalidTrajectory, SampledTrajectory
+    from arduinobot.execution.segments import InvalidTrajectory, SampledTrajectory
     t = np.linspace(0.0, 1.0, 11)
     q = np.stack([np.sin(t), np.cos(t)], axis=1)
     names = ["joint_1", "joint_2"]
@@ -73,7 +73,7 @@ def test_execute_reads_a_packed_trajectory_as_its_points():
 
 
 def test_an_execute_request_takes_any_trajectory_a_plan_reply_holds():
-    from service import caps, wire
+    from arduinobot.contract import caps, wire
     # the most samples a plan reply holds, as JSON points, for a 7-joint arm
     row = {"positions": [-1.2345678901234567] * 7, "velocities": [1.2345678901234567] * 7,
            "accelerations": [12.345678901234567] * 7, "effort": [1.2345678901234567] * 7,

@@ -19,10 +19,10 @@ import pytest
 import trimesh
 import xacro
 
-from description import meshgen
+from arduinobot.description import meshgen
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGE = ROOT / "description" / "arduinobot_description"
+PACKAGE = ROOT / "src" / "arduinobot" / "description" / "arduinobot_description"
 XACRO_FILE = PACKAGE / "urdf" / "arduinobot.urdf.xacro"
 MESH_DIR = PACKAGE / "meshes"
 

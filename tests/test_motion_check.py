@@ -1,12 +1,12 @@
-"""planner/collision/motion_check.py: a sampled edge checks each of its states once (the
+"""src/arduinobot/planner/collision/motion_check.py: a sampled edge checks each of its states once (the
 end and the middle first), and its verdict is every state's, on a real world too."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from planner.collision.motion_check import sampled_motion_valid
-from planner.scene import Obstacle
+from arduinobot.planner.collision.motion_check import sampled_motion_valid
+from arduinobot.scene.obstacles import Obstacle
 
 
 class _Blocks:
@@ -60,7 +60,7 @@ def test_the_verdict_is_every_states_wherever_a_block_lies():
 
 
 def test_on_a_real_world_the_verdict_is_every_states(desc):
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     mp = MotionPlanner(desc)
     world = mp.world((Obstacle("wall", "box", size=(0.05, 1.0, 1.0), xyz=(0.0, 0.5, 1.0)),))
     lo, hi = np.array(desc.robot.position_limits(world.kin.joint_names)).T

@@ -1,16 +1,16 @@
-"""Planning from a moving state (planner/planning/moving_start.py), in-process and on the wire."""
+"""Planning from a moving state (src/arduinobot/planner/planning/moving_start.py), in-process and on the wire."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.errors import InvalidRequest
-from planner.planning.from_rest import FromRest
-from planner.planning.goals import NamedGoal
-from planner.planning.moving_start import BlendTiming
-from planner.planning.pipeline import MotionPlanner, MotionRequest
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.planner.planning.from_rest import FromRest
+from arduinobot.planner.planning.goals import NamedGoal
+from arduinobot.planner.planning.moving_start import BlendTiming
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
 
 
 @pytest.fixture(scope="module")
@@ -105,8 +105,8 @@ def test_a_brake_past_the_position_limit_is_refused(mp):
 
 
 def test_on_the_wire():
-    from service import wire
-    from service.plan_io import plan_request
+    from arduinobot.contract import wire
+    from arduinobot.service.plan.plan_io import plan_request
     d = load_description()
     req = plan_request(d, wire.decode("plan", wire.encode(
         {"goal": {"named": "home"}, "start_velocity": {"joint_1": 0.5},

@@ -18,12 +18,12 @@ import sys
 import numpy as np
 import pytest
 
-from clients import errors
-from clients.client import PlannerClient
-from description import load_description
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.kinematics.chain import Kinematics
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
+from arduinobot.description import load_description
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.kinematics.chain import Kinematics
 
 from .conftest import REPO, start_server
 
@@ -31,7 +31,7 @@ ARM = ("joint_1", "joint_2", "joint_3")
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
                           text=True, cwd=REPO, timeout=300)
 
 

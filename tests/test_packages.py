@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from description import MeshNotFound, PackageNotFound
-from description.packages import SHIPPED_PACKAGE_DIR, build_package_index, resolve_uri
+from arduinobot.description import MeshNotFound, PackageNotFound
+from arduinobot.description.packages import SHIPPED_PACKAGE_DIR, build_package_index, resolve_uri
 
 
 def _pkg(root: Path, folder: str, name: str) -> Path:

@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.errors import InvalidRequest, NoPathFound, StartInCollision
-from planner.planning.goals import JointGoal, NamedGoal
-from planner.planning.paths import PathPlanner, PathRequest
-from planner.scene import Obstacle
+from arduinobot.contract.errors import InvalidRequest, NoPathFound, StartInCollision
+from arduinobot.description import load_description
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.planning.goals import JointGoal, NamedGoal
+from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.scene.obstacles import Obstacle
 
 from .planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
 

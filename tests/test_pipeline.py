@@ -12,14 +12,19 @@ from typing import get_args
 import numpy as np
 import pytest
 
-import planner
-from planner.errors import InvalidRequest, JointLimitViolation, NoPathFound, StartInCollision
-from planner.planning.from_rest import FromRest
-from planner.planning.goals import JointGoal, NamedGoal
-from planner.planning.motion import Profile
-from planner.planning.pipeline import MotionPlanner, MotionRequest
-from planner.scene import Obstacle
-from planner.timing.profiles import PROFILES
+from arduinobot import planner
+from arduinobot.contract.errors import (
+    InvalidRequest,
+    JointLimitViolation,
+    NoPathFound,
+    StartInCollision,
+)
+from arduinobot.planner.planning.from_rest import FromRest
+from arduinobot.planner.planning.goals import JointGoal, NamedGoal
+from arduinobot.planner.planning.motion import Profile
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
+from arduinobot.planner.timing.profiles import PROFILES
+from arduinobot.scene.obstacles import Obstacle
 
 from .planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
 from .timing_helpers import DESC
@@ -124,7 +129,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def test_the_timing_profiles_are_one_registry():
     # the request's vocabulary, the registry and the wire's enum are the same names
-    schema = json.loads((ROOT / "service/schema/plan_request.json").read_text())
+    schema = json.loads((ROOT / "src/arduinobot/contract/schema/plan_request.json").read_text())
     assert set(PROFILES) == set(get_args(Profile)) == \
         set(schema["properties"]["profile"]["enum"])
     for name, make in PROFILES.items():
@@ -176,10 +181,10 @@ def _imports(module: Path) -> set[str]:
 def test_nothing_below_the_door_imports_it():
     # MotionPlanner.solve lives in pipeline.py; a strategy gets the context, never the
     # planner, and no planner module imports pipeline: solve cannot be reached from
-    # below it (test_moving_start checks the same at run time); planner/tasks stands above
+    # below it (test_moving_start checks the same at run time); src/arduinobot/planner/tasks stands above
     # the door (a task is a sequence of MotionPlanner.solve calls)
-    above = ROOT / "planner" / "tasks"
-    for module in sorted((ROOT / "planner").rglob("*.py")):
+    above = ROOT / "src" / "arduinobot" / "planner" / "tasks"
+    for module in sorted((ROOT / "src" / "arduinobot" / "planner").rglob("*.py")):
         if module.name in ("pipeline.py", "__init__.py") or above in module.parents:
             continue
         assert not any(i.endswith("pipeline") for i in _imports(module)), module
@@ -190,16 +195,17 @@ def test_nothing_below_the_door_imports_it():
 def test_the_package_is_one_light_place_to_import_from():
     # importing planner (as the client does for its errors and ranges) loads none of the
     # planning stack; each re-exported name is the defining module's own object
-    heavy = ("numba", "ompl", "fcl", "toppra", "ruckig", "planner.planning")
+    heavy = ("numba", "ompl", "fcl", "toppra", "ruckig", "arduinobot.planner.planning")
     out = subprocess.run(
-        [sys.executable, "-c", "import sys, planner; "
+        [sys.executable, "-c", "import sys, arduinobot.planner; "
          f"print([m for m in {heavy!r} if m in sys.modules])"],
         cwd=ROOT, capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
-    from planner.planning import motion, pipeline
+    from arduinobot.planner.planning import motion, pipeline
     assert planner.MotionPlanner is pipeline.MotionPlanner
     assert planner.MotionRequest is motion.MotionRequest is pipeline.MotionRequest
-    assert planner.PlanningError is planner.errors.PlanningError
+    from arduinobot.contract import errors
+    assert planner.PlanningError is errors.PlanningError
     for name in planner.__all__:
         assert getattr(planner, name) is not None, name
     assert set(planner.__all__) <= set(dir(planner))

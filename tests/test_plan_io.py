@@ -1,4 +1,4 @@
-"""Plan requests and replies on the wire (service/plan_io.py): the sample cap, the reply
+"""Plan requests and replies on the wire (src/arduinobot/service/plan/plan_io.py): the sample cap, the reply
 built from the sample arrays, its packed form."""
 
 from __future__ import annotations
@@ -10,10 +10,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from planner.errors import InvalidRequest, PlanningError
-from planner.timing.trajectory import check_sample_count
-from service import caps, wire
-from service.plan_io import plan_reply, plan_request, plan_response
+from arduinobot.contract import caps, wire
+from arduinobot.contract.errors import InvalidRequest, PlanningError
+from arduinobot.planner.timing.trajectory import check_sample_count
+from arduinobot.service.plan.plan_io import plan_reply, plan_request, plan_response
 
 #: the cap plan_response's guard on its reply passes
 CAP = {"limit": caps.MAX_SAMPLES, "cap": "MAX_SAMPLES"}
@@ -38,8 +38,8 @@ def test_no_rate_fits_a_motion_longer_than_the_cap_in_seconds():
 
 @pytest.fixture(scope="module")
 def planner():
-    from description import load_description
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.description import load_description
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     d = load_description()
     return d, MotionPlanner(d)
 

@@ -1,4 +1,4 @@
-"""planner/checks.py: one position-limit check with one tolerance, one joint-name check,
+"""src/arduinobot/planner/checks.py: one position-limit check with one tolerance, one joint-name check,
 one goal-type check; every layer refuses the same value alike."""
 
 from __future__ import annotations
@@ -6,17 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.checks import LIMIT_TOL, check_joint_names, check_positions
-from planner.collision.world import CollisionWorld
-from planner.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
-from planner.kinematics.chain import Kinematics
-from planner.kinematics.ik import position_ik
-from planner.planning.goal_states import resolve_goal
-from planner.planning.goals import JointGoal
-from planner.planning.motion import MotionRequest
-from planner.planning.paths import PathRequest
-from service.requests import joint_values
+from arduinobot.contract.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
+from arduinobot.description import load_description
+from arduinobot.planner.checks import LIMIT_TOL, check_joint_names, check_positions
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.planner.kinematics.ik import position_ik
+from arduinobot.planner.planning.goal_states import resolve_goal
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.motion import MotionRequest
+from arduinobot.planner.planning.paths import PathRequest
+from arduinobot.service.plan.requests import joint_values
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""planner/ranges.py: one table of request ranges, equal to every JSON schema that carries
+"""src/arduinobot/contract/ranges.py: one table of request ranges, equal to every JSON schema that carries
 one of its fields, and the one check every planner site uses."""
 
 import json
@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner.errors import InvalidRequest
-from planner.ranges import RANGES, Range, check_range
-from planner.timing.trajectory import sample_times
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.ranges import RANGES, Range, check_range
+from arduinobot.planner.timing.trajectory import sample_times
 
-SCHEMAS = Path(__file__).resolve().parent.parent / "service" / "schema"
+SCHEMAS = Path(__file__).resolve().parent.parent / "src" / "arduinobot" / "contract" / "schema"
 
 
 def _fields(node, path=""):
@@ -43,7 +43,7 @@ def test_every_schema_field_of_the_table_has_its_range():
             rng = RANGES[name]
             got = _range_of(prop)
             assert (got.lo, got.hi, got.open_lo) == (rng.lo, rng.hi, rng.open_lo), \
-                f"{schema.name}{where}: {got} in the schema, {rng} in planner/ranges.py"
+                f"{schema.name}{where}: {got} in the schema, {rng} in src/arduinobot/contract/ranges.py"
             # and the schema's words say the same interval, as the table prints it
             if "description" in prop:
                 assert str(got) in prop["description"], \

@@ -5,7 +5,7 @@ marked runnable (``<!-- runnable ... -->`` on the line before). A document's blo
 in order in one scratch folder, as a user following it would type them, with:
 
 - ``./dev arduinobot`` and ``arduinobot``: this checkout's command line
-  (``python -m clients.cli`` in the interpreter that runs the tests), through a shim on
+  (``python -m arduinobot.cli.main`` in the interpreter that runs the tests), through a shim on
   PATH. ``./dev test ...`` is this suite itself, so it is not run from inside it.
 - ``HOME``: a scratch folder whose ``~/ws/src`` is a course-like colcon workspace
   (tests/helpers/course_workspace.py), the one the own-robot commands name.
@@ -81,7 +81,7 @@ else:
                     or (command == "view" and "--follow" in args))
     if uses_service and "--connect" not in args:
         args[i + 1:i + 1] = ["--connect", service]
-os.execv(sys.executable, [sys.executable, "-m", "clients.cli", *args])
+os.execv(sys.executable, [sys.executable, "-m", "arduinobot.cli.main", *args])
 '''
 
 

@@ -1,5 +1,5 @@
-"""clients/replies.py: the replies the service builds validate against
-service/schema/*_response.json and parse into the client's types; a reply that breaks the
+"""src/arduinobot/client/replies.py: the replies the service builds validate against
+src/arduinobot/contract/schema/*_response.json and parse into the client's types; a reply that breaks the
 schema is refused by the parser, naming the field, and only then."""
 
 from __future__ import annotations
@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 import zenoh
 
-from clients.cli import main
-from clients.client import PlannerClient
-from clients.errors import MalformedReply
-from clients.replies import CheckReply, FkReply, IkReply, PlanReply
-from description import load_description
-from service.local import LocalService
-from service.zconfig import zenoh_config
+from arduinobot.cli.main import main
+from arduinobot.client.client import PlannerClient
+from arduinobot.client.errors import MalformedReply
+from arduinobot.client.replies import CheckReply, FkReply, IkReply, PlanReply
+from arduinobot.contract.zconfig import zenoh_config
+from arduinobot.description import load_description
+from arduinobot.service.local import LocalService
 
 from .conftest import free_port
 
@@ -39,7 +39,7 @@ REQUESTS = {
 
 
 def _validator(kind: str) -> jsonschema.Draft202012Validator:
-    path = ROOT / "service/schema" / f"{kind}_response.json"
+    path = ROOT / "src/arduinobot/contract/schema" / f"{kind}_response.json"
     return jsonschema.Draft202012Validator(json.loads(path.read_text("utf-8")))
 
 

@@ -15,8 +15,8 @@ from collections.abc import Iterator
 import pytest
 import zenoh
 
-from ros2 import Attachment, GoalAlreadyEnded, Node, TypeStore
-from ros2.actions import (
+from arduinobot.ros2 import Attachment, GoalAlreadyEnded, Node, TypeStore
+from arduinobot.ros2.actions import (
     ERROR_GOAL_TERMINATED,
     ERROR_NONE,
     ERROR_REJECTED,
@@ -29,7 +29,7 @@ from ros2.actions import (
     GoalHandle,
     action_endpoints,
 )
-from ros2.graph import Token
+from arduinobot.ros2.graph import Token
 
 # port and session are fixtures: the same loopback session as the topic and service tests
 from .test_ros2_zenoh import port, raw_session, session, wait_for  # noqa: F401

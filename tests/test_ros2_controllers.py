@@ -1,5 +1,5 @@
 """Trajectories to ros2_control's joint_trajectory_controllers over rmw_zenoh (issue 31,
-item 2): ``ros2.controllers``, ``ros2.trajectory_target`` and ``arduinobot execute --ros2`` against fake controllers.
+item 2): ``arduinobot.ros2.controllers``, ``arduinobot.ros2.trajectory_target`` and ``arduinobot execute --ros2`` against fake controllers.
 
 A fake controller is written from control_msgs' definition
 (github.com/ros-controls/control_msgs, control_msgs/action/FollowJointTrajectory.action,
@@ -29,17 +29,17 @@ import pytest
 import zenoh
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from description import load_description
-from ros2 import ControllerFailed, GoalRejected, NoController, Node
-from ros2.actions import STATUS_CANCELED, ActionServer, GoalHandle
-from ros2.control_msgs import FOLLOW_JOINT_TRAJECTORY, control_msgs_types
-from ros2.controllers import (
+from arduinobot.description import load_description
+from arduinobot.ros2 import ControllerFailed, GoalRejected, NoController, Node
+from arduinobot.ros2.actions import STATUS_CANCELED, ActionServer, GoalHandle
+from arduinobot.ros2.control_msgs import FOLLOW_JOINT_TRAJECTORY, control_msgs_types
+from arduinobot.ros2.controllers import (
     JOINT_TRAJECTORY,
     Controller,
     read_moveit_controllers,
     split_trajectory,
 )
-from ros2.trajectory_target import Feedback, TargetOptions, TrajectoryTarget
+from arduinobot.ros2.trajectory_target import Feedback, TargetOptions, TrajectoryTarget
 from tests.helpers.course_workspace import MOVEIT_CONTROLLERS_YAML
 
 from .conftest import REPO
@@ -86,7 +86,7 @@ float64 acceleration
 
 def independent_store() -> Any:
     """rosbags' Jazzy store plus control_msgs' goal and the send_goal request, from the
-    upstream text: nothing of ros2/ is used."""
+    upstream text: nothing of src/arduinobot/ros2/ is used."""
     store = get_typestore(Stores.ROS2_JAZZY)
     defs: dict = {}
     defs.update(get_types_from_msg(UPSTREAM_JOINT_TOLERANCE, "control_msgs/msg/JointTolerance"))
@@ -177,8 +177,8 @@ class FakeController:
 @pytest.fixture(scope="module")
 def plan() -> dict:
     """A real plan (reach_left, every actuated joint: the arm's three and the gripper's)."""
-    from planner.planning.goals import NamedGoal
-    from planner.planning.pipeline import MotionPlanner, MotionRequest
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(load_description())
     return mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=11)).trajectory.to_dict()
 
@@ -229,7 +229,7 @@ def test_moveit_controllers_yaml_and_the_split() -> None:
 
 
 def test_controllers_of_the_shipped_model_follow_its_srdf_groups() -> None:
-    from clients.ros2_execute import controllers_of
+    from arduinobot.cli.ros2_execute import controllers_of
     desc = load_description()  # no moveit_controllers.yaml: <group>_controller per group
     assert controllers_of(desc, None) == COURSE
     assert controllers_of(desc, ["gripper_controller"]) == COURSE[1:]
@@ -238,10 +238,10 @@ def test_controllers_of_the_shipped_model_follow_its_srdf_groups() -> None:
 
 def test_controllers_of_the_course_come_from_its_moveit_controllers_yaml(
         course_ws, caplog: pytest.LogCaptureFixture) -> None:
-    from clients.ros2_execute import controllers_of
+    from arduinobot.cli.ros2_execute import controllers_of
     desc = load_description(course_ws.xacro, package_dirs=[course_ws.src],
                             moveit_config=course_ws.moveit_pkg)
-    with caplog.at_level("INFO", logger="clients.ros2_execute"):
+    with caplog.at_level("INFO", logger="arduinobot.cli.ros2_execute"):
         assert controllers_of(desc, None) == COURSE
     yaml_file = course_ws.moveit_pkg / "config" / "moveit_controllers.yaml"
     assert f"controllers from {yaml_file}" in caplog.text
@@ -302,12 +302,12 @@ def test_cancel_stops_every_controller(session, controllers, plan) -> None:  # n
     cancel = threading.Event()
     threading.Timer(0.3, cancel.set).start()
     t = target(session)
-    t0 = time.monotonic()
     try:
         outcomes = t.follow(parts, cancel=cancel)
     finally:
         t.close()
-    assert time.monotonic() - t0 < times[-1]  # ended before the trajectory would have
+    # cancelled, not run out: each controller's goal ended CANCELED, not SUCCEEDED (no
+    # wall-clock bound: on a loaded machine the follow's own end lags the trajectory's)
     assert [o.outcome for o in outcomes] == ["cancelled", "cancelled"]
     for fake in controllers.values():
         assert fake.handles[0].status == STATUS_CANCELED
@@ -411,7 +411,7 @@ def test_the_topic_interface_and_its_hold_on_cancel(session, port, controllers, 
 
 
 def run_execute(port: int, *args: str) -> subprocess.CompletedProcess:  # noqa: F811
-    return subprocess.run([sys.executable, "-m", "clients.cli", "execute", *args, "--ros2",
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "execute", *args, "--ros2",
                            "--connect", f"tcp/127.0.0.1:{port}"], cwd=REPO,
                           capture_output=True, text=True, timeout=120,
                           env={**os.environ, "ROS_DOMAIN_ID": "0"})
@@ -441,9 +441,9 @@ def test_execute_ros2_cli_runs_a_plan_and_codes_a_rejection(session, port, contr
 
 def test_ros2_options_domain_from_the_environment_and_usage_errors(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    from clients.argtypes import UsageError
-    from clients.cli import build_parser
-    from clients.ros2_options import Ros2Settings, ros2_settings
+    from arduinobot.cli.argtypes import UsageError
+    from arduinobot.cli.main import build_parser
+    from arduinobot.cli.ros2_options import Ros2Settings, ros2_settings
 
     def settings(*argv: str) -> Ros2Settings | None:
         return ros2_settings(build_parser().parse_args(["serve", *argv]))
@@ -468,7 +468,7 @@ def test_ros2_options_domain_from_the_environment_and_usage_errors(
 def arm_at(session: zenoh.Session) -> Iterator[dict[str, float]]:  # noqa: F811
     """A joint_state_broadcaster: /joint_states at 50 Hz from the dict it yields (edit it to
     move the arm)."""
-    from ros2 import open_joint_states
+    from arduinobot.ros2 import open_joint_states
     robot = load_description().robot
     names = robot.actuated_joints + robot.mimic_joints
     where = dict.fromkeys(names, 0.0)

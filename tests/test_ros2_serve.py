@@ -3,7 +3,7 @@ while the twin moves, as an independent rmw_zenoh peer (zenoh-ros2-sdk, PyPI) se
 
 The SDK subscribes with the type hash it computes from the .msg texts (written to a
 folder here, as tests/test_ros2_zenoh.py does), so a key or attachment of ours that
-rmw_zenoh's format would not accept never reaches its callback. Formats: ros2/rmw_zenoh
+rmw_zenoh's format would not accept never reaches its callback. Formats: src/arduinobot/ros2/rmw_zenoh
 docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5 ("Topic and Service name
 mapping to Zenoh key expressions", "Graph Cache").
 """
@@ -20,9 +20,9 @@ import zenoh
 import zenoh_ros2_sdk as sdk
 from zenoh_ros2_sdk import message_registry
 
-from clients.client import PlannerClient
-from description import load_description
-from ros2.graph import Token, query_graph
+from arduinobot.client.client import PlannerClient
+from arduinobot.description import load_description
+from arduinobot.ros2.graph import Token, query_graph
 
 from .conftest import free_port, start_server
 from .test_ros2_zenoh import MSGS, wait_for

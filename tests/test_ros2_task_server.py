@@ -1,7 +1,7 @@
 """``serve --ros2``'s /task_server (issue 31, item 3), driven on the twin by an action
 client written here from rmw_zenoh's design, with none of our ``ros2`` package.
 
-The client follows ros2/rmw_zenoh docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5:
+The client follows src/arduinobot/ros2/rmw_zenoh docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5:
 "Graph Cache" (it finds the action's five endpoints by their liveliness tokens
 ``@ros2_lv/<domain>/<zid>/<nid>/<eid>/<kind>/<enclave>/<ns>/<node>/<name>/<type>/<hash>/
 <qos>``, chunks mangled ``/`` -> ``%``), "Topic and Service name mapping to Zenoh key

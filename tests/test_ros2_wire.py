@@ -1,7 +1,7 @@
 """The rmw_zenoh wire format, checked against rmw_zenoh's own documents and independent
 implementations (no network here; tests/test_ros2_zenoh.py talks over Zenoh).
 
-Sources (ros2/rmw_zenoh):
+Sources (src/arduinobot/ros2/rmw_zenoh):
 - docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5: the key expression and
   liveliness token examples copied verbatim below, and the attachment layout.
 - rmw_zenoh_cpp/src/detail/liveliness_utils.cpp @ 3411fdec149fe0c932f24d4d79ef908eb81d7482:
@@ -23,7 +23,7 @@ import zenoh.ext as ze
 from rosbags.typesys import Stores, get_typestore
 from zenoh_ros2_sdk.utils import compute_service_type_hash, compute_type_hash_from_msg
 
-from ros2 import (
+from arduinobot.ros2 import (
     Attachment,
     InvalidName,
     InvalidOption,
@@ -37,8 +37,16 @@ from ros2 import (
     TypeStore,
     UnknownType,
 )
-from ros2.graph import EndpointInfo, NodeInfo, Token, endpoint_token, gid_of, node_token, topic_key
-from ros2.names import fully_qualified, validate_namespace, validate_node_name
+from arduinobot.ros2.graph import (
+    EndpointInfo,
+    NodeInfo,
+    Token,
+    endpoint_token,
+    gid_of,
+    node_token,
+    topic_key,
+)
+from arduinobot.ros2.names import fully_qualified, validate_namespace, validate_node_name
 
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"

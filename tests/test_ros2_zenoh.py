@@ -3,7 +3,7 @@ rmw_zenoh peer (zenoh-ros2-sdk, PyPI) and raw Zenoh.
 
 The SDK session connects to ours (listening on tcp/127.0.0.1:<free port>, multicast
 scouting off); it reads .msg texts from a directory we write (the standard definitions,
-from ros2/common_interfaces), so it never fetches anything. Formats: ros2/rmw_zenoh
+from src/arduinobot/ros2/common_interfaces), so it never fetches anything. Formats: src/arduinobot/ros2/rmw_zenoh
 docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5 ("Publishers", "Service
 Servers"), rmw_zenoh_cpp/src/detail/rmw_publisher_data.cpp @
 3e19ec730c529035a648aec80c0ae0a056943b8c (sequence numbers from 1).
@@ -24,10 +24,10 @@ import zenoh_ros2_sdk as sdk
 from rosbags.typesys import Stores, get_typestore
 from zenoh_ros2_sdk import message_registry
 
-from description.loader import load_description
-from execution.report import Tick
-from execution.robots.base import JointState as RobotJointState
-from ros2 import (
+from arduinobot.description.loader import load_description
+from arduinobot.execution.report import Tick
+from arduinobot.execution.robots.base import JointState as RobotJointState
+from arduinobot.ros2 import (
     Attachment,
     EntityClosed,
     InvalidName,
@@ -41,8 +41,8 @@ from ros2 import (
     UnknownType,
     open_joint_states,
 )
-from ros2.graph import Token, gid_of
-from ros2.joint_states import JointStates
+from arduinobot.ros2.graph import Token, gid_of
+from arduinobot.ros2.joint_states import JointStates
 
 from .conftest import free_port
 

@@ -1,4 +1,4 @@
-"""planner/kinematics/rotations.py: the closed forms of a matrix's quaternion and
+"""src/arduinobot/planner/kinematics/rotations.py: the closed forms of a matrix's quaternion and
 roll-pitch-yaw agree with scipy's ``Rotation`` (their reference) to rounding, at gimbal
 lock and for matrices that are not rotations too (which go to scipy)."""
 
@@ -10,7 +10,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from planner.kinematics.rotations import quaternion_of_matrix, rpy_of_matrix, unit_quaternion
+from arduinobot.planner.kinematics.rotations import (
+    quaternion_of_matrix,
+    rpy_of_matrix,
+    unit_quaternion,
+)
 
 
 def _scipy(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

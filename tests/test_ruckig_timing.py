@@ -2,10 +2,10 @@
 
 import numpy as np
 
-from planner.path_limits import ActiveLimits, Derating
-from planner.timing.curve import build_curve
-from planner.timing.ruckig_timing import JerkLimitedTiming, _speed_change_distance
-from planner.timing.toppra_timing import TimeOptimalTiming
+from arduinobot.planner.path_limits import ActiveLimits, Derating
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.planner.timing.ruckig_timing import JerkLimitedTiming, _speed_change_distance
+from arduinobot.planner.timing.toppra_timing import TimeOptimalTiming
 
 from .timing_helpers import DYN, WP, active_limits
 

@@ -1,7 +1,7 @@
 import pytest
 
-from planner.errors import InvalidRequest
-from planner.scene import Obstacle, validate_obstacles
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.scene.obstacles import Obstacle, validate_obstacles
 
 
 def test_box_needs_positive_size_and_names_field():

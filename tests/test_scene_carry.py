@@ -1,5 +1,5 @@
-"""Attach and detach in the kept scene without a service (service.scene_store with
-service.scene_carry): an object taken into its link's frame where it is, put down in the
+"""Attach and detach in the kept scene without a service (arduinobot.service.scene.store with
+arduinobot.service.scene.carry): an object taken into its link's frame where it is, put down in the
 world where the link holds it, refusals coded with the field and the scene unchanged,
 the file and a restore keep it, plans and checks (and fk) carry it."""
 
@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from planner.codes import Code
-from planner.errors import InvalidRequest, JointLimitViolation, PlanningError
-from service import wire
-from service.handlers import Handlers
-from service.scene_apply import decode_apply
-from service.scene_file import SceneFile
-from service.scene_store import SceneBuilder, SceneState, apply, restore
+from arduinobot.contract import wire
+from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import InvalidRequest, JointLimitViolation, PlanningError
+from arduinobot.service.plan.handlers import Handlers
+from arduinobot.service.scene.apply import decode_apply
+from arduinobot.service.scene.file import SceneFile
+from arduinobot.service.scene.store import SceneBuilder, SceneState, apply, restore
 
 from .helpers.fk import link_pose
 from .helpers.scene_fuzz import carry_seeds, mutate

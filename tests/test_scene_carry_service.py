@@ -11,8 +11,8 @@ import json
 import numpy as np
 import pytest
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
 
 from .conftest import start_servers
 from .helpers.carry import shipped_case
@@ -31,7 +31,7 @@ case = pytest.fixture(shipped_case, scope="module", name="case")
 def _box_in_world(case, state) -> dict:
     """The case's box (in its link's frame) as a free object where the link holds it at
     ``state``."""
-    from service.scene_store import rpy_of
+    from arduinobot.service.scene.store import rpy_of
     t = link_pose(case.d.robot, case.link, case.names, case.q(state)) @ case.box.pose()
     return {"id": case.box.id, "shape": "box", "size": list(case.box.size),
             "xyz": t[:3, 3].tolist(), "rpy": rpy_of(t[:3, :3])}

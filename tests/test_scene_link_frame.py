@@ -10,13 +10,13 @@ import json
 import numpy as np
 import pytest
 
-from clients.replies import FkReply
-from planner.errors import InvalidRequest, StartInCollision
-from planner.scene import rigid_links
-from service import wire
-from service.handlers import Handlers
-from service.scene_file import SceneFile
-from service.scene_store import SceneBuilder, SceneState, restore
+from arduinobot.client.replies import FkReply
+from arduinobot.contract import wire
+from arduinobot.contract.errors import InvalidRequest, StartInCollision
+from arduinobot.scene.obstacles import rigid_links
+from arduinobot.service.plan.handlers import Handlers
+from arduinobot.service.scene.file import SceneFile
+from arduinobot.service.scene.store import SceneBuilder, SceneState, restore
 
 from .helpers.carry import CarryCase
 from .helpers.fk import link_pose

@@ -18,9 +18,9 @@ import pytest
 import trimesh
 import zenoh
 
-from clients import errors
-from clients.client import PlannerClient
-from service.zconfig import zenoh_config
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract.zconfig import zenoh_config
 
 from .conftest import REPO, free_port, start_servers
 from .helpers.procs import process_tree
@@ -153,7 +153,7 @@ def test_every_bad_apply_is_coded_names_the_field_and_changes_nothing(cluster):
                 assert (e.value.code, e.value.details.get("field")) == (code, field), change
         with pytest.raises(errors.InvalidRequest):
             c.request("scene/apply", b"{not json")
-        # a wildcard reaches no key that changes the scene (service.keyguard): not even
+        # a wildcard reaches no key that changes the scene (arduinobot.service.keyguard): not even
         # an error comes back from one
         clear = json.dumps({"clear": True}).encode()
         for key in ("arduinobot/**", "arduinobot/scene/*", "arduinobot/scene/app$*",
@@ -260,7 +260,7 @@ def test_a_late_instance_catches_up_the_leader_fails_over_and_kill_9_loses_nothi
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], cwd=REPO,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], cwd=REPO,
                           capture_output=True, text=True, timeout=300)
 
 

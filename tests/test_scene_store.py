@@ -1,5 +1,5 @@
 """The kept scene without a service: meshes, applies (all or nothing), the file, the
-schemas, and plans against a scene (service.scene_mesh, service.scene_store)."""
+schemas, and plans against a scene (arduinobot.scene.mesh_codec, arduinobot.service.scene.store)."""
 
 from __future__ import annotations
 
@@ -10,13 +10,18 @@ import numpy as np
 import pytest
 import trimesh
 
-from planner.codes import Code
-from planner.errors import InvalidRequest, PlanningError, SceneConflict
-from service import wire
-from service.scene_apply import MAX_APPLY_PAYLOAD, decode_apply
-from service.scene_file import SceneFile
-from service.scene_mesh import MAX_MESH_BASE64, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, decode_mesh
-from service.scene_store import (
+from arduinobot.contract import wire
+from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import InvalidRequest, PlanningError, SceneConflict
+from arduinobot.scene.mesh_codec import (
+    MAX_MESH_BASE64,
+    MAX_MESH_BYTES,
+    MAX_MESH_TRIANGLES,
+    decode_mesh,
+)
+from arduinobot.service.scene.apply import MAX_APPLY_PAYLOAD, decode_apply
+from arduinobot.service.scene.file import SceneFile
+from arduinobot.service.scene.store import (
     MAX_SCENE_OBJECTS,
     SceneBuilder,
     SceneSnapshot,
@@ -47,7 +52,7 @@ def mesh_obj(oid: str, data: bytes | str, fmt: str = "stl", **extra) -> dict:
 
 @pytest.fixture(scope="module")
 def description():
-    from description import load_description
+    from arduinobot.description import load_description
     return load_description()
 
 
@@ -254,7 +259,7 @@ def test_scene_schemas_round_trip(builder):
 # -- plans against a scene ------------------------------------------------------------
 
 def test_with_scene_merges_pins_and_refuses_shadowing(builder):
-    from planner.scene import Obstacle
+    from arduinobot.scene.obstacles import Obstacle
     state = applied(SceneState(), {"add": [{"id": "t", "shape": "sphere", "radius": 1}]},
                     builder)
     own = (Obstacle("mine", "sphere", radius=0.1),)
@@ -272,8 +277,8 @@ def test_with_scene_merges_pins_and_refuses_shadowing(builder):
 
 
 def test_a_plan_avoids_the_scene_and_names_its_revision(description, builder):
-    from planner.errors import StartInCollision
-    from service.handlers import Handlers
+    from arduinobot.contract.errors import StartInCollision
+    from arduinobot.service.plan.handlers import Handlers
     h = Handlers(description)
     state = applied(SceneState(), {"add": [mesh_obj("wall", stl_box((0.05, 2, 2)),
                                                     xyz=[0, 0.25, 0.5])]}, builder)

@@ -7,9 +7,9 @@ import json
 import jsonschema
 import pytest
 
-from planner.errors import InvalidRequest, JointLimitViolation
-from service import caps, wire
-from service.requests import joint_values
+from arduinobot.contract import caps, wire
+from arduinobot.contract.errors import InvalidRequest, JointLimitViolation
+from arduinobot.service.plan.requests import joint_values
 
 
 def test_every_schema_is_a_valid_draft_2020_12_schema():
@@ -110,12 +110,12 @@ def test_joint_values_check_names_mimics_and_limits(description):
 
 @pytest.fixture(scope="module")
 def description():
-    from description import load_description
+    from arduinobot.description import load_description
     return load_description()
 
 
 # -- caps: every array, object and string of a request is bounded, and the schema's
-# figures are the ones in service/caps.py --------------------------------------------
+# figures are the ones in src/arduinobot/contract/caps.py --------------------------------------------
 
 REQUEST_SCHEMAS = ("plan_request", "fk_request", "ik_request", "check_request")
 
@@ -294,7 +294,7 @@ def test_an_execute_request_needs_exactly_one_of_trajectory_and_plan(payload):
 
 
 def test_the_execute_request_schema_is_published_and_its_ranges_are_the_services():
-    from service.execute_io import DEFAULT_START_TOLERANCE
+    from arduinobot.service.execute.io import DEFAULT_START_TOLERANCE
     s = wire.schema("execute_request")
     assert "execute_request" in wire.all_schemas()
     tol = s["properties"]["start_tolerance"]

@@ -3,18 +3,18 @@
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.motion_check import sampled_motion_valid
-from planner.collision.world import CollisionWorld
-from planner.errors import InvalidRequest, NoPathFound
-from planner.planning.search import (
+from arduinobot.contract.errors import InvalidRequest, NoPathFound
+from arduinobot.description import load_description
+from arduinobot.planner.collision.motion_check import sampled_motion_valid
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.planning.search import (
     MAX_SEED,
     PLANNERS,
     available_planners,
     search,
     set_ompl_log_level,
 )
-from planner.scene import Obstacle
+from arduinobot.scene.obstacles import Obstacle
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,7 @@ def world():
 
 
 def test_a_seed_out_of_range_names_its_field():
-    from planner.planning.search import check_seed
+    from arduinobot.planner.planning.search import check_seed
 
     for seed in (None, 0, MAX_SEED):
         check_seed(seed)

@@ -16,12 +16,12 @@ import tty
 import numpy as np
 import pytest
 
-from description import load_description
-from description.packages import SHIPPED_PACKAGE_DIR
-from execution.executor import ExecuteOptions, Executor
-from execution.robots.base import PortBusy, PortError, PortNotFound, UnsupportedRobot
-from execution.robots.serial_arduinobot import SerialArduinobot, hardware_params
-from execution.segments import SampledTrajectory
+from arduinobot.description import load_description
+from arduinobot.description.packages import SHIPPED_PACKAGE_DIR
+from arduinobot.execution.executor import ExecuteOptions, Executor
+from arduinobot.execution.robots.base import PortBusy, PortError, PortNotFound, UnsupportedRobot
+from arduinobot.execution.robots.serial_arduinobot import SerialArduinobot, hardware_params
+from arduinobot.execution.segments import SampledTrajectory
 
 MSG = re.compile(rb"b(\d{3}),s(\d{3}),e(\d{3}),g(\d{3}),")
 DEG = math.pi / 180
@@ -132,8 +132,8 @@ def desc():
 
 @pytest.fixture(scope="module")
 def planned(desc):
-    from planner.planning.goals import NamedGoal
-    from planner.planning.pipeline import MotionPlanner, MotionRequest
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
     mp = MotionPlanner(desc)
     res = mp.solve(MotionRequest(goal=NamedGoal("reach_left"), seed=3, sample_rate=100))
     return res.trajectory
@@ -265,7 +265,7 @@ def test_execute_cli_streams_to_the_port(planned, tmp_path):
     f = tmp_path / "traj.json"
     f.write_text(json.dumps({"trajectory": planned.to_dict()}))
     pty = PtyReader()
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "execute", str(f), "--serial",
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "execute", str(f), "--serial",
                         pty.path, "--boot-wait", "0", "--no-publish"], cwd=REPO,
                        capture_output=True, text=True, timeout=120)
     msgs = messages(pty.close())
@@ -273,7 +273,7 @@ def test_execute_cli_streams_to_the_port(planned, tmp_path):
     assert r.stdout.startswith("completed")
     assert msgs[-1][1] == angles(planned.positions[-1])
     assert len(msgs) > 50
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "execute", str(f), "--serial",
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "execute", str(f), "--serial",
                         "/dev/ttyACM_nothing_here", "--no-publish"], cwd=REPO,
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 1 and "PORT_NOT_FOUND" in r.stderr and "does not exist" in r.stderr
@@ -284,10 +284,10 @@ def test_serve_drives_the_real_arm_on_its_port(tmp_path):
     import subprocess
     import sys
 
-    from clients.client import PlannerClient
+    from arduinobot.client.client import PlannerClient
 
     from .conftest import REPO, start_server
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "serve", "--listen",
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "serve", "--listen",
                         "tcp/127.0.0.1:0", "--workers", "1", "--serial",
                         "/dev/ttyACM_nothing_here"], cwd=REPO, capture_output=True,
                        text=True, timeout=120)
@@ -299,7 +299,7 @@ def test_serve_drives_the_real_arm_on_its_port(tmp_path):
             st = c.request("robot_state")
             assert st["name"][:4] == ["joint_1", "joint_2", "joint_3", "joint_4"]
             assert st["position"] == [0.0] * 5 and st["effort"] is None
-        run = subprocess.run([sys.executable, "-m", "clients.cli", "execute", "--remote",
+        run = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "execute", "--remote",
                               "--connect", srv.endpoint, "--named", "reach_forward"],
                              cwd=REPO, capture_output=True, text=True, timeout=120)
         assert run.returncode == 0, run.stderr
@@ -396,8 +396,8 @@ def test_a_port_that_never_opens_is_a_coded_failure(desc):
 
 @pytest.mark.slow
 def test_the_service_keeps_serving_after_the_arm_is_unplugged(planned):
-    from clients.client import PlannerClient
-    from clients.errors import ServiceError
+    from arduinobot.client.client import PlannerClient
+    from arduinobot.client.errors import ServiceError
 
     from .conftest import start_server
     pty = PtyReader()

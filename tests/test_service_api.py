@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import zenoh
 
-from clients import errors
-from clients.client import PlannerClient
-from service import wire
-from service.zconfig import zenoh_config
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract import wire
+from arduinobot.contract.zconfig import zenoh_config
 
 from .planning_scenes import SPLIT_GOAL, SPLIT_START, split_dicts
 

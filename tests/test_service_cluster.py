@@ -12,8 +12,8 @@ import threading
 import pytest
 import zenoh
 
-from clients.client import PlannerClient
-from service.zconfig import zenoh_config
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract.zconfig import zenoh_config
 
 from .helpers.procs import stop_processes, wait_for
 from .helpers.serve import free_port, start_servers

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from service.server import ServeOptions
-from service.zconfig import DEFAULT_ENDPOINT, zenoh_config
+from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, zenoh_config
+from arduinobot.service.server import ServeOptions
 
 
 def _get(cfg, key):

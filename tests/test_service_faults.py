@@ -10,8 +10,8 @@ import threading
 
 import pytest
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
 
 from .helpers.procs import is_alive, process_tree, wait_for
 from .helpers.serve import start_server

@@ -3,7 +3,7 @@
 bench/soak.py found the server's resident set growing 16 MiB per client session: Zenoh
 1.10 carries any message over 3 KB between processes on one host through a 16 MiB
 shared-memory pool per session, which the server mapped and kept mapped after the client
-left. The service turns Zenoh's shared memory off (service.server.ServeOptions)."""
+left. The service turns Zenoh's shared memory off (arduinobot.service.server.ServeOptions)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
 
 # over Zenoh's 3 KB threshold for its shared-memory transport; refused by the schema
 BIG = b'{"joints": {"joint_1": 0.1}, "pad": "' + b"a" * 8000 + b'"}'

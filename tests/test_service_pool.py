@@ -14,8 +14,8 @@ import weakref
 
 import pytest
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
 
 from .helpers.procs import wait_for, wait_for_cpu
 from .helpers.serve import start_server
@@ -256,10 +256,10 @@ def test_the_pool_holds_no_reference_to_an_answered_job():
     # A real pool (zygote, forked workers), no Zenoh: every job answered, served or timed
     # out while waiting, is freed at once with its payload; none waits in the deadline
     # heap for its deadline (that held every request's bytes for the service's timeout).
-    from service.job import Job
-    from service.messages import Failure, Success
-    from service.pool import WorkerPool
-    from service.worker import DescriptionSpec
+    from arduinobot.service.messages import Failure, Success
+    from arduinobot.service.process.job import Job
+    from arduinobot.service.process.pool import WorkerPool
+    from arduinobot.service.process.worker import DescriptionSpec
 
     outcomes: list = []
     done = threading.Event()

@@ -1,4 +1,4 @@
-"""Faults around the service, with a real router process (``python -m service.router``):
+"""Faults around the service, with a real router process (``python -m arduinobot.service.router``):
 the router restarting under load, and a cache folder that is full or cannot be written."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import pytest
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
 
 from .helpers.procs import wait_for
 from .helpers.serve import free_port, start_server, start_servers

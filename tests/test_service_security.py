@@ -1,5 +1,5 @@
-"""The service exposed through a real router (``python -m service.router``) configured by
-the shipped templates (service/security/*.json5): TLS with a test CA generated here,
+"""The service exposed through a real router (``python -m arduinobot.service.router``) configured by
+the shipped templates (src/arduinobot/service/security/*.json5): TLS with a test CA generated here,
 user/password, and the default-deny access-control list, end to end with a real
 `arduinobot serve` behind the router."""
 
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from clients import errors
-from clients.client import PlannerClient
+from arduinobot.client import errors
+from arduinobot.client.client import PlannerClient
 
 from .conftest import free_port
 from .helpers.zrouter import SECURITY, derive_config, launch_serves, make_test_pki, start_router
@@ -79,7 +79,7 @@ def client_config(tmp: Path, pki, user: str | None, password: str | None = None,
 
 
 def _session(cfg: Path, endpoint: str) -> zenoh.Session:
-    from service.zconfig import zenoh_config
+    from arduinobot.contract.zconfig import zenoh_config
     return zenoh.open(zenoh_config(config_file=cfg, connect=[endpoint], listen=[]))
 
 
@@ -219,7 +219,7 @@ def test_wildcards_reach_no_work_key_even_without_an_acl(server):
     wildcard would pass an ACL rule written for the key, and fan one query out to every
     work queryable. The same holds for the execute keys. Info keys (health, ...) still
     answer a wildcard."""
-    from service.zconfig import zenoh_config
+    from arduinobot.contract.zconfig import zenoh_config
     s = zenoh.open(zenoh_config(mode="client", connect=[server.endpoint], listen=[]))
     try:
         body = json.dumps({"joints": {}}).encode()

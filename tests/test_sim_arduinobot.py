@@ -8,12 +8,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from description import load_description
-from execution.executor import ExecuteOptions, Executor
-from execution.robots.mjcf import Gains
-from execution.robots.sim_arduinobot import SimArduinobot
-from execution.segments import SampledTrajectory
-from service.disk_cache import DiskCache
+from arduinobot.description import load_description
+from arduinobot.execution.executor import ExecuteOptions, Executor
+from arduinobot.execution.robots.mjcf import Gains
+from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+from arduinobot.execution.segments import SampledTrajectory
+from arduinobot.service.process.disk_cache import DiskCache
 
 #: the twin's mesh pieces, computed once per machine as the command line keeps them
 CACHE = DiskCache()
@@ -26,13 +26,13 @@ def desc():
 
 @pytest.fixture(scope="module")
 def planner(desc):
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     return MotionPlanner(desc)
 
 
 def plan(planner, name, seed=5, **kw):
-    from planner.planning.goals import NamedGoal
-    from planner.planning.pipeline import MotionRequest
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.pipeline import MotionRequest
     return planner.solve(MotionRequest(goal=NamedGoal(name), seed=seed, **kw)).trajectory
 
 
@@ -110,7 +110,7 @@ def test_contacts_with_an_obstacle_are_reported(desc, planner):
     traj = plan(planner, "reach_forward")
     tip = traj.positions[-1]
     # a ball where the claw ends up: the plan ignored it, the twin must not
-    from planner.kinematics.chain import Kinematics
+    from arduinobot.planner.kinematics.chain import Kinematics
     kin = Kinematics(desc.robot)
     xyz = kin.link_poses(tip)[kin.link_index["claw_support"]][:3, 3]
     ball = {"id": "ball", "shape": "sphere", "radius": 0.15, "xyz": [float(v) for v in xyz]}
@@ -156,7 +156,7 @@ def test_plan_simulate_reports_and_plots(tmp_path):
 
     from .conftest import REPO
     png = tmp_path / "sim.png"
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "plan", "--named", "reach_right",
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "plan", "--named", "reach_right",
                         "--local", "--simulate", "--plot", str(png), "--obstacle",
                         "box:table:0.6,1.2,0.05@0,1.0,0.6"], cwd=REPO, capture_output=True,
                        text=True, timeout=300)
@@ -170,9 +170,9 @@ def test_the_course_workspace_twin_and_port(course_ws):
     """The course's own packages: its controllers yaml (position-commanded, so its PID
     gains do not apply) is found, the twin holds the arm, and the serial port comes from
     the real-robot ros2_control block."""
-    from execution.robots.base import PortNotFound
-    from execution.robots.controller_gains import find_controllers_yaml
-    from execution.robots.serial_arduinobot import SerialArduinobot
+    from arduinobot.execution.robots.base import PortNotFound
+    from arduinobot.execution.robots.controller_gains import find_controllers_yaml
+    from arduinobot.execution.robots.serial_arduinobot import SerialArduinobot
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src])
     assert find_controllers_yaml(d).name == "arduinobot_controllers.yaml"
     sim = SimArduinobot(d, cache=CACHE)
@@ -194,9 +194,9 @@ def test_the_course_workspace_twin_and_port(course_ws):
 def test_convex_pieces_are_cached_and_cover_the_mesh(tmp_path):
     import trimesh
 
-    from description.packages import SHIPPED_PACKAGE_DIR
-    from execution.robots.mjcf import cluster_parts, mesh_parts
-    from service.disk_cache import DiskCache
+    from arduinobot.description.packages import SHIPPED_PACKAGE_DIR
+    from arduinobot.execution.robots.mjcf import cluster_parts, mesh_parts
+    from arduinobot.service.process.disk_cache import DiskCache
     path = SHIPPED_PACKAGE_DIR / "meshes" / "right_finger.STL"
     cache = DiskCache(tmp_path)
     first = mesh_parts(path, (0.01, 0.01, 0.01), 32, cache=cache)
@@ -223,7 +223,7 @@ def test_the_twin_before_it_opens_is_where_it_opens(desc):
     the state the twin has when it opens, mimics following, at rest."""
     from dataclasses import replace
 
-    from execution.robots.spec import twin_start
+    from arduinobot.execution.robots.spec import twin_start
     d = replace(desc, initial_positions={"joint_1": 0.3, "joint_3": -0.2, "joint_4": -0.4})
     before = twin_start(d)
     opened = SimArduinobot(d, cache=CACHE).state()

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from description import SrdfError, load_description
-from description.srdf import DisabledCollision, parse_srdf, replace_disabled_collisions
+from arduinobot.description import SrdfError, load_description
+from arduinobot.description.srdf import DisabledCollision, parse_srdf, replace_disabled_collisions
 
 
 @pytest.fixture(scope="module")

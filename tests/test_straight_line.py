@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from description import load_description
-from description.errors import DescriptionError
-from description.moveit_config import CartesianLimits, read_cartesian_limits
-from planner.errors import GoalOutOfReach, InvalidRequest, LineInterrupted
-from planner.kinematics.ik import position_ik
-from planner.planning.goals import LineGoal
-from planner.planning.pipeline import MotionPlanner, MotionRequest
-from planner.planning.straight_line import MAX_DEVIATION
-from planner.scene import Obstacle
+from arduinobot.contract.errors import GoalOutOfReach, InvalidRequest, LineInterrupted
+from arduinobot.description import load_description
+from arduinobot.description.errors import DescriptionError
+from arduinobot.description.moveit_config import CartesianLimits, read_cartesian_limits
+from arduinobot.planner.kinematics.ik import position_ik
+from arduinobot.planner.planning.goals import LineGoal
+from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
+from arduinobot.planner.planning.straight_line import MAX_DEVIATION
+from arduinobot.scene.obstacles import Obstacle
 
 from .helpers.fk import tool_frames
 
@@ -195,7 +195,7 @@ def test_lin_on_the_course_workspace(course_ws):
 
 @pytest.mark.slow
 def test_line_and_pose_goals_through_the_service(client):
-    from clients import errors
+    from arduinobot.client import errors
 
     res = client.plan(goal={"line": {"offset": [0.0, 0.0, -0.05]}}, start=START)
     assert res.planner == "straight line"
@@ -216,9 +216,9 @@ def test_line_and_pose_goals_through_the_service(client):
 
 
 def test_the_plan_command_takes_lines_and_tolerances(capsys):
-    from clients.argtypes import UsageError
-    from clients.cli import build_parser, main
-    from clients.cmd_plan import build_request
+    from arduinobot.cli.argtypes import UsageError
+    from arduinobot.cli.commands.plan import build_request
+    from arduinobot.cli.main import build_parser, main
 
     robot = {"joints": [{"name": n} for n in ("joint_1", "joint_2", "joint_3", "joint_4")]}
 

@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.certify import Certifier
-from planner.collision.resume import WALK, Status, Stop, new_walk
-from planner.collision.table import BodyKind, BodyTable, checked_kinds, place_carried
-from planner.collision.world import CollisionWorld
-from planner.scene import Obstacle
+from arduinobot.description import load_description
+from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.resume import WALK, Status, Stop, new_walk
+from arduinobot.planner.collision.table import BodyKind, BodyTable, checked_kinds, place_carried
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.scene.obstacles import Obstacle
 
 
 @pytest.fixture(scope="module")

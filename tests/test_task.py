@@ -10,11 +10,11 @@ import numpy as np
 import orjson
 import pytest
 
-from description import load_description
-from description.moveit_config import find_task, read_tasks
-from planner.errors import InvalidRequest
-from planner.tasks import TaskStepFailed, plan_task, task_from_mapping
-from service import wire
+from arduinobot.contract import wire
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.description.moveit_config import find_task, read_tasks
+from arduinobot.planner.tasks import TaskStepFailed, plan_task, task_from_mapping
 
 from .conftest import start_server
 from .helpers.pick_place import pick_and_place
@@ -25,16 +25,16 @@ COURSE_GOALS = {0: ((0.0, 0.0, 0.0), -0.7), 1: ((-1.14, -0.6, -0.07), 0.0),
 
 @pytest.fixture(scope="module")
 def shipped():
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     d = load_description()
     return d, MotionPlanner(d)
 
 
 @pytest.mark.parametrize("number", [0, 1, 2])
 def test_the_course_tasks_run_by_number_on_the_twin(shipped, number):
-    from execution.executor import ExecuteOptions, Executor
-    from execution.robots.sim_arduinobot import SimArduinobot
-    from execution.segments import SampledTrajectory
+    from arduinobot.execution.executor import ExecuteOptions, Executor
+    from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+    from arduinobot.execution.segments import SampledTrajectory
 
     d, planner = shipped
     named = find_task(read_tasks(d.config.tasks), str(number))
@@ -100,9 +100,9 @@ def test_a_bad_step_is_refused_naming_its_field():
 
 
 def test_each_motion_of_a_task_gets_a_seed_in_range():
-    from planner.planning.goals import NamedGoal
-    from planner.planning.search import MAX_SEED
-    from planner.tasks.sequence import MotionOptions, _request
+    from arduinobot.planner.planning.goals import NamedGoal
+    from arduinobot.planner.planning.search import MAX_SEED
+    from arduinobot.planner.tasks.sequence import MotionOptions, _request
 
     task = task_from_mapping({"steps": [{"wait": 1}], "seed": MAX_SEED})
     seeds = [_request(task, MotionOptions(), NamedGoal("home"), None, {}, [], [], i).seed
@@ -137,7 +137,7 @@ def _task_query(endpoint: str, body: dict[str, Any], timeout: float = 300.0
     """Every reply of one <prefix>/task query: ok bodies, or {"error": ...}."""
     import zenoh
 
-    from service.zconfig import zenoh_config
+    from arduinobot.contract.zconfig import zenoh_config
     out: list[dict[str, Any]] = []
     with zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[])) as s:
         for r in s.get("arduinobot/task", payload=wire.encode(body),
@@ -179,8 +179,8 @@ def test_pick_and_place_is_planned_as_one_task_and_run_on_the_twin(course_servic
     assert replies[-1]["report"]["outcome"] == "completed"
     # where the planner let the box go: inside the bin's walls, its bottom at the table's
     # height (the viewer's forward kinematics, from the reply alone)
-    from clients.viewer.task_view import TaskPlayback
-    from planner.kinematics.chain import Kinematics
+    from arduinobot.planner.kinematics.chain import Kinematics
+    from arduinobot.viewer.task_view import TaskPlayback
     course = load_description(course_ws.xacro, package_dirs=[course_ws.src],
                               moveit_config=course_ws.moveit_pkg)
     kin = Kinematics(course.robot)
@@ -235,7 +235,7 @@ def test_the_course_task_by_number_through_the_service(course_service):
 def test_a_task_is_cancelled_smoothly_mid_step(course_service):
     import zenoh
 
-    from service.zconfig import zenoh_config
+    from arduinobot.contract.zconfig import zenoh_config
     replies: list[dict[str, Any]] = []
     body = {"task": pick_and_place(), "execute": True, "trajectories": False}
     with zenoh.open(zenoh_config(mode="client", connect=[course_service.endpoint],
@@ -269,7 +269,7 @@ def test_the_task_command_runs_a_course_task_by_number_on_the_twin(tmp_path):
 
     from .conftest import REPO
     out = tmp_path / "report.json"
-    run = subprocess.run([sys.executable, "-m", "clients.cli", "task", "2", "--sim", "--fast",
+    run = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "task", "2", "--sim", "--fast",
                           "--report", str(out)], capture_output=True, text=True, cwd=REPO,
                          timeout=600)
     assert run.returncode == 0, run.stderr
@@ -290,7 +290,7 @@ def test_the_task_command_runs_a_task_file_on_the_services_robot(course_service,
     f = tmp_path / "pick_place.json"
     f.write_text(json.dumps(pick_and_place()))
     out = tmp_path / "report.json"
-    run = subprocess.run([sys.executable, "-m", "clients.cli", "task", str(f), "--remote",
+    run = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "task", str(f), "--remote",
                           "--connect", course_service.endpoint, "--report", str(out)],
                          capture_output=True, text=True, cwd=REPO, timeout=600)
     assert run.returncode == 0, run.stderr
@@ -336,7 +336,7 @@ def test_serve_takes_its_named_tasks_from_a_file(tmp_path):
 def test_a_task_starts_in_the_kept_scene(course_service):
     import zenoh
 
-    from service.zconfig import zenoh_config
+    from arduinobot.contract.zconfig import zenoh_config
 
     def apply(body: dict[str, Any]) -> dict[str, Any]:
         with zenoh.open(zenoh_config(mode="client", connect=[course_service.endpoint],
@@ -385,11 +385,11 @@ def _resting_place(result, detach_index: int) -> np.ndarray:
 
 
 def test_the_twin_carries_the_box_from_the_table_into_the_bin(course_ws):
-    from execution.executor import ExecuteOptions, Executor
-    from execution.robots.sim_arduinobot import SimArduinobot
-    from execution.robots.twin_tasks import grasp_schedule, task_objects, without
-    from execution.segments import SampledTrajectory
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.execution.executor import ExecuteOptions, Executor
+    from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+    from arduinobot.execution.robots.twin_tasks import grasp_schedule, task_objects, without
+    from arduinobot.execution.segments import SampledTrajectory
+    from arduinobot.planner.planning.pipeline import MotionPlanner
 
     from .helpers.pick_place import BOX, TABLE_TOP
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src],

@@ -17,21 +17,21 @@ import numpy as np
 import orjson
 import pytest
 
-from clients import errors
-from description import load_description
-from planner.scene import Obstacle
-from service import wire
-from service.messages import HELD_SCENE, Done, JobMsg, Stop, Success, TakenMark
-from service.scene_store import SceneSnapshot
-from service.slot import Slot
-from service.worker import DEFAULT_PLANNING_TIME, job_deadline, serve_jobs
-from service.zygote import WorkerProcess
+from arduinobot.client import errors
+from arduinobot.contract import wire
+from arduinobot.description import load_description
+from arduinobot.scene.obstacles import Obstacle
+from arduinobot.service.messages import HELD_SCENE, Done, JobMsg, Stop, Success, TakenMark
+from arduinobot.service.process.slot import Slot
+from arduinobot.service.process.worker import DEFAULT_PLANNING_TIME, job_deadline, serve_jobs
+from arduinobot.service.process.zygote import WorkerProcess
+from arduinobot.service.scene.store import SceneSnapshot
 from tests.helpers.fk import link_pose
 from tests.helpers.serve import start_server
 
 #: what only the planner's processes may import: the planning pipeline, the task
 #: planner, the compiled kernels, OMPL, the collision and timing libraries
-PLANNER_MODULES = ("planner.planning.pipeline", "planner.tasks", "planner.collision.world",
+PLANNER_MODULES = ("arduinobot.planner.planning.pipeline", "arduinobot.planner.tasks", "arduinobot.planner.collision.world",
                    "numba", "ompl", "fcl", "toppra")
 
 #: imported first by every Python process started with this folder on its path: at the
@@ -51,7 +51,7 @@ atexit.register(_modules)
 def _task_query(endpoint: str, body: dict[str, Any]) -> list[dict[str, Any]]:
     import zenoh
 
-    from service.zconfig import zenoh_config
+    from arduinobot.contract.zconfig import zenoh_config
     out = []
     with zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[])) as s:
         for r in s.get("arduinobot/task", payload=wire.encode(body),
@@ -76,7 +76,7 @@ def test_tasks_and_attaches_go_to_the_pool_and_serve_never_imports_the_planner(
     ball_at = link_pose(d.robot, "horizontal_arm", path, np.zeros(len(path)))[:3, 3].tolist()
     srv = start_server(["--workers", "1", "--no-robot"], env=env)
     try:
-        from clients.client import PlannerClient
+        from arduinobot.client.client import PlannerClient
         with PlannerClient(srv.endpoint, timeout=60) as c:
             planned = _task_query(srv.endpoint, {"number": 1, "trajectories": False})
             # a step that cannot be planned: its code and step, from the worker
@@ -108,7 +108,7 @@ def test_tasks_and_attaches_go_to_the_pool_and_serve_never_imports_the_planner(
     assert detached["attached"] == 0 and free["id"] == "far"
     assert free["xyz"] == pytest.approx([0.0, 0.0, 3.0], abs=1e-9)  # where it was taken
     served = (modules / f"{srv.proc.pid}.txt").read_text().split()
-    assert "service.task_service" in served  # it served the key
+    assert "arduinobot.service.task.task_service" in served  # it served the key
     loaded = [m for m in PLANNER_MODULES if m in served]
     assert not loaded, f"the serving process imported {loaded}"
 
@@ -215,7 +215,7 @@ def test_a_held_scene_job_for_a_worker_that_holds_none_ends_it():
 def test_one_worker_answers_each_job_against_the_scene_of_its_arrival():
     # one worker: every check goes to it; the scene changes between them, so it is sent
     # the new snapshot each time the revision moves and holds it otherwise
-    from clients.client import PlannerClient
+    from arduinobot.client.client import PlannerClient
     d = load_description()
     path = [j.name for j in d.robot.link_path("horizontal_arm")]
     at = link_pose(d.robot, "horizontal_arm", path, np.zeros(len(path)))[:3, 3].tolist()

@@ -8,18 +8,18 @@ import socket
 import numpy as np
 import pytest
 
-from clients.viewer.task_view import TaskPlayback
-from description import load_description
-from planner.kinematics.chain import Kinematics
-from planner.tasks import plan_task, task_from_mapping
-from service.task_service import planned_body
+from arduinobot.description import load_description
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.planner.tasks import plan_task, task_from_mapping
+from arduinobot.service.task.task_service import planned_body
+from arduinobot.viewer.task_view import TaskPlayback
 
 from .helpers.pick_place import pick_and_place
 
 
 @pytest.fixture(scope="module")
 def planned(course_ws):
-    from planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src],
                          moveit_config=course_ws.moveit_pkg)
     result = plan_task(MotionPlanner(d), task_from_mapping(pick_and_place(), name="pick"))
@@ -53,7 +53,7 @@ def test_a_task_reply_plays_with_its_steps_lines_and_carried_box(planned):
 
 
 def test_a_reply_without_plans_is_refused_naming_the_step(planned):
-    from execution.segments import InvalidTrajectory
+    from arduinobot.execution.segments import InvalidTrajectory
     d, result, _ = planned
     bare = planned_body(result, name="pick", trajectories=False)
     with pytest.raises(InvalidTrajectory, match="step 0 has no plan"):
@@ -67,9 +67,9 @@ def _free_port() -> int:
 
 
 def test_the_page_moves_the_carried_box_with_the_scrubber(planned):
-    from clients.viewer.app import RobotViewer
-    from clients.viewer.playback import PlaybackPanel
-    from clients.viewer.task_view import show_task
+    from arduinobot.viewer.app import RobotViewer
+    from arduinobot.viewer.playback import PlaybackPanel
+    from arduinobot.viewer.task_view import show_task
 
     d, _, body = planned
     viewer = RobotViewer(d, obstacles=TaskPlayback.from_reply(body, Kinematics(d.robot))

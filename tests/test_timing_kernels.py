@@ -8,13 +8,18 @@ same trajectories and the same verification reports.
 import numpy as np
 import pytest
 
-from planner.errors import TrajectoryError
-from planner.path_limits import ActiveLimits, Derating, torque_coefficients
-from planner.timing.curve import PathCurve, build_curve
-from planner.timing.profiles import JerkLimited
-from planner.timing.ruckig_timing import _BLEND_SAMPLES, _LINE_SAMPLES, _TINY, JerkLimitedTiming
-from planner.timing.trajectory import JointTrajectory
-from planner.timing.verify import Verifier, _of_peaks, _peak
+from arduinobot.contract.errors import TrajectoryError
+from arduinobot.planner.path_limits import ActiveLimits, Derating, torque_coefficients
+from arduinobot.planner.timing.curve import PathCurve, build_curve
+from arduinobot.planner.timing.profiles import JerkLimited
+from arduinobot.planner.timing.ruckig_timing import (
+    _BLEND_SAMPLES,
+    _LINE_SAMPLES,
+    _TINY,
+    JerkLimitedTiming,
+)
+from arduinobot.planner.timing.trajectory import JointTrajectory
+from arduinobot.planner.timing.verify import Verifier, _of_peaks, _peak
 
 from .timing_helpers import DYN, NAMES, WORLD, WP, active_limits
 

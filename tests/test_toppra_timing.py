@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from planner.errors import TrajectoryError
-from planner.path_limits import ActiveLimits, Derating
-from planner.timing.curve import build_curve
-from planner.timing.toppra_timing import TimeOptimalTiming
+from arduinobot.contract.errors import TrajectoryError
+from arduinobot.planner.path_limits import ActiveLimits, Derating
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.planner.timing.toppra_timing import TimeOptimalTiming
 
 from .timing_helpers import DYN, WP, active_limits
 

@@ -7,15 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.errors import InvalidRequest
-from planner.path_limits import ActiveLimits
-from planner.scene import Obstacle
-from planner.timing.curve import build_curve
-from planner.timing.ruckig_timing import JerkLimitedTiming
-from planner.timing.trajectory import JointTrajectory, sample_times
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.path_limits import ActiveLimits
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.planner.timing.ruckig_timing import JerkLimitedTiming
+from arduinobot.planner.timing.trajectory import JointTrajectory, sample_times
+from arduinobot.scene.obstacles import Obstacle
 
 from .timing_helpers import DYN, NAMES, WORLD, WP, active_limits
 
@@ -161,8 +161,8 @@ def test_json_and_csv_export(traj):
 
 
 def test_sample_times_refuses_more_than_max_samples_before_making_them():
-    from planner.errors import InvalidRequest
-    from planner.timing.trajectory import sample_times
+    from arduinobot.contract.errors import InvalidRequest
+    from arduinobot.planner.timing.trajectory import sample_times
     assert len(sample_times(10.0, 100.0, max_samples=1002)) == 1001
     with pytest.raises(InvalidRequest) as e:
         sample_times(10.0, 100.0, max_samples=1000)

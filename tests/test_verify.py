@@ -4,13 +4,13 @@ import json
 
 import numpy as np
 
-from planner.collision.world import CollisionWorld
-from planner.path_limits import ActiveLimits, Derating
-from planner.scene import Obstacle
-from planner.timing.curve import build_curve
-from planner.timing.ruckig_timing import JerkLimitedTiming
-from planner.timing.trajectory import JointTrajectory
-from planner.timing.verify import TOLERANCE, Verifier, derate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.path_limits import ActiveLimits, Derating
+from arduinobot.planner.timing.curve import build_curve
+from arduinobot.planner.timing.ruckig_timing import JerkLimitedTiming
+from arduinobot.planner.timing.trajectory import JointTrajectory
+from arduinobot.planner.timing.verify import TOLERANCE, Verifier, derate
+from arduinobot.scene.obstacles import Obstacle
 
 from .timing_helpers import DESC, DYN, NAMES, WORLD, WP, active_limits
 
@@ -101,7 +101,7 @@ def test_with_a_certificate_limits_are_still_checked_between_samples():
     # collisions proven elsewhere: the grid for the limits alone still finds the peak
     from types import SimpleNamespace
 
-    from planner.collision.certificate import Certificate
+    from arduinobot.planner.collision.certificate import Certificate
     traj = _traj(rate=1.0)
     sampled = np.max(np.abs(traj.efforts), axis=0)
     ts = np.linspace(0.0, traj.duration, 20001)

@@ -21,16 +21,16 @@ import pytest
 import trimesh
 from PIL import Image
 
-from clients.cmd_view import read_obstacles
-from clients.viewer.geometry import PALETTE, frame_box, matrix_to_wxyz
-from clients.viewer.planning import RemoteBackend
-from clients.viewer.plots import joint_limits, plot_panels, plot_png
-from clients.viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
-from description import load_description
-from description.model import rpy_matrix
-from planner.errors import InvalidRequest
-from planner.planning.goals import JointGoal, NamedGoal
-from planner.scene import Obstacle
+from arduinobot.cli.commands.view import read_obstacles
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.description.model import rpy_matrix
+from arduinobot.planner.planning.goals import JointGoal, NamedGoal
+from arduinobot.scene.obstacles import Obstacle
+from arduinobot.viewer.geometry import PALETTE, frame_box, matrix_to_wxyz
+from arduinobot.viewer.planning import RemoteBackend
+from arduinobot.viewer.plots import joint_limits, plot_panels, plot_png
+from arduinobot.viewer.trajectory import PlaybackTrajectory, TrajectoryFileError
 
 from .helpers.procs import wait_for
 
@@ -133,7 +133,7 @@ def test_plots_carry_limits_and_render_png(description):
 
 
 def test_remote_request_matches_the_service_schema():
-    schema = json.loads((ROOT / "service/schema/plan_request.json").read_text())
+    schema = json.loads((ROOT / "src/arduinobot/contract/schema/plan_request.json").read_text())
     box = Obstacle(id="table", shape="box", size=(1, 1, 0.1), xyz=(0, 0.8, 0.5))
     b = RemoteBackend("tcp/127.0.0.1:1", obstacles=(box,))
     for goal in (NamedGoal("home"), JointGoal({"joint_2": 0.3})):
@@ -303,8 +303,8 @@ def _free_port() -> int:
 
 @pytest.mark.slow
 def test_page_shows_robot_and_collision_in_chromium(description, tmp_path):
-    from clients.viewer.app import RobotViewer
-    from clients.viewer.playback import PlaybackPanel
+    from arduinobot.viewer.app import RobotViewer
+    from arduinobot.viewer.playback import PlaybackPanel
 
     viewer = RobotViewer(description, port=_free_port())
     playback = PlaybackPanel(viewer)

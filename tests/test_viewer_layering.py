@@ -1,4 +1,4 @@
-"""The viewer (clients/viewer, the optional `view` extra) is a part of the client: the core
+"""The viewer (src/arduinobot/viewer, the optional `view` extra) stands above the client library: the core
 never imports it, the rest of the client only when a command draws, and it takes nothing
 of the server's internals."""
 
@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-CORE = ("planner", "service", "execution", "description", "ros2")
+CORE = tuple(f"src/arduinobot/{p}" for p in ("planner", "service", "execution", "description",
+                                            "ros2", "contract", "scene", "client"))
 
 
 def _imports(tree: ast.AST) -> set[str]:
@@ -38,7 +39,7 @@ def _top_level_imports(tree: ast.Module) -> set[str]:
 
 
 def _is_viewer(module: str) -> bool:
-    return module == "clients.viewer" or module.startswith("clients.viewer.")
+    return module == "arduinobot.viewer" or module.startswith("arduinobot.viewer.")
 
 
 def _parsed(package: str) -> dict[str, ast.Module]:
@@ -53,29 +54,28 @@ def test_the_core_never_imports_the_viewer() -> None:
 
 
 def test_the_client_imports_the_viewer_only_inside_the_commands_that_draw() -> None:
-    files = {p: t for p, t in _parsed("clients").items()
-             if not p.startswith("clients/viewer/")}
+    files = _parsed("src/arduinobot/cli")
     assert len(files) > 10  # the scan sees the package
     at_import = {p: sorted(m for m in _top_level_imports(t) if _is_viewer(m))
                  for p, t in files.items()}
     assert not {p: m for p, m in at_import.items() if m}
     anywhere = {p for p, t in files.items() if any(_is_viewer(m) for m in _imports(t))}
-    assert anywhere == {"clients/cmd_view.py", "clients/cmd_plan.py"}
+    assert anywhere == {"src/arduinobot/cli/commands/view.py", "src/arduinobot/cli/commands/plan.py"}
 
 
 def test_the_viewer_takes_nothing_of_the_servers_internals() -> None:
-    files = _parsed("clients/viewer")
-    assert "clients/viewer/app.py" in files
-    forbidden = ("service.server", "service.pool", "service.worker", "service.handlers",
-                 "service.scene_sync")
+    files = _parsed("src/arduinobot/viewer")
+    assert "src/arduinobot/viewer/app.py" in files
+    forbidden = ("arduinobot.service.server", "arduinobot.service.process.pool", "arduinobot.service.process.worker", "arduinobot.service.plan.handlers",
+                 "arduinobot.service.scene.sync")
     bad = {p: sorted(m for m in _imports(t) if m.startswith(forbidden))
            for p, t in files.items()}
     assert not {p: m for p, m in bad.items() if m}
 
 
 def test_the_command_line_starts_without_the_viewer() -> None:
-    code = ("import sys\nimport clients.cli\n"
-            "print(sorted(m for m in ('clients.viewer', 'viser', 'matplotlib') if m in sys.modules))")
+    code = ("import sys\nimport arduinobot.cli.main\n"
+            "print(sorted(m for m in ('arduinobot.viewer', 'viser', 'matplotlib') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
                          text=True, timeout=120)
     assert out.returncode == 0, out.stderr

@@ -16,13 +16,13 @@ import pytest
 import trimesh
 from PIL import Image
 
-from clients.client import PlannerClient
-from clients.viewer.geometry import CARRIED_RGB, link_meshes
-from clients.viewer.scene_view import NO_REVISION, ViewerScene, read_scene_file
-from clients.viewer.still import still_bodies, still_png
-from description import load_description
-from planner.errors import InvalidRequest
-from planner.kinematics.chain import Kinematics
+from arduinobot.client.client import PlannerClient
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.viewer.geometry import CARRIED_RGB, link_meshes
+from arduinobot.viewer.scene_view import NO_REVISION, ViewerScene, read_scene_file
+from arduinobot.viewer.still import still_bodies, still_png
 
 from .conftest import REPO, free_port, start_server
 from .helpers.fk import link_pose
@@ -129,7 +129,7 @@ def test_changes_name_what_to_draw_anew_and_what_goes(desc, tmp_path):
 
 
 def test_the_page_draws_the_scene_and_carries_the_cup_with_its_link(desc, tmp_path):
-    from clients.viewer.app import RobotViewer
+    from arduinobot.viewer.app import RobotViewer
 
     scene = ViewerScene.from_json(_scene(), desc, mesh_dir=tmp_path)
     page = RobotViewer(desc, scene=scene, port=free_port())
@@ -210,8 +210,8 @@ def _wait(cond, what: str, timeout: float = 30.0) -> None:
 
 @pytest.mark.slow
 def test_the_page_follows_the_services_scene(served, desc):
-    from clients.viewer.app import RobotViewer
-    from clients.viewer.scene_follow import SceneFollower
+    from arduinobot.viewer.app import RobotViewer
+    from arduinobot.viewer.scene_follow import SceneFollower
 
     srv, c = served
     c.request("scene/apply", {"clear": True})
@@ -259,8 +259,8 @@ def test_the_page_follows_the_services_scene(served, desc):
 
 @pytest.mark.slow
 def test_a_missed_publication_is_caught_by_the_health_poll(served, desc, monkeypatch):
-    from clients.viewer.app import RobotViewer
-    from clients.viewer.scene_follow import SceneFollower
+    from arduinobot.viewer.app import RobotViewer
+    from arduinobot.viewer.scene_follow import SceneFollower
 
     srv, c = served
     c.request("scene/apply", {"clear": True})
@@ -299,7 +299,7 @@ def test_view_png_draws_the_services_scene_with_the_carried_cup(served, tmp_path
     rev = c.request("scene/apply", {"state": BENT, "attach": [
         {"object": "cup", "link": "claw_support"}]})["revision"]
     out = tmp_path / "still.png"
-    r = subprocess.run([sys.executable, "-m", "clients.cli", "view", "--connect", srv.endpoint,
+    r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "view", "--connect", srv.endpoint,
                         "--png", str(out)], cwd=REPO, capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0, r.stderr
@@ -308,8 +308,8 @@ def test_view_png_draws_the_services_scene_with_the_carried_cup(served, tmp_path
 
 
 def test_an_obstacle_and_a_scene_object_of_one_id_are_refused_by_name(desc, tmp_path):
-    from clients.viewer.app import RobotViewer
-    from planner.scene import Obstacle
+    from arduinobot.scene.obstacles import Obstacle
+    from arduinobot.viewer.app import RobotViewer
 
     scene = ViewerScene.from_json(_scene(), desc, mesh_dir=tmp_path)
     table = Obstacle.from_mapping({**TABLE, "xyz": [0, 2, 0.5]})
@@ -319,7 +319,7 @@ def test_an_obstacle_and_a_scene_object_of_one_id_are_refused_by_name(desc, tmp_
 
 
 def test_view_png_of_a_saved_scene_and_no_saved_scene_with_connect(tmp_path, capsys):
-    from clients.cli import main
+    from arduinobot.cli.main import main
 
     cell, out = tmp_path / "cell.json", tmp_path / "cell.png"
     cell.write_text(json.dumps(_scene(objects=(TABLE, BIN))))
@@ -336,9 +336,9 @@ def test_view_png_of_a_saved_scene_and_no_saved_scene_with_connect(tmp_path, cap
 
 
 def test_in_process_plans_go_around_the_pages_kept_scene_and_what_it_carries(desc, tmp_path):
-    from clients.viewer.planning import LocalBackend
-    from planner.errors import GoalInCollision
-    from planner.planning.goals import JointGoal
+    from arduinobot.contract.errors import GoalInCollision
+    from arduinobot.planner.planning.goals import JointGoal
+    from arduinobot.viewer.planning import LocalBackend
 
     # a crate 30 cm out along the claw's z axis at BENT: the arm misses it, a cup carried
     # there does not
@@ -360,7 +360,7 @@ def test_in_process_plans_go_around_the_pages_kept_scene_and_what_it_carries(des
 
 
 def test_view_png_at_a_time_of_the_trajectory_carries_the_cup_there(tmp_path, capsys):
-    from clients.cli import main
+    from arduinobot.cli.main import main
 
     cell, traj = tmp_path / "cell.json", tmp_path / "traj.json"
     cell.write_text(json.dumps(_scene(objects=(TABLE,))))
@@ -382,7 +382,7 @@ def test_view_png_at_a_time_of_the_trajectory_carries_the_cup_there(tmp_path, ca
 
 @pytest.mark.slow
 def test_the_page_in_chromium_shows_the_cup_moving_with_the_claw(desc, tmp_path):
-    from clients.viewer.app import RobotViewer
+    from arduinobot.viewer.app import RobotViewer
 
     from .test_viewer import Browser, _scene_region
 

@@ -1,4 +1,4 @@
-"""``python -m service.warmup`` (what ``./dev`` runs at set-up): the kernels compiled, and
+"""``python -m arduinobot.service.process.warmup`` (what ``./dev`` runs at set-up): the kernels compiled, and
 the shipped robot's geometry in the artifact cache ``serve`` reads by default, so a first
 ``serve`` reads its part hulls instead of building them."""
 
@@ -9,17 +9,17 @@ import subprocess
 import sys
 from pathlib import Path
 
-from description import load_description
-from planner.collision.bodies import RobotBodies
-from planner.kinematics.chain import Kinematics
-from service.disk_cache import DiskCache
+from arduinobot.description import load_description
+from arduinobot.planner.collision.bodies import RobotBodies
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.service.process.disk_cache import DiskCache
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_warmup_fills_the_default_cache_with_the_shipped_robots_geometry(tmp_path):
     env = {**os.environ, "ARDUINOBOT_CACHE": str(tmp_path)}
-    done = subprocess.run([sys.executable, "-m", "service.warmup"], cwd=ROOT, env=env,
+    done = subprocess.run([sys.executable, "-m", "arduinobot.service.process.warmup"], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert "geometry" in done.stderr

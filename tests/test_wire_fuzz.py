@@ -1,9 +1,9 @@
 """Property-based tests of the wire decoder and the request checks (hypothesis).
 
-Whatever arrives, :func:`service.wire.decode` returns a dict or raises
-:class:`~planner.errors.InvalidRequest`, and the checks a worker runs next (requests.py,
+Whatever arrives, :func:`arduinobot.contract.wire.decode` returns a dict or raises
+:class:`~arduinobot.contract.errors.InvalidRequest`, and the checks a worker runs next (requests.py,
 plan_io.py, the fk/check handlers on the real FCL world) raise only coded
-:class:`~planner.errors.PlanningError`s. Derandomized: every run draws the same examples.
+:class:`~arduinobot.contract.errors.PlanningError`s. Derandomized: every run draws the same examples.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from planner.errors import InvalidRequest, PlanningError
-from service import caps, wire
+from arduinobot.contract import caps, wire
+from arduinobot.contract.errors import InvalidRequest, PlanningError
 from tests.helpers.json_paths import json_get, json_paths
 
 SETTINGS = settings(derandomize=True, deadline=None, database=None,
@@ -198,15 +198,15 @@ def _is_dict(value: Any, path: tuple[Any, ...]) -> bool:
 
 @pytest.fixture(scope="module")
 def handlers():
-    from description import load_description
-    from service.handlers import Handlers
+    from arduinobot.description import load_description
+    from arduinobot.service.plan.handlers import Handlers
     return Handlers(load_description())
 
 
 def _work(handlers: Any, kind: str, data: dict[str, Any]) -> None:
     """What a worker does with a decoded request, short of planning: every failure a
     coded PlanningError (anything else fails the test)."""
-    from service.plan_io import plan_request
+    from arduinobot.service.plan.plan_io import plan_request
     try:
         if kind == "plan":
             req = plan_request(handlers.description, data)

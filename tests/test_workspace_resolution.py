@@ -11,9 +11,9 @@ from pathlib import Path
 
 import trimesh
 
-from description import load_description
-from description.checks import check_model
-from description.packages import SHIPPED_PACKAGE_DIR
+from arduinobot.description import load_description
+from arduinobot.description.checks import check_model
+from arduinobot.description.packages import SHIPPED_PACKAGE_DIR
 
 from .conftest import REPO
 from .helpers.course_workspace import CAMERA_MESH
@@ -25,7 +25,7 @@ def _env() -> dict[str, str]:
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "clients.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
                           text=True, cwd=REPO, env=_env(), timeout=300)
 
 

@@ -2,10 +2,10 @@ import fcl
 import numpy as np
 import pytest
 
-from description import load_description
-from planner.collision.world import CollisionWorld
-from planner.errors import InvalidRequest
-from planner.scene import Obstacle
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import load_description
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.scene.obstacles import Obstacle
 from tests.helpers.fcl_bodies import fcl_objects, place
 
 
@@ -69,9 +69,9 @@ def test_clearance_and_padding(d):
 def test_link_trees_are_cached_by_content(tmp_path):
     import numpy as np
 
-    from description import load_description
-    from planner.collision.world import CollisionWorld
-    from service.disk_cache import DiskCache
+    from arduinobot.description import load_description
+    from arduinobot.planner.collision.world import CollisionWorld
+    from arduinobot.service.process.disk_cache import DiskCache
     d = load_description()
     first = CollisionWorld(d, cache=DiskCache(tmp_path))
     files = sorted((tmp_path / "obb-tree").glob("*.npz"))
@@ -156,7 +156,7 @@ def test_the_remembered_still_distance_is_tight_on_convex_links_and_order_free(d
 def test_scene_meshes_are_built_once_per_content_across_worlds(world, tmp_path, monkeypatch):
     import trimesh
 
-    from planner.collision import assembly
+    from arduinobot.planner.collision import assembly
 
     built: list[str] = []
     real = assembly._build_geometry

@@ -1,4 +1,4 @@
-"""service/zygote.py and the worker's side of service/messages.py: a forked worker marks
+"""src/arduinobot/service/process/zygote.py and the worker's side of src/arduinobot/service/messages.py: a forked worker marks
 each job taken in memory its pool maps (TakenMark), and the mark outlives the worker."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import threading
 import orjson
 import pytest
 
-from service.messages import Done, JobMsg, Success, TakenMark
-from service.worker import DescriptionSpec
-from service.zygote import Zygote
+from arduinobot.service.messages import Done, JobMsg, Success, TakenMark
+from arduinobot.service.process.worker import DescriptionSpec
+from arduinobot.service.process.zygote import Zygote
 
 from .helpers.procs import wait_for
 

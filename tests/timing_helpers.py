@@ -3,9 +3,9 @@
 
 import numpy as np
 
-from description import load_description
-from planner.collision.world import CollisionWorld
-from planner.kinematics.dynamics import InverseDynamics
+from arduinobot.description import load_description
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.kinematics.dynamics import InverseDynamics
 
 DESC = load_description()
 WORLD = CollisionWorld(DESC)
@@ -18,6 +18,6 @@ WP = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 0.5, 0.0, 0.0], [1.0, 1.0, -0.5, 0.0]
 
 def active_limits(velocity_scaling: float = 1.0, acceleration_scaling: float = 1.0):
     """The robot's limits through the limits module."""
-    from planner.kinematics.limits import JointLimits
+    from arduinobot.planner.kinematics.limits import JointLimits
     return JointLimits.from_description(DESC, velocity_scaling=velocity_scaling,
                                         acceleration_scaling=acceleration_scaling)

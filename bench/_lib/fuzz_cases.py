@@ -8,7 +8,7 @@ import random
 from collections.abc import Callable
 from typing import Any
 
-from service import caps
+from arduinobot.contract import caps
 from tests.helpers.json_paths import json_get, json_paths
 
 KINDS = ("plan", "fk", "ik", "check")

@@ -7,7 +7,7 @@
   the joint-connected pairs (as a model without an SRDF, or an SRDF that does not
   disable them): the two fingers, and every pair the course's SRDF calls "Never", are
   checked;
-- ``shipped``: the arduinobot shipped in description/ (``arduinobot serve``'s default).
+- ``shipped``: the arduinobot shipped in src/arduinobot/description/ (``arduinobot serve``'s default).
 
 For each: the arguments of ``arduinobot serve``, the description as the service loads
 it, and the plain URDF + SRDF MPlib and the independent re-check (bench/_lib/recheck.py)
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
-from description import Description, load_description
-from description.loader import read_model_text
+from arduinobot.description import Description, load_description
+from arduinobot.description.loader import read_model_text
 
 ModelName = Literal["course", "course_fingers", "shipped"]
 

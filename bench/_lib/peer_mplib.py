@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from planner.kinematics.limits import JointLimits
-from planner.planning.pipeline import MotionPlanner
+from arduinobot.planner.kinematics.limits import JointLimits
+from arduinobot.planner.planning.pipeline import MotionPlanner
 
 from .mplib_venv import MplibTiming, run_mplib
 from .peer_models import PeerModel

@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from description import load_description
-from description.loader import read_model_text
-from planner.collision.motion_check import interpolate
-from planner.collision.world import CollisionWorld
-from planner.scene import Obstacle
+from arduinobot.description import load_description
+from arduinobot.description.loader import read_model_text
+from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.scene.obstacles import Obstacle
 
 SCENES = {
     "self": [],

@@ -10,11 +10,11 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from description import load_description
-from planner.planning.goals import JointGoal
-from planner.planning.motion import MotionRequest
-from planner.planning.pipeline import MotionPlanner
-from planner.scene import AttachedObject, Obstacle
+from arduinobot.description import load_description
+from arduinobot.planner.planning.goals import JointGoal
+from arduinobot.planner.planning.motion import MotionRequest
+from arduinobot.planner.planning.pipeline import MotionPlanner
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 
 class CarryCase:

@@ -33,7 +33,7 @@ import numpy as np
 import trimesh
 
 REPO = Path(__file__).resolve().parents[2]
-SHIPPED_MESHES = REPO / "description" / "arduinobot_description" / "meshes"
+SHIPPED_MESHES = REPO / "src" / "arduinobot" / "description" / "arduinobot_description" / "meshes"
 
 DESCRIPTION = "arduinobot_description"
 CONTROLLER = "arduinobot_controller"

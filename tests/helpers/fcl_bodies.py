@@ -9,8 +9,8 @@ from __future__ import annotations
 import fcl
 import numpy as np
 
-from planner.collision.table import BodyKind
-from planner.collision.world import CollisionWorld
+from arduinobot.planner.collision.table import BodyKind
+from arduinobot.planner.collision.world import CollisionWorld
 
 
 def fcl_objects(w: CollisionWorld) -> list[fcl.CollisionObject]:

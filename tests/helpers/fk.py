@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 def link_pose(robot, link: str, names, q) -> np.ndarray:
     """``link``'s world pose, shape (4, 4), at joint values ``q`` (ordered as ``names``),
-    by walking the URDF joints with scipy (independent of planner.kinematics)."""
+    by walking the URDF joints with scipy (independent of arduinobot.planner.kinematics)."""
     col = {n: i for i, n in enumerate(names)}
     t = np.eye(4)
     for j in robot.link_path(link):
@@ -33,7 +33,7 @@ def link_pose(robot, link: str, names, q) -> np.ndarray:
 
 def tool_frames(description, names, positions):
     """tcp positions (m, 3) and tool rotations (m, 3, 3), by walking the URDF joints with
-    scipy (independent of planner.kinematics)."""
+    scipy (independent of arduinobot.planner.kinematics)."""
     robot, tcp = description.robot, description.tcp
     ps, rs = [], []
     for q in positions:

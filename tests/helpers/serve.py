@@ -85,7 +85,7 @@ def launch_serves(arg_lists: Sequence[Sequence[str]], *, endpoints: Sequence[str
     Raises:
         procs.LaunchError: one exited or was not ready within ``timeout`` [s].
     """
-    argvs = [[sys.executable, "-m", "clients.cli", "serve", *args,
+    argvs = [[sys.executable, "-m", "arduinobot.cli.main", "serve", *args,
               *([] if "--scene-file" in args else ["--scene-file", _scene_file()])]
              for args in arg_lists]
     launched = launch_all(argvs, ready=READY, what="arduinobot serve", env=env,

@@ -1,4 +1,4 @@
-"""A real Zenoh router process (``python -m service.router``), `arduinobot serve` behind
+"""A real Zenoh router process (``python -m arduinobot.service.router``), `arduinobot serve` behind
 it, configs derived from the shipped templates, and a throwaway test CA."""
 
 from __future__ import annotations
@@ -17,15 +17,15 @@ from .procs import REPO, launch_all, stop_process
 from .serve import Server
 from .serve import launch_serves as _launch
 
-SECURITY = REPO / "service" / "security"
+SECURITY = REPO / "src" / "arduinobot" / "service" / "security"
 
-#: what ``python -m service.router`` logs once it listens ("router <zid> ready, ...")
+#: what ``python -m arduinobot.service.router`` logs once it listens ("router <zid> ready, ...")
 READY = " ready"
 
 
 @dataclass
 class Router:
-    """A running ``python -m service.router``; :meth:`restart` starts it again with the
+    """A running ``python -m arduinobot.service.router``; :meth:`restart` starts it again with the
     same arguments (same port)."""
 
     proc: subprocess.Popen
@@ -48,7 +48,7 @@ class Router:
 
 def start_router(endpoint: str, *, config: Path | None = None) -> Router:
     """Start a router listening on ``endpoint`` (over the config's listen endpoints)."""
-    argv = [sys.executable, "-m", "service.router", "--listen", endpoint]
+    argv = [sys.executable, "-m", "arduinobot.service.router", "--listen", endpoint]
     if config is not None:
         argv += ["--config", str(config)]
     return _launch_router(argv, endpoint)

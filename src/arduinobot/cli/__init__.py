@@ -1,0 +1,13 @@
+"""The `arduinobot` command: one entry point, one subcommand per job.
+
+- ``main``: the entry point (``arduinobot``, ``python -m arduinobot.cli``), its parser
+  and the guard that turns coded errors into exit codes.
+- ``commands/``: one module per group of subcommands.
+- ``argtypes``: the parsers of joint lists, obstacle specs, goals on the command line.
+- ``common``: loading the model from the options, printing summaries, running guarded.
+- ``applied_limits``: the limits table of ``info`` (where each limit came from).
+- ``remote_model``: the service's model fetched and cached for commands that draw or
+  simulate it.
+- ``simulate``: ``plan --simulate`` (the MuJoCo twin as a check).
+- ``ros2_execute``, ``ros2_options``: ``execute --ros2`` and the ROS 2 options.
+"""

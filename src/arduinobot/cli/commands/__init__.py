@@ -1,0 +1,3 @@
+"""The subcommands, a module each: ``model`` (check, info, urdf, limits), ``serve``,
+``srdf``, ``view``, ``plan`` (plan, fk, ik), ``state`` (check-state), ``execute``,
+``scene`` and ``task``. Each has ``add_parsers(sub)``."""

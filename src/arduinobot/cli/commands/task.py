@@ -1,0 +1,285 @@
+"""`arduinobot task`: plan a task (a named one of tasks.yaml, by name or number, or a
+task file) as a whole, then run it on the MuJoCo twin, the real arm or the service's
+robot."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from arduinobot.cli.argtypes import UsageError
+from arduinobot.cli.common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    add_connection_args,
+    add_model_args,
+    client,
+    load_from_args,
+)
+
+if TYPE_CHECKING:
+    from arduinobot.description import Description
+    from arduinobot.planner.tasks import Task
+
+log = logging.getLogger(__name__)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "task", help="plan a task (steps: move, line, gripper, attach, detach, wait) and "
+        "run it",
+        description="Plan every step of a task before anything moves, each from where "
+        "the last one ends, then run it: on the MuJoCo twin (--sim), the real arm "
+        "(--serial) or the service's robot (--remote, planned by the service); without "
+        "one of them, plan only. TASK is a name or number of the model's tasks.yaml (its "
+        "MoveIt config's, or --tasks FILE; the shipped arduinobot has the course's 0 wake, "
+        "1 pick, 2 sleep) or a task file (.json/.yaml, see docs/tasks.md). A task "
+        "without a start starts from the robot's state. Ctrl-C stops the arm smoothly.",
+        epilog="examples:\n  arduinobot task 1 --sim --fast\n"
+        "  arduinobot task pick --serial /dev/ttyACM0\n"
+        "  arduinobot task my_task.yaml --sim --report out.json\n"
+        "  arduinobot task 2 --remote    # planned and run by `serve`",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("task", nargs="?", metavar="NAME|NUMBER|FILE", help="a named task, its "
+                   "number, or a task file (.json, .yaml); without it, list the named tasks")
+    add_model_args(p)
+    p.add_argument("--tasks", metavar="FILE", help="the named tasks (default: the MoveIt "
+                   "config's tasks.yaml)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--sim", action="store_true", help="run on the MuJoCo twin")
+    where.add_argument("--serial", nargs="?", const="", metavar="PORT",
+                       help="run on the real arm on PORT (default: the URDF's port)")
+    where.add_argument("--remote", action="store_true",
+                       help="plan and run on the service (`serve`'s robot)")
+    p.add_argument("--fast", dest="realtime", action="store_false",
+                   help="--sim: as fast as it simulates, not in real time")
+    p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
+                   help="control rate (default 100)")
+    p.add_argument("--baud", type=int, default=None, help="serial baud rate")
+    p.add_argument("--boot-wait", type=float, default=2.0, metavar="S",
+                   help="seconds to wait after opening the port (default 2)")
+    p.add_argument("--start-tolerance", type=float, default=0.01, metavar="RAD",
+                   help="largest distance of each joint from the task's start (default 0.01)")
+    p.add_argument("--move-to-start", action="store_true",
+                   help="move to the task's start first (not collision-checked)")
+    p.add_argument("--report", metavar="OUT.json", help="write the plan's summary and the "
+                   "execution report")
+    g = p.add_argument_group("service (--remote)")
+    add_connection_args(g, timeout_help="seconds to wait for the plan (default 60)",
+                        local_help=argparse.SUPPRESS)
+    p.set_defaults(func=cmd_task)
+
+
+def _task_file(text: str) -> Path | None:
+    p = Path(text)
+    return p if p.suffix.lower() in (".json", ".yaml", ".yml") else None
+
+
+def _read_body(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+        return json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
+    except (OSError, ValueError, yaml.YAMLError) as e:
+        raise UsageError(f"{path}: unreadable task file ({e})") from None
+
+
+def resolve_task(ns: argparse.Namespace, desc: Description) -> Task:
+    """The task TASK names: a file, or a named task of --tasks / the MoveIt config's."""
+    from arduinobot.description.moveit_config import find_task, read_tasks
+    from arduinobot.planner.tasks import task_from_mapping
+    f = _task_file(ns.task)
+    if f is not None:
+        return task_from_mapping(_read_body(f), name=f.stem)
+    tasks_file = Path(ns.tasks) if ns.tasks else desc.config.tasks
+    if tasks_file is None:
+        raise UsageError(f"no tasks.yaml for '{desc.robot.name}' (give --tasks FILE or a "
+                         "task file)")
+    named = read_tasks(tasks_file)
+    found = find_task(named, ns.task)
+    if found is None:
+        known = ", ".join(f"{t.number}: {t.name}" if t.number is not None else t.name
+                          for t in named.values())
+        raise UsageError(f"no task '{ns.task}' in {tasks_file} (tasks: {known or 'none'})")
+    return task_from_mapping(found.body, where=f"tasks.{found.name}", name=found.name)
+
+
+def _print_plan(body: dict[str, Any]) -> None:
+    name = body.get("name") or "task"
+    print(f"{name}: {len(body['steps'])} steps, {body['duration']:.3f} s, planned in "
+          f"{1000 * body['planning_time']:.0f} ms")
+    for s in body["steps"]:
+        ok = "" if "certified" not in s else (
+            "  certified, verified" if s["certified"] and s["verified"] else "  NOT VERIFIED")
+        carried = f"  carrying {', '.join(s['carried'])}" if s["carried"] else ""
+        label = f" {s['label']}" if s.get("label") else ""
+        print(f"  {s['index']:2d} {s['kind']:<8s}{label:<16s} at {s['start_time']:7.3f} s, "
+              f"{s['duration']:6.3f} s{ok}{carried}")
+
+
+def _list(ns: argparse.Namespace) -> int:
+    from arduinobot.description.moveit_config import read_tasks
+    desc = load_from_args(ns)
+    tasks_file = Path(ns.tasks) if ns.tasks else desc.config.tasks
+    if tasks_file is None:
+        print(f"no tasks.yaml for '{desc.robot.name}' (give --tasks FILE)")
+        return EXIT_OK
+    print(f"tasks of {tasks_file}:")
+    for t in read_tasks(tasks_file).values():
+        num = f"{t.number:3d}" if t.number is not None else "  -"
+        print(f"  {num} {t.name:<16s} {t.description}")
+    return EXIT_OK
+
+
+def cmd_task(ns: argparse.Namespace) -> int:
+    if ns.task is None:
+        if ns.sim or ns.serial is not None or ns.remote:
+            raise UsageError("give the task to run: NAME, NUMBER or FILE (without one, "
+                             "`arduinobot task` lists the named tasks)")
+        return _list(ns)
+    if ns.remote:
+        return _remote(ns)
+    if not ns.realtime and not ns.sim:
+        raise UsageError("--fast is for --sim: hardware runs in real time")
+    from arduinobot.planner.planning.pipeline import MotionPlanner
+    from arduinobot.planner.tasks import plan_task
+    from arduinobot.service.task.task_service import planned_body
+
+    desc = load_from_args(ns)
+    task = resolve_task(ns, desc)
+    robot = None
+    if ns.sim or ns.serial is not None:
+        from arduinobot.cli.commands.execute import robot_spec
+        ns.no_robot = False
+        robot = robot_spec(ns).open(desc, obstacles=[])
+    try:
+        if robot is not None and task.start is None:
+            from dataclasses import replace
+
+            from arduinobot.execution.executor import plan_start
+            task = replace(task, start=plan_start(robot, desc))
+        result = plan_task(MotionPlanner(desc), task)
+        # with --report, each step's plan too: `arduinobot view --task OUT.json` plays it
+        body = planned_body(result, name=task.name, trajectories=bool(ns.report))
+        _print_plan(body)
+        out: dict[str, Any] = {"planned": body}
+        code = EXIT_OK
+        if robot is not None:
+            out["execution"] = _run(ns, robot, desc, task, result)
+            code = EXIT_OK if out["execution"]["outcome"] == "completed" else EXIT_FAIL
+    finally:
+        if robot is not None:
+            robot.close()
+    _write_report(ns, out)
+    return code
+
+
+def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, result: Any
+         ) -> dict[str, Any]:
+    from arduinobot.cli.common import sigint_sets
+    from arduinobot.execution.executor import ExecuteOptions, Executor
+    from arduinobot.execution.segments import SampledTrajectory
+    ts, q, qd, qdd = result.samples(ns.rate)
+    traj = SampledTrajectory(tuple(result.joint_names), ts, q, qd, qdd)
+    opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
+                          move_to_start=ns.move_to_start, realtime=ns.realtime)
+    on_tick, objects = None, ()
+    if ns.sim:  # the task's scene in the twin, what it picks up a free body it grips
+        from arduinobot.execution.robots.twin_tasks import grasp_schedule, task_objects, without
+        objects = task_objects(task, result)
+        robot.set_scene(without(result.start_obstacles, objects), loose=objects)
+        on_tick = grasp_schedule(robot, result)
+    ex = Executor.for_description(robot, desc, options=opts, on_tick=on_tick)
+    ex.check_start(traj)
+    where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
+    print(f"executing {traj.duration:.3f} s on {where} (Ctrl-C stops smoothly)",
+          file=sys.stderr)
+    cancel = threading.Event()
+    with sigint_sets(cancel):
+        report = ex.execute(traj, cancel=cancel).to_dict()
+    print(f"{report['outcome']}: {report['duration']:.3f} s")
+    if objects:  # where the simulated objects ended (MuJoCo's state, not the plan's)
+        report["objects"] = {a.id: robot.object_pose(a.id)[:3, 3].tolist() for a in objects}
+        _print_objects(report["objects"])
+    return report
+
+
+def _print_objects(objects: dict[str, list[float]]) -> None:
+    for k, xyz in objects.items():
+        print(f"  {k} ends at {xyz[0]:.3f} {xyz[1]:.3f} {xyz[2]:.3f} m (simulated)")
+
+
+def _write_report(ns: argparse.Namespace, out: dict[str, Any]) -> None:
+    if ns.report:
+        Path(ns.report).write_text(json.dumps(out, indent=1))
+        print(f"wrote {ns.report}")
+
+
+def _remote(ns: argparse.Namespace) -> int:
+    """Plan and run on the service: ``<prefix>/task`` with ``execute``; Ctrl-C cancels
+    the execution (``<prefix>/execute/cancel``)."""
+    import orjson
+    import zenoh
+
+    from arduinobot.cli.common import sigint_sets
+    from arduinobot.client.errors import ServiceUnavailable, error_from_reply
+    if ns.file or any((ns.package_dir, ns.arg, ns.moveit_config, ns.srdf, ns.joint_limits)):
+        raise UsageError("--remote runs the service's robot: its model is the service's")
+    f = _task_file(ns.task)
+    if f is not None:
+        req: dict[str, Any] = {"task": _read_body(f)}
+    elif ns.task.isdigit():
+        req = {"number": int(ns.task)}
+    else:
+        req = {"name": ns.task}
+    req.update(execute=True, start_tolerance=ns.start_tolerance,
+               move_to_start=ns.move_to_start, trajectories=bool(ns.report))
+    out: dict[str, Any] = {}
+    cancel = threading.Event()
+    execution: list[str] = []
+    with client(ns) as c, sigint_sets(cancel):
+        replies = c.session.get(f"{ns.prefix}/task", payload=orjson.dumps(req),
+                                consolidation=zenoh.ConsolidationMode.NONE,
+                                timeout=24 * 3600.0)
+
+        ended = threading.Event()
+
+        def watch() -> None:
+            cancel.wait()
+            if execution and not ended.is_set():  # Ctrl-C while the robot moves
+                c.session.get(f"{ns.prefix}/execute/cancel",
+                              payload=orjson.dumps({"execution": execution[0]}), timeout=5.0)
+        watcher = threading.Thread(target=watch, daemon=True)
+        watcher.start()
+        for r in replies:
+            if r.ok is None:
+                raise error_from_reply(orjson.loads(r.err.payload.to_bytes()))
+            body = orjson.loads(r.ok.payload.to_bytes())
+            if body["event"] == "planned":
+                _print_plan(body)
+                out["planned"] = body
+            elif body["event"] == "started":
+                execution.append(body["execution"])
+                print(f"executing {body['execution']}: {body['duration']:.3f} s on the "
+                      "service's robot (Ctrl-C stops smoothly)", file=sys.stderr)
+            elif body["event"] == "finished":
+                out["execution"] = body["report"]
+                print(f"{body['report']['outcome']}: {body['report']['duration']:.3f} s")
+                if body.get("objects"):  # the service's twin simulated them
+                    out["execution"]["objects"] = body["objects"]
+                    _print_objects(body["objects"])
+        ended.set()
+        cancel.set()  # ends the watcher (nothing left to cancel)
+        watcher.join()  # before the session closes under it
+    if not out:
+        raise ServiceUnavailable(f"no reply on {ns.prefix}/task (is `arduinobot serve` "
+                                 "running there?)", reason="no_route")
+    _write_report(ns, out)
+    done = out.get("execution", {}).get("outcome") == "completed"
+    return EXIT_OK if done else EXIT_FAIL

@@ -1,0 +1,328 @@
+"""The Python client of the arduinobot service.
+
+    from arduinobot.client.client import PlannerClient
+    with PlannerClient() as c:                      # tcp/127.0.0.1:7447
+        res = c.plan({"goal": {"named": "reach_forward"}})
+        print(res.duration, res.positions.shape)
+
+Each reply comes back as its frozen dataclass (:mod:`arduinobot.client.replies`), checked against
+its schema; every service error raises its own class (:mod:`arduinobot.client.errors`), no reply
+at all :class:`~arduinobot.client.errors.ServiceUnavailable` with a hint. With ``spread=True`` each
+request goes to the least loaded live instance (:mod:`arduinobot.client.balance`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import orjson
+import zenoh
+
+from arduinobot.client.balance import LoadBalancer
+from arduinobot.client.errors import ServiceBusy, ServiceUnavailable, error_from_reply
+from arduinobot.client.replies import CheckReply, FkReply, IkReply, PlanReply
+from arduinobot.client.stream import ExecutionEvent, cancel_execution, stream
+from arduinobot.contract.ranges import RANGES
+from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
+
+_log = logging.getLogger(__name__)
+
+_HINT = ("start one with `arduinobot serve` (or `./dev arduinobot serve`), or check the "
+         "endpoint (--connect) and the prefix")
+
+
+class PlannerClient:
+    """A Zenoh session to the arduinobot service.
+
+    Args:
+        endpoints: where to connect (a service listening, or a router).
+        prefix: the service's key prefix.
+        timeout: seconds to wait for a reply (plans add their planning_time).
+        config_file: a zenoh JSON5 config (TLS, credentials); options here override it.
+        spread: send each request to the least loaded live instance, and to another
+            one if it has gone or is BUSY.
+
+    Raises:
+        ServiceUnavailable: ``reason="connect_failed"`` if no session could be opened.
+    """
+
+    def __init__(self, endpoints: Sequence[str] | str = (DEFAULT_ENDPOINT,), *,
+                 prefix: str = DEFAULT_PREFIX, timeout: float = 60.0,
+                 config_file: str | Path | None = None, spread: bool = False) -> None:
+        self.endpoints = [endpoints] if isinstance(endpoints, str) else list(endpoints)
+        self.prefix, self.timeout, self.spread = prefix, float(timeout), spread
+        try:
+            self.session = zenoh.open(zenoh_config(mode="client", connect=self.endpoints,
+                                                   listen=[], config_file=config_file))
+        except zenoh.ZError as e:
+            raise ServiceUnavailable(
+                f"cannot reach {', '.join(self.endpoints)}: {e}; {_HINT}",
+                reason="connect_failed", details={"endpoints": self.endpoints}) from None
+        self.balancer = LoadBalancer(self.session, prefix)
+
+    # -- lifecycle ---------------------------------------------------------------------
+    def close(self) -> None:
+        if not self.session.is_closed():
+            self.session.close()
+
+    def __enter__(self) -> PlannerClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- discovery ---------------------------------------------------------------------
+    def instances(self, *, refresh: bool = False) -> tuple[str, ...]:
+        """The ids of the live instances (liveliness tokens ``<prefix>/alive/<id>``)."""
+        return self.balancer.live(refresh=refresh)
+
+    def connected(self) -> bool:
+        """Whether the session has a link to a router or a peer right now."""
+        info = self.session.info
+        return bool(list(info.routers_zid()) or list(info.peers_zid()))
+
+    # -- requests ----------------------------------------------------------------------
+    def request(self, kind: str, body: Mapping[str, Any] | bytes | str | None = None, *,
+                instance: str | None = None, timeout: float | None = None) -> dict[str, Any]:
+        """Send one query and return the decoded JSON reply.
+
+        Args:
+            kind: ``plan``, ``fk``, ``ik``, ``check``, ``health``, ``description``, ``schema``.
+            body: the request (a mapping is JSON-encoded; bytes/str go as they are).
+            instance: address one instance (default: the shared key, or with ``spread``
+                the least loaded live instance).
+            timeout: seconds to wait (default: the client's, plus a plan's planning_time).
+
+        Raises:
+            ServiceError subclasses for error replies; ServiceUnavailable for none.
+        """
+        payload = encode_body(body)
+        wait = float(timeout) if timeout is not None else \
+            self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
+        if instance is not None:
+            key = f"{self.prefix}/instance/{instance}/{kind}"
+        else:
+            key = f"{self.prefix}/{kind}"
+            if self.spread:
+                answer = self._spread(kind, payload, wait)
+                if answer is not None:
+                    return answer
+                # every instance we knew has gone: the shared key reaches any other
+        replies = self._get(key, payload, wait)
+        if not replies:
+            raise self._no_reply(key)
+        return decode_reply(replies[0], key, wait)
+
+    def _spread(self, kind: str, payload: bytes | None, wait: float) -> dict[str, Any] | None:
+        """The reply of the least loaded instance that answers and is not BUSY, trying
+        each live instance at most once; None if none answered at all."""
+        tried: list[str] = []
+        busy: ServiceBusy | None = None
+        while (inst := self.balancer.pick(exclude=tried)) is not None:
+            tried.append(inst)
+            key = f"{self.prefix}/instance/{inst}/{kind}"
+            with self.balancer.sending(inst):
+                replies = self._get(key, payload, wait)
+            if not replies:  # it has just gone (or is going): the next one
+                _log.info("instance %s did not answer on %s; trying another", inst, key)
+                self.balancer.forget(inst)
+                continue
+            try:
+                return decode_reply(replies[0], key, wait)
+            except ServiceBusy as e:  # its queue is full: another may have room
+                busy = e
+        if busy is not None:
+            raise busy  # every instance was busy: the service's own retry hint
+        return None
+
+    def _no_reply(self, key: str) -> ServiceUnavailable:
+        if self.connected():
+            return ServiceUnavailable(f"no service answered on '{key}' via "
+                                      f"{', '.join(self.endpoints)}: {_HINT}",
+                                      reason="no_route", details={"key": key,
+                                                                  "connected": True})
+        return ServiceUnavailable(
+            f"no reply on '{key}': the link to {', '.join(self.endpoints)} is down (a router "
+            "restarting, or the network); the request went unanswered: retry once it is "
+            "back (the session reconnects by itself)", reason="no_route",
+            details={"key": key, "connected": False})
+
+    def _get(self, key: str, payload: bytes | None, wait: float) -> list[zenoh.Reply]:
+        """The first reply to a get on ``key`` (none: an empty list). The first is the
+        answer: taken as it arrives, not once the query is finalised (a wake later)."""
+        replies = self.session.get(key, payload=payload, timeout=wait,
+                                   encoding="application/json" if payload else None)
+        for reply in replies:
+            return [reply]
+        return []
+
+    def plan(self, request: Mapping[str, Any] | None = None, *,
+             instance: str | None = None, **fields: Any) -> PlanReply:
+        """Plan: a whole v1 request, or its fields as keywords (``goal={"named": "home"}``).
+
+        The trajectory comes ``packed`` (each array in one base64 string: a smaller reply,
+        parsed without a Python number per value) unless the request sets
+        ``trajectory_format``; :attr:`PlanReply.raw` writes it as ``points`` either way.
+
+        Raises:
+            InvalidRequest, StartInCollision, GoalInCollision, GoalOutOfReach, NoPathFound,
+            TrajectoryFailed, RequestTimeout, ServiceBusy, InternalError, ServiceUnavailable,
+            MalformedReply.
+        """
+        return PlanReply.parse(self.request("plan", plan_body(request, **fields),
+                                            instance=instance))
+
+    def fk(self, joints: Mapping[str, float] | None = None, *,
+           links: Sequence[str] | None = None) -> FkReply:
+        """Link poses at ``joints`` [rad] (missing joints are 0)."""
+        req: dict[str, Any] = {"joints": dict(joints or {})}
+        if links is not None:
+            req["links"] = list(links)
+        return FkReply.parse(self.request("fk", req))
+
+    def ik(self, position: Sequence[float]) -> IkReply:
+        """Every IK branch putting the tcp at ``position`` [m] (GoalOutOfReach if none)."""
+        return IkReply.parse(self.request("ik", {"position": [float(v) for v in position]}))
+
+    def check_state(self, joints: Mapping[str, float] | None = None, *,
+                    obstacles: Sequence[Mapping[str, Any]] = (),
+                    padding: float = 0.0) -> CheckReply:
+        """Whether a state is collision-free among ``obstacles``, with clearance [m]."""
+        req: dict[str, Any] = {"joints": dict(joints or {})}
+        if obstacles:
+            req["obstacles"] = list(obstacles)
+        if padding:
+            req["padding"] = padding
+        return CheckReply.parse(self.request("check", req))
+
+    # -- moving the service's robot (see arduinobot.client.stream) -----------------------
+    def execute(self, trajectory: Mapping[str, Any] | None = None, *,
+                plan: Mapping[str, Any] | None = None, start_tolerance: float = 0.01,
+                move_to_start: bool = False,
+                on_event: Callable[[ExecutionEvent], None] | None = None,
+                cancel: threading.Event | None = None) -> ExecutionEvent:
+        """Move the service's robot along ``trajectory`` (a plan reply or ``{joint_names,
+        points}``), or along a plan of ``plan`` (a v1 request; without ``start``, from
+        the robot's state); returns the ``finished`` event with the report.
+
+        Args:
+            on_event: called with each event (started, progress, finished).
+            cancel: set it (from any thread) to stop the arm smoothly; another client
+                can stop it too, with :meth:`cancel_execution` and the execution id.
+
+        Raises:
+            InvalidRequest, InvalidTrajectory, NotAtStart, ServiceBusy (the arm is
+            moving), a robot's coded error (PortError mid-motion: ``details`` hold the
+            last setpoint the arm took), ServiceUnavailable (no reply, or a stream
+            silent for longer than the client's timeout plus the planning time).
+        """
+        if (trajectory is None) == (plan is None):
+            raise TypeError("give exactly one of trajectory and plan")
+        body: dict[str, Any] = {"start_tolerance": start_tolerance,
+                                "move_to_start": move_to_start}
+        if trajectory is not None:
+            body["trajectory"] = dict(trajectory)
+        else:
+            body["plan"] = dict(plan or {})
+        silence = self.timeout + _planning_time(plan)
+        return stream(self.session, self.prefix, body, decode=decode_reply, silence=silence,
+                      on_event=on_event, cancel=cancel)
+
+    def blend(self, plan: Mapping[str, Any]) -> dict[str, Any]:
+        """Blend the goal of ``plan`` into the motion in progress (planned from its state
+        0.8 s ahead): ``{"event": "blended", "execution", "tick", "duration"}``.
+
+        Raises:
+            TooLate: nothing moves, or it stops before the blend could start.
+        """
+        return self.request("execute", {"plan": dict(plan), "blend": True},
+                            timeout=self.timeout + _planning_time(plan))
+
+    def cancel_execution(self, execution: str | None = None) -> str | None:
+        """Stop ``execution`` (its id; None: whatever runs) smoothly, from any client; the
+        id cancelled, or None if it is not running."""
+        return cancel_execution(self.session, self.prefix, execution, decode=decode_reply,
+                                timeout=self.timeout)
+
+    def robot_state(self) -> dict[str, Any]:
+        """The robot's joint state (``{stamp, name, position, velocity, effort}``)."""
+        return self.request("robot_state")
+
+    # these three have no response schema: their replies come as they are
+    def health(self, *, instance: str | None = None) -> dict[str, Any]:
+        return self.request("health", instance=instance)
+
+    def description(self) -> dict[str, Any]:
+        return self.request("description")
+
+    def schema(self) -> dict[str, Any]:
+        return self.request("schema")
+
+
+def plan_body(request: Mapping[str, Any] | None = None, **fields: Any) -> dict[str, Any]:
+    """What :meth:`PlannerClient.plan` sends: ``request`` updated with ``fields``, its
+    trajectory ``packed`` unless it says otherwise."""
+    return {"trajectory_format": "packed", **(request or {}), **fields}
+
+
+def encode_body(body: Mapping[str, Any] | bytes | str | None) -> bytes | None:
+    """A request's payload: a mapping as strict JSON (NaN refused: ValueError), bytes/str
+    as they are.
+
+    orjson first (~10x :mod:`json`); it writes NaN and infinities as ``null``, so a payload
+    holding ``null`` anywhere, or anything orjson refuses (an int over 64 bits, ...), is
+    encoded again by :func:`json.dumps`, which refuses them as it always has.
+    """
+    if isinstance(body, Mapping):
+        try:
+            out = orjson.dumps(body, option=_ORJSON_REQUEST)
+        except TypeError:  # orjson.JSONEncodeError is one
+            out = b"null"
+        if b"null" not in out:
+            return out
+        return json.dumps(body, allow_nan=False).encode()
+    if isinstance(body, str):
+        return body.encode()
+    return body
+
+
+#: keys as :mod:`json` takes them (ints, floats, bools, None); a numpy scalar, which
+#: :mod:`json` writes as the float it subclasses, goes to :mod:`json`
+_ORJSON_REQUEST = orjson.OPT_NON_STR_KEYS
+
+
+def _planning_time(req: object) -> float:
+    v = req.get("planning_time", 1.0) if isinstance(req, Mapping) else 1.0
+    return float(v) if v in RANGES["planning_time"] else 1.0
+
+
+def decode_reply(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
+    """The JSON object of a reply on ``key`` (that waited ``wait`` seconds).
+
+    Raises:
+        ServiceError: the subclass of an error reply; ServiceUnavailable for Zenoh's own.
+    """
+    if reply.ok is not None:
+        return orjson.loads(reply.ok.payload.to_bytes())  # strict JSON, ~3x json's speed
+    err = reply.err
+    assert err is not None  # a reply is either ok or an error
+    text = err.payload.to_bytes().decode("utf-8", "replace")
+    if str(err.encoding).startswith("application/json"):
+        try:
+            body = json.loads(text)
+        except json.JSONDecodeError:
+            body = None
+        if isinstance(body, dict) and "error" in body:
+            raise error_from_reply(body)
+    if text == "Timeout":
+        raise ServiceUnavailable(
+            f"'{key}': a service took the query but sent no reply within {wait:g} s "
+            "(overloaded, or a long request: raise the timeout)", reason="timeout",
+            details={"key": key, "timeout": wait})
+    raise ServiceUnavailable(f"'{key}': Zenoh answered with an error: {text}",
+                             reason="zenoh_error", details={"key": key, "zenoh": text})

@@ -1,0 +1,315 @@
+"""The planning service's replies as the client reads them: frozen dataclasses, each parsed
+from its JSON body in one place (``PlanReply.parse(body)``, ``FkReply.parse``, ...).
+
+A body is first checked against the schema the service publishes for it
+(``src/arduinobot/contract/schema/<kind>_response.json``, by the validator the service checks requests
+with, :func:`arduinobot.contract.wire.validator`: ~5 ms for a 20000-point plan), then against what a
+schema cannot say (each sample row holds one value per joint). Anything else is refused with
+:class:`~arduinobot.client.errors.MalformedReply` naming the field (``trajectory.points[3].effort``):
+a service that breaks the contract fails here, not somewhere downstream. What the schema
+leaves open (the verification's other figures) stays in :attr:`PlanReply.raw`.
+"""
+
+from __future__ import annotations
+
+import functools
+import operator
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from itertools import chain
+from typing import TYPE_CHECKING, Any, Literal
+
+import jsonschema_rs
+import numpy as np
+
+from arduinobot.client.errors import MalformedReply
+from arduinobot.contract.packed import PackedError, unpack
+from arduinobot.contract.wire import field_path, validator
+from arduinobot.planner.timing.trajectory import samples_csv
+
+if TYPE_CHECKING:
+    from arduinobot.execution.segments import SampledTrajectory
+
+Reply = Literal["plan", "fk", "ik", "check"]
+
+
+def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
+    """``body``, if it keeps its schema.
+
+    Raises:
+        MalformedReply: naming the first field that breaks it.
+    """
+    try:
+        validator(f"{reply}_response").validate(body)
+    except jsonschema_rs.ValidationError as e:
+        path = list(e.instance_path)
+        if isinstance(e.kind, jsonschema_rs.ValidationErrorKind.Required):
+            raise MalformedReply(reply, field_path([*path, e.kind.property]),
+                                 "is missing") from None
+        raise MalformedReply(reply, field_path(path) or "(root)",
+                             f"is invalid ({e.message})") from None
+    return body
+
+
+def _rows(reply: Reply, rows: Sequence[Any], width: int, where: str,
+          key: str = "") -> np.ndarray:
+    """``rows`` (each ``row[key]`` if ``key``) as an array (m, width).
+
+    Raises:
+        MalformedReply: a row that does not hold ``width`` values, one per joint.
+    """
+    values = [r[key] for r in rows] if key else rows
+    for i, row in enumerate(values):
+        if len(row) != width:
+            at = f"{where}[{i}]" + (f".{key}" if key else "")
+            raise MalformedReply(reply, at, f"holds {len(row)} values for {width} joints")
+    return np.array(values, float).reshape(len(values), width)
+
+
+#: the sample arrays of a plan reply's points, in PlanReply's order
+_SAMPLE_KEYS = ("positions", "velocities", "accelerations", "effort")
+_sample_rows = operator.itemgetter(*_SAMPLE_KEYS)
+_sample_time = operator.itemgetter("time_from_start")
+
+
+def _samples(points: Sequence[Any], width: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The times (m,) and the sample arrays (m, width) in :data:`_SAMPLE_KEYS` order of
+    schema-valid ``points``: in one pass, each value read once (not an array per key from
+    nested lists: ~2x faster).
+
+    Raises:
+        MalformedReply: a row that does not hold ``width`` values, one per joint (the
+            first one, key by key, as :func:`_rows` names it).
+    """
+    m = len(points)
+    rows = list(chain.from_iterable(map(_sample_rows, points)))
+    lengths = set(map(len, rows))
+    if lengths and lengths != {width}:
+        for key in _SAMPLE_KEYS:  # raises for the row at fault
+            _rows("plan", points, width, "trajectory.points", key)
+    flat = np.fromiter(chain.from_iterable(rows), float, len(rows) * width)
+    times = np.fromiter(map(_sample_time, points), float, m)
+    q, qd, qdd, tau = flat.reshape(m, len(_SAMPLE_KEYS), width).transpose(1, 0, 2).copy()
+    return times, q, qd, qdd, tau
+
+
+def _unpacked(packed: Mapping[str, Any], width: int
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The times (m,) and the sample arrays (m, width) of a schema-valid
+    ``trajectory.packed`` (:func:`arduinobot.contract.packed.unpack`), in :data:`_SAMPLE_KEYS` order.
+
+    Raises:
+        MalformedReply: a string that is not base64, or not m (times) or m x width
+            numbers, or a number that is not finite.
+    """
+    try:
+        times, q, qd, qdd, tau = unpack(packed, width)
+    except PackedError as e:
+        raise MalformedReply("plan", e.field, e.problem) from None
+    assert qd is not None and qdd is not None and tau is not None  # none is optional here
+    return times, q, qd, qdd, tau
+
+
+def _points_body(body: Mapping[str, Any]) -> Mapping[str, Any]:
+    """A plan reply's body with a ``packed`` trajectory written as ``points`` (the v1
+    form every reader of JSON takes); a body with points as it is."""
+    traj = body["trajectory"]
+    if "packed" not in traj:
+        return body
+    times, *arrays = _unpacked(traj["packed"], len(traj["joint_names"]))
+    rows = zip(*(a.tolist() for a in arrays), times.tolist())
+    points = [dict(zip((*_SAMPLE_KEYS, "time_from_start"), r)) for r in rows]
+    return {**body, "trajectory": {"joint_names": traj["joint_names"], "points": points}}
+
+
+def _number(v: float | None) -> float | None:
+    return None if v is None else float(v)
+
+
+def _pair(v: Sequence[str] | None) -> tuple[str, str] | None:
+    return (v[0], v[1]) if v and all(v) else None
+
+
+@dataclass(frozen=True)
+class Verification:
+    """The service's check of the motion it returns (``verification`` in the reply).
+
+    Attributes:
+        ok: every limit kept and no collision. certified: collision-freedom proven over
+            the continuous motion, not sampled. collision_free: no collision found.
+        min_clearance: [m] the certified lower bound on the clearance; None if not measured.
+        worst_quantity, worst_ratio: the quantity closest to its (scaled) limit, and its
+            peak over that limit.
+        closest_pair: the two bodies (links or obstacle ids) at ``min_clearance``; None
+            if not measured (or from a service that does not say).
+    """
+
+    ok: bool
+    certified: bool
+    collision_free: bool
+    min_clearance: float | None
+    worst_quantity: str
+    worst_ratio: float
+    closest_pair: tuple[str, str] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class PlanReply:
+    """A planned trajectory of the actuated joints (``<prefix>/plan``).
+
+    Attributes:
+        joint_names: the column order of every array.
+        times: (m,) [s] of the samples; positions [rad], velocities [rad/s],
+            accelerations [rad/s²], efforts [N m]: (m, dof) each.
+        duration: [s]. path: the collision-checked waypoints, (k, dof) [rad].
+        timing: seconds per stage. verification: the service's check of the motion.
+        planner, request_id: who planned it, and the request's id.
+        raw: the reply as received, a ``packed`` trajectory written as ``points``
+            (the v1 JSON to save, replay or execute); ``received``: as it came.
+        reached: the tool frame at the end and the residuals to the goal (the reply's
+            ``reached``), if sent; ``line``: a straight-line move's report, if one.
+    """
+
+    joint_names: tuple[str, ...]
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    accelerations: np.ndarray
+    efforts: np.ndarray
+    duration: float
+    path: np.ndarray
+    timing: Mapping[str, float]
+    verification: Verification
+    planner: str
+    request_id: str
+    received: Mapping[str, Any] = field(repr=False)
+    reached: Mapping[str, Any] | None = None
+    line: Mapping[str, Any] | None = None
+
+    @functools.cached_property
+    def raw(self) -> Mapping[str, Any]:
+        return _points_body(self.received)
+
+    @classmethod
+    def parse(cls, body: Any) -> PlanReply:
+        """Raises: MalformedReply naming the first field that breaks the contract."""
+        b = _validated("plan", body)
+        names = b["trajectory"]["joint_names"]
+        n = len(names)
+        packed = b["trajectory"].get("packed")
+        times, q, qd, qdd, tau = _samples(b["trajectory"]["points"], n) if packed is None \
+            else _unpacked(packed, n)
+        v = b["verification"]
+        return cls(tuple(names), times, q, qd, qdd, tau,
+                   float(b["duration"]), _rows("plan", b["path"], n, "path"),
+                   {k: float(t) for k, t in b["timing"].items()},
+                   Verification(v["ok"], v["certified"], v["collision_free"],
+                                _number(v["min_clearance"]), v["worst_overall"]["quantity"],
+                                float(v["worst_overall"]["ratio"]), _pair(v.get("closest_pair"))),
+                   b.get("planner", ""), b["request_id"], b, b.get("reached"), b.get("line"))
+
+    @property
+    def trajectory(self) -> SampledTrajectory:
+        """The samples as a trajectory to execute or replay: built from the arrays parsed
+        above, so a reply is parsed once (the executor takes it as it is)."""
+        from arduinobot.execution.segments import SampledTrajectory  # ruckig: not for a plain plan
+        return SampledTrajectory(self.joint_names, self.times, self.positions,
+                                 self.velocities, self.accelerations)
+
+    def to_csv(self) -> str:
+        """One row per sample, as the planner writes a trajectory
+        (:func:`arduinobot.planner.timing.trajectory.samples_csv`)."""
+        return samples_csv(self.joint_names, self.times, self.positions, self.velocities,
+                           self.accelerations, self.efforts)
+
+
+@dataclass(frozen=True, eq=False)
+class Pose:
+    """A link's pose in the world frame: xyz [m], rpy [rad], the 4x4 matrix."""
+
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    matrix: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class CarriedPose(Pose):
+    """A carried object's pose in the world frame, and the ``link`` that holds it;
+    ``fixed``: added in that link's frame (fixed to it), not attached (picked up)."""
+
+    link: str
+    fixed: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class FkReply:
+    """Link poses at ``joints`` [rad] (``<prefix>/fk``); the tcp position [m] if the
+    robot has a tcp; ``carried``: where each object the kept scene carries is, by id."""
+
+    joints: Mapping[str, float]
+    links: Mapping[str, Pose]
+    tcp: tuple[float, float, float] | None
+    request_id: str
+    carried: Mapping[str, CarriedPose] = field(default_factory=dict)
+
+    @classmethod
+    def parse(cls, body: Any) -> FkReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("fk", body)
+        tcp = b.get("tcp")
+        return cls(dict(b["joints"]),
+                   {k: Pose(tuple(p["xyz"]), tuple(p["rpy"]), np.array(p["matrix"], float))
+                    for k, p in b["links"].items()},
+                   None if tcp is None else tuple(tcp), b["request_id"],
+                   {k: CarriedPose(tuple(p["xyz"]), tuple(p["rpy"]),
+                                   np.array(p["matrix"], float), p["link"],
+                                   p.get("fixed", False))
+                    for k, p in (b.get("carried") or {}).items()})
+
+
+@dataclass(frozen=True)
+class IkSolution:
+    """One IK branch: every actuated joint's value [rad]."""
+
+    joints: Mapping[str, float]
+    branch: str
+
+
+@dataclass(frozen=True)
+class IkReply:
+    """Every IK branch within the joint limits putting the tcp at the asked position
+    (``<prefix>/ik``)."""
+
+    solutions: tuple[IkSolution, ...]
+    request_id: str
+
+    @classmethod
+    def parse(cls, body: Any) -> IkReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("ik", body)
+        return cls(tuple(IkSolution(dict(s["joints"]), s["branch"]) for s in b["solutions"]),
+                   b["request_id"])
+
+
+@dataclass(frozen=True)
+class CheckReply:
+    """One state's check (``<prefix>/check``): ``valid`` and every colliding ``pairs``;
+    ``clearance`` [m] to the ``closest`` pair (None when not computed), at ``joints``."""
+
+    valid: bool
+    pairs: tuple[tuple[str, str], ...]
+    clearance: float | None
+    closest: tuple[str, str] | None
+    joints: Mapping[str, float]
+    request_id: str
+
+    @classmethod
+    def parse(cls, body: Any) -> CheckReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("check", body)
+        closest = b.get("closest")
+        return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),
+                   _number(b["clearance"]),
+                   None if closest is None else tuple(closest),
+                   dict(b["joints"]), b["request_id"])

@@ -1,0 +1,145 @@
+"""Executing on the service's robot from the Python client: :meth:`PlannerClient.execute`.
+
+One query on ``<prefix>/execute`` answers with a stream: ``started`` (the execution id,
+its duration), ``progress`` every 0.1 s, then ``finished`` with the report (or a coded
+error, e.g. ``PORT_ERROR`` with the last setpoint the arm took). While it runs, the
+client holds a liveliness token ``<prefix>/execute/client/<id>``: if this process dies
+or loses the network, the token goes and the service stops the arm smoothly. Any
+client may cancel an execution by its id (:func:`cancel`).
+"""
+
+from __future__ import annotations
+
+import json
+import queue
+import threading
+import time
+import uuid
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import zenoh
+
+from arduinobot.client.errors import MalformedReply, ServiceUnavailable
+
+#: How long the stream's query may last at most [s]: the execution's own length is not
+#: known when a plan comes first, so the stream is bounded by this and watched for
+#: silence instead (progress arrives every 0.1 s; see ``silence``).
+STREAM_LIMIT = 24 * 3600.0
+
+EventKind = Literal["started", "progress", "finished"]
+
+
+@dataclass(frozen=True)
+class ExecutionEvent:
+    """One reply of an execution's stream.
+
+    Attributes:
+        event: started, progress or finished.
+        execution: the execution's id (cancel it with it).
+        duration: [s] of the trajectory (started); time: [s] since it began (progress).
+        report: the execution report (finished): outcome, ticks, peaks, tracking errors.
+        raw: the reply as received.
+    """
+
+    event: EventKind
+    execution: str
+    duration: float | None = None
+    time: float | None = None
+    report: Mapping[str, Any] | None = None
+    raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
+
+    @classmethod
+    def parse(cls, body: Mapping[str, Any]) -> ExecutionEvent:
+        """Raises: MalformedReply for a reply that is no event of an execution."""
+        kind, execution = body.get("event"), body.get("execution")
+        if kind not in ("started", "progress", "finished") or not isinstance(execution, str):
+            raise MalformedReply("execute", "event", f"is not an execution event: "
+                                 f"{json.dumps(body)[:200]}")
+        report = body.get("report")
+        if kind == "finished" and not isinstance(report, Mapping):
+            raise MalformedReply("execute", "report", "is missing")
+        return cls(kind, execution, _float(body.get("duration")), _float(body.get("time")),
+                   report, body)
+
+
+def _float(v: object) -> float | None:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+
+def stream(session: zenoh.Session, prefix: str, body: Mapping[str, Any], *,
+           decode: Callable[[zenoh.Reply, str, float], dict[str, Any]], silence: float,
+           on_event: Callable[[ExecutionEvent], None] | None = None,
+           cancel: threading.Event | None = None) -> ExecutionEvent:
+    """Send the execute request ``body`` and follow its stream to the ``finished`` event.
+
+    Args:
+        decode: turns a reply into its JSON object, raising the coded error of an error
+            reply (:func:`arduinobot.client.client.decode_reply`).
+        silence: give up after this long [s] without a reply (planning included).
+        on_event: called with each event, on this thread.
+        cancel: once set, the execution is cancelled (it stops smoothly; the stream
+            still ends with its report).
+
+    Raises:
+        ServiceError: the coded error the service answered (BUSY, NOT_AT_START, a port
+            that failed mid-motion, ...); ServiceUnavailable when the stream ends without
+            a report or goes silent.
+    """
+    client_id, key = uuid.uuid4().hex, f"{prefix}/execute"
+    replies: queue.Queue[zenoh.Reply | None] = queue.Queue()
+    token = session.liveliness().declare_token(f"{key}/client/{client_id}")
+    try:
+        session.get(key, zenoh.handlers.Callback(replies.put, lambda: replies.put(None)),
+                    payload=json.dumps({**body, "client": client_id}),
+                    encoding="application/json",
+                    consolidation=zenoh.ConsolidationMode.NONE, timeout=STREAM_LIMIT)
+        execution: str | None = None
+        cancelled = False
+        heard = time.monotonic()
+        while True:
+            if cancel is not None and cancel.is_set() and execution and not cancelled:
+                cancel_execution(session, prefix, execution, decode=decode)
+                cancelled = True
+            try:
+                rep = replies.get(timeout=0.1)
+            except queue.Empty:
+                if time.monotonic() - heard > silence:
+                    raise ServiceUnavailable(
+                        f"'{key}': no word from the service for {silence:g} s "
+                        f"(execution {execution or 'not started'})", reason="timeout",
+                        details={"key": key, "timeout": silence,
+                                 "execution": execution}) from None
+                continue
+            heard = time.monotonic()
+            if rep is None:
+                raise ServiceUnavailable("the service ended the execution without a report",
+                                         reason="no_route", details={"key": key})
+            ev = ExecutionEvent.parse(decode(rep, key, silence))
+            execution = ev.execution
+            if on_event is not None:
+                on_event(ev)
+            if ev.event == "finished":
+                return ev
+    finally:
+        token.undeclare()
+
+
+def cancel_execution(session: zenoh.Session, prefix: str, execution: str | None, *,
+                     decode: Callable[[zenoh.Reply, str, float], dict[str, Any]],
+                     timeout: float = 5.0) -> str | None:
+    """Ask the service to stop ``execution`` (None: whatever runs) smoothly; the id it
+    cancelled, or None if that execution is not running.
+
+    Raises:
+        ServiceError: the service's coded refusal; ServiceUnavailable: no reply.
+    """
+    key = f"{prefix}/execute/cancel"
+    body = {} if execution is None else {"execution": execution}
+    for rep in session.get(key, payload=json.dumps(body), encoding="application/json",
+                           timeout=timeout):
+        got = decode(rep, key, timeout).get("cancelled")
+        return got if isinstance(got, str) else None
+    raise ServiceUnavailable(f"no service answered on '{key}'", reason="no_route",
+                             details={"key": key})

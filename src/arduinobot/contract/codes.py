@@ -1,0 +1,66 @@
+"""Every error code either service puts on the wire, in one place.
+
+The planner's exceptions (:mod:`arduinobot.contract.errors`), the planning service's replies
+(``src/arduinobot/service/``), its schema (``src/arduinobot/contract/schema/error.json``), the client's exceptions
+(:mod:`arduinobot.client.errors`) and execution's (``src/arduinobot/service/execute/execution.py``, ``src/arduinobot/execution/``
+with its drivers) all take their codes from :class:`Code`; ``tests/test_codes.py`` fails
+if any of them uses a code not listed here, or if the schema's enum drifts from
+:data:`PLAN_SERVICE_CODES`. It lives in ``src/arduinobot/planner/``, the lowest layer, so every layer
+can import it.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+
+
+class Code(str, Enum):
+    """A wire error code. A ``str``: it compares equal to, formats, prints and
+    JSON-encodes as its plain string, so replies and client lookups need no conversion.
+    (``enum.StrEnum`` would do the same but needs Python 3.11.)"""
+
+    __str__ = str.__str__
+
+    def __format__(self, spec: str) -> str:
+        return str.__format__(self, spec)
+
+    # the planning service's replies (src/arduinobot/contract/schema/error.json)
+    INVALID_REQUEST = "INVALID_REQUEST"
+    START_IN_COLLISION = "START_IN_COLLISION"
+    GOAL_IN_COLLISION = "GOAL_IN_COLLISION"
+    GOAL_OUT_OF_REACH = "GOAL_OUT_OF_REACH"
+    NO_PATH_FOUND = "NO_PATH_FOUND"
+    TRAJECTORY_FAILED = "TRAJECTORY_FAILED"
+    INVALID_LIMITS = "INVALID_LIMITS"
+    LINE_INTERRUPTED = "LINE_INTERRUPTED"
+    ORIENTATION_NOT_CONTROLLABLE = "ORIENTATION_NOT_CONTROLLABLE"
+    TIMEOUT = "TIMEOUT"
+    BUSY = "BUSY"
+    RESOURCE_LIMIT = "RESOURCE_LIMIT"
+    SHUTTING_DOWN = "SHUTTING_DOWN"
+    INTERNAL = "INTERNAL"
+    SCENE_CONFLICT = "SCENE_CONFLICT"
+    # the client's own, never sent: no reply at all, or a code it does not know
+    UNAVAILABLE = "UNAVAILABLE"
+    UNKNOWN = "UNKNOWN"
+    # the execute service's (src/arduinobot/service/execute/execution.py) and src/arduinobot/execution/'s, drivers included
+    NOT_AT_START = "NOT_AT_START"
+    TOO_LATE = "TOO_LATE"
+    ROBOT_ERROR = "ROBOT_ERROR"
+    PORT_NOT_FOUND = "PORT_NOT_FOUND"
+    PORT_BUSY = "PORT_BUSY"
+    PORT_ERROR = "PORT_ERROR"
+    UNSUPPORTED_ROBOT = "UNSUPPORTED_ROBOT"
+    INVALID_SETPOINT = "INVALID_SETPOINT"
+    SIMULATION_ERROR = "SIMULATION_ERROR"
+    INVALID_TRAJECTORY = "INVALID_TRAJECTORY"
+    MOTION_ERROR = "MOTION_ERROR"
+
+
+#: The codes the planning service answers with, in ``error.json``'s order.
+PLAN_SERVICE_CODES: tuple[Code, ...] = (
+    Code.INVALID_REQUEST, Code.START_IN_COLLISION, Code.GOAL_IN_COLLISION,
+    Code.GOAL_OUT_OF_REACH, Code.NO_PATH_FOUND, Code.TRAJECTORY_FAILED, Code.INVALID_LIMITS,
+    Code.LINE_INTERRUPTED, Code.ORIENTATION_NOT_CONTROLLABLE,
+    Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL,
+    Code.SCENE_CONFLICT)

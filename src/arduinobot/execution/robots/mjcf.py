@@ -1,0 +1,371 @@
+"""A MuJoCo model (MJCF) of a loaded description, for the simulated twin.
+
+From :class:`arduinobot.description.Robot`: one body per link (the root welded to the world), its
+inertial as given, one hinge/slide per movable joint with the URDF position limits, a
+mimic joint as an equality constraint on its leader (``q = offset + multiplier *
+q_leader``), collision shapes as contact geoms (a mesh as up to 32 convex pieces, see
+:func:`mesh_parts`: MuJoCo collides convex hulls, and one hull around a concave part
+touches what the part does not), and per actuated joint a position servo
+with velocity feed-forward (see :func:`servo_ctrl`) whose force is capped at the URDF
+effort. Contacts between a link and its parent, and the SRDF's disabled pairs (what the
+planner trusts never to touch), are excluded; every other pair is live, and so are
+obstacles (box, sphere, cylinder, or a mesh file as convex pieces, in the world frame) and
+carried objects: each a body welded inside its link's (``carried:<id>``, its mass and
+inertia as :meth:`arduinobot.scene.obstacles.AttachedObject.payload` gives them), its contacts with its
+link and touch links excluded, as the planner excludes them.
+
+The physics is MuJoCo's semi-implicit Euler: unlike ``implicitfast``, the actuator force
+it reports is the force it applies (the implicit integrators fold part of the damping
+into the step), so peak forces are comparable with the effort limits; with the default
+servos ``kv h / M = 2 w h`` stays far below Euler's stability bound.
+
+The servo force is ``kp (q_ref - q) + kv (qd_ref - qd)``, clamped to +-effort: a
+``general`` actuator with gain ``kp`` and affine bias ``(0, -kp, -kv)`` driven by
+``ctrl = q_ref + kv / kp * qd_ref``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+
+from arduinobot.description.model import Joint, Robot, Shape, rpy_matrix
+from arduinobot.planner.cache import ArtifactCache, content_key
+
+#: told what is being built, for a user waiting on a first twin: ``progress(message)``
+Progress = Callable[[str], None]
+
+TIMESTEP = 0.001  # [s]
+COLLISION_PARTS = 32  # convex pieces per collision mesh (at most)
+
+
+@dataclass(frozen=True)
+class Gains:
+    """A position servo's stiffness ``kp`` [N m/rad] and damping ``kv`` [N m s/rad]."""
+
+    kp: float
+    kv: float
+
+
+def _f(v: Sequence[float] | np.ndarray) -> str:
+    return " ".join(repr(float(x)) for x in np.ravel(v))
+
+
+def _quat(rot: np.ndarray) -> str:
+    import mujoco
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(rot, float).ravel())
+    return _f(q)
+
+
+def _esc(name: str) -> str:
+    return name.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+
+
+def mesh_parts(path: Path, scale: Sequence[float], parts: int, *,
+               cache: ArtifactCache | None = None,
+               progress: Progress | None = None) -> list[np.ndarray]:
+    """A mesh as up to ``parts`` convex pieces for MuJoCo, which collides convex hulls:
+    each piece's vertices [m], shape (k_i, 3).
+
+    V-HACD's approximate convex decomposition (``vhacdx``, trimesh's backend) when it is
+    installed: its hulls follow the surface within its tolerance. It takes seconds per
+    mesh, so the pieces are kept in ``cache`` (the caller's: the command line and the
+    service pass their disk cache; None computes them afresh) keyed by the mesh's bytes
+    and scale. Without V-HACD, :func:`cluster_parts`. ``progress`` hears of each mesh
+    decomposed afresh (seconds each: a first twin of a new model takes a while)."""
+    import trimesh
+    try:
+        import vhacdx  # noqa: F401 -- trimesh's decomposition backend
+    except ImportError:
+        return cluster_parts(path, scale, parts)
+    key = content_key([Path(path).read_bytes(), np.asarray(scale, float),
+                       f"vhacd:{parts}:v1"])
+    hit = None if cache is None else cache.load("mujoco_hulls", key)
+    if hit is not None:
+        return np.split(hit["vertices"], np.cumsum(hit["counts"])[:-1])
+    if progress is not None:
+        progress(f"convex pieces of {Path(path).name} for MuJoCo (first use of this mesh)")
+    m = cast("trimesh.Trimesh", trimesh.load(path, force="mesh"))  # force: one mesh
+    m.apply_scale(np.asarray(scale, float))
+    got: Any = m.convex_decomposition(maxConvexHulls=parts)  # meshes or vertex dicts
+    pieces = got if isinstance(got, list) else [got]
+    out = [_thick(np.asarray(p.vertices if hasattr(p, "vertices") else p["vertices"], float))
+           for p in pieces]
+    out = [p for p in out if len(p) >= 3]
+    if cache is not None:
+        cache.store("mujoco_hulls", key, {"vertices": np.vstack(out),
+                                          "counts": np.array([len(p) for p in out])})
+    return out
+
+
+def _thick(p: np.ndarray) -> np.ndarray:
+    """A flat piece has no hull: give it 10 um of thickness along its normal."""
+    if len(p) < 3:
+        return p
+    _, sv, vt = np.linalg.svd(p - p.mean(axis=0), full_matrices=False)
+    if len(sv) < 3 or sv[2] <= 1e-9 * max(sv[0], 1e-12):
+        return np.vstack([p, p + 1e-5 * vt[-1]])
+    return p
+
+
+def cluster_parts(path: Path, scale: Sequence[float], parts: int) -> list[np.ndarray]:
+    """Faces grouped by centroid (scipy's k-means from seeded face centroids, 12 centre
+    updates), each piece the vertices of its group's faces [m]: each hull holds its
+    whole triangles, so the union holds the surface; looser than V-HACD where a group
+    spans a concavity."""
+    import trimesh
+    from scipy.cluster.vq import kmeans2
+    m = cast("trimesh.Trimesh", trimesh.load(path, force="mesh"))  # force: one mesh
+    v = np.asarray(m.vertices, dtype=float) * np.asarray(scale, dtype=float)
+    f = np.asarray(m.faces)
+    cen = v[f].mean(axis=1)
+    k = max(1, min(parts, len(f)))
+    start = cen[np.random.default_rng(0).choice(len(cen), size=k, replace=False)]
+    with warnings.catch_warnings():  # a group left empty keeps its centre: not news
+        warnings.filterwarnings("ignore", "One of the clusters is empty")
+        # its labels are those of the centres before its last update: 13 steps, 12 updates
+        _, lab = kmeans2(cen, start, iter=13, minit="matrix")
+    groups = (np.unique(f[lab == i]) for i in range(k))
+    return [_thick(v[idx]) for idx in groups if len(idx) >= 3]
+
+
+def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | None,
+          progress: Progress | None) -> str | None:
+    """A collision shape as contact geoms (a mesh as :data:`COLLISION_PARTS` pieces)."""
+    g = shape.geometry
+    pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
+    common = f'{pose} contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4" mass="0"'
+    if g.kind == "mesh":
+        if g.path is None:
+            return None
+        out = []
+        for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS,
+                                               cache=cache, progress=progress)):
+            assets.append(f'<mesh name="{_esc(name)}/{i}" vertex="{_f(vs)}"/>')
+            out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
+                       f'{common}/>')
+        return " ".join(out)
+    size = _size(g.kind, g.size, g.radius, g.length)
+    return None if size is None else \
+        f'<geom type="{g.kind}" size="{size}" name="{_esc(name)}" {common}/>'
+
+
+def _size(kind: str, size: Any, radius: Any, length: Any) -> str | None:
+    """MJCF's size [m] of a box (half extents), sphere or cylinder (radius, half length)."""
+    if kind == "box":
+        return _f(0.5 * np.asarray(size, float))
+    if kind == "sphere":
+        return repr(float(radius))
+    if kind == "cylinder":
+        return f"{float(radius)!r} {0.5 * float(length)!r}"
+    return None
+
+
+def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]], *,
+                   assets: list[str] | None = None, cache: ArtifactCache | None = None,
+                   progress: Progress | None = None, prefix: str = "obstacle",
+                   extra: str = "") -> list[str]:
+    """Geoms for plain obstacles (``{"id", "shape", "size"|"radius"|"length", "xyz",
+    "rpy"}``, the plan request's form, or a mesh file as ``"mesh_path"``, in metres: the
+    kept scene's form) [m, rad], named ``<prefix>:<id>``; a mesh's convex pieces go to
+    ``assets`` (needed for a mesh)."""
+    out = []
+    for o in obstacles:
+        pose = (f'pos="{_f(o.get("xyz", (0, 0, 0)))}" '
+                f'quat="{_quat(rpy_matrix(tuple(o.get("rpy", (0, 0, 0)))))}"')
+        name = _esc(f'{prefix}:{o["id"]}')
+        common = f'{pose} contype="1" conaffinity="1" rgba="0.3 0.6 0.9 0.5"{extra}'
+        if o["shape"] == "mesh" and o.get("mesh_path") and assets is not None:
+            for i, vs in enumerate(mesh_parts(Path(o["mesh_path"]), (1.0, 1.0, 1.0),
+                                              COLLISION_PARTS, cache=cache, progress=progress)):
+                assets.append(f'<mesh name="{name}/{i}" vertex="{_f(vs)}"/>')
+                out.append(f'<geom name="{name}/{i}" type="mesh" mesh="{name}/{i}" {common}/>')
+            continue
+        size = _size(o["shape"], o.get("size"), o.get("radius"), o.get("length"))
+        if size is None:
+            raise ValueError(f"obstacle shape {o['shape']!r} is not box, sphere, cylinder "
+                             "or a mesh file")
+        out.append(f'<geom name="{name}" type="{o["shape"]}" size="{size}" {common}/>')
+    return out
+
+
+def obstacle_form(o: Any) -> dict[str, Any]:
+    """A :class:`arduinobot.scene.obstacles.Obstacle` (or a mapping, kept) as :func:`obstacle_geoms`
+    takes it."""
+    if isinstance(o, Mapping):
+        return dict(o)
+    return {k: getattr(o, k) for k in ("id", "shape", "size", "radius", "length",
+                                       "mesh_path", "xyz", "rpy")}
+
+
+def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
+                 progress: Progress | None, *, prefix: str = "carried",
+                 head: str = "") -> list[str]:
+    """The MJCF lines of a carried object (a :class:`arduinobot.scene.obstacles.AttachedObject`): a
+    body in its link's frame, no joint (welded), its payload's mass and inertia, its
+    shape as contact geoms (massless: the inertial says the mass). ``head`` goes into
+    the body's tag (a pose), its first line inside (a joint)."""
+    lines = [f'<body name="{_esc(prefix + ":" + a.id)}"{head}>']
+    p = a.payload()
+    if p.mass > 0:
+        t = np.asarray(p.inertia, float)
+        lines.append(f'  <inertial pos="{_f(p.com)}" mass="{p.mass!r}" fullinertia="'
+                     f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
+    lines += ["  " + g for g in obstacle_geoms([obstacle_form(a.shape)], assets=assets,
+                                                cache=cache, progress=progress,
+                                                prefix=prefix, extra=' mass="0"')]
+    lines.append("</body>")
+    return lines
+
+
+def _joint_element(j: Joint) -> str:
+    """The ``<joint>`` of a revolute, continuous or prismatic URDF joint, its range
+    limited where the URDF gives both bounds (a continuous joint never is)."""
+    kind = "slide" if j.type == "prismatic" else "hinge"
+    lim = j.limit
+    if j.type != "continuous" and lim is not None and lim.lower is not None \
+            and lim.upper is not None:
+        rng = f'limited="true" range="{lim.lower!r} {lim.upper!r}"'
+    else:
+        rng = 'limited="false"'
+    return f'<joint name="{_esc(j.name)}" type="{kind}" axis="{_f(j.axis)}" {rng}/>'
+
+
+def _mimic_equalities(robot: Robot) -> list[str]:
+    """The ``<equality>`` joint couplings of the URDF's mimic joints."""
+    eq = []
+    for n in robot.mimic_joints:
+        m = robot.joints[n].mimic
+        eq.append(f'<joint joint1="{_esc(n)}" joint2="{_esc(m.joint)}" '  # type: ignore
+                  f'polycoef="{m.offset!r} {m.multiplier!r} 0 0 0"/>')  # type: ignore
+    return eq
+
+
+def _actuators(robot: Robot, gains: Mapping[str, Gains]) -> list[str]:
+    """One position servo per actuated joint (``kp``, ``kv`` as an affine bias), its
+    force within the URDF's effort (unbounded-ish 1e6 where none is given)."""
+    act = []
+    for n in robot.actuated_joints:
+        g, lim = gains[n], robot.joints[n].limit
+        effort = lim.effort if lim is not None and lim.effort > 0 else 1e6
+        act.append(f'<general name="{_esc(n)}" joint="{_esc(n)}" gainprm="{g.kp!r}" '
+                   f'biastype="affine" biasprm="0 {-g.kp!r} {-g.kv!r}" ctrllimited="false" '
+                   f'forcelimited="true" forcerange="{-effort!r} {effort!r}"/>')
+    return act
+
+
+def loose_body(a: Any, assets: list[str], cache: ArtifactCache | None,
+               progress: Progress | None) -> list[str]:
+    """A loose object (an :class:`arduinobot.scene.obstacles.AttachedObject` whose shape is posed in
+    the world): a free body ``loose:<id>`` where its shape is, with its mass, under
+    gravity until :func:`to_mjcf`'s weld ``grasp:<id>`` to its link is switched on."""
+    from dataclasses import replace
+    pose = (f' pos="{_f(a.shape.xyz)}" '
+            f'quat="{_quat(rpy_matrix(tuple(a.shape.rpy)))}"')
+    at_origin = replace(a, shape=replace(a.shape, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)),
+                        com=None)
+    lines = carried_body(at_origin, assets, cache, progress, prefix="loose", head=pose)
+    lines.insert(1, f'  <freejoint name="{_esc("loose:" + a.id)}"/>')
+    return lines
+
+
+def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
+            excluded: Sequence[tuple[str, str]] = (),
+            obstacles: Sequence[Mapping[str, Any]] = (),
+            attached: Sequence[Any] = (), loose: Sequence[Any] = (),
+            cache: ArtifactCache | None = None, progress: Progress | None = None) -> str:
+    """The MJCF text of ``robot`` (see the module doc).
+
+    Args:
+        gains: per actuated joint.
+        excluded: link pairs whose contacts are ignored (besides parent/child pairs).
+        obstacles: world obstacles, as in a plan request (or :func:`obstacle_form`'s).
+        attached: carried objects (:class:`arduinobot.scene.obstacles.AttachedObject`, touch links
+            resolved), each welded inside its link.
+        loose: objects free in the world (:func:`loose_body`, touch links resolved), each
+            with an inactive weld ``grasp:<id>`` to its link for the twin to switch on
+            while it is carried; what holds it never collides with it (as in the planner).
+        cache, progress: the meshes' convex pieces (:func:`mesh_parts`).
+    """
+    assets: list[str] = []
+    held: dict[str, list[Any]] = {}
+    for a in attached:
+        held.setdefault(a.link, []).append(a)
+
+    def body(link: str, indent: str) -> list[str]:
+        out = []
+        lk = robot.links[link]
+        inertial = lk.inertial
+        if inertial is not None and inertial.mass > 0 and link != "world":
+            rot = rpy_matrix(inertial.origin.rpy)
+            t = rot @ inertial.tensor() @ rot.T
+            out.append(f'{indent}<inertial pos="{_f(inertial.origin.xyz)}" '
+                       f'mass="{inertial.mass!r}" fullinertia="'
+                       f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
+        for i, s in enumerate(lk.collisions):
+            g = _geom(s, f"{link}/collision/{i}", assets, cache, progress)
+            if g:
+                out.append(indent + g)
+        for a in held.get(link, ()):
+            out.extend(indent + line for line in carried_body(a, assets, cache, progress))
+        for j in robot.child_joints[link]:
+            out.append(f'{indent}<body name="{_esc(j.child)}" pos="{_f(j.origin.xyz)}" '
+                       f'quat="{_quat(rpy_matrix(j.origin.rpy))}">')
+            if j.type in ("revolute", "continuous", "prismatic"):
+                out.append(f"{indent}  {_joint_element(j)}")
+            out.extend(body(j.child, indent + "  "))
+            out.append(f"{indent}</body>")
+        return out
+
+    root = robot.root
+    if root == "world":  # URDF's conventional world link is MuJoCo's worldbody
+        tree = body(root, "    ")
+    else:
+        tree = [f'    <body name="{_esc(root)}">', *body(root, "      "), "    </body>"]
+    pairs = {frozenset((j.parent, j.child)) for j in robot.joints.values()
+             if "world" not in (j.parent, j.child)}
+    pairs |= {frozenset(p) for p in excluded if p[0] != p[1]}
+    for a in attached:  # what holds it may touch it, as in the planner
+        pairs |= {frozenset((f"carried:{a.id}", t)) for t in {a.link, *a.touch_links}}
+    for a in loose:  # the grasp is the weld, not friction of the fingers
+        pairs |= {frozenset((f"loose:{a.id}", t)) for t in {a.link, *a.touch_links}}
+    exclude = [f'    <exclude body1="{_esc(a)}" body2="{_esc(b)}"/>'
+               for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
+    eq = [f"    {e}" for e in _mimic_equalities(robot)]
+    act = [f"    {e}" for e in _actuators(robot, gains)]
+    world = obstacle_geoms([obstacle_form(o) for o in obstacles], assets=assets, cache=cache,
+                           progress=progress)
+    free = [line for a in loose for line in loose_body(a, assets, cache, progress)]
+    parts = [f'<mujoco model="{_esc(robot.name)}">',
+             '  <compiler angle="radian" inertiafromgeom="false" balanceinertia="false" '
+             'boundmass="1e-6" boundinertia="1e-9"/>',
+             f'  <option timestep="{TIMESTEP!r}" integrator="Euler" '
+             'gravity="0 0 -9.81"/>',
+             "  <asset>", *("    " + a for a in assets), "  </asset>",
+             "  <worldbody>", *("    " + g for g in world), *tree,
+             *("    " + line for line in free),
+             "  </worldbody>",
+             "  <contact>", *exclude, "  </contact>"]
+    for a in loose:
+        eq.append(f'    <weld name="{_esc("grasp:" + a.id)}" body1="{_esc(a.link)}" '
+                  f'body2="{_esc("loose:" + a.id)}" active="false"/>')
+    if eq:
+        parts += ["  <equality>", *eq, "  </equality>"]
+    parts += ["  <actuator>", *act, "  </actuator>", "</mujoco>"]
+    return "\n".join(parts) + "\n"
+
+
+def servo_ctrl(q_ref: np.ndarray, qd_ref: np.ndarray | None, gains: Sequence[Gains]
+               ) -> np.ndarray:
+    """The ``ctrl`` that makes the actuators' force ``kp (q_ref - q) + kv (qd_ref - qd)``."""
+    q_ref = np.asarray(q_ref, float)
+    if qd_ref is None:
+        return q_ref.copy()
+    ratio = np.array([g.kv / g.kp for g in gains], float)
+    return q_ref + ratio * np.asarray(qd_ref, float)

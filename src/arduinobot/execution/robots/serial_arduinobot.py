@@ -1,0 +1,242 @@
+"""The real arduinobot over a serial port, speaking the course hardware interface's protocol.
+
+115200 baud, 8N1. At each control tick, if the servo angles changed since the last
+message, one ASCII message with no newline: ``b%03d,s%03d,e%03d,g%03d,`` where, from the
+joint positions q1..q4 [rad] and integer truncation (Python's ``int``, toward zero)::
+
+    b = int((q1 + pi/2) * 180 / pi)
+    s = 180 - int((q2 + pi/2) * 180 / pi)
+    e = int((q3 + pi/2) * 180 / pi)
+    g = 180 - int((-q4 * 180) / (pi / 2))
+
+each clamped to the servos' 0..180. The first command is always sent (the servos'
+position at power-up is unknown). The arm reports nothing back: as in the course's
+interface, the state is the last command (open loop), and before the first one the
+initial positions (``initial_positions.yaml`` of the MoveIt package, else 0).
+
+Safety: a command never moves a joint further than its velocity limit allows in one
+tick (``velocity * period``), and never outside its URDF position limits.
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import math
+import os
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from lxml import etree
+
+from arduinobot.description import Description
+from arduinobot.execution.robots.base import (
+    JointState,
+    MimicMap,
+    PortBusy,
+    PortError,
+    PortNotFound,
+    Robot,
+    UnsupportedRobot,
+    check_setpoint,
+    initial_positions,
+)
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BAUD = 115200
+WRITE_TIMEOUT = 1.0  # [s] a write that takes longer means the arm stopped reading
+
+
+def servo_angles(q: Sequence[float] | np.ndarray) -> tuple[int, int, int, int]:
+    """The servo angles [deg, 0..180] the protocol sends for joint positions ``q``
+    (joint_1..joint_4) [rad], truncated as the course's interface does, then clamped."""
+    q1, q2, q3, q4 = (float(v) for v in q)
+    b = int((q1 + math.pi / 2) * 180 / math.pi)
+    s = 180 - int((q2 + math.pi / 2) * 180 / math.pi)
+    e = int((q3 + math.pi / 2) * 180 / math.pi)
+    g = 180 - int((-q4 * 180) / (math.pi / 2))
+    return tuple(min(180, max(0, v)) for v in (b, s, e, g))  # type: ignore[return-value]
+
+
+def encode(angles: Sequence[int]) -> bytes:
+    """One protocol message: ``b%03d,s%03d,e%03d,g%03d,`` in ASCII, no newline."""
+    return b"b%03d,s%03d,e%03d,g%03d," % tuple(angles)
+
+
+def hardware_params(urdf: str) -> dict[str, str]:
+    """The ``<param>`` values of the ``<ros2_control><hardware>`` block of an expanded URDF
+    that names a ``port`` (else of the first block; empty without one)."""
+    root = etree.fromstring(urdf.encode("utf-8"))
+    blocks = [{p.get("name"): (p.text or "").strip() for p in hw.iter("param") if p.get("name")}
+              for hw in root.iter("hardware")
+              if hw.getparent() is not None and hw.getparent().tag == "ros2_control"]
+    return next((b for b in blocks if b.get("port")), blocks[0] if blocks else {})
+
+
+def open_port(port: str, baud: int) -> object:
+    """An exclusively locked pyserial port, 8N1, non-blocking reads, writes that give up
+    after :data:`WRITE_TIMEOUT`.
+
+    Raises:
+        PortNotFound, PortBusy, PortError: with the port and the reason.
+    """
+    import serial  # optional dependency: only the serial driver needs it
+
+    is_url = "://" in port
+    if not is_url and not os.path.exists(port):
+        raise PortNotFound(f"serial port {port} does not exist (is the arduinobot plugged "
+                           "in? `ls /dev/ttyACM* /dev/ttyUSB*` lists the candidates)",
+                           details={"port": port})
+    try:
+        return serial.serial_for_url(port, baudrate=baud, bytesize=serial.EIGHTBITS,
+                                     parity=serial.PARITY_NONE,
+                                     stopbits=serial.STOPBITS_ONE, timeout=0,
+                                     write_timeout=WRITE_TIMEOUT, exclusive=True)
+    except serial.SerialException as e:
+        code = getattr(e, "errno", None)
+        if "exclusively lock" in str(e) or code in (errno.EBUSY, errno.EAGAIN):
+            raise PortBusy(f"serial port {port} is busy: another program holds it (a "
+                           "serial monitor, another `arduinobot execute`, a ros2_control "
+                           f"node); close it and retry ({e})", details={"port": port}) from None
+        if code == errno.ENOENT:
+            raise PortNotFound(f"serial port {port} does not exist ({e})",
+                               details={"port": port}) from None
+        if code == errno.EACCES:
+            raise PortError(f"no permission to open {port}: add yourself to the "
+                            f"'dialout' group ({e})", details={"port": port}) from None
+        raise PortError(f"cannot open serial port {port}: {e}",
+                        details={"port": port}) from None
+
+
+class SerialArduinobot(Robot):
+    """The arduinobot's Arduino on ``port``.
+
+    Args:
+        port: a device path (``/dev/ttyACM0``) or a pyserial URL.
+        joint_names: the four actuated joints, in protocol order (b, s, e, g).
+        velocity: per-joint velocity limits [rad/s], shape (4,).
+        lower, upper: position limits [rad], shape (4,).
+        rate: the control rate [Hz]: one tick moves a joint at most ``velocity / rate``.
+        initial: positions [rad] before the first command (default 0).
+        mimic: how the mimic joints follow (reported in the state).
+        baud: [bit/s].
+        boot_wait: seconds to wait after opening: an Arduino Uno resets when the port
+            opens and ignores what arrives while its bootloader runs (~2 s).
+    """
+
+    realtime_only = True
+
+    def __init__(self, port: str, *, joint_names: Sequence[str],
+                 velocity: Sequence[float] | np.ndarray, lower: Sequence[float] | np.ndarray,
+                 upper: Sequence[float] | np.ndarray, rate: float = 100.0,
+                 initial: Sequence[float] | np.ndarray | None = None,
+                 mimic: MimicMap | None = None,
+                 baud: int = DEFAULT_BAUD, boot_wait: float = 0.0) -> None:
+        self.joint_names = tuple(joint_names)
+        if len(self.joint_names) != 4:
+            raise UnsupportedRobot(f"the arduinobot protocol drives 4 joints (base, shoulder, "
+                                   f"elbow, gripper); this robot has {len(self.joint_names)} "
+                                   f"actuated: {', '.join(self.joint_names)}",
+                                   details={"joints": list(self.joint_names)})
+        if not (math.isfinite(rate) and rate > 0):
+            raise UnsupportedRobot(f"rate {rate!r} must be a positive number [Hz]")
+        self.mimic = mimic or MimicMap(self.joint_names, (), (), (), ())
+        self.state_names = self.mimic.names
+        self.period = 1.0 / rate
+        self.velocity = check_setpoint(velocity, self.joint_names, "velocity limits")
+        self.lower = check_setpoint(lower, self.joint_names, "lower limits")
+        self.upper = check_setpoint(upper, self.joint_names, "upper limits")
+        q0 = np.zeros(4) if initial is None else check_setpoint(initial, self.joint_names,
+                                                                "initial positions")
+        self._q = np.clip(q0, self.lower, self.upper)
+        self._qd = np.zeros(4)
+        self._last: tuple[int, int, int, int] | None = None
+        self.limited = 0  # setpoints the step or position limits changed
+        self.port = port
+        self._serial = open_port(port, baud)
+        self._opened = time.monotonic()
+        log.info("opened %s at %d baud (8N1)", port, baud)
+        if boot_wait > 0:
+            log.info("waiting %.1f s for the Arduino to boot", boot_wait)
+            time.sleep(boot_wait)
+
+    @classmethod
+    def from_description(cls, description: Description, port: str | None = None, *,
+                         baud: int | None = None, rate: float = 100.0,
+                         boot_wait: float = 0.0) -> SerialArduinobot:
+        """The driver for ``description``: limits from the URDF and joint_limits.yaml,
+        initial positions from ``initial_positions.yaml``, and the port from the
+        argument, else from the URDF's ros2_control ``<hardware>`` ``port`` param.
+
+        Raises:
+            PortNotFound: no port given and the URDF names none (or it does not exist).
+        """
+        from arduinobot.planner.kinematics.limits import JointLimits
+
+        params = hardware_params(description.robot.urdf)
+        port = port or params.get("port")
+        if not port:
+            why = ("its ros2_control <hardware> has no 'port' param (the simulation's? "
+                   "try --arg is_sim=false)" if params or "<hardware" in description.robot.urdf
+                   else "it has no ros2_control <hardware> block with a 'port' param")
+            raise PortNotFound(f"no serial port: give --serial PORT, or load a URDF that "
+                               f"names one ({why})")
+        if baud is None:
+            raw = params.get("baud_rate") or params.get("baudrate") or params.get("baud")
+            baud = int(raw) if raw and raw.isdigit() else DEFAULT_BAUD
+        mimic = MimicMap.from_description(description)
+        lim = JointLimits.from_description(description, joint_names=mimic.actuated)
+        return cls(port, joint_names=mimic.actuated, velocity=lim.velocity, lower=lim.lower,
+                   upper=lim.upper, rate=rate,
+                   initial=initial_positions(description, mimic.actuated), mimic=mimic,
+                   baud=baud, boot_wait=boot_wait)
+
+    def command(self, positions: Sequence[float] | np.ndarray,
+                velocities: Sequence[float] | np.ndarray | None = None,
+                accelerations: Sequence[float] | np.ndarray | None = None, *,
+                jerks: Sequence[float] | np.ndarray | None = None) -> None:
+        """Send the servo angles of ``positions`` [rad] if they changed (the protocol
+        carries positions only: the rest is ignored)."""
+        q = check_setpoint(positions, self.joint_names)
+        step = self.velocity * self.period
+        # one tick never moves a joint further than its velocity limit allows
+        target = np.clip(np.clip(q, self._q - step, self._q + step), self.lower, self.upper)
+        if np.any(np.abs(target - q) > 1e-9):
+            self.limited += 1
+            (log.warning if self.limited == 1 else log.debug)(
+                "setpoint limited to one tick's motion / the position limits: asked %s, "
+                "sending %s (further ones are logged at debug level)", np.round(q, 4),
+                np.round(target, 4))
+        angles = servo_angles(target)
+        if angles != self._last:
+            try:
+                self._serial.write(encode(angles))  # type: ignore[attr-defined]
+            except Exception as e:  # pyserial: SerialException / SerialTimeoutException
+                # unplugged (EIO), or a write that stalled past write_timeout: the arm
+                # holds the last angles it took, which stay the state
+                stalled = type(e).__name__ == "SerialTimeoutException"
+                raise PortError(
+                    f"writing to {self.port} failed: "
+                    + (f"the write stalled for {WRITE_TIMEOUT:g} s (the arm stopped "
+                       "reading)" if stalled else f"{e} (unplugged?)"),
+                    details={"port": self.port, "stalled": stalled,
+                             "last_sent": None if self._last is None else list(self._last)}
+                ) from e
+            self._last = angles
+        self._qd = (target - self._q) / self.period
+        self._q = target
+
+    def advance(self, dt: float) -> None:
+        """Hardware keeps its own time: the executor's clock paces the ticks."""
+
+    def state(self) -> JointState:
+        return JointState(self.state_names, tuple(map(float, self.mimic.expand(self._q))),
+                          tuple(map(float, self.mimic.expand(self._qd, rate=True))), None,
+                          time.monotonic() - self._opened)
+
+    def close(self) -> None:
+        s = getattr(self, "_serial", None)
+        if s is not None and s.is_open:
+            s.close()

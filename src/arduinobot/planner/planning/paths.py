@@ -1,0 +1,394 @@
+"""Joint-space path planning with OMPL: build, validate, solve.
+
+A request names a group (any SRDF group, or ``all``); joints outside it keep their
+start values. Solving validates start and goal (limits, collisions), tries the straight
+line, runs the chosen OMPL planner, shortcuts the path and re-checks it densely, so a
+returned path never grazes anything between checks.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from arduinobot.contract.errors import InvalidRequest, NoPathFound, StartInCollision
+from arduinobot.description import Description
+from arduinobot.planner.collision.certificate import Certificate
+from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.motion_check import motion_valid, sampled_motion_valid
+from arduinobot.planner.collision.world import CollisionWorld
+from arduinobot.planner.planning.blended import prove_blended
+from arduinobot.planner.planning.goal_states import check_limits, resolve_goal, resolve_group
+from arduinobot.planner.planning.goals import Goal, check_goal
+from arduinobot.planner.planning.room import Guarded, StateChecker, short_of_room
+from arduinobot.planner.planning.search import available_planners, check_seed, search
+from arduinobot.planner.planning.shortcut import shortcut_path
+from arduinobot.planner.timing.curve import Curve
+
+_log = logging.getLogger(__name__)
+
+__all__ = ["FINEST_STEP", "PLAN_STEP", "ROOM", "PathPlanner", "PathRequest", "PathResult"]
+
+# edges (a, b), by their bytes, whose proof failed in a request's earlier attempts
+Refused = frozenset[tuple[bytes, bytes]]
+
+# [rad] edges are checked at states this far apart while searching and shortcutting; the
+# path found is then certified over its whole length (and re-planned with finer samples,
+# then certified edges, in the rare case it grazes between samples)
+PLAN_STEP = 0.02
+# [m] detours are first searched and shortcut with every moving pair kept this much
+# farther apart than the clearance, as far as the OBB trees alone can prove (no FCL):
+# paths that do not hug the robot or the scene are proven with long certification steps
+# instead of thousands of exact distances, and leave the servos room to track. Where no
+# such path exists (ends or passages closer than this), the search runs without it.
+ROOM = 0.002
+# [rad] a path that grazes between its edges' samples is planned again with them twice
+# as close, down to this step, and below it with certified edges
+FINEST_STEP = 0.01
+
+
+@dataclass(frozen=True)
+class PathRequest:
+    """A planning problem.
+
+    Attributes:
+        start: the full actuated joint vector [rad], shape (dof,).
+        goal: joint values, a named SRDF state, or a tcp position.
+        group: the joints that move; the others keep their start values.
+        planner: an OMPL geometric planner's name.
+        planning_time: the planner's time budget [s].
+        seed: seeds OMPL's random generator, making results reproducible.
+    """
+
+    start: np.ndarray
+    goal: Goal
+    group: str | None = None  # None: the named state's group, else the default group
+    planner: str = "RRTConnect"
+    planning_time: float = 1.0
+    seed: int | None = None
+
+    def __post_init__(self) -> None:
+        check_goal(self.goal)
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """A collision-free joint path.
+
+    Attributes:
+        joint_names: the order of the joint vectors.
+        path: waypoints, shape (k, dof), k >= 2, first = start; every straight segment
+            is certified free over its whole length (:mod:`arduinobot.planner.collision.certify`).
+        planner: the planner that produced it ("straight line" if none was needed).
+        timings: seconds per stage: validate, straight_line, plan, simplify, recheck.
+        checks: state validity checks made (narrow or broad phase).
+        straight_line: the straight line to the goal was free.
+        length: joint-space path length [rad] (sum of Euclidean segment lengths).
+        certificate: the proof that every segment is free, with its certified clearance
+            (:class:`arduinobot.planner.collision.certificate.Certificate`); reused for anything that follows the
+            segments, such as the straight parts of a blended curve.
+        curve: when solved with ``blend``, the path's corners blended as
+            :func:`arduinobot.planner.timing.curve.build_curve` would (default radii), every blend
+            covered by ``certificate`` too; None: blend them yourself.
+    """
+
+    joint_names: tuple[str, ...]
+    path: np.ndarray
+    planner: str
+    timings: Mapping[str, float] = field(default_factory=dict)
+    checks: int = 0
+    straight_line: bool = False
+    length: float = 0.0
+    certificate: Certificate | None = None
+    curve: Curve | None = None
+
+
+def _path_length(path: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+
+
+class PathPlanner:
+    """Plans paths in one collision world.
+
+    Args:
+        world: the collision world (robot, scene, padding) to plan in.
+        description: the robot (groups and named states from its SRDF).
+        step: the largest joint step [rad] when checking an edge while planning.
+        certify_edges: accept only edges certified free over their whole length (else
+            edges are sampled at ``step`` and the found path is certified afterwards).
+        room: detours are searched first with this much room [m] (see ``ROOM``); 0 never.
+    """
+
+    def __init__(self, world: CollisionWorld, description: Description, *,
+                 step: float = PLAN_STEP, certify_edges: bool = False,
+                 room: float = ROOM) -> None:
+        self.world = world
+        self.description = description
+        self.step = step
+        self.certify_edges = certify_edges
+        self.room = room
+        self._roomy: dict[tuple[str, ...], CollisionWorld] = {}
+        self._guarded: dict[tuple[tuple[str, ...], tuple[tuple[str, str], ...]], Guarded] = {}
+        self._fallback: PathPlanner | None = None
+        self.certifier = Certifier(world)
+        # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
+        self.proof = Certifier(world, fraction=0.5)
+        names = world.kin.joint_names
+        srdf = description.srdf
+        self._groups: dict[str, tuple[str, ...]] = {
+            g.name: tuple(j for j in g.joints if j in names)
+            for g in (srdf.groups.values() if srdf is not None else ())}
+        self._groups["all"] = tuple(names)
+        self._limits = description.robot.position_limits(names)
+
+    def group_joints(self, group: str) -> tuple[str, ...]:
+        try:
+            return self._groups[group]
+        except KeyError:
+            raise InvalidRequest(f"'{group}' is not a group ({', '.join(self._groups)})",
+                                 field="group") from None
+
+    def roomy(self, joints: tuple[str, ...]) -> CollisionWorld:
+        """The world detours of ``joints`` are first searched in: every pair they move
+        kept ``room`` farther apart, by the trees alone; pairs they do not move are left
+        to the exact world (a gripper's fingers stay as close as they are)."""
+        w = self._roomy.get(joints)
+        if w is None:
+            w = self._roomy[joints] = self.world.with_scene(
+                self.world.obstacles, padding=self.world.padding + self.room,
+                narrow_phase=False, acm=self.world.acm.with_pairs(
+                    self.world.rigid_pairs(joints), reason="Rigid in the group"))
+        return w
+
+    def guarded(self, joints: tuple[str, ...], lost: tuple[tuple[str, str], ...]) -> Guarded:
+        """The roomy world of ``joints`` where the pairs ``lost`` (by name) lose the room
+        alone: checked at the plain clearance, every other pair keeping it
+        (:mod:`.room`)."""
+        g = self._guarded.get((joints, lost))
+        if g is None:
+            w, keep = self.world, set(lost)
+            roomy = w.with_scene(w.obstacles, padding=w.padding + self.room,
+                                 narrow_phase=False, acm=w.acm.with_pairs(
+                                     w.rigid_pairs(joints), reason="Rigid in the group"
+                                 ).with_pairs(lost, reason="Short of room at an end"))
+            guard = w.with_scene(w.obstacles, acm=w.acm.with_pairs(
+                [n for n in w.pair_names if n not in keep], reason="Kept apart with room"))
+            g = self._guarded[(joints, lost)] = Guarded(roomy, guard, lost)
+        return g
+
+    def _edge_free(self, a: np.ndarray, b: np.ndarray, refused: Refused,
+                   world: StateChecker | None = None) -> bool:
+        if refused and (a.tobytes(), b.tobytes()) in refused:
+            return False
+        if world is not None:
+            return sampled_motion_valid(world, a, b, self.step)
+        if self.certify_edges:
+            return motion_valid(self.certifier, a, b, self.step)
+        return sampled_motion_valid(self.world, a, b, self.step)
+
+    # -- validate ---------------------------------------------------------------------
+    def _validate(self, req: PathRequest) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+        if req.planner not in available_planners():
+            raise InvalidRequest(f"unknown planner '{req.planner}' (available: "
+                                 f"{', '.join(available_planners())})", field="planner")
+        if not (np.isfinite(req.planning_time) and req.planning_time > 0):
+            raise InvalidRequest(f"{req.planning_time!r} must be > 0 [s]", field="planning_time")
+        check_seed(req.seed)
+        group = resolve_group(self.description, req.group, req.goal)
+        joints = self.group_joints(group)
+        if not joints:
+            raise InvalidRequest(f"group '{group}' has no actuated joint", field="group")
+        start = np.asarray(req.start, dtype=float)
+        names = self.world.kin.joint_names
+        if start.shape != (len(names),) or not np.all(np.isfinite(start)):
+            raise InvalidRequest(f"must be {len(names)} finite values ({', '.join(names)})",
+                                 field="start")
+        check_limits(self.world, start, field="start")
+        chk = self.world.check(start)
+        if not chk.valid:
+            raise StartInCollision("the start state collides", pairs=chk.pairs,
+                                   q=dict(zip(names, map(float, start))))
+        goals = resolve_goal(req.goal, world=self.world, description=self.description,
+                             start=start, group_joints=joints, group=group)
+        return start, goals, joints
+
+    # -- solve ------------------------------------------------------------------------
+    def solve(self, request: PathRequest, *, blend: bool = False) -> PathResult:
+        """Plan a path for ``request``; with ``blend``, also its corners blended and
+        proven with it in one walk where that succeeds (``PathResult.curve``,
+        :mod:`.blended`).
+
+        Raises:
+            InvalidRequest, JointLimitViolation: a malformed request.
+            StartInCollision, GoalInCollision: with every colliding pair.
+            GoalOutOfReach: no IK solution for a position goal.
+            NoPathFound: no path within the time budget.
+        """
+        return self._solve(request, blend=blend, refused=frozenset())
+
+    def _solve(self, request: PathRequest, *, blend: bool,
+               refused: Refused) -> PathResult:
+        # ``refused``: the edges whose proof failed in this request's earlier attempts,
+        # refused without a check: an escape edge is drawn again exactly as it was (same
+        # seed), and its finer samples pass again where it grazes between them (each
+        # failed proof of a graze costs ~0.1-0.2 s on CAD meshes)
+        timings: dict[str, float] = {}
+        checks0 = self.world.checks
+        t0 = time.perf_counter()
+        start, goals, joints = self._validate(request)
+        t1 = time.perf_counter()
+        timings["validate"] = t1 - t0
+        # Straight line first: nearest goal candidates first.
+        order = np.argsort(np.linalg.norm(goals - start, axis=1))
+        path = None
+        for k in order:
+            if self._edge_free(start, goals[k], refused):
+                path = np.array([start, goals[k]])
+                break
+        t2 = time.perf_counter()
+        timings["straight_line"] = t2 - t1
+        straight = path is not None
+        planner_name = "straight line"
+        if path is None:
+            path, room = self._detour(request, start, goals, joints, refused)
+            planner_name = request.planner
+        t3 = time.perf_counter()
+        timings["plan"] = t3 - t2
+        if not straight:
+            # the straight lines to the goals collide (in the exact world, so with room
+            # too): the first edge shortcutting would try
+            path = shortcut_path(path, lambda a, b: self._edge_free(a, b, refused, room),
+                                 seed=request.seed, blocked=[(start, g) for g in goals])
+        t4 = time.perf_counter()
+        timings["simplify"] = t4 - t3
+        # every edge was checked at its samples as it was accepted: the proof alone
+        curve = None
+        if blend:
+            cert, curve = prove_blended(self.proof, path, self.world, step=self.step)
+        else:
+            cert = self.proof.path(path, sample_step=None)
+        t5 = time.perf_counter()
+        timings["recheck"] = t5 - t4
+        if not cert.free and not self.certify_edges:
+            # an edge accepted on its samples grazes between them: plan again with edges
+            # sampled twice as close, and where even that grazes, accepting only
+            # certified edges (each edge a proof: several times slower; rare)
+            retry = self._retry()
+            _log.info("path not certified (%s); re-planning with %s", cert.failure,
+                      "certified edges" if retry.certify_edges
+                      else f"edges sampled {retry.step:g} rad apart")
+            k = cert.failure[0] if cert.failure is not None else -1
+            if 0 <= k < len(path) - 1:
+                a, b = path[k], path[k + 1]
+                refused = refused | {(a.tobytes(), b.tobytes()), (b.tobytes(), a.tobytes())}
+            result = retry._solve(request, blend=blend, refused=refused)
+            return PathResult(joint_names=result.joint_names, path=result.path,
+                              planner=result.planner,
+                              timings={k: timings.get(k, 0.0) + v
+                                       for k, v in result.timings.items()},
+                              checks=self.world.checks - checks0,
+                              straight_line=result.straight_line, length=result.length,
+                              certificate=result.certificate, curve=result.curve)
+        if not cert.free:
+            # cannot happen when every edge was certified; never return it
+            raise NoPathFound("the path failed its certified re-check",
+                              details={"failure": str(cert.failure), "planner": planner_name})
+        return PathResult(joint_names=self.world.kin.joint_names, path=path,
+                          planner=planner_name, timings=timings,
+                          checks=self.world.checks - checks0, straight_line=straight,
+                          length=_path_length(path), certificate=cert, curve=curve)
+
+    def _retry(self) -> PathPlanner:
+        # the planner a path that failed its proof is planned again with (kept: its
+        # roomy worlds are built once)
+        if self._fallback is None:
+            finer = self.step / 2 >= FINEST_STEP - 1e-12
+            self._fallback = PathPlanner(self.world, self.description,
+                                         step=self.step / 2 if finer else self.step,
+                                         certify_edges=not finer, room=self.room)
+        return self._fallback
+
+    def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
+                joints: tuple[str, ...], refused: Refused
+                ) -> tuple[np.ndarray, StateChecker | None]:
+        # With room first (half the budget), then without. An end that lacks the room
+        # (a start a hair from the base) is joined by a short free edge to a nearby state
+        # that has it, so only that edge comes close. Where no such edge leaves it (a
+        # camera a millimetre from the turntable), the pairs short of room there lose
+        # it alone (:mod:`.room`). Returns the path and the roomy world it was found in
+        # (None: without room).
+        budget = float(req.planning_time)
+        if self.room > 0 and not self.certify_edges:
+            roomy: StateChecker = self.roomy(joints)
+            cols = np.array([self.world.kin.joint_names.index(j) for j in joints])
+            rng = np.random.default_rng(req.seed)
+            head = self._escape(start, goals[0], cols, roomy, rng, refused)
+            tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
+            tails = [(g, e) for g, e in tails if e is not None]
+            # an end stuck without room: the pairs exactly short of it there lose it
+            # alone; if the trees still doubt others, those too
+            for exact in (True, False):
+                if head is not None and tails:
+                    break
+                stuck = ([start] if head is None else []) + ([] if tails else list(goals))
+                lost = short_of_room(self.world, self.roomy(joints), stuck, self.room,
+                                     exact=exact)
+                if not lost:
+                    continue
+                roomy = self.guarded(joints, lost)
+                _log.info("%d pairs lose the room alone: %s", len(lost), lost)
+                head = self._escape(start, goals[0], cols, roomy, rng, refused)
+                tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
+                tails = [(g, e) for g, e in tails if e is not None]
+            if head is not None and tails:
+                t0 = time.perf_counter()
+                try:
+                    mid = self._search(req, head, np.array([e for _, e in tails]), joints,
+                                       roomy, budget / 2, refused)
+                except NoPathFound:
+                    budget -= time.perf_counter() - t0
+                    _log.info("no detour with %.1f mm of room; searching without",
+                              1e3 * self.room)
+                else:
+                    goal, end = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))
+                    # the escape edges, where an end needed one
+                    return np.vstack([[start]] * (head is not start) + [mid]
+                                     + [[goal]] * (end is not goal)), roomy
+        return self._search(req, start, goals, joints, None, budget, refused), None
+
+    def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
+                roomy: StateChecker, rng: np.random.Generator, refused: Refused
+                ) -> np.ndarray | None:
+        # ``end`` if it has the room, else a state with room that a free straight edge
+        # reaches from it, at the shortest distance [rad] where one does: the first of
+        # the directions tried (towards ``toward``, then seeded random ones of the
+        # group's joints). Ranking the found ones by their tree bound (so the edge's
+        # proof needs fewer exact distances) measured no faster on the course model:
+        # the bounds cost what the proof saved.
+        if roomy.is_valid(end):
+            return end
+        lim = self._limits[cols]
+        dirs = [toward[cols] - end[cols]] + list(rng.normal(size=(8, len(cols))))
+        for r in (0.05, 0.1, 0.2, 0.4):
+            for d in dirs:
+                n = float(np.linalg.norm(d))
+                if n == 0:
+                    continue
+                e = end.copy()
+                e[cols] = np.clip(end[cols] + r * d / n, lim[:, 0], lim[:, 1])
+                if roomy.is_valid(e) and self._edge_free(end, e, refused):
+                    return e
+        return None
+
+    def _search(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
+                joints: tuple[str, ...], roomy: StateChecker | None, budget: float,
+                refused: Refused) -> np.ndarray:
+        names = self.world.kin.joint_names
+        return search(roomy or self.world, lambda a, b: self._edge_free(a, b, refused, roomy),
+                      start, goals, np.array([names.index(j) for j in joints], dtype=np.int64),
+                      self._limits, planner=req.planner, seed=req.seed, budget=budget,
+                      planning_time=req.planning_time)

@@ -1,0 +1,70 @@
+"""Room kept per pair: the worlds detours are searched in.
+
+A detour is first searched with every pair the group moves kept ``room`` farther apart
+than the clearance (by the OBB trees alone: :meth:`PathPlanner.roomy
+<arduinobot.planner.planning.paths.PathPlanner.roomy>`). A pair that lacks that room where the
+motion starts or ends, and cannot leave it by a short edge (a camera bolted a millimetre
+from the turntable, which every joint_1 motion turns past it), used to switch the room
+off for every pair. :class:`Guarded` lets such a pair lose it alone: the roomy world
+no longer checks it, a second world checks just those pairs at the plain clearance
+(with the narrow phase), and a state is free when both say so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from arduinobot.planner.collision.motion_check import StateChecker
+from arduinobot.planner.collision.world import CollisionWorld
+
+__all__ = ["Guarded", "StateChecker", "short_of_room"]
+
+@dataclass(frozen=True, eq=False)
+class Guarded:
+    """A roomy world whose ``lost`` pairs are checked by ``guard`` instead.
+
+    Attributes:
+        roomy: every pair the group moves but ``lost`` kept the room apart (trees only).
+        guard: only the ``lost`` pairs, at the exact world's clearance.
+        lost: the pairs that lost the room, by name.
+    """
+
+    roomy: CollisionWorld
+    guard: CollisionWorld
+    lost: tuple[tuple[str, str], ...]
+
+    def is_valid(self, q: ArrayLike) -> bool:
+        """Free in both worlds."""
+        return self.roomy.is_valid(q) and self.guard.is_valid(q)
+
+    def first_invalid(self, qs: ArrayLike) -> int:
+        """Index of the first state of ``qs`` (m, dof) either world refuses, -1 if
+        none (the guard walks only the states before the roomy world's first)."""
+        qs = np.asarray(qs, dtype=float)
+        a = self.roomy.first_invalid(qs)
+        if a == 0:
+            return 0
+        b = self.guard.first_invalid(qs if a < 0 else qs[:a])
+        return b if b >= 0 else a
+
+
+def short_of_room(world: CollisionWorld, roomy: CollisionWorld, ends: ArrayLike, room: float,
+                  *, exact: bool = True) -> tuple[tuple[str, str], ...]:
+    """The pairs of ``roomy`` that lack ``room`` [m] beyond ``world``'s clearance at some
+    state of ``ends`` (k, dof, free states of ``world``), by name, in ``roomy``'s pair
+    order: those its trees cannot prove it for, and with ``exact`` only those of them
+    whose exact distance there is short too (the trees are a few tenths of the distance
+    on CAD meshes: a pair they alone doubt can still leave by a short edge)."""
+    ends = np.atleast_2d(np.asarray(ends, dtype=float))
+    flags = roomy.sweep_candidates(ends)
+    index = {n: p for p, n in enumerate(world.pair_names)}
+    out = []
+    for p in np.flatnonzero(flags.any(axis=0)):
+        name = roomy.pair_names[p]
+        if not exact or any(world.pair_distance(q, index[name]) < world.padding + room
+                            for q, f in zip(ends, flags[:, p]) if f):
+            out.append(name)
+    return tuple(out)

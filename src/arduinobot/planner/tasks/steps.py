@@ -1,0 +1,300 @@
+"""What a task is: a start state, obstacles and an ordered list of steps.
+
+A task's JSON form (the service's ``<prefix>/task`` request, a ``tasks.yaml`` entry) is
+``{"start": {joint: rad}, "obstacles": [...], "steps": [...]}`` with one key naming each
+step's kind::
+
+    {"move": GOAL}                 any plan goal (joints, named, position, line), "group"
+    {"line": {"offset": [dx, dy, dz], "frame": "world" | "tcp"}}   a straight tcp move
+    {"gripper": "open" | "close" | NAME | value | [value, mimic value]}
+    {"attach": OBJECT_ID, "link": LINK, "mass": kg, "touch_links": [...]}
+    {"detach": OBJECT_ID}
+    {"wait": seconds}
+
+and optional ``label``, ``velocity_scaling``, ``acceleration_scaling`` and
+``planning_time`` on a motion step. Parsing refuses a bad step with
+:class:`~arduinobot.contract.errors.InvalidRequest` naming its field (``steps[3].gripper``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.planner.kinematics.rotations import quaternion_of_rpy
+from arduinobot.planner.planning.goals import (
+    Goal,
+    JointGoal,
+    LineGoal,
+    NamedGoal,
+    PoseGoal,
+    PositionGoal,
+)
+from arduinobot.planner.planning.search import check_seed
+from arduinobot.scene.obstacles import Obstacle
+
+StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
+STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait")
+#: the longest wait step [s]: a task is a motion, not a timer
+MAX_WAIT = 60.0
+
+
+@dataclass(frozen=True)
+class MotionOptions:
+    """A motion step's own scalings ([0.01, 1], None: the task's) and planning time [s]."""
+
+    velocity_scaling: float | None = None
+    acceleration_scaling: float | None = None
+    planning_time: float | None = None
+
+
+@dataclass(frozen=True)
+class MoveStep:
+    """Move the ``group`` (None: the goal's, else the default group) to ``goal``; a
+    :class:`~arduinobot.planner.planning.goals.LineGoal` makes it a straight tcp move (``line``)."""
+
+    goal: Goal
+    group: str | None = None
+    options: MotionOptions = MotionOptions()
+    label: str | None = None
+
+    @property
+    def kind(self) -> StepKind:
+        return "line" if isinstance(self.goal, LineGoal) else "move"
+
+
+@dataclass(frozen=True)
+class GripperStep:
+    """Move the gripper group: ``open``/``close`` (its SRDF state ``open``/
+    ``gripper_open``, ``close``/``closed``/``gripper_closed``), another named state of
+    it, or its leading joint's value [rad] (a pair: the leader and its mimic, which must
+    agree)."""
+
+    command: str | float | tuple[float, ...]
+    options: MotionOptions = MotionOptions()
+    label: str | None = None
+    kind: StepKind = field(default="gripper", init=False)
+
+
+@dataclass(frozen=True)
+class AttachStep:
+    """The obstacle ``object`` becomes part of the robot, held by ``link`` (None: the
+    end effector's parent link) where it is now, for every step after this one."""
+
+    object: str
+    link: str | None = None
+    mass: float = 0.0
+    touch_links: tuple[str, ...] = ()
+    label: str | None = None
+    kind: StepKind = field(default="attach", init=False)
+
+
+@dataclass(frozen=True)
+class DetachStep:
+    """The carried ``object`` is put back into the scene where it is now."""
+
+    object: str
+    label: str | None = None
+    kind: StepKind = field(default="detach", init=False)
+
+
+@dataclass(frozen=True)
+class WaitStep:
+    """Hold still for ``seconds`` [s]."""
+
+    seconds: float
+    label: str | None = None
+    kind: StepKind = field(default="wait", init=False)
+
+
+Step = MoveStep | GripperStep | AttachStep | DetachStep | WaitStep
+
+
+@dataclass(frozen=True)
+class Task:
+    """A start state [rad] (None: every actuated joint at 0), the scene's obstacles, the
+    steps, and the options every motion step shares (a step's own override them)."""
+
+    steps: tuple[Step, ...]
+    start: Mapping[str, float] | None = None
+    obstacles: tuple[Obstacle, ...] = ()
+    velocity_scaling: float | None = None
+    acceleration_scaling: float | None = None
+    planning_time: float = 1.0
+    seed: int | None = None
+    name: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.steps:
+            raise InvalidRequest("a task needs at least one step", field="steps")
+
+
+def _number(value: object, where: str, *, low: float = -math.inf,
+            high: float = math.inf) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not math.isfinite(value) or not low <= value <= high:
+        raise InvalidRequest(f"{value!r} must be a number in [{low:g}, {high:g}]", field=where)
+    return float(value)
+
+
+def goal_from_mapping(data: object, where: str) -> Goal:
+    """A plan request's goal (``src/arduinobot/contract/schema/plan_request.json``'s ``goal``): exactly
+    one of ``joints``, ``named``, ``position`` (a pose with ``orientation``), ``line``."""
+    if not isinstance(data, Mapping):
+        raise InvalidRequest("must be a goal object (joints, named, position or line)",
+                             field=where)
+    forms = [k for k in ("joints", "named", "position", "line") if k in data]
+    if len(forms) != 1:
+        raise InvalidRequest("give exactly one of joints, named, position, line", field=where)
+    if "joints" in data:
+        if not isinstance(data["joints"], Mapping):
+            raise InvalidRequest("must map joint names to values [rad]", field=f"{where}.joints")
+        return JointGoal(dict(data["joints"]), where=f"{where}.joints",
+                         tolerances=dict(data.get("tolerances", {})))
+    if "named" in data:
+        if not isinstance(data["named"], str):
+            raise InvalidRequest("must be a state name", field=f"{where}.named")
+        return NamedGoal(data["named"])
+    if "line" in data:
+        return line_from_mapping(data["line"], f"{where}.line")
+    tolerance = _number(data.get("tolerance", 0.0), f"{where}.tolerance", low=0.0)
+    position = data["position"]
+    if "orientation" not in data:
+        return PositionGoal(position, where=f"{where}.position", tolerance=tolerance)
+    o = data["orientation"]
+    if not isinstance(o, Mapping) or ("quaternion" in o) == ("rpy" in o):
+        raise InvalidRequest("give exactly one of quaternion, rpy", field=f"{where}.orientation")
+    quat = o["quaternion"] if "quaternion" in o else quaternion_of_rpy(o["rpy"])
+    options: dict[str, Any] = {"tolerance": tolerance,
+                               "free_axes": tuple(data.get("free_axes", ()))}
+    if "orientation_tolerances" in data:
+        options["orientation_tolerances"] = tuple(data["orientation_tolerances"])
+    return PoseGoal(position=tuple(position), orientation=tuple(quat), **options)
+
+
+def line_from_mapping(data: object, where: str) -> LineGoal:
+    if not isinstance(data, Mapping):
+        raise InvalidRequest("must be {position} or {offset, frame}", field=where)
+    extra = sorted(set(data) - {"position", "offset", "frame"})
+    if extra:
+        raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+    return LineGoal(position=data.get("position"), offset=data.get("offset"),
+                    frame=data.get("frame", "world"))
+
+
+_MOTION_KEYS = {"velocity_scaling", "acceleration_scaling", "planning_time"}
+_KEYS: dict[str, set[str]] = {
+    "move": {"group", *_MOTION_KEYS}, "line": set(_MOTION_KEYS), "gripper": set(_MOTION_KEYS),
+    "attach": {"link", "mass", "touch_links"}, "detach": set(), "wait": set()}
+
+
+def _options(data: Mapping[str, Any], where: str) -> MotionOptions:
+    def opt(key: str, low: float, high: float) -> float | None:
+        return None if key not in data else _number(data[key], f"{where}.{key}", low=low,
+                                                    high=high)
+    return MotionOptions(opt("velocity_scaling", 0.01, 1.0),
+                         opt("acceleration_scaling", 0.01, 1.0),
+                         opt("planning_time", 1e-3, 60.0))
+
+
+def step_from_mapping(data: object, where: str) -> Step:
+    """One step of a task's JSON form (see the module's docstring)."""
+    if not isinstance(data, Mapping):
+        raise InvalidRequest(f"must be an object with one of {', '.join(STEP_KINDS)}",
+                             field=where)
+    kinds = [k for k in STEP_KINDS if k in data]
+    if len(kinds) != 1:
+        raise InvalidRequest(f"give exactly one of {', '.join(STEP_KINDS)}", field=where)
+    kind = kinds[0]
+    extra = sorted(set(data) - {kind, "label"} - _KEYS[kind])
+    if extra:
+        raise InvalidRequest(f"unknown field(s) {', '.join(extra)} for a {kind} step",
+                             field=where)
+    label = data.get("label")
+    if label is not None and not isinstance(label, str):
+        raise InvalidRequest("must be a string", field=f"{where}.label")
+    value = data[kind]
+    at = f"{where}.{kind}"
+    if kind == "move":
+        group = data.get("group")
+        if group is not None and not isinstance(group, str):
+            raise InvalidRequest("must be a group name", field=f"{where}.group")
+        return MoveStep(goal_from_mapping(value, at), group=group,
+                        options=_options(data, where), label=label)
+    if kind == "line":
+        return MoveStep(line_from_mapping(value, at), options=_options(data, where),
+                        label=label)
+    if kind == "gripper":
+        return GripperStep(_gripper_command(value, at), options=_options(data, where),
+                           label=label)
+    if kind in ("attach", "detach"):
+        if not isinstance(value, str) or not value:
+            raise InvalidRequest("must be an obstacle id", field=at)
+        if kind == "detach":
+            return DetachStep(value, label=label)
+        link = data.get("link")
+        if link is not None and not isinstance(link, str):
+            raise InvalidRequest("must be a link name", field=f"{where}.link")
+        touch = data.get("touch_links", ())
+        if not isinstance(touch, Sequence) or isinstance(touch, str) \
+                or not all(isinstance(t, str) for t in touch):
+            raise InvalidRequest("must be a list of link names", field=f"{where}.touch_links")
+        return AttachStep(value, link=link,
+                          mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0),
+                          touch_links=tuple(touch), label=label)
+    return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT), label=label)
+
+
+def _gripper_command(value: object, where: str) -> str | float | tuple[float, ...]:
+    if isinstance(value, str) and value:
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return _number(value, where)
+    if isinstance(value, Sequence) and not isinstance(value, str) and 1 <= len(value) <= 8:
+        return tuple(_number(v, f"{where}[{i}]") for i, v in enumerate(value))
+    raise InvalidRequest(f"{value!r} must be open, close, a named state, a value [rad] or "
+                         "values (the leader, then its mimics)", field=where)
+
+
+def task_from_mapping(data: object, *, where: str = "", name: str | None = None) -> Task:
+    """A :class:`Task` from its JSON form; ``where`` prefixes every field named in an
+    error (``tasks.pick.steps[2]``)."""
+    pre = f"{where}." if where else ""
+    if isinstance(data, Sequence) and not isinstance(data, str):
+        data = {"steps": data}  # a tasks.yaml entry may be its steps alone
+    if not isinstance(data, Mapping):
+        raise InvalidRequest("must be an object with steps", field=where or "task")
+    known = {"steps", "start", "obstacles", "velocity_scaling", "acceleration_scaling",
+             "planning_time", "seed", "name", "description"}
+    extra = sorted(set(data) - known)
+    if extra:
+        raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where or "task")
+    steps = data.get("steps")
+    if not isinstance(steps, Sequence) or isinstance(steps, str) or not steps:
+        raise InvalidRequest("must be a non-empty list of steps", field=f"{pre}steps")
+    start = data.get("start")
+    if start is not None and not isinstance(start, Mapping):
+        raise InvalidRequest("must map joint names to values [rad]", field=f"{pre}start")
+    obstacles = data.get("obstacles", ())
+    if not isinstance(obstacles, Sequence) or isinstance(obstacles, str):
+        raise InvalidRequest("must be a list of obstacles", field=f"{pre}obstacles")
+    seed = data.get("seed")
+    check_seed(seed, f"{pre}seed")
+    vs, acc = data.get("velocity_scaling"), data.get("acceleration_scaling")
+    return Task(
+        steps=tuple(step_from_mapping(s, f"{pre}steps[{i}]") for i, s in enumerate(steps)),
+        start=None if start is None else {str(k): _number(v, f"{pre}start.{k}")
+                                          for k, v in start.items()},
+        obstacles=tuple(o if isinstance(o, Obstacle) else
+                        Obstacle.from_mapping(o, where=f"{pre}obstacles[{i}]")
+                        for i, o in enumerate(obstacles)),
+        velocity_scaling=None if vs is None else _number(vs, f"{pre}velocity_scaling",
+                                                         low=0.01, high=1.0),
+        acceleration_scaling=None if acc is None else _number(
+            acc, f"{pre}acceleration_scaling", low=0.01, high=1.0),
+        planning_time=_number(data.get("planning_time", 1.0), f"{pre}planning_time",
+                              low=1e-3, high=60.0),
+        seed=seed, name=name if name is not None else data.get("name"))

@@ -1,0 +1,48 @@
+"""Speak rmw_zenoh's wire format, so a ROS 2 workspace running ``rmw_zenoh_cpp`` sees us.
+
+No ROS install: keys, liveliness tokens and attachments are built here from rmw_zenoh's
+design document and source (each module cites the file and commit); CDR and RIHS01 type
+hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attachment`,
+:mod:`.qos`, :mod:`.names`, :mod:`.graph` (keys, tokens, GIDs), then :mod:`.topics` and
+:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states`,
+:mod:`.controllers`, :mod:`.control_msgs` and :mod:`.trajectory_target` (trajectories
+to ros2_control's joint_trajectory_controllers) and
+:mod:`.task_server` (the course's /task_server action).
+Nothing here imports ``src/arduinobot/client/`` or ``src/arduinobot/service/``. Needs the ``ros2`` extra (rosbags, xxhash).
+"""
+
+from arduinobot.ros2.actions import ActionClient, ActionServer, GoalHandle
+from arduinobot.ros2.attachment import Attachment, AttachmentLayout
+from arduinobot.ros2.errors import (
+    ControllerFailed,
+    ControllerUnavailable,
+    EntityClosed,
+    GoalAlreadyEnded,
+    GoalRejected,
+    InvalidName,
+    InvalidOption,
+    InvalidTypeDefinition,
+    MalformedAttachment,
+    MalformedCdr,
+    MalformedToken,
+    MessageMismatch,
+    NoController,
+    Ros2Error,
+    ServiceFailed,
+    UnknownType,
+)
+from arduinobot.ros2.joint_states import JointStates, open_joint_states
+from arduinobot.ros2.node import Node
+from arduinobot.ros2.qos import QoS
+from arduinobot.ros2.task_server import TaskServer
+from arduinobot.ros2.types import TypeStore
+
+__all__ = [
+    "ActionClient", "ActionServer", "Attachment", "AttachmentLayout", "ControllerFailed",
+    "ControllerUnavailable", "EntityClosed", "GoalAlreadyEnded", "GoalHandle", "GoalRejected",
+    "InvalidName", "InvalidOption", "InvalidTypeDefinition",
+    "JointStates", "MalformedAttachment", "MalformedCdr", "MalformedToken", "MessageMismatch",
+    "NoController", "Node", "QoS", "Ros2Error", "ServiceFailed", "TaskServer", "TypeStore",
+    "UnknownType",
+    "open_joint_states",
+]

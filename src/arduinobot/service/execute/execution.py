@@ -1,0 +1,329 @@
+"""Executing trajectories on the service's robot: ``<prefix>/execute`` and friends.
+
+``arduinobot serve`` plugs this into the service (:class:`arduinobot.service.server.ServeOptions`
+``extensions``): the service plans, :mod:`execution` drives the robot, as the service's
+workers use the planner.
+
+The keys and their requests are the README's ("Moving the arm"); a request is checked
+against ``src/arduinobot/contract/schema/execute_request.json`` by :func:`arduinobot.contract.wire.decode`, as every
+other request is. ``<p>/execute`` replies on the one query (get it with consolidation
+NONE) ``{"event": "started", "execution", "duration"}``, ``{"event": "progress", ...}``
+every :data:`arduinobot.service.execute.run.PROGRESS_EVERY` ticks, then ``{"event": "finished", "execution", "report"}``;
+a plan without ``start`` starts from the robot's state; ``start_tolerance`` defaults to
+0.01 rad. A blend (``"blend": true`` with a ``plan`` while the arm moves) is planned from
+the setpoint :data:`BLEND_LEAD` ahead and gets one reply, ``{"event": "blended",
+"execution", "tick", "duration"}`` (or ``TOO_LATE``); the running execution's stream goes
+on to its final report. Errors as everywhere: ``{"error": {code, message, details}}``;
+a driver that fails mid-motion (the port unplugged, a write that stalls) ends the stream
+with its coded error, whose details hold the last setpoint the arm took, and the next
+request opens the port afresh.
+
+The robot is MuJoCo's twin by default (built on first use, off Zenoh's callback thread,
+so ``serve`` needs MuJoCo only when executing), the real arm with ``serve --serial PORT``
+(opened at start, so a missing or busy port fails the start).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
+
+import orjson
+import zenoh
+
+from arduinobot.contract import wire
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description import Description
+from arduinobot.execution.executor import (
+    ExecuteOptions,
+    ExecutionBusy,
+    Executor,
+    TooLate,
+    plan_start,
+)
+from arduinobot.execution.joint_states import tick_message
+from arduinobot.execution.report import Tick
+from arduinobot.execution.robots.base import JointState, Robot
+from arduinobot.execution.robots.spec import RobotSpec, twin_start
+from arduinobot.execution.segments import SampledTrajectory
+from arduinobot.service.execute.io import JSON, ExecuteRequest, answering, payload_of, reply_err
+from arduinobot.service.execute.run import Run
+from arduinobot.service.execute.twin_scene import TwinScene
+from arduinobot.service.keyguard import addressed_exactly
+from arduinobot.service.messages import Failure, Outcome
+
+if TYPE_CHECKING:
+    from arduinobot.service.scene.store import SceneSnapshot
+
+_log = logging.getLogger(__name__)
+
+BLEND_LEAD = 0.8  # [s] ahead of the arm a blend is planned for (planning must finish)
+
+# submit(plan request dict, respond(Success | Failure)) -> None: hands a plan job to the
+# pool; respond is called once, from a pool thread
+SubmitPlan = Callable[[dict[str, Any], Callable[[Outcome], None]], None]
+
+
+class TickSink(Protocol):
+    """Another consumer of each execution tick (``serve --ros2``'s /joint_states: a
+    ``arduinobot.ros2.JointStates``), called on the executor's thread; closed with the service."""
+
+    def __call__(self, tick: Tick) -> None: ...
+
+    def close(self) -> None: ...
+
+
+# open(session, description) -> TickSink: built once the service's session is open
+OpenTickSink = Callable[[zenoh.Session, Description], TickSink]
+
+
+class ExecuteService:
+    """The execute, cancel and robot_state queryables and the joint_states publisher."""
+
+    def __init__(self, session: zenoh.Session, prefix: str, description: Description,
+                 spec: RobotSpec, *, submit_plan: SubmitPlan | None = None,
+                 tick_sink: TickSink | None = None) -> None:
+        self.session, self.prefix, self.description, self.spec = (session, prefix,
+                                                                   description, spec)
+        self.submit_plan = submit_plan
+        self.tick_sink = tick_sink
+        self._sink_failed = False  # logged once: a failing sink never stops the arm
+        self._robot: Robot | None = None
+        self._executor: Executor | None = None
+        self._robot_lock = threading.Lock()
+        self._busy = threading.Lock()
+        self.cancel = threading.Event()  # set: the running execution stops smoothly
+        self._current: str | None = None
+        self.thread: threading.Thread | None = None
+        self.running: Executor | None = None  # the Executor playing now
+        self._ids = itertools.count(1)
+        self._publisher: zenoh.Publisher | None = None
+        self._entities: list[zenoh.Publisher | zenoh.Queryable] = []
+        #: the kept scene now (the server sets it): a twin takes its objects and carried
+        #: objects before each execution (SimArduinobot.set_scene)
+        self.scene_source: Callable[[], SceneSnapshot | None] | None = None
+        self.twin_scene = TwinScene()  # what the twin holds of it
+
+    def start(self) -> None:
+        if self.spec.kind == "serial":
+            self.robot()  # a missing or busy port fails the start, clearly
+
+        p = self.prefix
+        s = self.session
+        self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
+        self._entities.append(self._publisher)
+        # execute builds the twin on first use (seconds on CAD meshes) or waits for the
+        # pool, robot_state may wait for a port: on their own threads, never on Zenoh's
+        for key, fn, threaded in ((f"{p}/execute", self._on_execute, True),
+                                  (f"{p}/execute/cancel", self._on_cancel, False),
+                                  (f"{p}/robot_state", self._on_state, True)):
+            self._entities.append(s.declare_queryable(
+                key, self._guard(key, fn, threaded=threaded), complete=True))
+        _log.info("execute: robot %s%s, %g Hz; keys %s/{execute,execute/cancel,robot_state,"
+                  "joint_states}", self.spec.kind,
+                  f" on {self.spec.port}" if self.spec.port else "", self.spec.rate, p)
+
+    def close(self) -> None:
+        """Stop a running execution smoothly, then release the robot."""
+        self.cancel.set()
+        if self.thread is not None:
+            self.thread.join(10.0)
+        for e in reversed(self._entities):
+            try:
+                e.undeclare()
+            except zenoh.ZError as err:  # closing goes on: the session's end drops it too
+                _log.warning("undeclaring %s failed: %s", e, err)
+        self._entities.clear()
+        self.drop_robot()
+        if self.tick_sink is not None:
+            try:
+                self.tick_sink.close()
+            except Exception:  # noqa: BLE001 -- closing goes on; the session ends it too
+                _log.exception("closing the tick sink failed")
+            self.tick_sink = None
+
+    def publish_tick(self, tick: Tick) -> dict[str, Any]:
+        """Publish ``tick`` on ``<prefix>/joint_states`` and hand it to the sink; its
+        message. The sink's failure is logged (once) and never reaches the executor:
+        /joint_states for RViz must not stop the arm."""
+        msg = tick_message(tick)
+        if self._publisher is not None:
+            self._publisher.put(wire.encode(msg))
+        sink = self.tick_sink
+        if sink is None:
+            return msg
+        try:
+            sink(tick)
+        except Exception:  # noqa: BLE001 -- logged; the motion goes on
+            if not self._sink_failed:
+                self._sink_failed = True
+                _log.exception("publishing a tick failed (further failures not logged)")
+        return msg
+
+    # -- the robot ------------------------------------------------------------------------
+
+    def executor(self) -> Executor:
+        """The robot's executor, the robot opened on first use (the twin) or at start (the
+        real arm), or again after its port failed."""
+        with self._robot_lock:
+            if self._executor is None:
+                self._robot = self.spec.open(self.description)
+                self._executor = Executor.for_description(  # in real time, the twin too
+                    self._robot, self.description, options=ExecuteOptions(rate=self.spec.rate))
+            return self._executor
+
+    def robot(self) -> Robot:
+        return self.executor().robot
+
+    def drop_robot(self) -> None:
+        """Release the robot (after its port failed: the next request opens it again)."""
+        with self._robot_lock:
+            if self._robot is not None:
+                try:
+                    self._robot.close()
+                except OSError as e:  # a vanished port may not close cleanly: it is gone
+                    _log.warning("closing the robot: %s", e)
+            self._robot, self._executor = None, None
+
+    # -- queries --------------------------------------------------------------------------
+    def _guard(self, key: str, fn: Callable[[zenoh.Query], None], *, threaded: bool
+               ) -> Callable[[zenoh.Query], None]:
+        def handle(query: zenoh.Query) -> None:
+            with answering(query, key, "unexpected failure in the service"):
+                fn(query)
+
+        def on_query(query: zenoh.Query) -> None:
+            if not addressed_exactly(key, query):
+                return  # a wildcard must not move the arm (see arduinobot.service.keyguard)
+            if threaded:
+                threading.Thread(target=handle, args=(query,), daemon=True,
+                                 name=key.rsplit("/", 1)[-1]).start()
+            else:
+                handle(query)
+        return on_query
+
+    def _on_state(self, query: zenoh.Query) -> None:
+        query.reply(f"{self.prefix}/robot_state", wire.encode(self.state().to_dict()),
+                    encoding=JSON)
+
+    def state(self) -> JointState:
+        """The robot's state. A twin not opened yet is where it will start: said without
+        opening it (seconds on CAD meshes: longer than a scene attach waits for it)."""
+        if self.spec.kind == "sim" and self._executor is None:
+            return twin_start(self.description)
+        return self.robot().state()
+
+    def _on_cancel(self, query: zenoh.Query) -> None:
+        raw = payload_of(query)
+        body = wire.parse_json(raw) if raw else {}
+        want = body.get("execution") if isinstance(body, dict) else None
+        cur = self._current
+        hit = cur is not None and (want is None or want == cur)
+        if hit:
+            _log.info("execution %s: cancel requested", cur)
+            self.cancel.set()
+        query.reply(f"{self.prefix}/execute/cancel",
+                    wire.encode({"cancelled": cur if hit else None}), encoding=JSON)
+
+    def _on_execute(self, query: zenoh.Query) -> None:
+        req = ExecuteRequest.decode(payload_of(query))
+        robot = self.robot()
+        if req.blend:
+            self._blend(query, req)
+            return
+        if not self._busy.acquire(blocking=False):
+            raise ExecutionBusy(f"the robot is executing {self._current}; cancel it first "
+                                "(<prefix>/execute/cancel)",
+                                details={"execution": self._current})
+        try:
+            execution = f"x{next(self._ids)}"
+            self._current = execution
+            self.cancel.clear()
+            run = Run(self, query, execution, req)
+            self._scene_to_twin(robot, (req.plan or {}).get("obstacles") or (), req.twin)
+            if req.trajectory is not None:
+                run.start_with(SampledTrajectory.from_json(req.trajectory))
+                return
+            plan = dict(req.plan or {})
+            if "start" not in plan:
+                plan["start"] = plan_start(robot, self.description)
+            self._plan(plan, run.on_planned)
+        except BaseException:
+            self.finish()
+            raise
+
+    def _scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
+                       twin: Mapping[str, Any] | None = None) -> None:
+        """Give a twin the kept scene now with the plan's ``own`` obstacles, or a task's
+        ``twin`` objects (:meth:`TwinScene.give`)."""
+        snap = self.scene_source() if self.scene_source is not None else None
+        self.twin_scene.give(robot, snap, own, twin)
+
+    def _plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
+        """Hand the plan ``request`` to the pool (checked first); ``respond`` gets its outcome."""
+        if self.submit_plan is None:
+            raise InvalidRequest("this service cannot plan", field="plan")
+        self.submit_plan(wire.decode("plan", wire.encode(request)), respond)
+
+    def _blend(self, query: zenoh.Query, req: ExecuteRequest) -> None:
+        """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
+        (a moving start) and switch to it at that tick, where a twin also takes the
+        world the plan was made in (:meth:`TwinScene.at_switch`); one reply, ``blended``
+        or an error (``TOO_LATE`` when the arm stops first or planning took too long)."""
+        if req.plan is None:
+            raise InvalidRequest("a blend needs a plan request (the new goal)", field="plan")
+        ex, execution = self.running, self._current
+        if ex is None:
+            raise TooLate("nothing is moving: send the goal without blend")
+        k, q, qd, qdd = ex.lookahead(BLEND_LEAD)
+        names = ex.robot.joint_names
+        # the world the blend is planned in, for the twin at the switch tick
+        snap = self.scene_source() if self.scene_source is not None else None
+        own = req.plan.get("obstacles") or ()
+        plan = {**req.plan, "start": dict(zip(names, q.tolist())),
+                "start_velocity": dict(zip(names, qd.tolist())),
+                "start_acceleration": dict(zip(names, qdd.tolist()))}
+        key = f"{self.prefix}/execute"
+
+        def on_planned(outcome: Outcome) -> None:
+            with answering(query, key, "the blend failed"):
+                if isinstance(outcome, Failure):
+                    reply_err(query, outcome.code, outcome.message, outcome.details)
+                else:
+                    traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
+                    ex.switch(traj, k, on_switch=self.twin_scene.at_switch(ex.robot, snap,
+                                                                            own))
+                    query.reply(key, wire.encode({"event": "blended", "execution": execution,
+                                                  "tick": k, "duration": traj.duration}),
+                                encoding=JSON)
+            query.drop()
+        self._plan(plan, on_planned)
+
+    def finish(self) -> None:
+        """The execution is over: the robot takes the next one."""
+        self._current = None
+        if self._busy.locked():
+            self._busy.release()
+
+
+def execute_extension(spec: RobotSpec, *, tick_sink: OpenTickSink | None = None
+                      ) -> Callable[..., ExecuteService]:
+    """A :class:`arduinobot.service.server.ServeOptions` extension serving ``<prefix>/execute`` on
+    the robot ``spec`` describes (started once the service's session is open);
+    ``tick_sink(session, description)`` opens another consumer of every tick (``serve
+    --ros2``'s /joint_states), closed with the service."""
+    def make(session: zenoh.Session, prefix: str, description: Description,
+             submit_plan: SubmitPlan) -> ExecuteService:
+        sink = tick_sink(session, description) if tick_sink is not None else None
+        svc = ExecuteService(session, prefix, description, spec, submit_plan=submit_plan,
+                             tick_sink=sink)
+        try:
+            svc.start()
+        except BaseException:
+            svc.close()
+            raise
+        return svc
+    return make

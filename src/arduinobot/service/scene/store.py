@@ -1,0 +1,395 @@
+"""The planning scene that lasts: its objects at a revision and how an apply changes it
+(all or nothing); its file on disk is :mod:`arduinobot.service.scene.file`'s.
+
+A :class:`SceneState` is immutable: :func:`apply` builds the next one or raises, so a
+refused apply leaves the scene as it was by construction. Each object keeps its wire form
+(what ``<prefix>/scene`` answers, meshes as sent) and its
+:class:`~arduinobot.scene.obstacles.Obstacle` (a mesh as its content-addressed file, see
+:mod:`arduinobot.scene.mesh_codec`), which is what plans and checks use. The sharing between
+instances is :mod:`arduinobot.service.scene.sync`'s.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    from arduinobot.service.scene.carry import RobotFrames
+
+import numpy as np
+
+from arduinobot.contract.errors import InvalidRequest, SceneConflict
+from arduinobot.scene.mesh_codec import decode_mesh, scale_of
+from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
+
+_log = logging.getLogger(__name__)
+
+#: Most objects a scene holds (as many as a plan request's own obstacles).
+MAX_SCENE_OBJECTS = 256
+#: The frame a free object is placed in unless it names a link's (then it moves with that
+#: link); a carried one is in its link's frame, see ``attach``.
+WORLD = "world"
+#: Where an apply's robot state came from (``state_source`` in its reply).
+StateSource = Literal["request", "robot", "zero"]
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """One object of the scene: ``data`` its wire form, ``obstacle`` its geometry (posed
+    in the world, or in its ``link``'s frame: ``fixed``, the object as plans carry it)."""
+
+    id: str
+    data: Mapping[str, Any]
+    obstacle: Obstacle
+    fixed: AttachedObject | None = None
+
+    @property
+    def link(self) -> str | None:
+        """The link whose frame it is fixed in (None: the world)."""
+        return None if self.fixed is None else self.fixed.link
+
+
+@dataclass(frozen=True)
+class SceneAttached:
+    """One carried object: ``data`` its wire form (``{"object", "link", "touch_links",
+    "mass", "com"}``, the object's xyz/rpy in the link's frame), ``attached`` what plans
+    and checks carry."""
+
+    id: str
+    data: Mapping[str, Any]
+    attached: AttachedObject
+
+
+@dataclass(frozen=True)
+class SceneSnapshot:
+    """What a plan or check needs of the scene: its revision, obstacles (small: a mesh is
+    a file path) and carried objects, sent with each job to a worker."""
+
+    revision: int
+    obstacles: tuple[Obstacle, ...] = ()
+    attached: tuple[AttachedObject, ...] = ()
+    #: the ids among ``attached`` that are objects fixed in a link's frame (not picked up)
+    fixed: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True)
+class SceneState:
+    """The scene at one revision (0: empty, never changed)."""
+
+    revision: int = 0
+    objects: tuple[SceneObject, ...] = ()
+    attached: tuple[SceneAttached, ...] = ()
+    snapshot: SceneSnapshot = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # an object in a link's frame moves with its link: plans carry it (massless)
+        object.__setattr__(self, "snapshot", SceneSnapshot(
+            self.revision, tuple(o.obstacle for o in self.objects if o.fixed is None),
+            tuple(a.attached for a in self.attached)
+            + tuple(o.fixed for o in self.objects if o.fixed is not None),
+            frozenset(o.id for o in self.objects if o.fixed is not None)))
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``<prefix>/scene`` reply (and the scene file)."""
+        return {"revision": self.revision, "objects": [dict(o.data) for o in self.objects],
+                "attached": [dict(a.data) for a in self.attached]}
+
+    def ids(self) -> tuple[str, ...]:
+        return tuple(o.id for o in self.objects)
+
+    def attached_ids(self) -> tuple[str, ...]:
+        return tuple(a.id for a in self.attached)
+
+
+class SceneBuilder:
+    """Turns wire objects into :class:`SceneObject` for one robot (its link names may not
+    be object ids or frames) and one folder for mesh files; with ``robot`` (its link
+    poses and collision checks) it can attach and detach too."""
+
+    def __init__(self, link_names: Sequence[str], mesh_dir: str | os.PathLike[str], *,
+                 robot: RobotFrames | None = None) -> None:
+        self.link_names = frozenset(link_names)
+        self.mesh_dir = Path(mesh_dir)
+        self.robot = robot
+
+    def build(self, data: Mapping[str, Any], where: str) -> SceneObject:
+        """One object (schema-valid, see ``scene_apply_request.json``) at field ``where``.
+
+        An object in a link's frame moves with that link: it is checked against the scene
+        and every link but those rigidly joined to its own (:func:`arduinobot.scene.obstacles.rigid_links`).
+
+        Raises:
+            InvalidRequest: an unknown frame (or a link's without a robot model), an id
+                that is a link name, a bad primitive or mesh.
+        """
+        if not isinstance(data, Mapping):
+            raise InvalidRequest("must be an object", field=where)
+        frame = data.get("frame", WORLD)
+        if frame != WORLD and frame not in self.link_names:
+            raise InvalidRequest(f"'{frame}' is neither 'world' nor a link of the robot",
+                                 field=f"{where}.frame",
+                                 details={"links": sorted(self.link_names)})
+        if frame != WORLD and self.robot is None:
+            raise InvalidRequest("this scene holds objects in the world only (no robot "
+                                 "model)", field=f"{where}.frame")
+        oid = data.get("id")
+        if oid in self.link_names:
+            raise InvalidRequest(f"id '{oid}' is also a link name", field=f"{where}.id")
+        geometry = {k: v for k, v in data.items()
+                    if k not in ("frame", "mesh", "scale", "touch_links")}
+        if data.get("shape") == "mesh":
+            if "mesh" not in data:
+                raise InvalidRequest("a mesh object needs mesh {format, data}",
+                                     field=f"{where}.mesh")
+            mesh = decode_mesh(data["mesh"], scale=scale_of(data.get("scale"), f"{where}.scale"),
+                               field=f"{where}.mesh")
+            geometry["mesh_path"] = str(mesh.write(self.mesh_dir))
+        elif "mesh" in data or "scale" in data:
+            bad = "mesh" if "mesh" in data else "scale"
+            raise InvalidRequest("only a mesh object takes it", field=f"{where}.{bad}")
+        obstacle = Obstacle.from_mapping(geometry, where=where)
+        extra = data.get("touch_links") or ()
+        if frame == WORLD:
+            if "touch_links" in data:
+                raise InvalidRequest("only an object in a link's frame takes it (a carried "
+                                     "object's are its attach's)", field=f"{where}.touch_links")
+            return SceneObject(obstacle.id, dict(data), obstacle)
+        for i, t in enumerate(extra):
+            if t not in self.link_names:
+                raise InvalidRequest(f"'{t}' is not a link of the robot",
+                                     field=f"{where}.touch_links[{i}]")
+        assert self.robot is not None  # refused above
+        rigid = rigid_links(self.robot.description, frame)
+        touch = rigid + tuple(t for t in extra if t not in rigid)
+        return SceneObject(obstacle.id, dict(data), obstacle,
+                           AttachedObject(obstacle, frame, touch, where=where))
+
+
+def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *,
+          max_objects: int = MAX_SCENE_OBJECTS) -> SceneState:
+    """The scene after ``change`` (a schema-valid apply request), all or nothing: the
+    whole scene is cleared (``clear``: carried objects too), then ``remove``'s ids go,
+    ``add``'s objects come, ``detach``'s objects are put down in the world where their
+    link holds them, ``attach``'s are taken into their link's frame where they are, and
+    the revision goes up by one. The robot's state for attach and detach is
+    ``change["state"]`` (all joints 0 without it: the service fills it in, see
+    :mod:`arduinobot.service.scene.sync`).
+
+    Raises:
+        SceneConflict: ``if_revision`` is not ``state.revision``.
+        InvalidRequest: removing an id the scene does not hold (or one twice, or one that
+            is carried), a duplicate id, an object the builder refuses, more than
+            ``max_objects`` objects, detaching what is not carried, attaching to an unknown
+            link or an unknown object, or one that already touches a link that is not a
+            touch link (``details.pairs``); each naming its field.
+    """
+    if "if_revision" in change and change["if_revision"] != state.revision:
+        raise SceneConflict(f"the scene is at revision {state.revision}, not "
+                            f"{change['if_revision']}: read it and apply again",
+                            field="if_revision", current_revision=state.revision)
+    cleared = bool(change.get("clear"))
+    objects = {} if cleared else {o.id: o for o in state.objects}
+    carried = {} if cleared else {a.id: a for a in state.attached}
+    for i, oid in enumerate(change.get("remove") or ()):
+        if oid in carried:
+            raise InvalidRequest(f"'{oid}' is carried by '{carried[oid].attached.link}': "
+                                 "detach it first (in the same apply, if you like)",
+                                 field=f"remove[{i}]")
+        if oid not in objects:
+            raise InvalidRequest(f"no object '{oid}' in the scene"
+                                 + (" (cleared first)" if cleared else ""),
+                                 field=f"remove[{i}]")
+        del objects[oid]
+    for i, item in enumerate(change.get("add") or ()):
+        where = f"add[{i}]"
+        oid = item.get("id") if isinstance(item, Mapping) else None
+        if oid in objects or oid in carried:
+            raise InvalidRequest(f"duplicate id '{oid}': the scene already holds it (remove "
+                                 "it in the same apply to replace it)", field=f"{where}.id")
+        obj = builder.build(item, where)
+        objects[obj.id] = obj
+    if change.get("attach") or change.get("detach"):
+        _carry(change, objects, carried, builder)
+    if len(objects) + len(carried) > max_objects:
+        raise InvalidRequest(f"the scene would hold {len(objects) + len(carried)} objects, "
+                             f"more than its cap of {max_objects}", field="add",
+                             details={"limit": max_objects, "cap": "MAX_SCENE_OBJECTS"})
+    return SceneState(state.revision + 1, tuple(objects.values()), tuple(carried.values()))
+
+
+def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
+           carried: dict[str, SceneAttached], builder: SceneBuilder) -> None:
+    """``change``'s detach, then attach, on ``objects`` and ``carried`` (in place)."""
+    robot = builder.robot
+    if robot is None:
+        raise InvalidRequest("this scene cannot carry objects (no robot model)",
+                             field="attach" if change.get("attach") else "detach")
+    q = robot.state(change.get("state"), field="state")
+    for i, oid in enumerate(change.get("detach") or ()):
+        where = f"detach[{i}]"
+        held = carried.pop(oid, None)
+        if held is None:
+            raise InvalidRequest(f"'{oid}' is not carried"
+                                 + (" (it is a free object of the scene)"
+                                    if oid in objects else ""), field=where,
+                                 details={"attached": sorted(carried)})
+        world = robot.link_pose(q, held.attached.link) @ held.attached.shape.pose()
+        objects[oid] = builder.build(_posed(held.data["object"], world), where)
+    for i, item in enumerate(change.get("attach") or ()):
+        where = f"attach[{i}]"
+        link = item.get("link")
+        if link not in builder.link_names:
+            raise InvalidRequest(f"'{link}' is not a link of the robot", field=f"{where}.link",
+                                 details={"links": sorted(builder.link_names)})
+        for t in item.get("touch_links") or ():
+            if t not in builder.link_names:
+                raise InvalidRequest(f"'{t}' is not a link of the robot",
+                                     field=f"{where}.touch_links")
+        ref = item.get("object")
+        link_pose = robot.link_pose(q, link)
+        if isinstance(ref, str):
+            if ref in carried:
+                raise InvalidRequest(f"'{ref}' is already carried by "
+                                     f"'{carried[ref].attached.link}'", field=f"{where}.object")
+            if ref not in objects:
+                raise InvalidRequest(f"no object '{ref}' in the scene", field=f"{where}.object",
+                                     details={"objects": sorted(objects)})
+            free = objects.pop(ref)
+            world = free.obstacle.pose() if free.link is None \
+                else robot.link_pose(q, free.link) @ free.obstacle.pose()
+            data = _posed(free.data, np.linalg.inv(link_pose) @ world)
+        else:
+            oid = ref.get("id") if isinstance(ref, Mapping) else None
+            if oid in objects or oid in carried:
+                raise InvalidRequest(f"duplicate id '{oid}': the scene already holds it "
+                                     "(attach it by its id)", field=f"{where}.object.id")
+            frame = ref.get("frame", WORLD)
+            if frame not in (WORLD, link):
+                raise InvalidRequest(f"a carried object is given in 'world' or in its link's "
+                                     f"frame ('{link}'), not '{frame}'",
+                                     field=f"{where}.object.frame")
+            given = {k: v for k, v in ref.items() if k != "frame"}
+            built = builder.build(given, f"{where}.object")  # validated as given
+            data = given if frame == link else _posed(
+                given, np.linalg.inv(link_pose) @ built.obstacle.pose())
+        held = _held(data, item, builder, f"{where}.object")
+        pairs = robot.link_contacts(held.attached, q)
+        if pairs:
+            raise InvalidRequest(
+                f"'{held.id}' already touches {', '.join(sorted({b for _, b in pairs}))} of "
+                f"the robot, not among its touch links {list(held.attached.touch_links)}: "
+                "move the arm, or name the link in touch_links", field=where,
+                details={"pairs": [list(p) for p in pairs]})
+        carried[held.id] = held
+
+
+def _held(obj: Mapping[str, Any], item: Mapping[str, Any], builder: SceneBuilder,
+          where: str) -> SceneAttached:
+    """A carried object from its wire object (pose in the link's frame) and the rest of
+    its attach item (link, touch_links, mass, com), with its default touch links."""
+    built = builder.build(obj, where)
+    robot = builder.robot
+    assert robot is not None  # only an attach or a restore with a robot gets here
+    a = robot.resolve(AttachedObject(built.obstacle, item["link"],
+                                     tuple(item.get("touch_links") or ()),
+                                     float(item.get("mass", 0.0)), item.get("com"),
+                                     where=where.removesuffix(".object")))
+    data: dict[str, Any] = {"object": dict(obj), "link": a.link,
+                            "touch_links": list(a.touch_links), "mass": a.mass}
+    if a.com is not None:
+        data["com"] = list(a.com)
+    return SceneAttached(a.id, data, a)
+
+
+def _posed(data: Mapping[str, Any], pose: np.ndarray) -> dict[str, Any]:
+    """``data`` (a wire object) at ``pose`` (4x4), rounded to 1e-12 so a value that is 0
+    reads 0; no ``frame`` (the caller knows which it is) nor the ``touch_links`` of an
+    object fixed in a link's frame (an attach names its own)."""
+    out = {k: v for k, v in data.items() if k not in ("frame", "touch_links")}
+    out["xyz"] = [round(float(v), 12) + 0.0 for v in pose[:3, 3]]
+    out["rpy"] = [round(v, 12) + 0.0 for v in rpy_of(pose[:3, :3])]
+    return out
+
+
+def rpy_of(m: np.ndarray) -> list[float]:
+    """URDF roll-pitch-yaw [rad] of a rotation matrix, shape (3, 3)."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(m[2, 0]))))
+    if abs(math.cos(pitch)) > 1e-9:
+        roll = math.atan2(float(m[2, 1]), float(m[2, 2]))
+        yaw = math.atan2(float(m[1, 0]), float(m[0, 0]))
+    else:  # gimbal lock: put it all in yaw
+        roll, yaw = 0.0, math.atan2(-float(m[0, 1]), float(m[1, 1]))
+    return [roll, pitch, yaw]
+
+
+def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
+    """A scene from its JSON form (:meth:`SceneState.to_json`: a file, or another
+    instance's ``<prefix>/scene`` reply), every object validated again."""
+    revision = data.get("revision")
+    if isinstance(revision, bool) or not isinstance(revision, int) or revision < 0:
+        raise InvalidRequest(f"{revision!r} is not a revision (an integer >= 0)",
+                             field="revision")
+    objects = data.get("objects") or []
+    if not isinstance(objects, list):
+        raise InvalidRequest("must be a list of objects", field="objects")
+    items = data.get("attached") or []
+    if not isinstance(items, list):
+        raise InvalidRequest("must be a list of carried objects", field="attached")
+    if items and builder.robot is None:
+        raise InvalidRequest("this scene cannot carry objects (no robot model)",
+                             field="attached")
+    if len(objects) > MAX_SCENE_OBJECTS:
+        raise InvalidRequest(f"{len(objects)} objects, more than a scene's cap of "
+                             f"{MAX_SCENE_OBJECTS}", field="objects")
+    free: dict[str, SceneObject] = {}
+    for i, item in enumerate(objects):
+        where = f"objects[{i}]"
+        oid = item.get("id") if isinstance(item, Mapping) else None
+        if oid in free:
+            raise InvalidRequest(f"duplicate id '{oid}'", field=f"{where}.id")
+        obj = builder.build(item, where)
+        free[obj.id] = obj
+    ids = set(free)
+    held = []
+    for i, item in enumerate(items):
+        where = f"attached[{i}]"
+        if not isinstance(item, Mapping) or not isinstance(item.get("object"), Mapping) \
+                or item.get("link") not in builder.link_names:
+            raise InvalidRequest("must be {object, link (of the robot), ...}", field=where)
+        a = _held(item["object"], item, builder, f"{where}.object")
+        if a.id in ids:
+            raise InvalidRequest(f"duplicate id '{a.id}'", field=f"{where}.object.id")
+        ids.add(a.id)
+        held.append(a)
+    if len(free) + len(held) > MAX_SCENE_OBJECTS:
+        raise InvalidRequest(f"{len(free) + len(held)} objects, more than a scene's cap of "
+                             f"{MAX_SCENE_OBJECTS}", field="attached")
+    return SceneState(revision, tuple(free.values()), tuple(held))
+
+
+def with_scene(snapshot: SceneSnapshot | None, data: Mapping[str, Any],
+               own: tuple[Obstacle, ...]) -> tuple[tuple[Obstacle, ...], int]:
+    """A plan's or check's obstacles: the kept scene's, then the request's own; and the
+    scene's revision (0 without a scene: nothing kept).
+
+    Raises:
+        SceneConflict: the request pins ``scene_revision`` and the scene is elsewhere.
+        InvalidRequest: a request obstacle has the id of a scene object.
+    """
+    snap = snapshot if snapshot is not None else SceneSnapshot(0)
+    pinned = data.get("scene_revision")
+    if pinned is not None and pinned != snap.revision:
+        raise SceneConflict(f"the scene is at revision {snap.revision}, not {pinned}",
+                            field="scene_revision", current_revision=snap.revision)
+    ids = {o.id for o in snap.obstacles} | {a.id for a in snap.attached}
+    for i, o in enumerate(own):
+        if o.id in ids:
+            raise InvalidRequest(f"id '{o.id}' is also an object of the kept scene (revision "
+                                 f"{snap.revision})", field=f"obstacles[{i}].id")
+    return snap.obstacles + own, snap.revision

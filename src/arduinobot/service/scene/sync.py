@@ -1,0 +1,377 @@
+"""The kept scene under a prefix, shared by every instance through Zenoh, kept on disk.
+
+Keys (``<p>`` the prefix, ``<id>`` an instance's Zenoh id):
+
+- ``<p>/scene`` and ``<p>/instance/<id>/scene`` (query, no payload): the scene,
+  ``{"revision", "objects", "attached"}``;
+- ``<p>/scene/apply`` and ``<p>/instance/<id>/scene/apply`` (query): a change
+  (``scene_apply_request.json``), answered ``{"revision", "objects", "attached"}`` (and
+  ``state_source`` for an attach or detach) once applied, kept on disk and replicated,
+  or refused with a coded error and nothing changed;
+- ``<p>/scene/changes`` (publication): ``{"revision", "added", "removed", "attached",
+  "detached", "cleared"}`` per applied revision, for whoever watches;
+- ``<p>/instance/<id>/scene/lead`` and ``.../scene/sync``, liveliness
+  ``<p>/scene/member/<id>``: between instances only.
+
+One writer at a time: every instance sends an apply to the leader, the live instance
+(liveliness ``<p>/alive/<id>``) with the smallest id, on its ``scene/lead`` key; the
+leader applies changes one after another (so ``if_revision`` means what it says), writes
+its file, sends the change to every other member's ``scene/sync`` (one exact query each)
+and waits for their answers, and only then acknowledges. The keys that change the scene
+answer exact queries only, as the work keys do (:mod:`arduinobot.service.keyguard`). So a change acknowledged through any instance
+is on the leader's disk and in every live instance's scene: the next plan through any of
+them uses it, and killing any instance loses nothing. An instance that missed changes
+(down, or late) fetches the whole scene from the sender; a new instance takes the newest
+scene among its file and the live instances' before it serves anything.
+
+An attach or detach gets the robot's state from the instance that takes the apply, before
+the change goes to the leader (:mod:`arduinobot.service.scene.apply`; ``state_source`` in the reply
+says where it came from).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import logging
+import os
+import threading
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import orjson
+import zenoh
+
+from arduinobot.contract import wire
+from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import PlanningError
+from arduinobot.description import Description
+from arduinobot.service.keyguard import addressed_exactly
+from arduinobot.service.messages import Failure
+from arduinobot.service.scene.apply import (
+    MAX_APPLY_PAYLOAD,
+    SceneUnavailable,
+    decode_apply,
+    with_robot_state,
+)
+from arduinobot.service.scene.carry import RobotFrames
+from arduinobot.service.scene.file import SceneFile, default_scene_file, mesh_dir_for
+from arduinobot.service.scene.members import Instances
+from arduinobot.service.scene.store import (
+    SceneBuilder,
+    SceneState,
+    StateSource,
+    apply,
+    restore,
+)
+
+_log = logging.getLogger(__name__)
+
+#: How long the leader waits for the other instances to take a change [s].
+REPLICATE_TIMEOUT = 10.0
+#: How long a forwarded apply may take at the leader [s] (mesh decoding included).
+FORWARD_TIMEOUT = 30.0
+#: How long an apply waits for a leader that answers (one that died hands over once its
+#: liveliness token is gone) [s].
+LEADER_WAIT = 10.0
+#: How long a starting instance waits for the live instances' scenes [s].
+CATCH_UP_TIMEOUT = 5.0
+JSON = "application/json"
+
+
+class SceneService:
+    """One instance's part of the shared scene (see the module). :meth:`start` before the
+    instance serves plans (it catches up first), :meth:`close` before its session closes.
+
+    Args:
+        link_names: the robot's links (no object may take a link's name).
+        scene_file: where this instance keeps the scene (default
+            :func:`arduinobot.service.scene.file.default_scene_file`).
+        description: the robot (without it, attach and detach are refused).
+        robot: computes link poses and contacts (default: a RobotFrames of description).
+    """
+
+    def __init__(self, session: zenoh.Session, prefix: str, instance: str,
+                 link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
+                 description: Description | None = None,
+                 robot: RobotFrames | None = None) -> None:
+        self.session, self.prefix, self.instance = session, prefix, instance
+        path = scene_file if scene_file is not None else default_scene_file(prefix)
+        self.file = SceneFile(path)
+        # robot: who computes link poses and contacts (the service's: its worker pool)
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot if robot
+                                    is not None or description is None
+                                    else RobotFrames(description))
+        self._lock = threading.Lock()  # held while the state changes (and is written)
+        self._state = SceneState()
+        self._encoded: tuple[int, bytes] = (-1, b"")
+        # one thread applies (and forwards), another takes changes from the leader: a
+        # follower forwarding an apply can still take the leader's sync of it
+        self._writes = concurrent.futures.ThreadPoolExecutor(1, "scene-apply")
+        self._syncs = concurrent.futures.ThreadPoolExecutor(1, "scene-sync")
+        self._entities: list[Any] = []
+        self._shared: list[Any] = []  # held until the session closes
+        self._publisher: Any = None
+        self.instances = Instances(session, prefix, instance)
+
+    @property
+    def state(self) -> SceneState:
+        """The scene now (a plan takes ``state.snapshot`` when it arrives)."""
+        return self._state
+
+    # -- lifecycle ---------------------------------------------------------------------
+    def start(self) -> None:
+        """Load the file, take changes, catch up with the live instances, serve the keys."""
+        data = self.file.load()
+        if data is not None:
+            self._state = restore(data, self.builder)
+            _log.info("scene: revision %d, %d objects from %s", self._state.revision,
+                      len(self._state.objects), self.file.path)
+        p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
+        liveliness = self.session.liveliness()
+        self._entities += self.instances.subscribe()
+        # takes changes from now on (the leader sends them to every member), then asks
+        # for the scene: no change falls between the two
+        self._declare(f"{me}/scene/sync", self._on_sync, complete=False, exact=True)
+        self._entities.append(liveliness.declare_token(f"{p}/scene/member/{self.instance}"))
+        self._catch_up()
+        self._publisher = self.session.declare_publisher(f"{p}/scene/changes")
+        self._declare(f"{p}/scene", self._on_get, shared=True)
+        self._declare(f"{me}/scene", self._on_get)
+        # changes only on their exact keys, as the work keys (see arduinobot.service.keyguard): a
+        # wildcard query passes an ACL rule written for the key, and would fan out
+        apply_ = self._queued(self._writes, self._apply_or_forward)
+        self._declare(f"{p}/scene/apply", apply_, shared=True, exact=True)
+        self._declare(f"{me}/scene/apply", apply_, exact=True)
+        self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead), exact=True)
+
+    def close(self) -> None:
+        self._writes.shutdown(wait=True, cancel_futures=True)
+        self._syncs.shutdown(wait=True, cancel_futures=True)
+        for e in reversed(self._entities):
+            try:
+                e.undeclare()
+            except zenoh.ZError:
+                pass  # already gone with the session
+        self._entities.clear()
+        if self._publisher is not None:
+            try:
+                self._publisher.undeclare()
+            except zenoh.ZError:
+                pass
+            self._publisher = None
+
+    def _declare(self, key: str, handler: Callable[[zenoh.Query], None], *,
+                 complete: bool = True, shared: bool = False, exact: bool = False) -> None:
+        """A queryable on ``key``; a ``shared`` one (on a key every instance declares) is
+        never undeclared, only closed with the session: see PlannerService.close; an
+        ``exact`` one answers only queries naming ``key`` itself (arduinobot.service.keyguard)."""
+        def on_query(query: zenoh.Query) -> None:
+            if exact and not addressed_exactly(key, query):
+                return
+            try:
+                handler(query)
+            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
+                _log.exception("%s: unexpected failure", key)
+                _reply_error(query, Failure(Code.INTERNAL, "unexpected failure in the scene"))
+        q = self.session.declare_queryable(key, on_query, complete=complete)
+        (self._shared if shared else self._entities).append(q)
+
+    def _queued(self, pool: concurrent.futures.Executor,
+                work: Callable[[zenoh.Query, bytes], None]) -> Callable[[zenoh.Query], None]:
+        """A handler that hands the query to ``pool`` (never decoding or applying on
+        Zenoh's callback thread, which every queryable shares)."""
+        def handler(query: zenoh.Query) -> None:
+            zb = query.payload
+            if zb is not None and len(zb) > MAX_APPLY_PAYLOAD:
+                _reply_error(query, Failure(Code.INVALID_REQUEST, f"payload of {len(zb)} "
+                                            f"bytes exceeds the {MAX_APPLY_PAYLOAD}-byte cap",
+                                            {"limit": MAX_APPLY_PAYLOAD}))
+                return
+            raw = zb.to_bytes() if zb is not None else b""
+
+            def run() -> None:
+                try:
+                    work(query, raw)
+                except PlanningError as e:
+                    _reply_error(query, Failure.of(e))
+                except Exception as e:  # noqa: BLE001 -- a bug: INTERNAL, the service lives
+                    _log.exception("scene: %s failed", query.key_expr)
+                    _reply_error(query, Failure(Code.INTERNAL, f"{type(e).__name__}: {e}",
+                                                {"exception": type(e).__name__}))
+                finally:
+                    query.drop()
+            try:
+                pool.submit(run)
+            except RuntimeError:  # shut down: this instance is closing
+                _reply_error(query, Failure(Code.SHUTTING_DOWN, "this instance is shutting "
+                                            "down; retry"))
+        return handler
+
+    # -- reading -----------------------------------------------------------------------
+    def encoded(self) -> bytes:
+        """The scene's JSON, encoded once per revision (meshes make it large)."""
+        state = self._state
+        rev, body = self._encoded
+        if rev != state.revision:
+            body = orjson.dumps(state.to_json())
+            self._encoded = (state.revision, body)
+        return body
+
+    def _on_get(self, query: zenoh.Query) -> None:
+        query.reply(query.key_expr, self.encoded(), encoding=JSON)
+
+    # -- writing -----------------------------------------------------------------------
+    def leader(self) -> str:
+        """The live instance with the smallest id (this one counts, live or not yet)."""
+        return min(self.instances.live() | {self.instance})
+
+    def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
+        change = decode_apply(raw)  # refused here, at once, wherever the leader is
+        source = None
+        if change.get("attach") or change.get("detach"):
+            # the state here, once: the leader and every follower replay this one
+            change, source = with_robot_state(change, session=self.session,
+                                              prefix=self.prefix, robot=self.builder.robot)
+            raw = orjson.dumps(change)
+        give_up = time.monotonic() + LEADER_WAIT
+        while True:
+            lead = self.leader()
+            _log.debug("scene: apply, leader %s", lead[:8])
+            if lead == self.instance:
+                return self._lead_change(query, change, source)
+            replies = list(self.session.get(f"{self.prefix}/instance/{lead}/scene/lead",
+                                            payload=raw, timeout=FORWARD_TIMEOUT,
+                                            encoding=JSON))
+            if replies:
+                r = replies[0]
+                if r.ok is not None:
+                    body = r.ok.payload.to_bytes()
+                    if source is not None:
+                        body = orjson.dumps({**orjson.loads(body), "state_source": source})
+                    query.reply(query.key_expr, body, encoding=JSON)
+                elif r.err is not None:
+                    query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
+                return None
+            if time.monotonic() > give_up:
+                raise SceneUnavailable("the scene's leading instance did not answer; retry")
+            # it has just gone: its liveliness token goes too, and the next one leads
+            _log.warning("scene: leader %s did not answer an apply; asking again", lead)
+            time.sleep(0.2)
+
+    def _lead(self, query: zenoh.Query, raw: bytes) -> None:
+        self._lead_change(query, decode_apply(raw))
+
+    def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any],
+                     source: StateSource | None = None) -> None:
+        with self._lock:
+            new = apply(self._state, change, self.builder)
+            self.file.save(new)  # on disk before anyone hears of it
+            old, self._state = self._state, new
+        self._replicate(old.revision, new.revision, change)
+        added = [o.id for o in new.objects if o.id not in set(old.ids())]
+        removed = [i for i in old.ids() if i not in set(new.ids())]
+        attached = [i for i in new.attached_ids() if i not in set(old.attached_ids())]
+        detached = [i for i in old.attached_ids() if i not in set(new.attached_ids())]
+        self._publisher.put(orjson.dumps({"revision": new.revision, "added": added,
+                                          "removed": removed, "attached": attached,
+                                          "detached": detached,
+                                          "cleared": bool(change.get("clear"))}),
+                            encoding=JSON)
+        reply: dict[str, Any] = {"revision": new.revision, "objects": len(new.objects),
+                                 "attached": len(new.attached)}
+        if source is not None:
+            reply["state_source"] = source
+        query.reply(query.key_expr, orjson.dumps(reply), encoding=JSON)
+
+    def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> None:
+        """Have every other live instance take the change (answered once it is on their
+        disk too), before the apply is acknowledged."""
+        payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
+                                "change": change})
+        members = sorted(self.instances.members())
+        # one exact query per member, all sent before any answer is awaited
+        pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
+                                        payload=payload, timeout=REPLICATE_TIMEOUT,
+                                        encoding=JSON)) for m in members]
+        for member, replies in pending:
+            got = list(replies)
+            if not got or got[0].err is not None:
+                why = got[0].err.payload.to_bytes()[:300] if got and got[0].err else "no reply"
+                _log.warning("scene: instance %s did not take revision %d (%s): it fetches "
+                             "the scene on the next change", member, revision, why)
+
+    def _on_sync(self, query: zenoh.Query) -> None:
+        raw = query.payload.to_bytes() if query.payload is not None else b""
+        self._queued(self._syncs, self._take)(query) if raw else query.drop()
+
+    def _take(self, query: zenoh.Query, raw: bytes) -> None:
+        msg = orjson.loads(raw)
+        sender = str(msg["from"])
+        if sender != self.instance:
+            with self._lock:
+                state = self._state
+                if state.revision == msg["base"]:
+                    new = apply(state, msg["change"], self.builder)
+                elif state.revision < msg["revision"]:  # missed some: take it all
+                    _log.info("scene: at revision %d, %s sent %d -> %d: fetching its scene",
+                              state.revision, sender, msg["base"], msg["revision"])
+                    new = self._fetch(sender) or state
+                else:
+                    _log.warning("scene: at revision %d, %s sent %d -> %d: ignored",
+                                 state.revision, sender, msg["base"], msg["revision"])
+                    new = state
+                if new is not state:
+                    self.file.save(new)
+                    self._state = new
+        query.reply(query.key_expr, orjson.dumps({"revision": self._state.revision}),
+                    encoding=JSON)
+
+    def _fetch(self, instance: str) -> SceneState | None:
+        """The scene of ``instance``, or None if it does not answer."""
+        for reply in self.session.get(f"{self.prefix}/instance/{instance}/scene",
+                                      timeout=CATCH_UP_TIMEOUT):
+            if reply.ok is not None:
+                return restore(orjson.loads(reply.ok.payload.to_bytes()), self.builder)
+        return None
+
+    def _catch_up(self) -> None:
+        """Take the newest scene among the live instances' if it is newer than the file's.
+        Every instance with a liveliness token is asked until it answers (its queryables
+        may reach this new session a moment after the session opens), for at most
+        :data:`CATCH_UP_TIMEOUT`."""
+        deadline = time.monotonic() + CATCH_UP_TIMEOUT
+        scenes = self._scenes("*")
+        missing = self.instances.live() - set(scenes) - {self.instance}
+        while missing and time.monotonic() < deadline:
+            time.sleep(0.1)
+            for inst in sorted(missing):
+                scenes.update(self._scenes(inst))
+            missing = self.instances.live() - set(scenes) - {self.instance}
+        if missing:
+            _log.warning("scene: instances %s did not answer; starting from the newest "
+                         "scene of the others and the file", ", ".join(sorted(missing)))
+        best = max(scenes.values(), key=lambda d: d.get("revision", -1), default=None)
+        if best is not None and best.get("revision", -1) > self._state.revision:
+            new = restore(best, self.builder)
+            with self._lock:
+                if new.revision > self._state.revision:
+                    self.file.save(new)
+                    self._state = new
+            _log.info("scene: caught up to revision %d from the live instances", new.revision)
+
+    def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
+        """The scenes of the instances ``instance`` matches (``*``: all), by id."""
+        out = {}
+        for reply in self.session.get(f"{self.prefix}/instance/{instance}/scene",
+                                      target=zenoh.QueryTarget.ALL,
+                                      consolidation=zenoh.ConsolidationMode.NONE,
+                                      timeout=CATCH_UP_TIMEOUT):
+            if reply.ok is not None:
+                inst = str(reply.ok.key_expr).split("/instance/", 1)[1].split("/", 1)[0]
+                out[inst] = orjson.loads(reply.ok.payload.to_bytes())
+        return out
+
+
+def _reply_error(query: zenoh.Query, failure: Failure) -> None:
+    query.reply_err(wire.encode(failure.to_json()), encoding=JSON)
