@@ -11,10 +11,10 @@ import sys
 import numpy as np
 import pytest
 
-from arduinobot.cli.applied_limits import AppliedLimits
 from arduinobot.cli.commands.plan import summary
 from arduinobot.client.replies import PlanReply
 from arduinobot.description import load_description
+from arduinobot.planner.kinematics.applied_limits import AppliedLimits
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.viewer.plots import joint_limits, limit_notes, plot_panels
 from arduinobot.viewer.trajectory import PlaybackTrajectory
@@ -121,7 +121,7 @@ def test_plot_panels_carry_the_applied_limits_and_their_origins(course):
          "effort": [0] * 4, "time_from_start": 0.0},
         {"positions": [0.5, 0, 0, 0], "velocities": [0, 0, 0, 0], "accelerations": [0] * 4,
          "effort": [0] * 4, "time_from_start": 1.0}]})
-    from arduinobot.cli.applied_limits import applied_limits
+    from arduinobot.planner.kinematics.applied_limits import applied_limits
     applied = applied_limits(course, JOINTS)
     panels = plot_panels(t, joint_limits(course, JOINTS), notes=limit_notes(applied))
     by = {p.quantity: p for p in panels}

@@ -27,7 +27,7 @@ NOT_CODES = frozenset({
     "ARDUINOBOT_HOPTRACE", "SC_PAGE_SIZE", "MAX_PAYLOAD", "MAX_EXECUTE_PAYLOAD", "SCHEMA_NAMES",
     "ARRAYS", "OPTIONAL", "RANGES",
     "INSTALL_HINT",
-    # the model's file format, named in `arduinobot limits` (src/arduinobot/cli/applied_limits.py)
+    # the model's file format, named in `arduinobot limits` (src/arduinobot/planner/kinematics/applied_limits.py)
     "URDF",
     # the kept scene (src/arduinobot/service/scene/store.py): its state folder and its object cap
     "ARDUINOBOT_STATE", "XDG_STATE_HOME", "MAX_SCENE_OBJECTS",

@@ -5,7 +5,6 @@
 - ``commands/``: one module per group of subcommands.
 - ``argtypes``: the parsers of joint lists, obstacle specs, goals on the command line.
 - ``common``: loading the model from the options, printing summaries, running guarded.
-- ``applied_limits``: the limits table of ``info`` (where each limit came from).
 - ``remote_model``: the service's model fetched and cached for commands that draw or
   simulate it.
 - ``simulate``: ``plan --simulate`` (the MuJoCo twin as a check).

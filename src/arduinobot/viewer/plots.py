@@ -13,8 +13,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from arduinobot.cli.applied_limits import KINDS, AppliedLimits, applied_limits
 from arduinobot.description import Description
+from arduinobot.planner.kinematics.applied_limits import KINDS, AppliedLimits, applied_limits
 from arduinobot.viewer import require
 from arduinobot.viewer.trajectory import PlaybackTrajectory
 

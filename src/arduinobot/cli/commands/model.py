@@ -80,7 +80,7 @@ def _fmt(v: float | None) -> str:
 def limits_lines(d: Description) -> list[str]:
     """The planner's limits per actuated joint, full and as applied at the default
     scaling (what a request without scaling gets), and where each came from."""
-    from arduinobot.cli.applied_limits import applied_limits
+    from arduinobot.planner.kinematics.applied_limits import applied_limits
     lim = applied_limits(d, d.robot.actuated_joints)
     scaled = lim.velocity_scaling != 1.0 or lim.acceleration_scaling != 1.0
     out = ["limits" + (" (full -> applied at the default scaling):" if scaled else ":"),

@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from arduinobot.cli.applied_limits import AppliedLimits
 from arduinobot.cli.argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
 from arduinobot.cli.commands.scene import add_scene_arg
 from arduinobot.cli.common import (
@@ -24,6 +23,7 @@ from arduinobot.cli.common import (
     wrote,
 )
 from arduinobot.client.replies import PlanReply
+from arduinobot.planner.kinematics.applied_limits import AppliedLimits
 
 
 def register(sub: argparse._SubParsersAction) -> None:
