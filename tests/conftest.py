@@ -1,8 +1,8 @@
 """Shared fixtures (`arduinobot serve` as a real subprocess, a course workspace) and the
 ``slow`` marker.
 
-The launcher itself is tests/helpers/serve.py (the benches use it too); its names are
-imported here as well, for the test modules that import them from ``.conftest``.
+The launcher itself is tests/helpers/serve.py (the benches use it too); test modules
+import it, and every other helper, from ``tests.helpers``, never from here.
 """
 
 from __future__ import annotations
@@ -12,14 +12,7 @@ from collections.abc import Iterator
 import pytest
 
 from .helpers import procs
-from .helpers.serve import (  # noqa: F401 -- re-exported for `from .conftest import ...`
-    REPO,
-    Server,
-    free_port,
-    launch_serves,
-    start_server,
-    start_servers,
-)
+from .helpers.serve import Server, start_server
 
 
 @pytest.fixture(scope="session")

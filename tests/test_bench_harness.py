@@ -9,7 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from .helpers.procs import REPO
+from tests.helpers.procs import REPO
 
 BENCH = REPO / "bench"
 ENTRY = sorted(f for f in BENCH.glob("*.py") if not f.name.startswith("_"))

@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from .conftest import REPO, Server
+from tests.helpers.serve import REPO, Server
 
 EXAMPLES = REPO / "examples"
 

@@ -38,8 +38,8 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import REPO, Server, start_server
-from .helpers.procs import stop_process
+from tests.helpers.procs import stop_process
+from tests.helpers.serve import REPO, Server, start_server
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 SERIAL_PORT = "/dev/ttyACM0"
@@ -191,7 +191,7 @@ def readme_service() -> Iterator[Server]:
 @pytest.fixture(scope="module")
 def home(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A HOME whose ~/ws is a course-like workspace."""
-    from .helpers.course_workspace import make_course_workspace
+    from tests.helpers.course_workspace import make_course_workspace
     home = tmp_path_factory.mktemp("home")
     make_course_workspace(home / "ws")
     return home
