@@ -21,7 +21,7 @@ from arduinobot.execution.robots.feetech.driver import (
     FeetechArm,
     TrackingError,
 )
-from arduinobot.execution.robots.feetech.protocol import ServoNoResponse
+from arduinobot.execution.robots.feetech.protocol import ServoFault, ServoNoResponse
 from arduinobot.execution.robots.plugin import DriverSettings
 from arduinobot.execution.segments import SampledTrajectory
 from tests.helpers.feetech_bus import SimBus
@@ -219,6 +219,26 @@ def test_a_position_read_back_far_from_the_command(desc, cal_file, planned):
     for s in bus.servos.values():
         assert s.goals[-1] == s.present and s.torque, s.id
     assert bus.servos[1].goals[-2] != bus.servos[1].present  # it was told to go on before
+
+
+def test_a_servo_that_reports_overload(desc, cal_file, planned):
+    bus = SimBus(at_zero(), homing=HOMING)
+
+    def overload(tick):
+        if tick.index == 10:
+            bus.servos[2].error = 32
+    try:
+        with FeetechArm.connect(desc, settings(bus, cal_file)) as arm:
+            ex = Executor.for_description(arm, desc, options=ExecuteOptions(rate=100.0),
+                                          on_tick=overload)
+            with pytest.raises(ServoFault) as e:
+                ex.execute(planned)
+    finally:
+        bus.close()
+    assert e.value.code == "SERVO_FAULT" and e.value.details["servo"] == 2
+    assert e.value.details["errors"] == ["overload"] and "overload" in e.value.message
+    for s in bus.servos.values():  # held where it stands
+        assert s.goals[-1] == s.present and s.torque, s.id
 
 
 def test_a_calibration_that_is_not_the_servos(desc, cal_file):

@@ -36,6 +36,7 @@ class SimServo:
     goals: list[int] = field(default_factory=list)  # every Goal_Position written [ticks]
     stuck: bool = False
     silent: bool = False
+    error: int = 0  # the status packets' error byte (32: overload)
 
     def word(self, addr: int) -> int:
         return self.memory[addr] | (self.memory[addr + 1] << 8)
@@ -116,7 +117,7 @@ class SimBus:
     def _status(self, servo: SimServo, params: bytes = b"") -> None:
         if servo.silent:
             return
-        body = bytes([servo.id, len(params) + 2, 0]) + params
+        body = bytes([servo.id, len(params) + 2, servo.error]) + params
         os.write(self.master, b"\xff\xff" + body + bytes([manual_checksum(body)]))
 
     def _handle(self, sid: int, instr: int, p: bytes) -> None:
