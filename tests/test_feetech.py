@@ -282,3 +282,59 @@ def test_motor_names_map_joints(desc, tmp_path):
         bus.close()
     assert np.allclose(st.actuated(arm.joint_names), 0.0, atol=2 * math.pi / 4095)
     assert [j.servo for j in arm.joints] == [1, 2, 3, 4]
+
+
+def test_the_simulated_bus_answers_feetechs_own_sdk():
+    """The simulated bus is checked against Feetech's scservo_sdk (feetech-servo-sdk,
+    what LeRobot drives these servos with): its PING, READ, WRITE, SYNC_WRITE and
+    SYNC_READ get what the manual says, so the driver's tests above meet a faithful bus."""
+    import scservo_sdk as scs  # feetech-servo-sdk, in the test extra
+    bus = SimBus({1: 2048, 2: 1000}, homing={1: -1470})
+    port = scs.PortHandler(bus.path)
+    try:
+        assert port.openPort()
+        ph = scs.PacketHandler(0)  # STS: little-endian words
+        model, res, err = ph.ping(port, 1)
+        assert (model, res, err) == (777, scs.COMM_SUCCESS, 0)
+        raw, res, _ = ph.read2ByteTxRx(port, 1, 31)
+        assert res == scs.COMM_SUCCESS and raw == 1470 | (1 << 11)  # sign bit 11
+        assert ph.write1ByteTxRx(port, 1, 40, 1) == (scs.COMM_SUCCESS, 0)  # torque on
+        assert ph.write1ByteTxRx(port, 2, 40, 1) == (scs.COMM_SUCCESS, 0)
+        sw = scs.GroupSyncWrite(port, ph, 42, 2)
+        sw.addParam(1, [0x10, 0x09])  # 2320
+        sw.addParam(2, [0xE8, 0x04])  # 1256
+        assert sw.txPacket() == scs.COMM_SUCCESS
+        sr = scs.GroupSyncRead(port, ph, 56, 2)
+        sr.addParam(1)
+        sr.addParam(2)
+        assert sr.txRxPacket() == scs.COMM_SUCCESS
+        assert sr.getData(1, 56, 2) == 2320 and sr.getData(2, 56, 2) == 1256
+        _, res, _ = ph.ping(port, 9)  # no servo 9 on this bus
+        assert res == scs.COMM_RX_TIMEOUT
+    finally:
+        port.closePort()
+        bus.close()
+    assert bus.bad_checksums == 0
+    assert bus.servos[1].goals == [2320] and bus.servos[2].goals == [1256]
+
+
+def test_serve_opens_the_driver_its_options_name(desc, cal_file):
+    """`serve --driver feetech --port ... --driver-option ...`: the robot the service's
+    <prefix>/execute drives (its RobotSpec) opens the bus as execute does."""
+    from arduinobot.cli.commands.execute import robot_spec
+    from arduinobot.cli.main import build_parser
+    bus = SimBus(at_zero(), homing=HOMING)
+    try:
+        ns = build_parser().parse_args([
+            "serve", "--driver", "feetech", "--port", bus.path, "--rate", "50",
+            "--driver-option", f"calibration={cal_file}", "--driver-option", "timeout=2",
+            "--driver-option", "gripper=joint_4"])
+        spec = robot_spec(ns)
+        assert (spec.kind, spec.driver, spec.port, spec.rate) == ("driver", "feetech",
+                                                                   bus.path, 50.0)
+        with spec.open(desc) as arm:
+            assert isinstance(arm, FeetechArm) and arm.period == 1 / 50
+            assert np.allclose(arm.state().actuated(arm.joint_names), 0.0,
+                               atol=2 * math.pi / 4095)
+    finally:
+        bus.close()
