@@ -12,8 +12,9 @@ of present position and speed, which is the state the executor records and check
 Opening: PING every servo, check that its Homing_Offset (STS) is the file's, read where
 it is, make that its goal, then torque on: the arm holds where it stands.
 
-Torque policy: on a fault (a servo that does not answer, a position read back farther
-than ``max_error`` from the command) every servo that still listens gets its last read
+Torque policy: on a fault (a servo that does not answer, an arm joint read back farther
+than ``max_error`` from the command; not the gripper, which closing on an object stops
+short by design) every servo that still listens gets its last read
 position as its goal, torque on: the arm stops where it is and holds (an SO-101 let go
 falls). ``close`` keeps torque on (``on_close=release`` turns it off). An unplugged
 adapter reaches no servo: each holds the last goal it took.
@@ -104,8 +105,9 @@ class FeetechArm(Robot):
         baud: [bit/s].
         series: ``sts`` (STS/SMS: SYNC_READ, homing offsets) or ``scs``.
         timeout: [s] to wait for a servo's answer.
-        max_error: largest |read - commanded| [rad] (the gripper's too) before
-            :class:`TrackingError` stops the arm.
+        max_error: largest |read - commanded| [rad] of an arm joint before
+            :class:`TrackingError` stops the arm (the gripper's is not checked: closing
+            on an object stops it short of its command by design).
         on_close: ``hold`` keeps torque on at close, ``release`` turns it off.
     """
 
@@ -126,6 +128,7 @@ class FeetechArm(Robot):
         self.lower = np.array([j.lower for j in self.joints])
         self.upper = np.array([j.upper for j in self.joints])
         self.max_error = max_error
+        self._tracked = np.array([j.scale == "degrees" for j in self.joints])
         if on_close not in ("hold", "release"):
             raise RobotError(f"--driver-option on_close={on_close!r}: hold or release",
                              details={"field": "driver_option.on_close"})
@@ -275,7 +278,7 @@ class FeetechArm(Robot):
             self._hold()
             raise
         if self._commanded is not None:
-            gap = np.abs(q - self._commanded)
+            gap = np.where(self._tracked, np.abs(q - self._commanded), 0.0)
             worst = int(np.argmax(gap))
             if gap[worst] > self.max_error:
                 self._hold()

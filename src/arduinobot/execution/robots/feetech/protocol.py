@@ -187,6 +187,10 @@ class FeetechBus:
         while head[:2] != b"\xff\xff":
             head = head[1:] + self._read(1, servo)
         sid, length = head[2], head[3]
+        if length < 2:  # not even the error byte and the checksum: noise
+            raise ServoFault(f"servo {servo} on {self.port}: a status packet of length "
+                             f"{length} (at least 2)", details={"port": self.port,
+                                                                "servo": servo})
         rest = self._read(length, servo)
         err, params, chk = rest[0], list(rest[1:-1]), rest[-1]
         parses = checksum([sid, length, err, *params]) == chk
