@@ -14,7 +14,7 @@ import pytest
 from arduinobot.cli.main import main
 from arduinobot.description import load_description
 from arduinobot.execution.executor import ExecuteOptions, Executor
-from arduinobot.execution.robots.base import PortError, PortNotFound
+from arduinobot.execution.robots.base import PortError, PortNotFound, RobotError
 from arduinobot.execution.robots.feetech.calibration import InvalidCalibration
 from arduinobot.execution.robots.feetech.driver import (
     CalibrationMismatch,
@@ -359,5 +359,26 @@ def test_serve_opens_the_driver_its_options_name(desc, cal_file):
             assert isinstance(arm, FeetechArm) and arm.period == 1 / 50
             assert np.allclose(arm.state().actuated(arm.joint_names), 0.0,
                                atol=2 * math.pi / 4095)
+    finally:
+        bus.close()
+
+
+def test_torque_stays_on_at_close_unless_released(desc, cal_file):
+    for on_close, torque in (("hold", True), ("release", False)):
+        bus = SimBus(at_zero(), homing=HOMING)
+        try:
+            with FeetechArm.connect(desc, settings(bus, cal_file, on_close=on_close)):
+                assert all(s.torque for s in bus.servos.values())
+            assert all(s.torque is torque for s in bus.servos.values()), on_close
+        finally:
+            bus.close()
+    bus = SimBus(at_zero(), homing=HOMING)
+    try:
+        with pytest.raises(RobotError) as e:
+            FeetechArm.connect(desc, settings(bus, cal_file, on_close="drop"))
+        assert e.value.details["field"] == "driver_option.on_close"
+        with pytest.raises(RobotError) as e:
+            FeetechArm.connect(desc, settings(bus, cal_file, speed="9"))
+        assert e.value.details["field"] == "driver_option.speed"
     finally:
         bus.close()
