@@ -382,3 +382,29 @@ def test_torque_stays_on_at_close_unless_released(desc, cal_file):
         assert e.value.details["field"] == "driver_option.speed"
     finally:
         bus.close()
+
+
+@pytest.mark.slow
+def test_serve_drives_the_bus_for_a_remote_execute(cal_file, planned):
+    """`serve --driver feetech`: a client's execute moves the simulated bus to the goal."""
+    from arduinobot import PlannerClient
+    from tests.helpers.serve import start_server
+    bus = SimBus(at_zero(), homing=HOMING)
+    srv = start_server(["--workers", "1", "--driver", "feetech", "--port", bus.path,
+                        "--driver-option", f"calibration={cal_file}",
+                        "--driver-option", "gripper=joint_4", "--driver-option", "timeout=2"],
+                       timeout=300)
+    try:
+        assert "feetech" in "\n".join(srv.stderr_lines)  # the ready log names the driver
+        with PlannerClient(srv.endpoint, timeout=60) as c:
+            done = c.execute({"joint_names": list(planned.joint_names), "points": [
+                {"time_from_start": float(t), "positions": list(map(float, q))}
+                for t, q in zip(planned.times, planned.positions)]})
+    finally:
+        srv.stop()
+        bus.close()
+    assert done.report["outcome"] == "completed"
+    for j, q in zip(("joint_1", "joint_2", "joint_3", "joint_4"), planned.positions[-1]):
+        s = bus.servos[CALIBRATION[j]["id"]]
+        assert abs(s.goals[-1] - expected_ticks(j, float(q))) <= 0.5 + 1e-9, j
+        assert s.present == s.goals[-1]
