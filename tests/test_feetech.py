@@ -286,6 +286,17 @@ def test_a_bad_calibration_file_names_its_field(desc, tmp_path, body, field):
     assert e.value.code == "INVALID_CALIBRATION" and e.value.details["field"] == field
 
 
+def test_a_bus_for_a_calibration_file_rests_at_zero(desc, cal_file):
+    bus = SimBus.for_calibration(CALIBRATION)
+    try:
+        with FeetechArm.connect(desc, settings(bus, cal_file)) as arm:
+            q = arm.state().actuated(arm.joint_names)
+    finally:
+        bus.close()
+    assert np.allclose(q[:3], 0.0, atol=2 * math.pi / 4095)
+    assert abs(q[3] - (GRIPPER_LOWER + GRIPPER_UPPER) / 2) < 1e-3  # the gripper half open
+
+
 def test_motor_names_map_joints(desc, tmp_path):
     """A file named as LeRobot names the SO-101's motors, mapped with motor.JOINT."""
     names = dict(zip(("joint_1", "joint_2", "joint_3", "joint_4"),

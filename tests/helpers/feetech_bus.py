@@ -83,6 +83,14 @@ class SimBus:
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
+    @classmethod
+    def for_calibration(cls, calibration: dict[str, dict[str, int]]) -> SimBus:
+        """The servos of a LeRobot calibration file (as parsed JSON), each holding its
+        homing offset and resting in the middle of its range (0 rad on an arm joint)."""
+        return cls({c["id"]: (c["range_min"] + c["range_max"]) // 2
+                    for c in calibration.values()},
+                   homing={c["id"]: c["homing_offset"] for c in calibration.values()})
+
     # -- the wire ------------------------------------------------------------------------
     def _run(self) -> None:
         while not self._stop.is_set():

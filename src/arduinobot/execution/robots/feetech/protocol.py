@@ -90,7 +90,8 @@ def to_sign_magnitude(value: int, sign_bit: int) -> int:
 
 
 def open_bus(port: str, baud: int) -> object:
-    """An exclusively locked pyserial port, 8N1, reads that wait for what they ask.
+    """An exclusively locked pyserial port, 8N1 (:class:`FeetechBus` sets its read
+    timeout).
 
     Raises:
         PortNotFound, PortBusy, PortError: with the port and the reason.
@@ -135,6 +136,8 @@ class FeetechBus:
         self.series = series
         self.timeout = timeout
         self.port = port
+        # once: pyserial reconfigures the port (tcsetattr) at every timeout assignment
+        serial_port.timeout = timeout  # type: ignore[attr-defined]
 
     # -- bytes ---------------------------------------------------------------------------
     def word(self, value: int) -> list[int]:
@@ -164,7 +167,6 @@ class FeetechBus:
 
     def _read(self, n: int, servo: int) -> bytes:
         try:
-            self.serial.timeout = self.timeout  # type: ignore[attr-defined]
             data: bytes = self.serial.read(n)  # type: ignore[attr-defined]
         except Exception as e:  # pyserial: SerialException, OSError (EIO: unplugged)
             raise self._io_error(e, "reading from") from e
