@@ -419,3 +419,25 @@ def test_serve_drives_the_bus_for_a_remote_execute(cal_file, planned):
         s = bus.servos[CALIBRATION[j]["id"]]
         assert abs(s.goals[-1] - expected_ticks(j, float(q))) <= 0.5 + 1e-9, j
         assert s.present == s.goals[-1]
+
+
+@pytest.mark.slow
+def test_a_task_runs_on_the_bus(cal_file, tmp_path):
+    """`task 1 --driver feetech`: the course's pick, planned from the servos' own state
+    and played on the simulated bus to its last step's goal (slow: real time)."""
+    bus = SimBus.for_calibration(CALIBRATION)
+    out = tmp_path / "task.json"
+    try:
+        code = main(["task", "1", "--driver", "feetech", "--port", bus.path,
+                     "--driver-option", f"calibration={cal_file}", "--driver-option",
+                     "gripper=joint_4", "--driver-option", "timeout=2", "--report", str(out)])
+    finally:
+        bus.close()
+    assert code == 0
+    r = json.loads(out.read_text())["execution"]
+    assert r["outcome"] == "completed"
+    assert bus.bad_checksums == 0
+    for j, q in zip(r["joint_names"], r["final_positions"]):
+        s = bus.servos[CALIBRATION[j]["id"]]
+        assert s.present == s.goals[-1]
+        assert abs(s.goals[-1] - expected_ticks(j, q)) <= 1.5, j  # read back within a tick
