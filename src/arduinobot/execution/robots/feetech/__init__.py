@@ -10,6 +10,6 @@
 
 Our own packet code on pyserial rather than Feetech's ``scservo_sdk``
 (``feetech-servo-sdk`` 1.0.0): that SDK keeps the byte order in a module global, polls
-the port in a busy loop (a core per read) and times out on the wall clock; the protocol
-is ~150 lines.
+the port in a busy loop (a core per read) and times out on the wall clock; our protocol
+module is ~250 lines with its documentation.
 """
