@@ -39,10 +39,11 @@ def test_every_value_flag_of_every_command_takes_a_negative_first_value(capsys):
             if not action.option_strings or action.nargs == 0 or action.choices:
                 continue
             flag = action.option_strings[-1]
-            # what the command requires besides (execute: a robot, --serial being one)
+            # what the command requires besides (execute: a robot, --serial and --driver
+            # being one)
             needs = {"execute": ["--sim"], "ik": ["--position", "0,1,1"]}.get(cmd, [])
             argv = [cmd, flag, "-1.14,-0.6,-0.07",
-                    *(needs if flag not in ("--serial", "--position") else [])]
+                    *(needs if flag not in ("--serial", "--driver", "--position") else [])]
             try:
                 ns, extras = parser.parse_known_args(argv)
             except SystemExit:  # the flag's type refuses the value (--seed is an int)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import arduinobot.client.errors as cerr
 import arduinobot.contract.errors as perr
-from arduinobot.contract.codes import PLAN_SERVICE_CODES, Code
+from arduinobot.contract.codes import EXECUTION_CODES, PLAN_SERVICE_CODES, Code
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -79,11 +79,21 @@ def test_error_schema_enum_is_the_registry() -> None:
     assert enum == [c.value for c in PLAN_SERVICE_CODES]
 
 
-def test_documented_error_table_is_the_registry() -> None:
-    text = (ROOT / "docs" / "service.md").read_text("utf-8")
+def _table_codes(text: str) -> list[str]:
     rows = re.findall(r"^\| (`[A-Z_]+`(?: / `[A-Z_]+`)*) \|", text, flags=re.M)
-    listed = [c for row in rows for c in re.findall(r"`([A-Z_]+)`", row)]
-    assert sorted(listed) == sorted(c.value for c in PLAN_SERVICE_CODES)
+    return [c for row in rows for c in re.findall(r"`([A-Z_]+)`", row)]
+
+
+def test_documented_error_table_is_the_registry() -> None:
+    """docs/service.md's two tables: the planning service's codes, then execution's and
+    the drivers'; together every code but the client's own."""
+    text = (ROOT / "docs" / "service.md").read_text("utf-8")
+    plan, _, execution = text.partition("### Execution and driver errors")
+    assert execution, "docs/service.md lost its execution errors table"
+    assert sorted(_table_codes(plan)) == sorted(c.value for c in PLAN_SERVICE_CODES)
+    assert _table_codes(execution) == [c.value for c in EXECUTION_CODES]
+    client_own = {Code.UNAVAILABLE, Code.UNKNOWN}
+    assert set(Code) == set(PLAN_SERVICE_CODES) | set(EXECUTION_CODES) | client_own
 
 
 def test_client_exceptions_cover_every_service_code() -> None:

@@ -55,6 +55,14 @@ class Code(str, Enum):
     SIMULATION_ERROR = "SIMULATION_ERROR"
     INVALID_TRAJECTORY = "INVALID_TRAJECTORY"
     MOTION_ERROR = "MOTION_ERROR"
+    # plug-in drivers (src/arduinobot/execution/robots/plugin.py) and the Feetech bus driver
+    DRIVER_NOT_FOUND = "DRIVER_NOT_FOUND"
+    NOT_A_DRIVER = "NOT_A_DRIVER"
+    SERVO_NO_RESPONSE = "SERVO_NO_RESPONSE"
+    SERVO_FAULT = "SERVO_FAULT"
+    TRACKING_ERROR = "TRACKING_ERROR"
+    INVALID_CALIBRATION = "INVALID_CALIBRATION"
+    CALIBRATION_MISMATCH = "CALIBRATION_MISMATCH"
 
 
 #: The codes the planning service answers with, in ``error.json``'s order.
@@ -64,3 +72,11 @@ PLAN_SERVICE_CODES: tuple[Code, ...] = (
     Code.LINE_INTERRUPTED, Code.ORIENTATION_NOT_CONTROLLABLE,
     Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL,
     Code.SCENE_CONFLICT)
+
+#: The execute service's and the drivers' codes, in docs/service.md's second table's order.
+EXECUTION_CODES: tuple[Code, ...] = (
+    Code.NOT_AT_START, Code.TOO_LATE, Code.ROBOT_ERROR, Code.PORT_NOT_FOUND, Code.PORT_BUSY,
+    Code.PORT_ERROR, Code.UNSUPPORTED_ROBOT, Code.INVALID_SETPOINT, Code.SIMULATION_ERROR,
+    Code.INVALID_TRAJECTORY, Code.MOTION_ERROR, Code.DRIVER_NOT_FOUND, Code.NOT_A_DRIVER,
+    Code.SERVO_NO_RESPONSE, Code.SERVO_FAULT, Code.TRACKING_ERROR, Code.INVALID_CALIBRATION,
+    Code.CALIBRATION_MISMATCH)

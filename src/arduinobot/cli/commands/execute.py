@@ -52,6 +52,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         epilog="examples:\n  arduinobot plan --named reach_left --json traj.json\n"
         "  arduinobot execute traj.json --serial /dev/ttyACM0\n"
         "  arduinobot execute traj.json --sim --fast --no-publish\n"
+        "  arduinobot execute traj.json so101.urdf --driver feetech --port /dev/ttyACM0 "
+        "--driver-option calibration=so101.json\n"
         "  arduinobot execute --named home --sim --local\n"
         "  arduinobot execute ~/ws/src/arduinobot_description/urdf/arduinobot.urdf.xacro "
         "--named home --group arm_robot --sim --local\n"
@@ -73,6 +75,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="the real arm on PORT (default: the URDF's ros2_control "
                        "<hardware> 'port' param)")
     where.add_argument("--sim", action="store_true", help="the MuJoCo twin (needs mujoco)")
+    add_driver_arg(where)
     where.add_argument("--remote", action="store_true",
                        help="the service's robot (<prefix>/execute; `serve --serial` or its "
                        "twin); a lost client stops the arm")
@@ -138,12 +141,51 @@ def add_serve_args(p: argparse.ArgumentParser) -> None:
     w.add_argument("--serial", nargs="?", const="", metavar="PORT",
                    help="drive the real arm on PORT (default: the URDF's ros2_control "
                    "port); default: the MuJoCo twin")
+    add_driver_arg(w)
     w.add_argument("--no-robot", action="store_true", help="serve no <prefix>/execute robot")
     _add_robot_args(g)
 
 
+def add_driver_arg(where: argparse._MutuallyExclusiveGroup) -> None:
+    """``--driver``: a plug-in driver instead of --serial/--sim (docs/drivers.md)."""
+    where.add_argument("--driver", metavar="NAME|module:Class",
+                       help="a plug-in driver: an 'arduinobot.drivers' entry point "
+                       "(feetech: Feetech STS/SCS bus servos) or module:Class; with "
+                       "--port and --driver-option (docs/drivers.md)")
+
+
+def add_driver_options(g: argparse._ActionsContainer) -> None:
+    """--driver's port and options."""
+    g.add_argument("--port", metavar="PORT", help="--driver's port (e.g. /dev/ttyACM0)")
+    g.add_argument("--driver-option", action="append", default=[], metavar="KEY=VALUE",
+                   help="an option of --driver, repeatable (feetech: calibration=FILE, "
+                   "gripper=JOINT, max_error=RAD, timeout=S, on_close=hold|release, "
+                   "series=sts|scs, motor.JOINT=NAME)")
+
+
+def driver_options(ns: argparse.Namespace) -> tuple[tuple[str, str], ...]:
+    """``--driver-option`` pairs; --port/--driver-option need --driver.
+
+    Raises:
+        UsageError: an option without ``=``, or options without --driver.
+    """
+    opts = list(getattr(ns, "driver_option", None) or [])
+    if not getattr(ns, "driver", None):
+        if opts or getattr(ns, "port", None):
+            raise UsageError("--port and --driver-option go with --driver")
+        return ()
+    out = []
+    for o in opts:
+        key, eq, value = o.partition("=")
+        if not eq or not key:
+            raise UsageError(f"--driver-option {o!r}: write KEY=VALUE")
+        out.append((key.strip(), value))
+    return tuple(out)
+
+
 # arduinobot.ros2.attachment.LAYOUTS, spelled out: the ros2 extra is not imported to build the parser
 def _add_robot_args(g: argparse._ArgumentGroup) -> None:
+    add_driver_options(g)
     g.add_argument("--baud", type=int, default=None, help="serial baud rate (default "
                    "115200, or the URDF's baud_rate param)")
     g.add_argument("--rate", type=float, default=100.0, metavar="HZ",
@@ -155,12 +197,16 @@ def _add_robot_args(g: argparse._ArgumentGroup) -> None:
 
 def robot_spec(ns: argparse.Namespace, *, progress: Progress | None = None) -> RobotSpec:
     """The :class:`arduinobot.execution.RobotSpec` of the robot options (``serve``'s, or
-    ``execute``'s --serial/--sim); a twin keeps its mesh pieces in the user's cache
+    ``execute``'s --serial/--sim/--driver); a twin keeps its mesh pieces in the user's cache
     (``serve --no-cache``: nowhere) and tells ``progress`` what a first build computes."""
     from arduinobot.execution.robots.spec import RobotSpec
     from arduinobot.service.process.disk_cache import DiskCache
     if getattr(ns, "no_robot", False):
         return RobotSpec(kind="none")
+    options = driver_options(ns)
+    if getattr(ns, "driver", None):
+        return RobotSpec(kind="driver", driver=ns.driver, port=ns.port, baud=ns.baud,
+                         rate=ns.rate, driver_options=options)
     if getattr(ns, "serial", None) is not None:
         return RobotSpec(kind="serial", port=ns.serial or None, baud=ns.baud, rate=ns.rate,
                          boot_wait=ns.boot_wait)
@@ -187,6 +233,7 @@ def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
         UsageError: flags that do not go together.
     """
     _split_paths(ns)
+    driver_options(ns)  # --port/--driver-option without --driver: a usage error now
     if ns.trajectory and (ns.named or ns.request):
         raise UsageError("give TRAJ.json or --named/--request, not both")
     if not (ns.trajectory or ns.named or ns.request):

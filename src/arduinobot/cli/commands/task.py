@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import yaml
 
 from arduinobot.cli.argtypes import UsageError
+from arduinobot.cli.commands.execute import add_driver_arg, add_driver_options, driver_options
 from arduinobot.cli.common import (
     EXIT_FAIL,
     EXIT_OK,
@@ -58,6 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="run on the real arm on PORT (default: the URDF's port)")
     where.add_argument("--remote", action="store_true",
                        help="plan and run on the service (`serve`'s robot)")
+    add_driver_arg(where)
     p.add_argument("--fast", dest="realtime", action="store_false",
                    help="--sim: as fast as it simulates, not in real time")
     p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
@@ -65,6 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--baud", type=int, default=None, help="serial baud rate")
     p.add_argument("--boot-wait", type=float, default=2.0, metavar="S",
                    help="seconds to wait after opening the port (default 2)")
+    add_driver_options(p)
     p.add_argument("--start-tolerance", type=float, default=0.01, metavar="RAD",
                    help="largest distance of each joint from the task's start (default 0.01)")
     p.add_argument("--move-to-start", action="store_true",
@@ -139,10 +142,11 @@ def _list(ns: argparse.Namespace) -> int:
 
 def cmd_task(ns: argparse.Namespace) -> int:
     if ns.task is None:
-        if ns.sim or ns.serial is not None or ns.remote:
+        if ns.sim or ns.serial is not None or ns.remote or ns.driver:
             raise UsageError("give the task to run: NAME, NUMBER or FILE (without one, "
                              "`arduinobot task` lists the named tasks)")
         return _list(ns)
+    driver_options(ns)  # --port/--driver-option without --driver: a usage error now
     if ns.remote:
         return _remote(ns)
     if not ns.realtime and not ns.sim:
@@ -154,7 +158,7 @@ def cmd_task(ns: argparse.Namespace) -> int:
     desc = load_from_args(ns)
     task = resolve_task(ns, desc)
     robot = None
-    if ns.sim or ns.serial is not None:
+    if ns.sim or ns.serial is not None or ns.driver:
         from arduinobot.cli.commands.execute import robot_spec
         ns.no_robot = False
         robot = robot_spec(ns).open(desc, obstacles=[])

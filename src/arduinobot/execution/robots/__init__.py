@@ -1,5 +1,14 @@
 """Robots that follow trajectories: one :class:`~arduinobot.execution.robots.base.Robot` interface,
-a serial driver for the real arduinobot and a MuJoCo twin.
+a serial driver for the real arduinobot, a MuJoCo twin, plug-in drivers and the Feetech
+bus driver.
+
+- ``base``: :class:`Robot`, :class:`JointState`, the mimic map, the port errors;
+- ``serial_arduinobot``: the course's Arduino over serial;
+- ``sim_arduinobot``, ``mjcf``, ``controller_gains``, ``twin_tasks``: the MuJoCo twin;
+- ``plugin``: ``--driver NAME|module:Class``, the :class:`Driver` protocol a plug-in
+  meets, the ``arduinobot.drivers`` entry points (docs/drivers.md);
+- ``feetech/``: Feetech STS/SCS bus servos (LeRobot's SO-100/SO-101);
+- ``spec``: :class:`RobotSpec`, which of them the command line and the service open.
 
 Nothing here is imported by the core; :mod:`serial` and :mod:`mujoco` are imported only
 by the driver that needs them.

@@ -1,7 +1,8 @@
-"""Which robot to open: the real arm on a serial port, the MuJoCo twin, or none.
+"""Which robot to open: the real arm on a serial port, the MuJoCo twin, a plug-in driver
+(:mod:`arduinobot.execution.robots.plugin`), or none.
 
-The command line (``execute --serial/--sim``) and the service (``serve --serial``,
-``--no-robot``) both describe their robot with a :class:`RobotSpec` and open it here, so
+The command line (``execute --serial/--sim/--driver``) and the service (``serve --serial``,
+``--driver``, ``--no-robot``) both describe their robot with a :class:`RobotSpec` and open it here, so
 neither goes through the other to reach a driver.
 """
 
@@ -22,7 +23,7 @@ from arduinobot.execution.robots.base import (
 from arduinobot.execution.robots.mjcf import Progress
 from arduinobot.planner.cache import ArtifactCache
 
-RobotKind = Literal["sim", "serial", "none"]
+RobotKind = Literal["sim", "serial", "driver", "none"]
 
 
 @dataclass(frozen=True)
@@ -30,8 +31,12 @@ class RobotSpec:
     """The robot to drive.
 
     Attributes:
-        kind: ``sim`` (MuJoCo twin), ``serial`` (the real arm) or ``none``.
-        port, baud: the serial port (None: the URDF's ros2_control ``port``) and baud.
+        kind: ``sim`` (MuJoCo twin), ``serial`` (the real arm), ``driver`` (a plug-in
+            driver) or ``none``.
+        port, baud: the serial port (None: the URDF's ros2_control ``port``; a plug-in
+            driver's default) and baud.
+        driver: ``module:Class`` or an ``arduinobot.drivers`` entry point's name.
+        driver_options: its ``--driver-option KEY=VALUE`` pairs.
         rate: control rate [Hz].
         boot_wait: [s] to wait after opening the port (the Arduino resets).
         cache: the twin's mesh pieces kept between runs (see
@@ -44,20 +49,29 @@ class RobotSpec:
     baud: int | None = None
     rate: float = 100.0
     boot_wait: float = 2.0
+    driver: str | None = None
+    driver_options: tuple[tuple[str, str], ...] = ()
     cache: ArtifactCache | None = field(default=None, compare=False, repr=False)
     progress: Progress | None = field(default=None, compare=False, repr=False)
 
     def open(self, description: Description, *,
              obstacles: Sequence[Mapping[str, Any]] = ()) -> Robot:
-        """The driver: the real arm (its port opened) or the twin among ``obstacles``.
+        """The driver: the real arm (its port opened), a plug-in driver, or the twin
+        among ``obstacles``.
 
         Raises:
-            RobotError: kind ``none``, or the port's error (PortNotFound, PortBusy, ...).
+            RobotError: kind ``none``, or the port's error (PortNotFound, PortBusy, ...);
+                DriverNotFound, NotADriver or the plug-in's own errors.
         """
         if self.kind == "serial":
             from arduinobot.execution.robots.serial_arduinobot import SerialArduinobot
             return SerialArduinobot.from_description(description, self.port, baud=self.baud,
                                                      rate=self.rate, boot_wait=self.boot_wait)
+        if self.kind == "driver" and self.driver:
+            from arduinobot.execution.robots.plugin import DriverSettings, connect
+            return connect(self.driver, description, DriverSettings(
+                port=self.port, baud=self.baud, rate=self.rate,
+                options=dict(self.driver_options)))
         if self.kind == "sim":
             from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
             return SimArduinobot(description, obstacles=obstacles, cache=self.cache,

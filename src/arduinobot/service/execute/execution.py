@@ -108,8 +108,8 @@ class ExecuteService:
         self.twin_scene = TwinScene()  # what the twin holds of it
 
     def start(self) -> None:
-        if self.spec.kind == "serial":
-            self.robot()  # a missing or busy port fails the start, clearly
+        if self.spec.kind in ("serial", "driver"):
+            self.robot()  # a missing or busy port, a bad driver fail the start, clearly
 
         p = self.prefix
         s = self.session
@@ -123,7 +123,7 @@ class ExecuteService:
             self._entities.append(s.declare_queryable(
                 key, self._guard(key, fn, threaded=threaded), complete=True))
         _log.info("execute: robot %s%s, %g Hz; keys %s/{execute,execute/cancel,robot_state,"
-                  "joint_states}", self.spec.kind,
+                  "joint_states}", self.spec.driver or self.spec.kind,
                   f" on {self.spec.port}" if self.spec.port else "", self.spec.rate, p)
 
     def close(self) -> None:
