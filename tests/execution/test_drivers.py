@@ -24,7 +24,7 @@ from arduinobot.execution.robots.plugin import (
 )
 from arduinobot.execution.robots.spec import RobotSpec
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 # a user's driver, as docs/drivers.md tells them to write one: a class with connect()
 USER_DRIVER = '''
