@@ -17,18 +17,15 @@ import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import chain
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import jsonschema_rs
 import numpy as np
 
 from arduinobot.client.errors import MalformedReply
 from arduinobot.contract.packed import PackedError, unpack
+from arduinobot.contract.samples import samples_csv
 from arduinobot.contract.wire import field_path, validator
-from arduinobot.planner.timing.trajectory import samples_csv
-
-if TYPE_CHECKING:
-    from arduinobot.execution.segments import SampledTrajectory
 
 Reply = Literal["plan", "fk", "ik", "check"]
 
@@ -209,17 +206,9 @@ class PlanReply:
                                 float(v["worst_overall"]["ratio"]), _pair(v.get("closest_pair"))),
                    b.get("planner", ""), b["request_id"], b, b.get("reached"), b.get("line"))
 
-    @property
-    def trajectory(self) -> SampledTrajectory:
-        """The samples as a trajectory to execute or replay: built from the arrays parsed
-        above, so a reply is parsed once (the executor takes it as it is)."""
-        from arduinobot.execution.segments import SampledTrajectory  # ruckig: not for a plain plan
-        return SampledTrajectory(self.joint_names, self.times, self.positions,
-                                 self.velocities, self.accelerations)
-
     def to_csv(self) -> str:
         """One row per sample, as the planner writes a trajectory
-        (:func:`arduinobot.planner.timing.trajectory.samples_csv`)."""
+        (:func:`arduinobot.contract.samples.samples_csv`)."""
         return samples_csv(self.joint_names, self.times, self.positions, self.velocities,
                            self.accelerations, self.efforts)
 
