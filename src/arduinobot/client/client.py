@@ -24,9 +24,22 @@ import orjson
 import zenoh
 
 from arduinobot.client.balance import LoadBalancer
-from arduinobot.client.errors import ServiceBusy, ServiceUnavailable, error_from_reply
-from arduinobot.client.replies import CheckReply, FkReply, IkReply, PlanReply
-from arduinobot.client.stream import ExecutionEvent, cancel_execution, stream
+from arduinobot.client.errors import (
+    MalformedReply,
+    ServiceBusy,
+    ServiceUnavailable,
+    error_from_reply,
+)
+from arduinobot.client.replies import (
+    CheckReply,
+    FkReply,
+    IkReply,
+    PlanReply,
+    SceneApplied,
+    SceneReply,
+    TaskReply,
+)
+from arduinobot.client.stream import ExecutionEvent, cancel_execution, follow, stream
 from arduinobot.contract.ranges import RANGES
 from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
 
@@ -232,6 +245,90 @@ class PlannerClient:
         silence = self.timeout + _planning_time(plan)
         return stream(self.session, self.prefix, body, decode=decode_reply, silence=silence,
                       on_event=on_event, cancel=cancel)
+
+    def task(self, task: str | int | Mapping[str, Any], *, execute: bool = False,
+             start_tolerance: float = 0.01, move_to_start: bool = False,
+             trajectories: bool = True,
+             on_planned: Callable[[Mapping[str, Any]], None] | None = None,
+             on_event: Callable[[ExecutionEvent], None] | None = None,
+             cancel: threading.Event | None = None) -> TaskReply:
+        """Plan a task as a whole (every step before anything moves) and, with
+        ``execute``, run it on the service's robot (a task without ``start`` starts from
+        the robot's state).
+
+        Args:
+            task: a name (str) or number (int) of the service's tasks.yaml, or a task
+                (``{start, obstacles, steps, ...}``, docs/tasks.md).
+            start_tolerance: [rad] largest distance of each joint from the task's start;
+                move_to_start: move there first (execute).
+            trajectories: include each step's plan in :attr:`TaskReply.steps`.
+            on_planned: called with the planned reply, before the robot moves.
+            on_event: called with each execution event (started, progress, finished).
+            cancel: set it (from any thread) to stop the arm smoothly (set while the
+                task plans, the arm stops as it starts); the reply still comes, with
+                the cancelled report.
+
+        Raises:
+            InvalidRequest (an unknown task, a step's field), a step's own error
+            (``details.step``), ServiceBusy, NotAtStart, a robot's coded error,
+            ServiceUnavailable (no reply, or silent for the client's timeout plus the
+            task's planning time), MalformedReply.
+        """
+        body: dict[str, Any] = {"execute": execute, "trajectories": trajectories}
+        if isinstance(task, bool):  # a bool is an int: refused here, not as task 0/1
+            raise TypeError("task is a name, a number or a task mapping, not a bool")
+        if isinstance(task, str):
+            body["name"] = task
+        elif isinstance(task, int):
+            body["number"] = task
+        else:
+            body["task"] = dict(task)
+        if execute:
+            body.update(start_tolerance=start_tolerance, move_to_start=move_to_start)
+        steps = body.get("task", {}).get("steps")
+        silence = self.timeout + _planning_time(body.get("task")) * max(
+            1, len(steps) if isinstance(steps, Sequence) else 1)
+        end = follow(self.session, self.prefix, f"{self.prefix}/task", body,
+                     decode=decode_reply, silence=silence, executes=execute,
+                     on_planned=on_planned, on_event=on_event, cancel=cancel)
+        if end.planned is None:  # an execution relayed without its plan first
+            raise MalformedReply("task", "event", "the stream did not start with 'planned'")
+        return TaskReply.parse(end.planned,
+                               None if end.finished is None else end.finished.raw)
+
+    # -- the kept planning scene -------------------------------------------------------
+    def scene(self) -> SceneReply:
+        """The kept planning scene: its revision, objects and carried objects."""
+        return SceneReply.parse(self.request("scene"))
+
+    def apply(self, change: Mapping[str, Any] | None = None, *,
+              add: Sequence[Mapping[str, Any]] = (), remove: Sequence[str] = (),
+              attach: Sequence[Mapping[str, Any]] = (), detach: Sequence[str] = (),
+              state: Mapping[str, float] | None = None, clear: bool = False,
+              if_revision: int | None = None) -> SceneApplied:
+        """Change the kept scene, all or nothing, in one new revision: ``clear``, then
+        ``remove`` (ids), ``add`` (objects, plan_request.json's obstacle form or meshes),
+        ``detach`` (ids), ``attach`` (``{object, link, touch_links, mass, com}``), at the
+        robot's ``state`` [rad] if given; with ``if_revision`` only if the scene is still
+        at that revision. A whole apply request as ``change`` takes the keywords' place
+        (they are added to it).
+
+        Raises:
+            SceneConflict (``details.current_revision``), InvalidRequest naming the
+            field (``add[3].mesh``, ``remove[0]``), ServiceBusy, ServiceUnavailable.
+        """
+        body: dict[str, Any] = dict(change or {})
+        for k, v in (("add", add), ("remove", remove), ("attach", attach),
+                     ("detach", detach)):
+            if v:
+                body[k] = [*body.get(k, ()), *v]
+        if state is not None:
+            body["state"] = dict(state)
+        if clear:
+            body["clear"] = True
+        if if_revision is not None:
+            body["if_revision"] = if_revision
+        return SceneApplied.parse(self.request("scene/apply", body))
 
     def blend(self, plan: Mapping[str, Any]) -> dict[str, Any]:
         """Blend the goal of ``plan`` into the motion in progress (planned from its state

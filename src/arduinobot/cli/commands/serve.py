@@ -230,8 +230,9 @@ def _task_server(graph: _Ros2Graph, tasks_file: str | None) -> Callable[..., Any
     number, run through ``<prefix>/task`` with execute (``arduinobot.ros2.task_server``)."""
     def make(session: Any, prefix: str, description: Description, submit_plan: object
              ) -> Any:
+        from arduinobot.client.named_task import run_named_task
         from arduinobot.ros2.task_server import TaskServer
-        from arduinobot.service.task.task_service import run_named_task, task_number_known
+        from arduinobot.service.task.task_service import task_number_known
 
         def run(number: int, on_progress: Callable[[float], None],
                 cancel: threading.Event) -> bool:

@@ -287,63 +287,6 @@ def task_extension(*, submit: Submit, tasks_file: str | Path | None = None,
     return make
 
 
-def run_named_task(session: zenoh.Session, prefix: str, number: int, *,
-                   on_progress: Callable[[float], None], cancel: threading.Event) -> bool:
-    """Run task ``number`` of the service's tasks.yaml on its robot through
-    ``<prefix>/task`` (``execute: true``), as ``arduinobot task`` does; ``on_progress``
-    gets the fraction of the task's duration done at each progress reply; ``cancel`` set
-    stops it through ``<prefix>/execute/cancel`` (smoothly). Whether it completed."""
-    state: dict[str, Any] = {"execution": None, "sent": False}
-    lock = threading.Lock()
-
-    def send_cancel() -> None:
-        with lock:  # once, and only for our execution
-            if state["sent"] or state["execution"] is None:
-                return
-            state["sent"] = True
-            body = {"execution": state["execution"]}
-        for _ in session.get(f"{prefix}/execute/cancel", payload=wire.encode(body),
-                             timeout=10.0):
-            pass
-
-    done = threading.Event()
-
-    def watch() -> None:
-        while not done.is_set():
-            if cancel.wait(0.1):
-                send_cancel()
-                return
-    threading.Thread(target=watch, daemon=True, name="task cancel").start()
-    duration, completed = 0.0, False
-    try:
-        for reply in session.get(f"{prefix}/task",
-                                 payload=wire.encode({"number": number, "execute": True,
-                                                      "trajectories": False}),
-                                 consolidation=zenoh.ConsolidationMode.NONE,
-                                 timeout=STREAM_LIMIT):
-            if reply.ok is None:
-                _log.warning("task %d: %s", number, reply.err.payload.to_bytes()[:500])
-                continue
-            event = orjson.loads(reply.ok.payload.to_bytes())
-            kind = event.get("event")
-            if kind == "started":
-                duration = float(event.get("duration") or 0.0)
-                with lock:
-                    state["execution"] = event.get("execution")
-                on_progress(0.0)
-                if cancel.is_set():  # cancelled while it was planned
-                    send_cancel()
-            elif kind == "progress" and duration > 0:
-                on_progress(float(event["time"]) / duration)
-            elif kind == "finished":
-                completed = (event.get("report") or {}).get("outcome") == "completed"
-                if completed:
-                    on_progress(1.0)
-    finally:
-        done.set()
-    return completed
-
-
 def task_number_known(description: Description, tasks_file: str | Path | None,
                       number: int) -> bool:
     """Whether the service's tasks.yaml (``tasks_file``, else the MoveIt config's) names
