@@ -1,8 +1,8 @@
 """The Python client library of the arduinobot service; it imports only the contract
 (and zenoh, numpy, orjson, jsonschema-rs), never the planner, the service or the CLI.
 
-- ``client``: :class:`PlannerClient` (plan, fk, ik, check, execute, task, scene, apply)
-  and the request/reply codec (``encode_body``, ``decode_reply``).
+- ``client``: :class:`PlannerClient` (plan, fk, ik, check, execute, task, scene, apply).
+- ``codec``: a request's payload and a reply's JSON (``encode_body``, ``decode_reply``).
 - ``replies``: the frozen reply dataclasses, each checked against its schema.
 - ``errors``: one class per wire code under ``ServiceError``.
 - ``stream``: the one follower of an execute or task stream (with cancel).

@@ -9,7 +9,7 @@ from collections.abc import Callable
 
 import zenoh
 
-from arduinobot.client.client import decode_reply
+from arduinobot.client.codec import decode_reply
 from arduinobot.client.errors import ServiceError
 from arduinobot.client.stream import STREAM_LIMIT, ExecutionEvent, follow
 

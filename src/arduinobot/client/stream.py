@@ -25,6 +25,7 @@ from typing import Any, Literal
 import zenoh
 
 from arduinobot.client.errors import MalformedReply, ServiceUnavailable
+from arduinobot.contract.wire import JSON
 
 #: How long the stream's query may last at most [s]: the execution's own length is not
 #: known when a plan comes first, so the stream is bounded by this and watched for
@@ -33,7 +34,7 @@ STREAM_LIMIT = 24 * 3600.0
 
 EventKind = Literal["started", "progress", "finished"]
 #: a reply's JSON object, or the coded error of an error reply raised
-#: (:func:`arduinobot.client.client.decode_reply`): (reply, key, waited [s])
+#: (:func:`arduinobot.client.codec.decode_reply`): (reply, key, waited [s])
 Decode = Callable[[zenoh.Reply, str, float], dict[str, Any]]
 
 
@@ -119,7 +120,7 @@ def follow(session: zenoh.Session, prefix: str, key: str, body: Mapping[str, Any
 
     Args:
         decode: turns a reply into its JSON object, raising the coded error of an error
-            reply (:func:`arduinobot.client.client.decode_reply`).
+            reply (:func:`arduinobot.client.codec.decode_reply`).
         silence: give up after this long [s] without a reply (planning included).
         executes: whether the stream moves the robot (it must then end with
             ``finished``); a task only planned ends after ``planned``.
@@ -135,7 +136,7 @@ def follow(session: zenoh.Session, prefix: str, key: str, body: Mapping[str, Any
     """
     replies: queue.Queue[zenoh.Reply | None] = queue.Queue()
     session.get(key, zenoh.handlers.Callback(replies.put, lambda: replies.put(None)),
-                payload=json.dumps(body), encoding="application/json",
+                payload=json.dumps(body), encoding=JSON,
                 consolidation=zenoh.ConsolidationMode.NONE, timeout=STREAM_LIMIT)
     execution: str | None = None
     planned: Mapping[str, Any] | None = None
@@ -187,7 +188,7 @@ def cancel_execution(session: zenoh.Session, prefix: str, execution: str | None,
     """
     key = f"{prefix}/execute/cancel"
     body = {} if execution is None else {"execution": execution}
-    for rep in session.get(key, payload=json.dumps(body), encoding="application/json",
+    for rep in session.get(key, payload=json.dumps(body), encoding=JSON,
                            timeout=timeout):
         got = decode(rep, key, timeout).get("cancelled")
         return got if isinstance(got, str) else None
