@@ -160,6 +160,10 @@ def follow(session: zenoh.Session, prefix: str, key: str, body: Mapping[str, Any
         if rep is None:
             if planned is not None and not executes:
                 return StreamEnd(planned, None)
+            if planned is None and execution is None:
+                raise ServiceUnavailable(f"no service answered on '{key}' (is `arduinobot "
+                                         "serve` running there?)", reason="no_route",
+                                         details={"key": key})
             raise ServiceUnavailable(f"the service ended the stream on '{key}' without "
                                      f"{'a report' if executes else 'a plan'}",
                                      reason="no_route", details={"key": key})
