@@ -14,6 +14,7 @@ from arduinobot import PlannerClient
 from arduinobot.description import load_description
 from arduinobot.execution.executor import ExecuteOptions, Executor, plan_start
 from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+from arduinobot.execution.segments import SampledTrajectory
 
 endpoint = sys.argv[1] if len(sys.argv) > 1 else "tcp/127.0.0.1:7447"
 desc = load_description()  # the shipped arduinobot: the model `serve` runs by default
@@ -21,7 +22,7 @@ desc = load_description()  # the shipped arduinobot: the model `serve` runs by d
 with SimArduinobot(desc) as twin, PlannerClient(endpoint, timeout=30) as c:
     # plan from where the twin is: execution refuses a trajectory that starts elsewhere
     res = c.plan(goal={"named": "reach_left"}, start=plan_start(twin, desc), seed=1)
-    traj = res.trajectory  # the reply's samples, parsed once
+    traj = SampledTrajectory.of(res)  # the reply's samples, parsed once
 
     # realtime=False: simulated time runs as fast as it computes (the real arm is paced)
     ex = Executor.for_description(twin, desc, options=ExecuteOptions(realtime=False))

@@ -25,7 +25,7 @@ NOT_CODES = frozenset({
     # environment and sysconf names, __all__ entries
     "ARDUINOBOT_CACHE", "ARDUINOBOT_MEMTRACE", "ARDUINOBOT_MEMTRACE_TRIM", "XDG_CACHE_HOME",
     "ARDUINOBOT_HOPTRACE", "SC_PAGE_SIZE", "MAX_PAYLOAD", "MAX_EXECUTE_PAYLOAD", "SCHEMA_NAMES",
-    "ARRAYS", "OPTIONAL", "RANGES",
+    "ARRAYS", "OPTIONAL", "RANGES", "JSON",
     "INSTALL_HINT",
     # the model's file format, named in `arduinobot limits` (src/arduinobot/planner/kinematics/applied_limits.py)
     "URDF",

@@ -11,6 +11,7 @@ from typing import Any
 from arduinobot.cli.common import load_from_args
 from arduinobot.cli.remote_model import disk_cache, model_of_service, progress_printer
 from arduinobot.client.replies import PlanReply
+from arduinobot.execution.segments import SampledTrajectory
 from arduinobot.execution.simulate import plot, simulate, summary
 
 
@@ -24,7 +25,7 @@ def simulate_command(ns: argparse.Namespace, res: PlanReply, req: Mapping[str, A
         TrajectoryMismatch: the plan does not fit the model it is replayed on.
     """
     desc = load_from_args(ns) if ns.local else model_of_service(robot)
-    r = simulate(desc, res.trajectory, obstacles=req.get("obstacles", ()), cache=disk_cache(),
+    r = simulate(desc, SampledTrajectory.of(res), obstacles=req.get("obstacles", ()), cache=disk_cache(),
                  progress=progress_printer())
     print(summary(r))
     if ns.plot:

@@ -13,21 +13,32 @@ request goes to the least loaded live instance (:mod:`arduinobot.client.balance`
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-import orjson
 import zenoh
 
 from arduinobot.client.balance import LoadBalancer
-from arduinobot.client.errors import ServiceBusy, ServiceUnavailable, error_from_reply
-from arduinobot.client.replies import CheckReply, FkReply, IkReply, PlanReply
-from arduinobot.client.stream import ExecutionEvent, cancel_execution, stream
-from arduinobot.contract.ranges import RANGES
+from arduinobot.client.codec import decode_reply, encode_body, plan_body, planning_time
+from arduinobot.client.errors import (
+    MalformedReply,
+    ServiceBusy,
+    ServiceUnavailable,
+)
+from arduinobot.client.replies import (
+    CheckReply,
+    FkReply,
+    IkReply,
+    PlanReply,
+    SceneApplied,
+    SceneReply,
+    TaskReply,
+)
+from arduinobot.client.stream import ExecutionEvent, cancel_execution, follow, stream
+from arduinobot.contract.wire import JSON
 from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
 
 _log = logging.getLogger(__name__)
@@ -103,7 +114,7 @@ class PlannerClient:
         """
         payload = encode_body(body)
         wait = float(timeout) if timeout is not None else \
-            self.timeout + (_planning_time(body) if kind == "plan" else 0.0)
+            self.timeout + (planning_time(body) if kind == "plan" else 0.0)
         if instance is not None:
             key = f"{self.prefix}/instance/{instance}/{kind}"
         else:
@@ -156,7 +167,7 @@ class PlannerClient:
         """The first reply to a get on ``key`` (none: an empty list). The first is the
         answer: taken as it arrives, not once the query is finalised (a wake later)."""
         replies = self.session.get(key, payload=payload, timeout=wait,
-                                   encoding="application/json" if payload else None)
+                                   encoding=JSON if payload else None)
         for reply in replies:
             return [reply]
         return []
@@ -229,9 +240,93 @@ class PlannerClient:
             body["trajectory"] = dict(trajectory)
         else:
             body["plan"] = dict(plan or {})
-        silence = self.timeout + _planning_time(plan)
+        silence = self.timeout + planning_time(plan)
         return stream(self.session, self.prefix, body, decode=decode_reply, silence=silence,
                       on_event=on_event, cancel=cancel)
+
+    def task(self, task: str | int | Mapping[str, Any], *, execute: bool = False,
+             start_tolerance: float = 0.01, move_to_start: bool = False,
+             trajectories: bool = True,
+             on_planned: Callable[[Mapping[str, Any]], None] | None = None,
+             on_event: Callable[[ExecutionEvent], None] | None = None,
+             cancel: threading.Event | None = None) -> TaskReply:
+        """Plan a task as a whole (every step before anything moves) and, with
+        ``execute``, run it on the service's robot (a task without ``start`` starts from
+        the robot's state).
+
+        Args:
+            task: a name (str) or number (int) of the service's tasks.yaml, or a task
+                (``{start, obstacles, steps, ...}``, docs/tasks.md).
+            start_tolerance: [rad] largest distance of each joint from the task's start;
+                move_to_start: move there first (execute).
+            trajectories: include each step's plan in :attr:`TaskReply.steps`.
+            on_planned: called with the planned reply, before the robot moves.
+            on_event: called with each execution event (started, progress, finished).
+            cancel: set it (from any thread) to stop the arm smoothly (set while the
+                task plans, the arm stops as it starts); the reply still comes, with
+                the cancelled report.
+
+        Raises:
+            InvalidRequest (an unknown task, a step's field), a step's own error
+            (``details.step``), ServiceBusy, NotAtStart, a robot's coded error,
+            ServiceUnavailable (no reply, or silent for the client's timeout plus the
+            task's planning time), MalformedReply.
+        """
+        body: dict[str, Any] = {"execute": execute, "trajectories": trajectories}
+        if isinstance(task, bool):  # a bool is an int: refused here, not as task 0/1
+            raise TypeError("task is a name, a number or a task mapping, not a bool")
+        if isinstance(task, str):
+            body["name"] = task
+        elif isinstance(task, int):
+            body["number"] = task
+        else:
+            body["task"] = dict(task)
+        if execute:
+            body.update(start_tolerance=start_tolerance, move_to_start=move_to_start)
+        steps = body.get("task", {}).get("steps")
+        silence = self.timeout + planning_time(body.get("task")) * max(
+            1, len(steps) if isinstance(steps, Sequence) else 1)
+        end = follow(self.session, self.prefix, f"{self.prefix}/task", body,
+                     decode=decode_reply, silence=silence, executes=execute,
+                     on_planned=on_planned, on_event=on_event, cancel=cancel)
+        if end.planned is None:  # an execution relayed without its plan first
+            raise MalformedReply("task", "event", "the stream did not start with 'planned'")
+        return TaskReply.parse(end.planned,
+                               None if end.finished is None else end.finished.raw)
+
+    # -- the kept planning scene -------------------------------------------------------
+    def scene(self) -> SceneReply:
+        """The kept planning scene: its revision, objects and carried objects."""
+        return SceneReply.parse(self.request("scene"))
+
+    def apply(self, change: Mapping[str, Any] | None = None, *,
+              add: Sequence[Mapping[str, Any]] = (), remove: Sequence[str] = (),
+              attach: Sequence[Mapping[str, Any]] = (), detach: Sequence[str] = (),
+              state: Mapping[str, float] | None = None, clear: bool = False,
+              if_revision: int | None = None) -> SceneApplied:
+        """Change the kept scene, all or nothing, in one new revision: ``clear``, then
+        ``remove`` (ids), ``add`` (objects, plan_request.json's obstacle form or meshes),
+        ``detach`` (ids), ``attach`` (``{object, link, touch_links, mass, com}``), at the
+        robot's ``state`` [rad] if given; with ``if_revision`` only if the scene is still
+        at that revision. A whole apply request as ``change`` takes the keywords' place
+        (they are added to it).
+
+        Raises:
+            SceneConflict (``details.current_revision``), InvalidRequest naming the
+            field (``add[3].mesh``, ``remove[0]``), ServiceBusy, ServiceUnavailable.
+        """
+        body: dict[str, Any] = dict(change or {})
+        for k, v in (("add", add), ("remove", remove), ("attach", attach),
+                     ("detach", detach)):
+            if v:
+                body[k] = [*body.get(k, ()), *v]
+        if state is not None:
+            body["state"] = dict(state)
+        if clear:
+            body["clear"] = True
+        if if_revision is not None:
+            body["if_revision"] = if_revision
+        return SceneApplied.parse(self.request("scene/apply", body))
 
     def blend(self, plan: Mapping[str, Any]) -> dict[str, Any]:
         """Blend the goal of ``plan`` into the motion in progress (planned from its state
@@ -241,7 +336,7 @@ class PlannerClient:
             TooLate: nothing moves, or it stops before the blend could start.
         """
         return self.request("execute", {"plan": dict(plan), "blend": True},
-                            timeout=self.timeout + _planning_time(plan))
+                            timeout=self.timeout + planning_time(plan))
 
     def cancel_execution(self, execution: str | None = None) -> str | None:
         """Stop ``execution`` (its id; None: whatever runs) smoothly, from any client; the
@@ -262,67 +357,3 @@ class PlannerClient:
 
     def schema(self) -> dict[str, Any]:
         return self.request("schema")
-
-
-def plan_body(request: Mapping[str, Any] | None = None, **fields: Any) -> dict[str, Any]:
-    """What :meth:`PlannerClient.plan` sends: ``request`` updated with ``fields``, its
-    trajectory ``packed`` unless it says otherwise."""
-    return {"trajectory_format": "packed", **(request or {}), **fields}
-
-
-def encode_body(body: Mapping[str, Any] | bytes | str | None) -> bytes | None:
-    """A request's payload: a mapping as strict JSON (NaN refused: ValueError), bytes/str
-    as they are.
-
-    orjson first (~10x :mod:`json`); it writes NaN and infinities as ``null``, so a payload
-    holding ``null`` anywhere, or anything orjson refuses (an int over 64 bits, ...), is
-    encoded again by :func:`json.dumps`, which refuses them as it always has.
-    """
-    if isinstance(body, Mapping):
-        try:
-            out = orjson.dumps(body, option=_ORJSON_REQUEST)
-        except TypeError:  # orjson.JSONEncodeError is one
-            out = b"null"
-        if b"null" not in out:
-            return out
-        return json.dumps(body, allow_nan=False).encode()
-    if isinstance(body, str):
-        return body.encode()
-    return body
-
-
-#: keys as :mod:`json` takes them (ints, floats, bools, None); a numpy scalar, which
-#: :mod:`json` writes as the float it subclasses, goes to :mod:`json`
-_ORJSON_REQUEST = orjson.OPT_NON_STR_KEYS
-
-
-def _planning_time(req: object) -> float:
-    v = req.get("planning_time", 1.0) if isinstance(req, Mapping) else 1.0
-    return float(v) if v in RANGES["planning_time"] else 1.0
-
-
-def decode_reply(reply: zenoh.Reply, key: str, wait: float) -> dict[str, Any]:
-    """The JSON object of a reply on ``key`` (that waited ``wait`` seconds).
-
-    Raises:
-        ServiceError: the subclass of an error reply; ServiceUnavailable for Zenoh's own.
-    """
-    if reply.ok is not None:
-        return orjson.loads(reply.ok.payload.to_bytes())  # strict JSON, ~3x json's speed
-    err = reply.err
-    assert err is not None  # a reply is either ok or an error
-    text = err.payload.to_bytes().decode("utf-8", "replace")
-    if str(err.encoding).startswith("application/json"):
-        try:
-            body = json.loads(text)
-        except json.JSONDecodeError:
-            body = None
-        if isinstance(body, dict) and "error" in body:
-            raise error_from_reply(body)
-    if text == "Timeout":
-        raise ServiceUnavailable(
-            f"'{key}': a service took the query but sent no reply within {wait:g} s "
-            "(overloaded, or a long request: raise the timeout)", reason="timeout",
-            details={"key": key, "timeout": wait})
-    raise ServiceUnavailable(f"'{key}': Zenoh answered with an error: {text}",
-                             reason="zenoh_error", details={"key": key, "zenoh": text})

@@ -17,20 +17,17 @@ import operator
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from itertools import chain
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import jsonschema_rs
 import numpy as np
 
 from arduinobot.client.errors import MalformedReply
 from arduinobot.contract.packed import PackedError, unpack
+from arduinobot.contract.samples import samples_csv
 from arduinobot.contract.wire import field_path, validator
-from arduinobot.planner.timing.trajectory import samples_csv
 
-if TYPE_CHECKING:
-    from arduinobot.execution.segments import SampledTrajectory
-
-Reply = Literal["plan", "fk", "ik", "check"]
+Reply = Literal["plan", "fk", "ik", "check", "task", "scene", "scene_apply"]
 
 
 def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
@@ -209,17 +206,9 @@ class PlanReply:
                                 float(v["worst_overall"]["ratio"]), _pair(v.get("closest_pair"))),
                    b.get("planner", ""), b["request_id"], b, b.get("reached"), b.get("line"))
 
-    @property
-    def trajectory(self) -> SampledTrajectory:
-        """The samples as a trajectory to execute or replay: built from the arrays parsed
-        above, so a reply is parsed once (the executor takes it as it is)."""
-        from arduinobot.execution.segments import SampledTrajectory  # ruckig: not for a plain plan
-        return SampledTrajectory(self.joint_names, self.times, self.positions,
-                                 self.velocities, self.accelerations)
-
     def to_csv(self) -> str:
         """One row per sample, as the planner writes a trajectory
-        (:func:`arduinobot.planner.timing.trajectory.samples_csv`)."""
+        (:func:`arduinobot.contract.samples.samples_csv`)."""
         return samples_csv(self.joint_names, self.times, self.positions, self.velocities,
                            self.accelerations, self.efforts)
 
@@ -313,3 +302,83 @@ class CheckReply:
                    _number(b["clearance"]),
                    None if closest is None else tuple(closest),
                    dict(b["joints"]), b["request_id"])
+
+
+@dataclass(frozen=True)
+class TaskReply:
+    """A task planned as a whole (``<prefix>/task``), and run if it was asked to.
+
+    Attributes:
+        name: the named task's name (None for a task given whole).
+        duration: [s] of the whole task; planning_time: [s] the service took to plan it.
+        joint_names: the order of the steps' ``start``/``end`` states.
+        steps: each step as the service reports it (index, kind, label, start_time [s],
+            duration [s], start, end, carried, and its ``plan`` unless
+            ``trajectories=False``).
+        planned: the ``planned`` reply as received.
+        execution, report: the execution's id and report (outcome, ticks, peaks, and
+            ``objects``' simulated end poses from a twin), if it was executed and moved.
+    """
+
+    name: str | None
+    duration: float
+    planning_time: float
+    joint_names: tuple[str, ...]
+    steps: tuple[Mapping[str, Any], ...]
+    planned: Mapping[str, Any] = field(repr=False)
+    execution: str | None = None
+    report: Mapping[str, Any] | None = None
+
+    @classmethod
+    def parse(cls, planned: Any, finished: Mapping[str, Any] | None = None) -> TaskReply:
+        """``planned``: the first reply; ``finished``: the execution's last event, if any.
+
+        Raises: MalformedReply naming the first field that breaks the schema.
+        """
+        b = _validated("task", planned)
+        if b["event"] != "planned" or "steps" not in b or "duration" not in b:
+            raise MalformedReply("task", "event", "is not a planned task")
+        report = None
+        if finished is not None:
+            report = dict(finished.get("report") or {})
+            if finished.get("objects"):  # the service's twin simulated them
+                report["objects"] = finished["objects"]
+        return cls(b.get("name"), float(b["duration"]), float(b.get("planning_time", 0.0)),
+                   tuple(b.get("joint_names", ())), tuple(b["steps"]), b,
+                   None if finished is None else finished.get("execution"), report)
+
+
+@dataclass(frozen=True)
+class SceneReply:
+    """The kept planning scene (``<prefix>/scene``): its ``revision``, its free
+    ``objects`` as applied (plan_request.json's obstacle form, meshes as sent) and the
+    ``attached`` objects the robot carries (each object's xyz/rpy in its link's frame)."""
+
+    revision: int
+    objects: tuple[Mapping[str, Any], ...]
+    attached: tuple[Mapping[str, Any], ...]
+
+    @classmethod
+    def parse(cls, body: Any) -> SceneReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("scene", body)
+        return cls(int(b["revision"]), tuple(b["objects"]), tuple(b["attached"]))
+
+
+@dataclass(frozen=True)
+class SceneApplied:
+    """A scene change applied everywhere (``<prefix>/scene/apply``): the new
+    ``revision``, how many ``objects`` and ``attached`` objects the scene now holds, and
+    which state an attach or detach used (``request``, ``robot``, ``zero``)."""
+
+    revision: int
+    objects: int | None = None
+    attached: int | None = None
+    state_source: Literal["request", "robot", "zero"] | None = None
+
+    @classmethod
+    def parse(cls, body: Any) -> SceneApplied:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("scene_apply", body)
+        return cls(int(b["revision"]), b.get("objects"), b.get("attached"),
+                   b.get("state_source"))

@@ -31,9 +31,18 @@ from arduinobot.contract.caps import (
 )
 from arduinobot.contract.errors import InvalidRequest
 
-__all__ = ["MAX_EXECUTE_PAYLOAD", "MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite", "check_size",
-           "decode", "encode", "field_path", "parse_json", "payload_cap", "schema", "validate",
-           "validator"]
+__all__ = ["JSON", "MAX_EXECUTE_PAYLOAD", "MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite", "check_size",
+           "decode", "encode", "error_json", "field_path", "parse_json", "payload_cap",
+           "schema", "validate", "validator"]
+
+#: the encoding of every request and reply payload (Zenoh's encoding field)
+JSON = "application/json"
+
+
+def error_json(code: str, message: str, details: Mapping[str, Any] | None = None
+               ) -> dict[str, Any]:
+    """An error reply's body (error.json): ``{"error": {code, message, details}}``."""
+    return {"error": {"code": str(code), "message": message, "details": dict(details or {})}}
 
 Kind = Literal["plan", "fk", "ik", "check", "execute", "task"]
 SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_response",

@@ -10,9 +10,8 @@ from __future__ import annotations
 import json
 from typing import Any
 
+from arduinobot.contract.wire import JSON
 from arduinobot.execution.report import Tick
-
-JSON = "application/json"
 
 
 def tick_message(tick: Tick) -> dict[str, Any]:

@@ -199,6 +199,23 @@ class Segment(Protocol):
     def evaluate(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
 
 
+class TimedSamples(Protocol):
+    """Samples of a timed trajectory, whatever holds them (a client's ``PlanReply``):
+    ``times`` (m,) [s]; ``positions`` [rad], ``velocities`` [rad/s], ``accelerations``
+    [rad/s²], (m, dof) each, columns in ``joint_names`` order."""
+
+    @property
+    def joint_names(self) -> Sequence[str]: ...
+    @property
+    def times(self) -> np.ndarray: ...
+    @property
+    def positions(self) -> np.ndarray: ...
+    @property
+    def velocities(self) -> np.ndarray: ...
+    @property
+    def accelerations(self) -> np.ndarray: ...
+
+
 @dataclass(frozen=True, eq=False)
 class SampledTrajectory:
     """A timed trajectory given by samples: ``times`` (m,) [s] from 0, increasing;
@@ -240,6 +257,13 @@ class SampledTrajectory:
         names, times, cols = parse_trajectory(body)
         return cls(names, times, cols["positions"],
                    *(np.nan_to_num(cols[k], nan=0.0) for k in ("velocities", "accelerations")))
+
+    @classmethod
+    def of(cls, samples: TimedSamples) -> SampledTrajectory:
+        """From arrays already parsed (a plan reply of the client, :class:`TimedSamples`):
+        a reply is parsed once, and the client needs no executor (nor ruckig) to hold one."""
+        return cls(tuple(samples.joint_names), samples.times, samples.positions,
+                   samples.velocities, samples.accelerations)
 
     @classmethod
     def load(cls, path: str | Path) -> SampledTrajectory:

@@ -28,6 +28,7 @@ from typing import Any, Literal
 
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import PlanningError
+from arduinobot.contract.wire import error_json
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,7 @@ class Failure:
         return cls(e.code, e.message, {**e.details, **details})
 
     def to_json(self) -> dict[str, Any]:
-        return {"error": {"code": self.code, "message": self.message,
-                          "details": dict(self.details)}}
+        return error_json(self.code, self.message, self.details)
 
 
 #: what a job ends with
@@ -65,6 +65,9 @@ JobKind = Literal["plan", "fk", "ik", "check", "task", "frames"]
 #: submits a job to the service's worker pool: ``submit(kind, data, respond)``
 #: (:meth:`arduinobot.service.server.PlannerService.submit`); ``respond`` gets its one outcome
 Submit = Callable[[JobKind, Mapping[str, Any], Callable[[Outcome], None]], None]
+#: submits a plan job (a valid plan request dict) to the pool: ``submit_plan(data,
+#: respond)``; ``respond`` gets its one outcome, from a pool thread
+SubmitPlan = Callable[[dict[str, Any], Callable[[Outcome], None]], None]
 
 
 def outcome_of(submit: Submit, kind: JobKind, data: Mapping[str, Any]) -> Outcome:

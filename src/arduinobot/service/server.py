@@ -21,17 +21,17 @@ from typing import Any
 import zenoh
 
 from arduinobot.contract import wire
-from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import PlanningError, ShuttingDown
 from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
 from arduinobot.service import hoptrace
-from arduinobot.service.keyguard import addressed_exactly
+from arduinobot.service.extension import Extension, Host
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.process.job import SHUTTING_DOWN, Job
 from arduinobot.service.process.memtrace import MemTrace, count_live
 from arduinobot.service.process.pool import WorkerPool
 from arduinobot.service.process.worker import DescriptionSpec
+from arduinobot.service.queries import guarded, reply_failure
 from arduinobot.service.scene.carry import PooledFrames
 from arduinobot.service.scene.store import SceneSnapshot
 from arduinobot.service.scene.sync import SceneService
@@ -39,15 +39,11 @@ from arduinobot.service.task.task_service import task_extension
 
 _log = logging.getLogger(__name__)
 
-#: builds an extension's queryables on the open session (see ServeOptions.extensions)
-Extension = Callable[..., Any]
-
 VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
 #: what the pool does: the work kinds, the tasks of <prefix>/task, and the link poses and
 #: contacts of the kept scene's attach and detach
 INFO_KINDS = ("description", "health", "schema")
-JSON = "application/json"
 #: a worker's default memory cap [bytes]. Measured resident sets: 223 MiB ready and
 #: 323 MiB after 20 plans on the shipped arm, 348 and 554 MiB on the course workspace's
 #: CAD meshes; 2 GiB is ~4x the largest
@@ -83,8 +79,8 @@ class ServeOptions:
     #: :func:`arduinobot.contract.zconfig.zenoh_config`)
     shared_memory: bool = False
     #: more queryables on the service's session, each built once it is open:
-    #: ``make(session, prefix, description, submit_plan) -> object with close()``
-    #: (``arduinobot serve`` adds ``<prefix>/execute``); closed first on shutdown
+    #: ``make(host) -> object with close()`` (:mod:`arduinobot.service.extension`;
+    #: ``arduinobot serve`` adds ``<prefix>/execute``); closed first on shutdown
     extensions: Sequence[Extension] = ()
     #: where this instance keeps the scene (None: arduinobot.service.scene.file.default_scene_file)
     scene_file: str | None = None
@@ -156,15 +152,12 @@ class PlannerService:
                         key, self._callback(kind, key), complete=True))
             self._entities.append(
                 self.session.liveliness().declare_token(f"{p}/alive/{self.instance}"))
-            for make in o.extensions:
-                ext = make(self.session, p, desc, self._submit_plan)
-                if hasattr(ext, "scene_source"):  # the twin puts the kept scene in its world
-                    ext.scene_source = self._scene_now
-                self._extensions.append(ext)
-            # <prefix>/task: tasks planned by the pool, executed through <prefix>/execute
-            self._extensions.append(task_extension(submit=self.submit, tasks_file=o.tasks_file,
-                                                   scene=self._scene_now)(
-                self.session, p, desc, self._submit_plan))
+            host = Host(self.session, p, desc, self.submit, self._submit_plan,
+                        self._scene_now)
+            # <prefix>/task (the service's own): tasks planned by the pool, executed
+            # through <prefix>/execute
+            for make in (*o.extensions, task_extension(tasks_file=o.tasks_file)):
+                self._extensions.append(make(host))
         except Exception:
             self.close()
             raise
@@ -229,25 +222,18 @@ class PlannerService:
 
     # -- queries -----------------------------------------------------------------------
     def _callback(self, kind: str, key: str):
-        def on_query(query: zenoh.Query) -> None:
-            # Runs on Zenoh's thread: only cheap checks here, planning goes to the pool.
-            if kind in WORK_KINDS and not addressed_exactly(key, query):
-                return  # a wildcard: no reply from a work key (see arduinobot.service.keyguard)
-            try:
-                self._on_query(kind, key, query)
-            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
-                _log.exception("%s: unexpected failure handling a query", key)
-                _reply_error(query, Failure(Code.INTERNAL,
-                                            "unexpected failure in the service"))
-        return on_query
+        # on Zenoh's thread: only cheap checks here, planning goes to the pool; a
+        # wildcard gets no reply from a work key (see arduinobot.service.keyguard)
+        return guarded(key, lambda query: self._on_query(kind, key, query),
+                       exact=kind in WORK_KINDS)
 
     def _on_query(self, kind: str, key: str, query: zenoh.Query) -> None:
         t_in = hoptrace.now() if hoptrace.ON else 0.0
         if kind in self._static:
-            query.reply(key, self._static[kind], encoding=JSON)
+            query.reply(key, self._static[kind], encoding=wire.JSON)
             return
         if kind == "health":
-            query.reply(key, wire.encode(self.health()), encoding=JSON)
+            query.reply(key, wire.encode(self.health()), encoding=wire.JSON)
             return
         request_id = f"{self.instance[:8]}-{next(self._ids)}"
         pool = self.pool
@@ -261,7 +247,7 @@ class PlannerService:
             if pool is not None:  # counted as the pool counts the requests it refuses
                 pool.count("received")
                 pool.count(e.code.value)
-            _reply_error(query, Failure.of(e, request_id=request_id))
+            reply_failure(query, Failure.of(e, request_id=request_id))
             return
         # Decoding and validation run in a worker (wire.decode there), not on this
         # thread: Zenoh calls every queryable's callback on one thread, so a request
@@ -271,9 +257,9 @@ class PlannerService:
 
         def respond(outcome: Outcome, query: zenoh.Query = query) -> None:
             if isinstance(outcome, Success):  # the worker encoded it, request_id included
-                query.reply(key, outcome.body, encoding=JSON)
+                query.reply(key, outcome.body, encoding=wire.JSON)
             else:
-                _reply_error(query, outcome)
+                reply_failure(query, outcome)
             if trace is not None:
                 trace["replied"] = hoptrace.now()
             query.drop()  # the reply is final: let the querier's get finish now
@@ -327,6 +313,3 @@ def _endpoints(cfg: zenoh.Config, what: str) -> list[str]:
         eps = eps.get(json.loads(cfg.get_json("mode")) or "peer", [])
     return [str(e) for e in eps or ()]
 
-
-def _reply_error(query: zenoh.Query, failure: Failure) -> None:
-    query.reply_err(wire.encode(failure.to_json()), encoding=JSON)

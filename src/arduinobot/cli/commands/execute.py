@@ -292,7 +292,7 @@ def cmd_execute(ns: argparse.Namespace) -> int:
             if "start" not in req:  # plan from where the robot is
                 req["start"] = plan_start(robot, desc)
             with connect(ns, model_drives_robot=True) as service:
-                traj = PlanReply.parse(service.request("plan", req)).trajectory
+                traj = SampledTrajectory.of(PlanReply.parse(service.request("plan", req)))
         else:
             traj = SampledTrajectory.load(ns.trajectory)
         check_fits(traj, desc)

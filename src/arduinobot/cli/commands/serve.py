@@ -20,6 +20,7 @@ from arduinobot.cli.common import EXIT_FAIL, EXIT_OK, add_model_args, model_opti
 if TYPE_CHECKING:
     from arduinobot.cli.ros2_options import Ros2Settings
     from arduinobot.description import Description
+    from arduinobot.service.extension import Host
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -228,19 +229,19 @@ def _joint_states(graph: _Ros2Graph) -> Callable[[Any, Description], Any]:
 def _task_server(graph: _Ros2Graph, tasks_file: str | None) -> Callable[..., Any]:
     """An extension serving the course's ``/task_server`` action: the named tasks by
     number, run through ``<prefix>/task`` with execute (``arduinobot.ros2.task_server``)."""
-    def make(session: Any, prefix: str, description: Description, submit_plan: object
-             ) -> Any:
+    def make(host: Host) -> Any:
+        from arduinobot.client.named_task import run_named_task
         from arduinobot.ros2.task_server import TaskServer
-        from arduinobot.service.task.task_service import run_named_task, task_number_known
+        from arduinobot.service.task.task_service import task_number_known
 
         def run(number: int, on_progress: Callable[[float], None],
                 cancel: threading.Event) -> bool:
-            return run_named_task(session, prefix, number, on_progress=on_progress,
-                                  cancel=cancel)
-        node = graph.acquire(session)
+            return run_named_task(host.session, host.prefix, number,
+                                  on_progress=on_progress, cancel=cancel)
+        node = graph.acquire(host.session)
         try:
             server = TaskServer(node, run=run, known=lambda n: task_number_known(
-                description, tasks_file, n))
+                host.description, tasks_file, n))
         except BaseException:
             graph.release()
             raise

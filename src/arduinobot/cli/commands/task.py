@@ -226,64 +226,32 @@ def _write_report(ns: argparse.Namespace, out: dict[str, Any]) -> None:
 
 
 def _remote(ns: argparse.Namespace) -> int:
-    """Plan and run on the service: ``<prefix>/task`` with ``execute``; Ctrl-C cancels
-    the execution (``<prefix>/execute/cancel``)."""
-    import orjson
-    import zenoh
-
+    """Plan and run on the service: ``<prefix>/task`` with ``execute``
+    (:meth:`PlannerClient.task`); Ctrl-C cancels the execution smoothly."""
     from arduinobot.cli.common import sigint_sets
-    from arduinobot.client.errors import ServiceUnavailable, error_from_reply
+    from arduinobot.client.stream import ExecutionEvent
     if ns.file or any((ns.package_dir, ns.arg, ns.moveit_config, ns.srdf, ns.joint_limits)):
         raise UsageError("--remote runs the service's robot: its model is the service's")
     f = _task_file(ns.task)
-    if f is not None:
-        req: dict[str, Any] = {"task": _read_body(f)}
-    elif ns.task.isdigit():
-        req = {"number": int(ns.task)}
-    else:
-        req = {"name": ns.task}
-    req.update(execute=True, start_tolerance=ns.start_tolerance,
-               move_to_start=ns.move_to_start, trajectories=bool(ns.report))
-    out: dict[str, Any] = {}
+    task: str | int | dict[str, Any] = _read_body(f) if f is not None else \
+        int(ns.task) if ns.task.isdigit() else ns.task
+
+    def on_event(ev: ExecutionEvent) -> None:
+        if ev.event == "started":
+            print(f"executing {ev.execution}: {ev.duration or 0.0:.3f} s on the "
+                  "service's robot (Ctrl-C stops smoothly)", file=sys.stderr)
     cancel = threading.Event()
-    execution: list[str] = []
     with client(ns) as c, sigint_sets(cancel):
-        replies = c.session.get(f"{ns.prefix}/task", payload=orjson.dumps(req),
-                                consolidation=zenoh.ConsolidationMode.NONE,
-                                timeout=24 * 3600.0)
-
-        ended = threading.Event()
-
-        def watch() -> None:
-            cancel.wait()
-            if execution and not ended.is_set():  # Ctrl-C while the robot moves
-                c.session.get(f"{ns.prefix}/execute/cancel",
-                              payload=orjson.dumps({"execution": execution[0]}), timeout=5.0)
-        watcher = threading.Thread(target=watch, daemon=True)
-        watcher.start()
-        for r in replies:
-            if r.ok is None:
-                raise error_from_reply(orjson.loads(r.err.payload.to_bytes()))
-            body = orjson.loads(r.ok.payload.to_bytes())
-            if body["event"] == "planned":
-                _print_plan(body)
-                out["planned"] = body
-            elif body["event"] == "started":
-                execution.append(body["execution"])
-                print(f"executing {body['execution']}: {body['duration']:.3f} s on the "
-                      "service's robot (Ctrl-C stops smoothly)", file=sys.stderr)
-            elif body["event"] == "finished":
-                out["execution"] = body["report"]
-                print(f"{body['report']['outcome']}: {body['report']['duration']:.3f} s")
-                if body.get("objects"):  # the service's twin simulated them
-                    out["execution"]["objects"] = body["objects"]
-                    _print_objects(body["objects"])
-        ended.set()
-        cancel.set()  # ends the watcher (nothing left to cancel)
-        watcher.join()  # before the session closes under it
-    if not out:
-        raise ServiceUnavailable(f"no reply on {ns.prefix}/task (is `arduinobot serve` "
-                                 "running there?)", reason="no_route")
+        reply = c.task(task, execute=True, start_tolerance=ns.start_tolerance,
+                       move_to_start=ns.move_to_start, trajectories=bool(ns.report),
+                       on_planned=lambda body: _print_plan(dict(body)), on_event=on_event,
+                       cancel=cancel)
+    out: dict[str, Any] = {"planned": reply.planned}
+    if reply.report is not None:
+        out["execution"] = dict(reply.report)
+        print(f"{reply.report['outcome']}: {reply.report['duration']:.3f} s")
+        if reply.report.get("objects"):  # the service's twin simulated them
+            _print_objects(reply.report["objects"])
     _write_report(ns, out)
     done = out.get("execution", {}).get("outcome") == "completed"
     return EXIT_OK if done else EXIT_FAIL

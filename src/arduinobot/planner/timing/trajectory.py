@@ -13,8 +13,6 @@ samples at a fixed rate plus the exact final state, JSON/CSV export, and ``at(t)
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import math
 from collections.abc import Callable, Sequence
@@ -26,8 +24,9 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.contract.ranges import check_range
+from arduinobot.contract.samples import samples_csv
 
-if TYPE_CHECKING:  # toppra, ~1 s to import: not for the client's CSV (samples_csv)
+if TYPE_CHECKING:  # toppra, ~1 s to import: only where a curve is timed
     from arduinobot.planner.timing.curve import PathCurve
     from arduinobot.planner.timing.curve_eval import Packed
 
@@ -272,14 +271,3 @@ class JointTrajectory:
         return samples_csv(self.joint_names, self.times, self.positions, self.velocities,
                            self.accelerations, self.efforts)
 
-
-def samples_csv(joint_names: Sequence[str], times: np.ndarray, *columns: np.ndarray) -> str:
-    """Samples as CSV, one row each: time_from_start, then each joint's position, velocity,
-    acceleration and effort (``<joint>.position``, ...), from ``columns`` (m, dof) in that
-    order. A :class:`JointTrajectory`'s, and the client's plan reply's."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    kinds = ("position", "velocity", "acceleration", "effort")
-    w.writerow(["time_from_start", *(f"{n}.{k}" for k in kinds for n in joint_names)])
-    w.writerows([repr(float(x)) for x in row] for row in np.column_stack([times, *columns]))
-    return buf.getvalue()

@@ -2,6 +2,6 @@
 
 - ``execution``: the queryables (execute, cancel, robot_state) and the robot.
 - ``run``: one execution's stream of events.
-- ``io``: the execute request decoded, errors answered.
+- ``io``: the execute request decoded, the errors it answers as themselves.
 - ``twin_scene``: the world given to the MuJoCo twin.
 """

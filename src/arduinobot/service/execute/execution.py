@@ -49,11 +49,12 @@ from arduinobot.execution.report import Tick
 from arduinobot.execution.robots.base import JointState, Robot
 from arduinobot.execution.robots.spec import RobotSpec, twin_start
 from arduinobot.execution.segments import SampledTrajectory
-from arduinobot.service.execute.io import JSON, ExecuteRequest, answering, payload_of, reply_err
+from arduinobot.service.execute.io import CODED, ExecuteRequest, payload_of
 from arduinobot.service.execute.run import Run
 from arduinobot.service.execute.twin_scene import TwinScene
-from arduinobot.service.keyguard import addressed_exactly
-from arduinobot.service.messages import Failure, Outcome
+from arduinobot.service.extension import Host
+from arduinobot.service.messages import Failure, Outcome, SubmitPlan
+from arduinobot.service.queries import answering, guarded, reply_failure
 
 if TYPE_CHECKING:
     from arduinobot.service.scene.store import SceneSnapshot
@@ -61,10 +62,6 @@ if TYPE_CHECKING:
 _log = logging.getLogger(__name__)
 
 BLEND_LEAD = 0.8  # [s] ahead of the arm a blend is planned for (planning must finish)
-
-# submit(plan request dict, respond(Success | Failure)) -> None: hands a plan job to the
-# pool; respond is called once, from a pool thread
-SubmitPlan = Callable[[dict[str, Any], Callable[[Outcome], None]], None]
 
 
 class TickSink(Protocol):
@@ -85,7 +82,8 @@ class ExecuteService:
 
     def __init__(self, session: zenoh.Session, prefix: str, description: Description,
                  spec: RobotSpec, *, submit_plan: SubmitPlan | None = None,
-                 tick_sink: TickSink | None = None) -> None:
+                 tick_sink: TickSink | None = None,
+                 scene_source: Callable[[], SceneSnapshot | None] | None = None) -> None:
         self.session, self.prefix, self.description, self.spec = (session, prefix,
                                                                    description, spec)
         self.submit_plan = submit_plan
@@ -102,9 +100,9 @@ class ExecuteService:
         self._ids = itertools.count(1)
         self._publisher: zenoh.Publisher | None = None
         self._entities: list[zenoh.Publisher | zenoh.Queryable] = []
-        #: the kept scene now (the server sets it): a twin takes its objects and carried
+        #: the kept scene now (the host's): a twin takes its objects and carried
         #: objects before each execution (SimArduinobot.set_scene)
-        self.scene_source: Callable[[], SceneSnapshot | None] | None = None
+        self.scene_source = scene_source
         self.twin_scene = TwinScene()  # what the twin holds of it
 
     def start(self) -> None:
@@ -113,7 +111,7 @@ class ExecuteService:
 
         p = self.prefix
         s = self.session
-        self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=JSON)
+        self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=wire.JSON)
         self._entities.append(self._publisher)
         # execute builds the twin on first use (seconds on CAD meshes) or waits for the
         # pool, robot_state may wait for a port: on their own threads, never on Zenoh's
@@ -191,23 +189,13 @@ class ExecuteService:
     # -- queries --------------------------------------------------------------------------
     def _guard(self, key: str, fn: Callable[[zenoh.Query], None], *, threaded: bool
                ) -> Callable[[zenoh.Query], None]:
-        def handle(query: zenoh.Query) -> None:
-            with answering(query, key, "unexpected failure in the service"):
-                fn(query)
-
-        def on_query(query: zenoh.Query) -> None:
-            if not addressed_exactly(key, query):
-                return  # a wildcard must not move the arm (see arduinobot.service.keyguard)
-            if threaded:
-                threading.Thread(target=handle, args=(query,), daemon=True,
-                                 name=key.rsplit("/", 1)[-1]).start()
-            else:
-                handle(query)
-        return on_query
+        # exact: a wildcard must not move the arm (see arduinobot.service.keyguard)
+        return guarded(key, fn, exact=True, threaded=threaded, coded=CODED,
+                       log_refusals=True)
 
     def _on_state(self, query: zenoh.Query) -> None:
         query.reply(f"{self.prefix}/robot_state", wire.encode(self.state().to_dict()),
-                    encoding=JSON)
+                    encoding=wire.JSON)
 
     def state(self) -> JointState:
         """The robot's state. A twin not opened yet is where it will start: said without
@@ -226,7 +214,7 @@ class ExecuteService:
             _log.info("execution %s: cancel requested", cur)
             self.cancel.set()
         query.reply(f"{self.prefix}/execute/cancel",
-                    wire.encode({"cancelled": cur if hit else None}), encoding=JSON)
+                    wire.encode({"cancelled": cur if hit else None}), encoding=wire.JSON)
 
     def _on_execute(self, query: zenoh.Query) -> None:
         req = ExecuteRequest.decode(payload_of(query))
@@ -289,16 +277,17 @@ class ExecuteService:
         key = f"{self.prefix}/execute"
 
         def on_planned(outcome: Outcome) -> None:
-            with answering(query, key, "the blend failed"):
+            with answering(query, key, internal="the blend failed", coded=CODED,
+                           log_refusals=True):
                 if isinstance(outcome, Failure):
-                    reply_err(query, outcome.code, outcome.message, outcome.details)
+                    reply_failure(query, outcome)
                 else:
                     traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
                     ex.switch(traj, k, on_switch=self.twin_scene.at_switch(ex.robot, snap,
                                                                             own))
                     query.reply(key, wire.encode({"event": "blended", "execution": execution,
                                                   "tick": k, "duration": traj.duration}),
-                                encoding=JSON)
+                                encoding=wire.JSON)
             query.drop()
         self._plan(plan, on_planned)
 
@@ -310,16 +299,17 @@ class ExecuteService:
 
 
 def execute_extension(spec: RobotSpec, *, tick_sink: OpenTickSink | None = None
-                      ) -> Callable[..., ExecuteService]:
-    """A :class:`arduinobot.service.server.ServeOptions` extension serving ``<prefix>/execute`` on
-    the robot ``spec`` describes (started once the service's session is open);
+                      ) -> Callable[[Host], ExecuteService]:
+    """An extension (:mod:`arduinobot.service.extension`) serving ``<prefix>/execute`` on
+    the robot ``spec`` describes (started once the service's session is open), its plans
+    through the host's pool, a twin taking the host's kept scene;
     ``tick_sink(session, description)`` opens another consumer of every tick (``serve
     --ros2``'s /joint_states), closed with the service."""
-    def make(session: zenoh.Session, prefix: str, description: Description,
-             submit_plan: SubmitPlan) -> ExecuteService:
-        sink = tick_sink(session, description) if tick_sink is not None else None
-        svc = ExecuteService(session, prefix, description, spec, submit_plan=submit_plan,
-                             tick_sink=sink)
+    def make(host: Host) -> ExecuteService:
+        sink = tick_sink(host.session, host.description) if tick_sink is not None else None
+        svc = ExecuteService(host.session, host.prefix, host.description, spec,
+                             submit_plan=host.submit_plan, tick_sink=sink,
+                             scene_source=host.scene)
         try:
             svc.start()
         except BaseException:

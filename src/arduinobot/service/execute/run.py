@@ -22,8 +22,9 @@ from arduinobot.execution.executor import Executor
 from arduinobot.execution.report import Tick
 from arduinobot.execution.robots.base import PortError, RobotError
 from arduinobot.execution.segments import SampledTrajectory, check_fits
-from arduinobot.service.execute.io import JSON, ExecuteRequest, answering, reply_err
+from arduinobot.service.execute.io import CODED, ExecuteRequest
 from arduinobot.service.messages import Failure, Outcome
+from arduinobot.service.queries import answering, reply_error
 
 _log = logging.getLogger(__name__)
 
@@ -84,12 +85,12 @@ class Run:
         t.start()
 
     def _fail(self, code: str, message: str, details: Mapping[str, Any]) -> None:
-        reply_err(self.query, code, message, details)
+        reply_error(self.query, code, message, details)
         self.query.drop()
         self.svc.finish()
 
     def _reply(self, body: Mapping[str, Any]) -> None:
-        self.query.reply(self.key, wire.encode(body), encoding=JSON)
+        self.query.reply(self.key, wire.encode(body), encoding=wire.JSON)
 
     def _executor(self) -> Executor:
         """An executor for this run: the robot's, with the request's start options, that
@@ -120,7 +121,8 @@ class Run:
     def _run(self, traj: SampledTrajectory) -> None:
         svc = self.svc
         watch = None
-        with answering(self.query, f"execution {self.execution}", "the execution failed"):
+        with answering(self.query, f"execution {self.execution}",
+                       internal="the execution failed", coded=CODED, log_refusals=True):
             try:
                 if self.req.client is not None:
                     watch = self._watch_client(self.req.client)

@@ -44,10 +44,8 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
-from arduinobot.contract.errors import PlanningError
 from arduinobot.description import Description
-from arduinobot.service.keyguard import addressed_exactly
-from arduinobot.service.messages import Failure
+from arduinobot.service.queries import answering, guarded, reply_error
 from arduinobot.service.scene.apply import (
     MAX_APPLY_PAYLOAD,
     SceneUnavailable,
@@ -76,7 +74,6 @@ FORWARD_TIMEOUT = 30.0
 LEADER_WAIT = 10.0
 #: How long a starting instance waits for the live instances' scenes [s].
 CATCH_UP_TIMEOUT = 5.0
-JSON = "application/json"
 
 
 class SceneService:
@@ -166,14 +163,8 @@ class SceneService:
         """A queryable on ``key``; a ``shared`` one (on a key every instance declares) is
         never undeclared, only closed with the session: see PlannerService.close; an
         ``exact`` one answers only queries naming ``key`` itself (arduinobot.service.keyguard)."""
-        def on_query(query: zenoh.Query) -> None:
-            if exact and not addressed_exactly(key, query):
-                return
-            try:
-                handler(query)
-            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
-                _log.exception("%s: unexpected failure", key)
-                _reply_error(query, Failure(Code.INTERNAL, "unexpected failure in the scene"))
+        on_query = guarded(key, handler, exact=exact,
+                           internal="unexpected failure in the scene")
         q = self.session.declare_queryable(key, on_query, complete=complete)
         (self._shared if shared else self._entities).append(q)
 
@@ -184,28 +175,22 @@ class SceneService:
         def handler(query: zenoh.Query) -> None:
             zb = query.payload
             if zb is not None and len(zb) > MAX_APPLY_PAYLOAD:
-                _reply_error(query, Failure(Code.INVALID_REQUEST, f"payload of {len(zb)} "
-                                            f"bytes exceeds the {MAX_APPLY_PAYLOAD}-byte cap",
-                                            {"limit": MAX_APPLY_PAYLOAD}))
+                reply_error(query, Code.INVALID_REQUEST, f"payload of {len(zb)} bytes "
+                            f"exceeds the {MAX_APPLY_PAYLOAD}-byte cap",
+                            {"limit": MAX_APPLY_PAYLOAD})
                 return
             raw = zb.to_bytes() if zb is not None else b""
 
             def run() -> None:
-                try:
+                # a bug: INTERNAL naming the exception, the service lives
+                with answering(query, f"scene: {query.key_expr}"):
                     work(query, raw)
-                except PlanningError as e:
-                    _reply_error(query, Failure.of(e))
-                except Exception as e:  # noqa: BLE001 -- a bug: INTERNAL, the service lives
-                    _log.exception("scene: %s failed", query.key_expr)
-                    _reply_error(query, Failure(Code.INTERNAL, f"{type(e).__name__}: {e}",
-                                                {"exception": type(e).__name__}))
-                finally:
-                    query.drop()
+                query.drop()
             try:
                 pool.submit(run)
             except RuntimeError:  # shut down: this instance is closing
-                _reply_error(query, Failure(Code.SHUTTING_DOWN, "this instance is shutting "
-                                            "down; retry"))
+                reply_error(query, Code.SHUTTING_DOWN, "this instance is shutting down; "
+                            "retry")
         return handler
 
     # -- reading -----------------------------------------------------------------------
@@ -219,7 +204,7 @@ class SceneService:
         return body
 
     def _on_get(self, query: zenoh.Query) -> None:
-        query.reply(query.key_expr, self.encoded(), encoding=JSON)
+        query.reply(query.key_expr, self.encoded(), encoding=wire.JSON)
 
     # -- writing -----------------------------------------------------------------------
     def leader(self) -> str:
@@ -242,16 +227,16 @@ class SceneService:
                 return self._lead_change(query, change, source)
             replies = list(self.session.get(f"{self.prefix}/instance/{lead}/scene/lead",
                                             payload=raw, timeout=FORWARD_TIMEOUT,
-                                            encoding=JSON))
+                                            encoding=wire.JSON))
             if replies:
                 r = replies[0]
                 if r.ok is not None:
                     body = r.ok.payload.to_bytes()
                     if source is not None:
                         body = orjson.dumps({**orjson.loads(body), "state_source": source})
-                    query.reply(query.key_expr, body, encoding=JSON)
+                    query.reply(query.key_expr, body, encoding=wire.JSON)
                 elif r.err is not None:
-                    query.reply_err(r.err.payload.to_bytes(), encoding=JSON)
+                    query.reply_err(r.err.payload.to_bytes(), encoding=wire.JSON)
                 return None
             if time.monotonic() > give_up:
                 raise SceneUnavailable("the scene's leading instance did not answer; retry")
@@ -277,12 +262,12 @@ class SceneService:
                                           "removed": removed, "attached": attached,
                                           "detached": detached,
                                           "cleared": bool(change.get("clear"))}),
-                            encoding=JSON)
+                            encoding=wire.JSON)
         reply: dict[str, Any] = {"revision": new.revision, "objects": len(new.objects),
                                  "attached": len(new.attached)}
         if source is not None:
             reply["state_source"] = source
-        query.reply(query.key_expr, orjson.dumps(reply), encoding=JSON)
+        query.reply(query.key_expr, orjson.dumps(reply), encoding=wire.JSON)
 
     def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> None:
         """Have every other live instance take the change (answered once it is on their
@@ -293,7 +278,7 @@ class SceneService:
         # one exact query per member, all sent before any answer is awaited
         pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
                                         payload=payload, timeout=REPLICATE_TIMEOUT,
-                                        encoding=JSON)) for m in members]
+                                        encoding=wire.JSON)) for m in members]
         for member, replies in pending:
             got = list(replies)
             if not got or got[0].err is not None:
@@ -325,7 +310,7 @@ class SceneService:
                     self.file.save(new)
                     self._state = new
         query.reply(query.key_expr, orjson.dumps({"revision": self._state.revision}),
-                    encoding=JSON)
+                    encoding=wire.JSON)
 
     def _fetch(self, instance: str) -> SceneState | None:
         """The scene of ``instance``, or None if it does not answer."""
@@ -372,6 +357,3 @@ class SceneService:
                 out[inst] = orjson.loads(reply.ok.payload.to_bytes())
         return out
 
-
-def _reply_error(query: zenoh.Query, failure: Failure) -> None:
-    query.reply_err(wire.encode(failure.to_json()), encoding=JSON)

@@ -18,7 +18,6 @@ from the robot's state (``<prefix>/robot_state``).
 from __future__ import annotations
 
 import logging
-import threading
 from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -29,13 +28,14 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
-from arduinobot.contract.errors import InvalidRequest, PlanningError
+from arduinobot.contract.errors import InvalidRequest
 from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
 from arduinobot.scene.obstacles import Obstacle
-from arduinobot.service.keyguard import addressed_exactly
+from arduinobot.service.extension import Host
 from arduinobot.service.messages import Failure, Outcome, Submit, Success, outcome_of
+from arduinobot.service.queries import guarded, reply_error, reply_failure
 from arduinobot.service.scene.store import SceneSnapshot, with_scene
 
 if TYPE_CHECKING:  # the planner (OMPL) loads in the workers, never with `serve`
@@ -43,15 +43,8 @@ if TYPE_CHECKING:  # the planner (OMPL) loads in the workers, never with `serve`
 
 _log = logging.getLogger(__name__)
 
-JSON = "application/json"
 #: how long the relayed execute stream may last [s] (progress arrives every 0.1 s)
 STREAM_LIMIT = 24 * 3600.0
-
-
-def _reply_err(query: zenoh.Query, code: str, message: str,
-               details: Mapping[str, Any] | None = None) -> None:
-    query.reply_err(wire.encode({"error": {"code": str(code), "message": message,
-                                           "details": dict(details or {})}}), encoding=JSON)
 
 
 def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = True
@@ -125,21 +118,10 @@ class TaskService:
     def start(self) -> None:
         key = f"{self.prefix}/task"
 
-        def handle(query: zenoh.Query) -> None:
-            try:
-                self._on_task(query)
-            except PlanningError as e:
-                _reply_err(query, e.code, e.message, e.details)
-            except Exception:  # noqa: BLE001 -- logged; the querier gets INTERNAL
-                _log.exception("%s: unexpected failure", key)
-                _reply_err(query, Code.INTERNAL, "unexpected failure in the task service")
-            query.drop()
-
-        def on_query(query: zenoh.Query) -> None:
-            if addressed_exactly(key, query):  # a wildcard must not move the arm
-                # its own thread: it waits for the pool, then relays a whole execution
-                threading.Thread(target=handle, args=(query,), daemon=True,
-                                 name="task").start()
+        # exact: a wildcard must not move the arm; its own thread: it waits for the
+        # pool, then relays a whole execution
+        on_query = guarded(key, self._on_task, exact=True, threaded=True, drop=True,
+                           internal="unexpected failure in the task service")
         self._entities.append(self.session.declare_queryable(key, on_query, complete=True))
         _log.info("task: key %s (named tasks: %s)", key, self.tasks_file or "none")
 
@@ -192,9 +174,9 @@ class TaskService:
             "start_tolerance": body.get("start_tolerance", 0.01),
             "move_to_start": bool(body.get("move_to_start", False))})
         if isinstance(outcome, Failure):
-            query.reply_err(wire.encode(outcome.to_json()), encoding=JSON)
+            reply_failure(query, outcome)
             return
-        query.reply(f"{self.prefix}/task", outcome.body, encoding=JSON)
+        query.reply(f"{self.prefix}/task", outcome.body, encoding=wire.JSON)
         if outcome.execute is not None:
             self._execute(query, outcome.execute)
 
@@ -229,14 +211,14 @@ class TaskService:
                                       timeout=STREAM_LIMIT):
             got = True
             if reply.ok is not None:
-                query.reply(key, reply.ok.payload.to_bytes(), encoding=JSON)
+                query.reply(key, reply.ok.payload.to_bytes(), encoding=wire.JSON)
             else:
                 raw = reply.err.payload.to_bytes()
                 _log.warning("task: the service's execute refused the task's motion: %s",
                              raw[:300].decode("utf-8", "replace"))
-                query.reply_err(raw, encoding=JSON)
+                query.reply_err(raw, encoding=wire.JSON)
         if not got:
-            _reply_err(query, Code.ROBOT_ERROR, "the service's <prefix>/execute did not "
+            reply_error(query, Code.ROBOT_ERROR, "the service's <prefix>/execute did not "
                        "answer (serve --no-robot?)")
 
 
@@ -272,76 +254,16 @@ def _with_start(task: Task, start: Mapping[str, float]) -> Task:
     return replace(task, start=dict(start))
 
 
-def task_extension(*, submit: Submit, tasks_file: str | Path | None = None,
-                   scene: Callable[[], SceneSnapshot | None] | None = None
-                   ) -> Callable[..., TaskService]:
-    """A :class:`arduinobot.service.server.ServeOptions` extension serving ``<prefix>/task``, its
-    tasks planned through ``submit`` (the service's pool); ``scene()`` gives the kept
-    scene every task starts in."""
-    def make(session: zenoh.Session, prefix: str, description: Description,
-             submit_plan: object) -> TaskService:
-        svc = TaskService(session, prefix, description, submit=submit,
-                          tasks_file=Path(tasks_file) if tasks_file else None, scene=scene)
+def task_extension(*, tasks_file: str | Path | None = None) -> Callable[[Host], TaskService]:
+    """An extension (:mod:`arduinobot.service.extension`) serving ``<prefix>/task``, its
+    tasks planned through the host's pool, each starting in the host's kept scene."""
+    def make(host: Host) -> TaskService:
+        svc = TaskService(host.session, host.prefix, host.description, submit=host.submit,
+                          tasks_file=Path(tasks_file) if tasks_file else None,
+                          scene=host.scene)
         svc.start()
         return svc
     return make
-
-
-def run_named_task(session: zenoh.Session, prefix: str, number: int, *,
-                   on_progress: Callable[[float], None], cancel: threading.Event) -> bool:
-    """Run task ``number`` of the service's tasks.yaml on its robot through
-    ``<prefix>/task`` (``execute: true``), as ``arduinobot task`` does; ``on_progress``
-    gets the fraction of the task's duration done at each progress reply; ``cancel`` set
-    stops it through ``<prefix>/execute/cancel`` (smoothly). Whether it completed."""
-    state: dict[str, Any] = {"execution": None, "sent": False}
-    lock = threading.Lock()
-
-    def send_cancel() -> None:
-        with lock:  # once, and only for our execution
-            if state["sent"] or state["execution"] is None:
-                return
-            state["sent"] = True
-            body = {"execution": state["execution"]}
-        for _ in session.get(f"{prefix}/execute/cancel", payload=wire.encode(body),
-                             timeout=10.0):
-            pass
-
-    done = threading.Event()
-
-    def watch() -> None:
-        while not done.is_set():
-            if cancel.wait(0.1):
-                send_cancel()
-                return
-    threading.Thread(target=watch, daemon=True, name="task cancel").start()
-    duration, completed = 0.0, False
-    try:
-        for reply in session.get(f"{prefix}/task",
-                                 payload=wire.encode({"number": number, "execute": True,
-                                                      "trajectories": False}),
-                                 consolidation=zenoh.ConsolidationMode.NONE,
-                                 timeout=STREAM_LIMIT):
-            if reply.ok is None:
-                _log.warning("task %d: %s", number, reply.err.payload.to_bytes()[:500])
-                continue
-            event = orjson.loads(reply.ok.payload.to_bytes())
-            kind = event.get("event")
-            if kind == "started":
-                duration = float(event.get("duration") or 0.0)
-                with lock:
-                    state["execution"] = event.get("execution")
-                on_progress(0.0)
-                if cancel.is_set():  # cancelled while it was planned
-                    send_cancel()
-            elif kind == "progress" and duration > 0:
-                on_progress(float(event["time"]) / duration)
-            elif kind == "finished":
-                completed = (event.get("report") or {}).get("outcome") == "completed"
-                if completed:
-                    on_progress(1.0)
-    finally:
-        done.set()
-    return completed
 
 
 def task_number_known(description: Description, tasks_file: str | Path | None,
