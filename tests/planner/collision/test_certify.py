@@ -305,7 +305,7 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     # are no parts)
     from dataclasses import replace
 
-    from arduinobot.planner.collision import certify
+    from arduinobot.planner.collision import ladder
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
     world = CollisionWorld(d)
     edge = np.array([[-1.2003252626449796, -0.41068828429081816, -0.8292884824147762,
@@ -325,9 +325,9 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     assert exact.free and 0.0005 < exact.certified_clearance <= true_gap
     assert exact.exact > 0
     # the hulls alone (as before EXACT_BELOW): the same verdict, microns certified
-    old, certify.EXACT_BELOW = certify.EXACT_BELOW, -np.inf
+    old, ladder.EXACT_BELOW = ladder.EXACT_BELOW, -np.inf
     try:
         hulls_only = Certifier(no_parts, fraction=0.5).path(edge, sample_step=None)
     finally:
-        certify.EXACT_BELOW = old
+        ladder.EXACT_BELOW = old
     assert hulls_only.free and hulls_only.certified_clearance < 1e-4

@@ -11,6 +11,7 @@ import trimesh
 
 from arduinobot.description import load_description
 from arduinobot.planner.collision.hulls import mesh_hull, separation, warm_bound
+from arduinobot.planner.collision.ladder import Ladder
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.scene.obstacles import Obstacle
 
@@ -54,7 +55,8 @@ def _bounds_never_exceed_exact(world: CollisionWorld, seed: int, n: int) -> int:
         for p in range(len(world.pair_names)):
             exact = world.pair_distance(q, p)
             direction = np.full(3, np.nan)
-            bound, was_exact = world.pair_bound(q, p, above=-np.inf, direction=direction)
+            bound, was_exact = Ladder(world, clear=0.0).state_bound(q, p, above=-np.inf,
+                                                                  direction=direction)
             assert not was_exact
             assert bound <= exact + 1e-12, (world.pair_names[p], bound, exact)
             tight += bound >= 0.9 * exact > 0
@@ -89,13 +91,13 @@ def test_hull_bounds_never_exceed_the_exact_distance_on_cad_links(course_ws):
     assert _bounds_never_exceed_exact(w, 12, 30) > 50
 
 
-def test_pair_bound_falls_back_to_fcl_where_the_hulls_touch():
+def test_the_ladder_falls_back_to_fcl_where_the_hulls_touch():
     w = CollisionWorld(load_description())
     q = np.zeros(w.dof)
     p = next(i for i, pair in enumerate(w.pair_names) if set(pair) == {"base_link",
                                                                         "claw_support"})
     exact = w.pair_distance(q, p)
-    d, was_exact = w.pair_bound(q, p, above=exact + 1.0)  # no hull bound is that large
+    d, was_exact = Ladder(w, clear=0.0).state_bound(q, p, above=exact + 1.0)  # no hull bound is that large
     assert was_exact and d == exact
 
 

@@ -16,6 +16,7 @@ from arduinobot.description import load_description
 from arduinobot.description.meshes import shape_mesh
 from arduinobot.planner.collision.gjk import gjk_direction
 from arduinobot.planner.collision.hulls import mesh_hull
+from arduinobot.planner.collision.ladder import Ladder
 from arduinobot.planner.collision.parts import PartBounds, Parts, build_parts, mesh_parts
 from arduinobot.planner.collision.world import CollisionWorld
 
@@ -104,7 +105,7 @@ def test_part_bounds_never_exceed_the_exact_distance_on_cad_links(course):
             exact = course.pair_distance(q, p)
             if exact > 0.05:
                 continue  # far apart: hulls decide there, and FCL is slow
-            bound = course.pair_parts_bound(q, p)
+            bound = course.pair_distance(q, p, kind="parts")
             assert bound <= exact + 1e-12, (course.pair_names[p], bound, exact)
             near += 1
             tight += bound >= 0.9 * exact
@@ -118,10 +119,10 @@ def test_near_the_base_hollow_the_parts_prove_what_the_hulls_cannot(course):
     q = np.array([-1.263, -0.473, -0.852, -1.474])
     p = course.pair_names.index(("base_link", "claw_support"))
     exact = course.pair_distance(q, p)
-    assert exact > 0.01 and course.pair_hull_bound(q, p) <= 0.0
-    bound = course.pair_parts_bound(q, p)
+    assert exact > 0.01 and course.pair_distance(q, p, kind="hulls") <= 0.0
+    bound = course.pair_distance(q, p, kind="parts")
     assert 0.95 * exact <= bound <= exact + 1e-12
-    d, was_exact = course.pair_bound(q, p, above=0.001)
+    d, was_exact = Ladder(course, clear=0.0).state_bound(q, p, above=0.001)
     assert not was_exact and d == bound
 
 

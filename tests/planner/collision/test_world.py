@@ -136,23 +136,6 @@ def test_lower_bound_never_exceeds_the_exact_distance(world, d):
     assert positive > 0
 
 
-def test_the_remembered_still_distance_is_tight_on_convex_links_and_order_free(d):
-    world = CollisionWorld(d)
-    fingers = world.pair_names.index(("gripper_right", "gripper_left"))
-    a = np.array([0.3, 0.2, 0.1, -0.3])
-    b = np.array([-1.0, 0.6, 0.4, -0.3])  # the arm joints do not move the fingers
-    c = np.array([0.3, 0.2, 0.1, -0.6])  # the finger joint does
-    got = [world.still_distance(q, fingers, above=1e-5) for q in (a, b, c)]
-    for q, g in zip((a, b, c), got):
-        # the fingers are convex: their hulls' bound is FCL's distance less the hulls'
-        # rounding slack (1e-9 m each)
-        assert world.pair_distance(q, fingers) - 1e-8 < g <= world.pair_distance(q, fingers)
-    assert abs(got[2] - got[0]) > 1e-4  # measured anew, not remembered
-    # the same figures in another order, in a world that has answered nothing yet
-    fresh = CollisionWorld(d)
-    assert [fresh.still_distance(q, fingers, above=1e-5) for q in (c, b, a)] == got[::-1]
-
-
 def test_scene_meshes_are_built_once_per_content_across_worlds(world, tmp_path, monkeypatch):
     import trimesh
 

@@ -12,11 +12,10 @@ Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lo
 ``d`` on the pair's distance; no point of the next ``(d - covered) / speed`` of the piece
 comes closer than ``covered`` (for a body moving by a static one, the step may come from
 how fast it moves where it is now instead, :mod:`.body_speed`, when that is longer).
-Where ``d`` is not above the clearance, the bodies' convex hulls give a bound
-(:mod:`.hulls`): along the pair's last GJK direction inside the walk while that proves
-it (near contact the trees keep failing and the steps are short), else from a new GJK
-query; where the hulls touch, FCL's exact distance stands in (it is a bound too); where
-even that is not above the clearance, the motion is refused at that point.
+Where ``d`` proves little, the near-contact ladder (:mod:`.ladder`) gives a closer
+bound: the convex hulls (along the pair's last GJK direction inside the walk while that
+proves it, else a new GJK query), the part hulls, FCL's exact distance (a bound too);
+where even that is not above the clearance, the motion is refused at that point.
 Every point of every piece is covered, so a motion certified free is free over the whole
 continuum, not only where it was sampled.
 
@@ -27,12 +26,6 @@ contact).
 A pair of links whose relative motion is one-dimensional (the two fingers along their
 mimic) is proven before the walk, over cells of that joint kept for every request
 (:mod:`.one_dim`), and the walk passes over it.
-
-Where the trees prove a pair less than ``SOFT`` beyond the clearance, the walk asks
-Python for the hulls' bound (FCL's GJK) before taking the trees': the leaf boxes of CAD
-meshes (long thin triangles) stop proving anything tens of millimetres before the
-meshes touch, and a walk that took their small positive bounds stepped geometrically
-toward the boxes' contact, certifying microns for paths that kept centimetres.
 """
 
 from __future__ import annotations
@@ -48,6 +41,7 @@ from arduinobot.planner.collision.body_speed import local_rates, local_step
 from arduinobot.planner.collision.certificate import Certificate
 from arduinobot.planner.collision.compiled import Direct
 from arduinobot.planner.collision.hulls import HullPack, warm_bound
+from arduinobot.planner.collision.ladder import GAP, HOLD, SOFT, STILL, Ladder
 from arduinobot.planner.collision.obbtree import Forest
 from arduinobot.planner.collision.one_dim import OneDimProver
 from arduinobot.planner.collision.resume import Motion, Proof, Status, Stop, new_walk
@@ -55,57 +49,20 @@ from arduinobot.planner.collision.table import Bodies, Pairs, place_carried
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Chain, _fk_into
 
-# [m] distance bounds are asked to prove at most this much: deeper proofs cost more
-# tree descent than the extra step they buy (0.1 -> 0.03: 20-28% more bounds, 25-40%
-# less time on the course and shipped models). With a clearance to report, a pair
-# farther apart than this is reported at about half of it (15 mm) or more
+# The walk's own constants (the near-contact ladder's are in :mod:`.ladder`):
+# [m] tree bounds are asked to prove at most this much: a deeper proof costs more tree
+# descent than the longer step it buys. With a clearance to report, a pair farther apart
+# than this is reported at about half of it (15 mm) or more
 _CAP = 0.03
-# exact distance queries one certification may make before it gives up (refuses)
-MAX_EXACT = 4000
-# hull and exact queries together (a hull query costs ~1/20 of an exact one)
-MAX_NEAR = 40_000
-# [rad] states this far apart are checked before the proof (see Certifier.pieces)
+# [rad] states this far apart are checked before the proof (see Certifier.pieces): a
+# motion that really collides is refused at a sample, not by a walk converging on it
 SAMPLE_STEP = 0.01
-# [m] the proof shows every point at least this much beyond the clearance: a step is
-# then never shorter than GAP / 2 / speed, so the walk ends (a graze closer than this to
-# the clearance is refused, as a contact)
-GAP = 1e-5
-# distance bounds one certification may evaluate before it gives up (refuses)
+# distance bounds one certification may evaluate before it gives up (refuses): bounded
+# time for a motion that grazes along a contact
 MAX_BOUNDS = 500_000
-# a bound carried over from the last piece is used while at least this fraction of
-# the last one measured (else a new one is measured: it may be larger)
+# a bound carried over from the last piece is used while at least this fraction of the
+# last one measured (else a new one is measured: it may be larger, and prove longer steps)
 CARRY = 0.5
-# [m] with a clearance to report, a pair the whole motion moves relative to itself by
-# less than this is certified by its distance bound at the start less that motion
-# (CollisionWorld.still_distance: the hulls', FCL's where they touch)
-STILL = 1e-4
-# [m] a pair whose trees prove less than this beyond the clearance gets a hull query too
-# (the trees of CAD meshes are loose there: see _advance)
-SOFT = 0.002
-# [m] where neither the trees nor the hulls prove a pair more than this beyond the
-# clearance, FCL's exact distance is asked once per pair and motion: near a concave body
-# (the claw over the base's hollow) the hulls' bound shrinks geometrically as the walk
-# nears the hulls' contact while the meshes stay centimetres apart, and the walk took
-# ever shorter steps (certifying microns) until the hulls touched. A pair whose exact
-# distance there exceeds LOOSE times the hulls' is exact from then on wherever the
-# hulls prove less than this; else the hulls go on alone. On the same 40 paths of the
-# peer bench's self scene, same verdicts: course_fingers (arm and gripper) 7 -> 3
-# motions certified under 0.1 mm (none lower), proofs' p95 14.6 -> 11.6 ms, sum 131 ->
-# 133 ms; course arm only 5 -> 3 (one certified a little lower: both are bounds), p95
-# 7.8 -> 8.0, sum 83 -> 83 (2 mm: more exact queries, sums +7%)
-EXACT_BELOW = 0.001
-LOOSE = 2.0
-# [m] there the part hulls (:mod:`.parts`) are asked first, and FCL's exact distance
-# only where they prove less than this beyond the clearance (microns: true near
-# contact; 0.1 mm measured the same on the peer bench's self scene)
-PARTS_BELOW = 1e-5
-# [m] where the hulls prove less than this beyond the clearance, the part hulls are
-# asked too
-PARTS_ABOVE = 0.01
-# a warm hull bound under this fraction of the pair's last queried one is checked
-# against the trees, and queried again (its direction may have gone stale as the bodies
-# turned)
-HOLD = 0.25
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
@@ -154,7 +111,8 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     vertices, offsets, radii = hulls
     at = walk[0]
     p0, k0, s0, injected = at.pair, at.piece, at.sigma, at.injected
-    bounds = at.bounds  # counted here, written back on return (a local stays in a register)
+    # counted here, written back on return (a local stays in a register)
+    bounds, trees, warms = at.bounds, at.trees, at.warm
     npiece, dof = starts.shape
     scratch = np.empty((8, 3, 3))
     end = np.empty(dof)
@@ -213,11 +171,13 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                     # near contact the steps are short and the hulls barely turn: the
                     # last direction still separates them, without a round trip
                     d = warm_bound(vertices, offsets, radii, a, ta, b, tb, directions[p])
+                    warms += 1
                 if d <= clear + GAP or d < HOLD * fresh or d <= clear + exact_below[p]:
                     # (a warm bound far below the last query's: its direction went stale,
                     # and would lead the steps down geometrically as it turns away)
                     t = tree_lower_bound(ta, root[a], tb, root[b], center, axes, half, left,
                                          right, clear + GAP, _CAP, stack, gaps, scratch)
+                    trees += 1
                     near = t <= clear + SOFT
                     d = max(d, t)
                     if near and not flat and d <= clear + SOFT:
@@ -229,14 +189,17 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                         # (Python: FCL's GJK), whatever the trees proved (in ``injected``)
                         at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds + 1
                         at.injected = d
+                        at.trees, at.warm = trees, warms
                         return Status.NEED_BOUND.value
                 bounds += 1
                 if d <= clear + GAP:
                     at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
                     at.injected = d
+                    at.trees, at.warm = trees, warms
                     return Status.NEED_BOUND.value
                 if bounds > MAX_BOUNDS:
                     at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    at.trees, at.warm = trees, warms
                     return Status.BUDGET.value
                 measured = d
             covered = max(clear + GAP / 2, min(fraction * d, low))
@@ -271,7 +234,7 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
             if covered < best[p]:
                 best[p] = covered
                 low = min(low, covered)
-    at.bounds = bounds
+    at.bounds, at.trees, at.warm = bounds, trees, warms
     return Status.DONE.value
 
 
@@ -311,109 +274,58 @@ class Certifier:
         States ``sample_step`` [rad] apart are checked first: advancement converges only
         geometrically towards a contact, so a motion that really collides is refused at
         its first colliding sample, and the proof runs on motions whose samples are free
-        (a graze between samples is then what it settles, with at most ``MAX_EXACT``
-        exact queries). None skips that for motions whose states the caller has just
-        checked (a planner's edges): the proof alone decides, as soundly."""
+        (a graze between samples is then what it settles, with at most
+        :data:`.ladder.MAX_EXACT` exact queries). None skips that for motions whose
+        states the caller has just checked (a planner's edges): the proof alone decides,
+        as soundly."""
         w = self.world
         clear = w.padding
-        starts = np.ascontiguousarray(starts, float).reshape(-1, w.dof)
-        u1 = np.ascontiguousarray(u1, float).reshape(-1, w.dof)
-        u2 = np.ascontiguousarray(u2, float).reshape(-1, w.dof)
-        lengths = np.ascontiguousarray(lengths, float).reshape(-1)
+        motion = Motion(np.ascontiguousarray(starts, float).reshape(-1, w.dof),
+                        np.ascontiguousarray(u1, float).reshape(-1, w.dof),
+                        np.ascontiguousarray(u2, float).reshape(-1, w.dof),
+                        np.ascontiguousarray(lengths, float).reshape(-1))
+        # 1. a collision at a sample refutes the motion outright
         if sample_step is not None:
-            refuted = self._sampled_collision(starts, u1, u2, lengths, sample_step)
+            refuted = self._sampled_collision(*motion, sample_step)
             if refuted is not None:
                 return refuted
-        table = w.table
-        npair = len(table.pair_names)
+        npair = len(w.table.pair_names)
         # per motion, so a certificate never depends on what was certified before
         proof = Proof(np.full(npair, np.inf), np.zeros((npair, 3)), np.zeros(npair, np.bool_))
-        best, directions, warm = proof
-        direction = np.empty(3)
-        # per pair: the walk hands warm hull bounds under this back, and they get the
-        # exact distance (see EXACT_BELOW); 0 once a pair's hulls proved tight there.
-        # ``tried``: the pair's exact distance was compared with its hulls'
-        exact_below = np.full(npair, EXACT_BELOW)
-        tried = np.zeros(npair, np.bool_)
-        # per pair: its last bound came from the part hulls, beating the trees and hulls
-        ask = np.zeros(npair, np.bool_)
-        pairs = table.pairs
-        still = self._proven_before_walk(starts, u1, u2, lengths, clear)
-        if still:
-            idx = np.fromiter(still, np.int64)
-            best[idx] = np.fromiter(still.values(), float)
-            weight = pairs.weight.copy()
-            weight[idx] = 0.0  # proven: the walk passes over them
-            weight.flags.writeable = False  # as the table's (one compiled variant)
-            pairs = pairs._replace(weight=weight)
-        motion = Motion(starts, u1, u2, lengths)
+        ladder = Ladder(w, clear=clear)
+        # 2. the still and one-joint pairs are proven without the walk, which passes over
+        still, pairs = self._proven_before_walk(motion, ladder, proof)
+        # 3. the walk proves every other pair along every piece, stopping where a point
+        # needs a closer bound than its trees' and warm hulls'; the ladder gives one
         walk = new_walk()
-        exact, queries = 0, 0
         while True:
-            status = Status(self._advance.call(motion, walk, w.chain, table.bodies, pairs,
+            status = Status(self._advance.call(motion, walk, w.chain, w.table.bodies, pairs,
                                                w.forest, w.hulls, clear, self.fraction,
                                                self.local, self._work, self._q, proof,
-                                               exact_below, ask))
+                                               ladder.exact_below, ladder.ask))
             if status == Status.DONE:
                 break
             at = Stop.read(walk)
             p, k, s = at.pair, at.piece, at.sigma
-            pair = table.pair_names[p]
-            if exact >= MAX_EXACT or queries >= MAX_NEAR or status == Status.BUDGET:
+            pair = w.table.pair_names[p]
+            if status == Status.BUDGET or ladder.spent():
                 return Certificate(False, clear, 0.0, pair, (k, s, pair, float("nan")),
-                                   at.bounds, exact)
+                                   at.bounds, ladder.exact, ladder.rungs(walk))
             q = np.empty(w.dof)  # the very point the walk stopped at
-            _eval_piece(starts[k], u1[k], u2[k], lengths[k], s, q)
-            direction[:] = np.nan
-            proven = float(walk[0]["injected"])  # what the walk's own bounds proved
-            if proven > clear + GAP:
-                # the trees proved the pair free here, barely: the hulls' bound where it
-                # is better (their direction kept for the walk), else the trees' again
-                h = w.pair_hull_bound(q, p, direction=direction)
-                warm[p] = h > proven and bool(np.isfinite(direction[0]))
-                if warm[p]:
-                    directions[p] = direction
-                d, was_exact = max(h, proven), False
-                ask[p] = False
-                if not warm[p] or d <= clear + max(PARTS_ABOVE, exact_below[p]):
-                    # the part hulls' bound (tens of us; -inf without parts) where the
-                    # hulls do not help or may be loose (they shrink geometrically as the
-                    # walk nears their contact in a concave body's hollow); else, reached
-                    # without contact (as below), the exact distance: both bounds
-                    e = w.pair_parts_bound(q, p)
-                    ask[p] = e > d
-                    if d <= clear + exact_below[p]:
-                        if e <= clear + PARTS_BELOW:
-                            e, was_exact = w.pair_distance(q, p), True
-                        if not tried[p]:
-                            tried[p] = True
-                            if not e > LOOSE * d:
-                                exact_below[p] = 0.0  # tight hulls: alone from here on
-                    d = max(d, e)
-            else:
-                # free: the walk reached it from a checked sample, every point farther
-                # than the clearance, so neither body can be inside the other; the hulls'
-                # bound first (cheap), FCL's exact distance where the hulls touch
-                d, was_exact = w.pair_bound(q, p, above=clear + GAP,
-                                            parts_below=clear + PARTS_ABOVE,
-                                            direction=direction)
-                if np.isfinite(direction[0]):
-                    directions[p] = direction
-                    warm[p] = True
-                ask[p] = not was_exact
-            exact += was_exact
-            queries += 1
-            if d <= clear + GAP:
-                best[p] = min(best[p], d)
+            _eval_piece(motion.starts[k], motion.u1[k], motion.u2[k], motion.lengths[k], s, q)
+            d = ladder.at_stop(q, p, float(walk[0]["injected"]), proof)
+            if d <= clear + GAP:  # 4. a contact, or a point closer than the clearance
+                proof.best[p] = min(proof.best[p], d)
                 return Certificate(False, clear, max(d, 0.0), pair, (k, s, pair, d),
-                                   at.bounds, exact)
+                                   at.bounds, ladder.exact, ladder.rungs(walk))
             walk[0]["injected"] = d
-        # other pairs' figures stop at the smallest so far (the walk proves no more): on a
-        # tie, the pair whose figure is its own (a still pair's) is the closest
+        # 5. certified: other pairs' figures stop at the smallest so far (the walk proves
+        # no more): on a tie, the pair whose figure is its own (a still pair's) is closest
+        best = proof.best
         worst = min(range(npair), key=lambda p: (best[p], p not in still), default=-1)
         cert = float(best[worst]) if npair and np.isfinite(best[worst]) else float("inf")
-        return Certificate(True, clear, cert, table.pair_names[worst] if npair else None,
-                           None, Stop.read(walk).bounds, exact)
+        return Certificate(True, clear, cert, w.table.pair_names[worst] if npair else None,
+                           None, Stop.read(walk).bounds, ladder.exact, ladder.rungs(walk))
 
     def _sampled_collision(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                            lengths: np.ndarray, sample_step: float) -> Certificate | None:
@@ -435,21 +347,31 @@ class Certifier:
                                    (k, float(sig[bad]), pair, 0.0), 0, 0)
         return None
 
-    def _proven_before_walk(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-                            lengths: np.ndarray, clear: float) -> dict[int, float]:
-        """The pairs proven without the walk, each with its bound [m]: the still pairs
-        (only when a clearance is to be reported) and the pairs one joint moves."""
+    def _proven_before_walk(self, motion: Motion, ladder: Ladder, proof: Proof
+                            ) -> tuple[dict[int, float], Pairs]:
+        """The pairs proven without the walk, each with its bound [m] (in ``proof`` too):
+        the still pairs (only when a clearance is to be reported) and the pairs one joint
+        moves; and the checked pairs for the walk, which passes over them."""
         still: dict[int, float] = {}
         if self.fraction > 0:  # a clearance to report: still pairs at their own bound
-            still = self._still_pairs(starts, u1, u2, lengths, clear)
+            still = self._still_pairs(motion, ladder)
+        n_still = len(still)
         # pairs one joint moves, proven over its range by cached cells
-        for p, d in self.one_dim.proven(starts, u1, u2, lengths).items():
+        for p, d in self.one_dim.proven(*motion).items():
             if p not in still:
                 still[p] = d
-        return still
+        ladder.proven_before(still=n_still, one_dim=len(still) - n_still)
+        pairs = self.world.table.pairs
+        if still:
+            idx = np.fromiter(still, np.int64)
+            proof.best[idx] = np.fromiter(still.values(), float)
+            weight = pairs.weight.copy()
+            weight[idx] = 0.0  # proven: the walk passes over them
+            weight.flags.writeable = False  # as the table's (one compiled variant)
+            pairs = pairs._replace(weight=weight)
+        return still, pairs
 
-    def _still_pairs(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
-                     lengths: np.ndarray, clear: float) -> dict[int, float]:
+    def _still_pairs(self, motion: Motion, ladder: Ladder) -> dict[int, float]:
         # The pairs the motion barely moves (the fingers in an arm motion), each with its
         # distance bound at the start (the hulls', tight on convex links; FCL's where they
         # touch) less the most the motion moves it: as sound as a walk (a piece's joint
@@ -457,15 +379,16 @@ class Certifier:
         # remembered by the world, free after the first motion. The walk would give half
         # an OBB-tree bound instead (a few tenths of the true distance on CAD meshes)
         # and, as the smallest so far, cap every other pair's.
-        w = self.world
+        starts, u1, u2, lengths = motion
         travel = (lengths[:, None] * np.maximum(np.abs(u1), np.abs(u2))).sum(axis=0)
         ends = starts + lengths[:, None] * (u1 + u2) / 2  # H(1) = 1/2
         travel += np.abs(starts[1:] - ends[:-1]).sum(axis=0)
-        moved = w.table.pairs.weight @ travel
+        moved = self.world.table.pairs.weight @ travel
         out = {}
+        above = self.world.padding + GAP
         for p in np.flatnonzero(moved < STILL):
-            d = w.still_distance(starts[0], int(p), above=clear + GAP) - moved[p]
-            if d > clear + GAP:  # else the walk decides (and refuses where it must)
+            d = ladder.still_bound(starts[0], int(p), above=above) - moved[p]
+            if d > above:  # else the walk decides (and refuses where it must)
                 out[int(p)] = d
         return out
 

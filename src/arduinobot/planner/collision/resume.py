@@ -49,9 +49,12 @@ class Status(IntEnum):
 
 #: Where the walk stands: read by it when it starts (the point to resume from, and the
 #: bound injected there, -1 for none), written when it stops (the point that needs a
-#: bound), and the bounds it evaluated so far. One record (an array of shape (1,)).
+#: bound), the bounds it evaluated so far, and among them how often it asked the trees
+#: and the warm hulls (the ladder's first rungs, :mod:`.ladder`). One record (an array of
+#: shape (1,)).
 WALK = np.dtype([("pair", np.int64), ("piece", np.int64), ("sigma", np.float64),
-                 ("injected", np.float64), ("bounds", np.int64)])
+                 ("injected", np.float64), ("bounds", np.int64), ("trees", np.int64),
+                 ("warm", np.int64)])
 
 
 def new_walk() -> np.ndarray:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import fcl
 import numpy as np
@@ -49,11 +50,6 @@ _log = logging.getLogger(__name__)
 _STACK = 4096
 # [m] distance bounds for the clearance stop here: pairs farther apart sort last
 _CLEARANCE_CAP = 0.3
-# [m/rad] a joint moving a pair less than this per radian does not key its remembered
-# distance (pair_weights' rounding floor is 1e-12; any such joint's motion is subtracted)
-_MOVES = 1e-9
-# remembered distance bounds (see still_distance) before they are dropped
-_STILL_KEPT = 1024
 
 
 @dataclass(frozen=True)
@@ -157,8 +153,9 @@ class CollisionWorld:
                      if self._narrow(poses0, a, b, exact=True))
         self.table = replace(self.table, fixed_hits=hits)
         self._poses = np.empty((self.table.slots, 4, 4))
-        # (pair, above, the state it was measured at) -> its distance bound (still_distance)
-        self._still: dict[tuple[int, float, bytes], float] = {}
+        #: bounds derived from this world alone, kept with it so every certifier of it
+        #: shares them (the ladder's still pairs: :func:`.ladder.still_bound`)
+        self.remembered: dict[tuple[int, float, bytes], float] = {}
         self._cand = np.zeros(len(index), dtype=np.int64)
         self._work = Work.of(self.table.slots, _STACK)
         # the two kernels called per state and per sweep resume, past numba's dispatcher
@@ -167,8 +164,7 @@ class CollisionWorld:
         self._sweep_kernel = Direct(sweep)
         # [m] how far ahead one distance bound is asked to prove a pair free: a short
         # proof is a shallow tree descent, and a sampled edge's states are close together
-        # (0.06 -> 0.01 m: course model self 9.3 -> 8.3 ms median in process, 14.4 ->
-        # 12.5 mean; the shipped arm's self 12.0 -> 10.5; the same decisions, as any cap)
+        # (the same decisions as any cap; measured: docs/bench.md)
         self.horizon = 0.01
         _log.info("collision world: %d bodies, %d moving pairs, %d fixed pairs (%d colliding)",
                   len(names), len(index), len(fixed), len(hits))
@@ -280,78 +276,39 @@ class CollisionWorld:
             return True
         return not self._state_hits(poses, self._cand, first=True)
 
-    def pair_distance(self, q: ArrayLike, pair: int) -> float:
-        """FCL's exact distance [m] between the bodies of checked pair ``pair`` (an index
-        into :attr:`pair_names`) at a state ``q`` where neither body is inside the other
-        (a free state, or one reached from a free state without contact); 0 when they
-        touch. A box obstacle is measured by its surface there (the same distance,
-        faster)."""
+    def pair_distance(self, q: ArrayLike, pair: int, *,
+                      kind: Literal["exact", "hulls", "parts"] = "exact",
+                      direction: np.ndarray | None = None) -> float:
+        """The distance [m] between the bodies of checked pair ``pair`` (an index into
+        :attr:`pair_names`) at a state ``q`` (shape (dof,)), or a lower bound on it, by
+        ``kind`` (the rungs of the certifier's ladder, :mod:`.ladder`, say when each):
+
+        - ``"exact"``: FCL's exact distance (0.3-4 ms on CAD links), at a state where
+          neither body is inside the other (a free state, or one reached from a free
+          state without contact); 0 when they touch. A box obstacle is measured by its
+          surface there (the same distance, faster).
+        - ``"hulls"``: the convex hulls' bound at any state (:mod:`.hulls`, ~20 us; 0 or
+          less where the hulls touch). ``direction``: as for :meth:`.HullBounds.bound`.
+        - ``"parts"``: the part hulls' bound (:mod:`.parts`, tens of us; tight near a
+          concave body, where the hulls touch); -inf where neither body has parts (the
+          hulls' bound is as good).
+        """
+        a, b = (int(x) for x in self.table.pairs.index[pair])
+        if kind == "parts" and not self._part_bounds.split(a, b):
+            return -np.inf
         poses = self._poses_of(q)
+        if kind == "hulls":
+            return self._hull_bounds.bound(a, self.body_pose(poses, a), b,
+                                           self.body_pose(poses, b), direction=direction)
+        if kind == "parts":
+            return self._part_bounds.bound(a, self.body_pose(poses, a), b,
+                                           self.body_pose(poses, b))
+        if kind != "exact":
+            raise ValueError(f"kind must be exact, hulls or parts, not {kind!r}")
         self._stamp += 1
-        a, b = self.table.pairs.index[pair]
         self._place(poses, a)
         self._place(poses, b)
         return self._distance(a, b, surface=True)
-
-    def still_distance(self, q: ArrayLike, pair: int, *, above: float) -> float:
-        """A lower bound [m] on the distance of checked pair ``pair`` at a free state
-        ``q``: :meth:`pair_bound`'s with ``above`` (the convex hulls', exact but for
-        rounding on convex links; the part hulls', else FCL's exact distance, where they
-        are not above it, as for the shipped fingers, whose hulls touch) where the
-        joints that move the pair relative to itself (weight above ``_MOVES`` [m/rad])
-        are as in ``q`` and the others 0, less how far those others' values in ``q`` can
-        move it. Remembered by the moving joints' values, so a pair no joint of a motion
-        moves (the fingers in an arm motion) is measured once, and the same whatever was
-        asked before (the others only ever add their rounding floor)."""
-        q = np.asarray(q, float)
-        weight = self.table.pairs.weight[pair]
-        at = np.where(weight > _MOVES, q, 0.0)
-        key = (pair, above, at.tobytes())
-        d = self._still.get(key)
-        if d is None:
-            if len(self._still) >= _STILL_KEPT:
-                self._still.clear()
-            d = self._still[key] = self.pair_bound(at, pair, above=above)[0]
-        return d - float(weight @ np.abs(q - at))
-
-    def pair_hull_bound(self, q: ArrayLike, pair: int, *,
-                        direction: np.ndarray | None = None) -> float:
-        """The convex hulls' lower bound [m] on the distance of checked pair ``pair`` at
-        any state ``q`` (:mod:`.hulls`, ~20 us; 0 or less where the hulls touch).
-        ``direction``: as for :meth:`.HullBounds.bound`."""
-        poses = self._poses_of(q)
-        a, b = self.table.pairs.index[pair]
-        return self._hull_bounds.bound(int(a), self.body_pose(poses, a), int(b),
-                                       self.body_pose(poses, b), direction=direction)
-
-    def pair_parts_bound(self, q: ArrayLike, pair: int) -> float:
-        """The part hulls' lower bound [m] on the distance of checked pair ``pair`` at a
-        state ``q`` (:mod:`.parts`, tens of us; tight near a concave body, where the
-        hulls touch); -inf where neither body has parts (the hulls' bound is as good)."""
-        a, b = (int(x) for x in self.table.pairs.index[pair])
-        if not self._part_bounds.split(a, b):
-            return -np.inf
-        poses = self._poses_of(q)
-        return self._part_bounds.bound(a, self.body_pose(poses, a), b,
-                                       self.body_pose(poses, b))
-
-    def pair_bound(self, q: ArrayLike, pair: int, *, above: float,
-                   parts_below: float | None = None,
-                   direction: np.ndarray | None = None) -> tuple[float, bool]:
-        """A lower bound [m] on the distance of checked pair ``pair`` at a state ``q``
-        reached without contact (as for :meth:`pair_distance`): the bodies' convex
-        hulls' (:mod:`.hulls`, ~20 us) when that is above ``above`` and ``parts_below``
-        (default: ``above``), else the better of it and their part hulls'
-        (:meth:`pair_parts_bound`) when that is above ``above``, else FCL's exact
-        distance (0.3-4 ms on CAD links). The flag says which (True: exact).
-        ``direction``: as for :meth:`.HullBounds.bound` (the hulls')."""
-        d = self.pair_hull_bound(q, pair, direction=direction)
-        if d > max(above, above if parts_below is None else parts_below):
-            return d, False
-        d = max(d, self.pair_parts_bound(q, pair))
-        if d > above:
-            return d, False
-        return self.pair_distance(q, pair), True  # (FK again: microseconds beside FCL)
 
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
