@@ -13,8 +13,7 @@ from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
 from arduinobot.client.named_task import run_named_task
 from arduinobot.client.stream import ExecutionEvent
-
-from .conftest import start_server
+from tests.helpers.serve import start_server
 
 pytestmark = pytest.mark.slow  # every test here talks to a serve process
 

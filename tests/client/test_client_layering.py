@@ -11,7 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CLIENT = ROOT / "src/arduinobot/client"
 #: the third-party packages the client may import: the transport and the codecs
 THIRD_PARTY = {"zenoh", "numpy", "orjson", "jsonschema_rs"}

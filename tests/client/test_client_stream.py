@@ -12,8 +12,7 @@ from arduinobot.client.client import PlannerClient
 from arduinobot.client.errors import ServiceUnavailable
 from arduinobot.client.named_task import run_named_task
 from arduinobot.contract.zconfig import zenoh_config
-
-from .helpers.serve import free_port
+from tests.helpers.serve import free_port
 
 
 @pytest.fixture

@@ -20,10 +20,9 @@ from arduinobot.contract import wire
 from arduinobot.contract.errors import InvalidRequest as Refused
 from arduinobot.contract.zconfig import zenoh_config
 from arduinobot.service.queries import guarded
+from tests.helpers.serve import free_port
 
-from .helpers.serve import free_port
-
-SRC = Path(__file__).resolve().parents[1] / "src/arduinobot"
+SRC = Path(__file__).resolve().parents[2] / "src/arduinobot"
 
 
 @pytest.fixture
