@@ -35,7 +35,7 @@ class ConfigFiles:
             reports before its first command).
         cartesian_limits: MoveIt's ``pilz_cartesian_limits.yaml`` (the tcp's limits in
             straight-line moves, :func:`read_cartesian_limits`).
-        tasks: our ``tasks.yaml`` (named tasks, :mod:`arduinobot.planner.tasks.named`).
+        tasks: our ``tasks.yaml`` (named tasks, :func:`read_tasks`).
         moveit_package: the MoveIt config package folder, when one is used.
         found_by: how the folder was chosen, for humans.
     """
@@ -69,7 +69,7 @@ class ConfigFiles:
 
 
 CARTESIAN_LIMITS_FILE = "pilz_cartesian_limits.yaml"
-#: named tasks (ours, not MoveIt's): read by arduinobot.planner.tasks.named
+#: named tasks (ours, not MoveIt's): read by read_tasks below
 TASKS_FILE = "tasks.yaml"
 
 
