@@ -1,7 +1,9 @@
 """Obstacles in a plan request: the plan goes around them, or says why it cannot.
 
 Each request carries its own obstacles (boxes, spheres and cylinders placed in the
-robot's base frame, in metres); the service keeps nothing between requests.
+robot's base frame, in metres), checked with the service's kept scene (empty unless
+``arduinobot scene`` put objects in it, docs/service.md); a request's obstacles are not
+kept after it.
 
     .venv/bin/python examples/03_scene.py [ENDPOINT]   # with `arduinobot serve` running
 """

@@ -4,7 +4,7 @@ It shares no code with the planner's checks (arduinobot.planner.timing.verify, a
 arduinobot.planner.kinematics.chain, arduinobot.planner.collision, arduinobot.planner.collision.motion_check): the URDF is parsed by
 yourdfpy, forward kinematics is the few lines below, torques come from MuJoCo's inverse
 dynamics on an MJCF built from the URDF's inertials and joints (the approach of
-tests/test_dynamics.py; the mimic joint_5 is driven by joint_4 and its torque folds
+tests/planner/kinematics/test_dynamics.py; the mimic joint_5 is driven by joint_4 and its torque folds
 into joint_4 with its multiplier), collisions are python-fcl on the link meshes
 (loaded by trimesh) with the SRDF's disabled pairs read straight from the XML.
 

@@ -94,24 +94,18 @@ def test_encode_refuses_non_finite_and_converts_numpy():
         wire.encode({"a": float("nan")})
 
 
-def test_joint_values_check_names_mimics_and_limits(description):
-    assert joint_values(description, {"joint_2": 0.5}, field="start") == \
+def test_joint_values_check_names_mimics_and_limits(desc):
+    assert joint_values(desc, {"joint_2": 0.5}, field="start") == \
         {"joint_1": 0.0, "joint_2": 0.5, "joint_3": 0.0, "joint_4": 0.0}
     with pytest.raises(InvalidRequest) as e:
-        joint_values(description, {"joint_5": 0.1}, field="start")
+        joint_values(desc, {"joint_5": 0.1}, field="start")
     assert e.value.details["leader"] == "joint_4" and "joint_4" in e.value.message
     with pytest.raises(InvalidRequest) as e:
-        joint_values(description, {"elbow": 0.1}, field="goal.joints")
+        joint_values(desc, {"elbow": 0.1}, field="goal.joints")
     assert e.value.details["field"] == "goal.joints.elbow"
     with pytest.raises(JointLimitViolation) as e:
-        joint_values(description, {"joint_4": 0.5}, field="start")
+        joint_values(desc, {"joint_4": 0.5}, field="start")
     assert e.value.details["upper"] == pytest.approx(0.0)
-
-
-@pytest.fixture(scope="module")
-def description():
-    from arduinobot.description import load_description
-    return load_description()
 
 
 # -- caps: every array, object and string of a request is bounded, and the schema's

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +10,7 @@ import pytest
 import trimesh
 
 from arduinobot.description.checks import check_model
+from tests.helpers.cli import run_cli
 from tests.helpers.user_package import make_user_package
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -104,16 +103,11 @@ def test_user_package_checks_clean(tmp_path):
     assert not report.failed, [f.line() for f in report.findings]
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
-                          text=True, cwd=ROOT)
-
-
 def test_cli_exit_codes_and_json(tmp_path):
-    ok = _cli("check")
+    ok = run_cli("check")
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "0 failed" in ok.stdout and "WARN  inertial.plausible gripper_right" in ok.stdout
-    bad = _cli("check", str(_defective(tmp_path)), "--json")
+    bad = run_cli("check", str(_defective(tmp_path)), "--json")
     assert bad.returncode == 1
     data = json.loads(bad.stdout)
     assert data["ok"] is False and data["counts"]["FAIL"] >= 7
@@ -121,10 +115,10 @@ def test_cli_exit_codes_and_json(tmp_path):
 
 
 def test_cli_urdf_and_info():
-    urdf = _cli("urdf")
+    urdf = run_cli("urdf")
     assert urdf.returncode == 0 and '<robot name="arduinobot">' in urdf.stdout
     assert "${" not in urdf.stdout  # fully expanded
-    info = _cli("info")
+    info = run_cli("info")
     assert info.returncode == 0
     assert "└─ base_plate  via joint_1: revolute axis (0 0 1)" in info.stdout
     assert "mimic -1*joint_4+0" in info.stdout

@@ -7,7 +7,7 @@ import math
 import pytest
 from lxml import etree
 
-from arduinobot.description import DEFAULT_MODEL, load_description
+from arduinobot.description import DEFAULT_MODEL
 
 PI = 3.14159
 XACRO_NS = "{http://www.ros.org/wiki/xacro}"
@@ -39,9 +39,9 @@ JOINTS = {
 }
 
 
-@pytest.fixture(scope="module")
-def robot():
-    return load_description().robot
+@pytest.fixture
+def robot(desc):
+    return desc.robot
 
 
 def test_robot_name_and_sets(robot):

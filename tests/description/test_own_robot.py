@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -24,14 +22,10 @@ from arduinobot.description import load_description
 from arduinobot.planner.collision.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
-from tests.helpers.serve import REPO, start_server
+from tests.helpers.cli import run_cli
+from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
-
-
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
-                          text=True, cwd=REPO, timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +47,7 @@ def local(course_ws):
 
 
 def test_check_passes_with_warnings_only(course_ws):
-    r = _cli("check", str(course_ws.xacro), "--package-dir", str(course_ws.src), "--json")
+    r = run_cli("check", str(course_ws.xacro), "--package-dir", str(course_ws.src), "--json")
     report = json.loads(r.stdout)
     fails = [f for f in report["findings"] if f["level"] == "FAIL"]
     assert r.returncode == 0 and not fails, fails
@@ -66,7 +60,7 @@ def test_check_passes_with_warnings_only(course_ws):
 
 
 def test_info_names_the_files_the_tcp_and_the_scaling(course_ws):
-    r = _cli("info", str(course_ws.xacro), "--package-dir", str(course_ws.src))
+    r = run_cli("info", str(course_ws.xacro), "--package-dir", str(course_ws.src))
     assert r.returncode == 0, r.stderr
     out = r.stdout
     assert "config: package arduinobot_moveit (named after the robot)" in out

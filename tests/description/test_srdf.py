@@ -4,13 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from arduinobot.description import SrdfError, load_description
+from arduinobot.description import SrdfError
 from arduinobot.description.srdf import DisabledCollision, parse_srdf, replace_disabled_collisions
-
-
-@pytest.fixture(scope="module")
-def desc():
-    return load_description(env={})
 
 
 def test_named_states_and_end_effector(desc):

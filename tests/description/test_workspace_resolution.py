@@ -5,8 +5,6 @@ our shipped package never stands in for theirs."""
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import trimesh
@@ -14,8 +12,8 @@ import trimesh
 from arduinobot.description import load_description
 from arduinobot.description.checks import check_model
 from arduinobot.description.packages import SHIPPED_PACKAGE_DIR
+from tests.helpers.cli import run_cli
 from tests.helpers.course_workspace import CAMERA_MESH
-from tests.helpers.serve import REPO
 
 
 def _env() -> dict[str, str]:
@@ -23,13 +21,8 @@ def _env() -> dict[str, str]:
             if k not in ("ROS_PACKAGE_PATH", "AMENT_PREFIX_PATH")}
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
-                          text=True, cwd=REPO, env=_env(), timeout=300)
-
-
 def test_check_without_package_dir_uses_the_users_meshes(course_ws):
-    r = _cli("check", str(course_ws.xacro))
+    r = run_cli("check", str(course_ws.xacro), env=_env())
     assert r.returncode == 0, r.stdout + r.stderr
     mesh_pass = [line for line in r.stdout.splitlines()
                  if line.startswith("PASS  mesh") and "every mesh resolves" in line]
@@ -91,7 +84,7 @@ def test_a_single_file_model_named_like_ours_gets_its_own_meshes(tmp_path):
 # -- xacro arguments as ROS users type them (issue 27 item 5) -----------------------------------
 
 def test_arg_takes_the_ros_syntax(course_ws):
-    r = _cli("urdf", str(course_ws.xacro), "--arg", "is_sim:=false")
+    r = run_cli("urdf", str(course_ws.xacro), "--arg", "is_sim:=false", env=_env())
     assert r.returncode == 0, r.stderr
     assert "arduinobot_controller/ArduinobotInterface" in r.stdout
     assert "GazeboSimSystem" not in r.stdout
@@ -99,7 +92,7 @@ def test_arg_takes_the_ros_syntax(course_ws):
 
 
 def test_an_undeclared_arg_warns_and_lists_the_declared_ones(course_ws):
-    r = _cli("urdf", str(course_ws.xacro), "--arg", "is_sm=false")
+    r = run_cli("urdf", str(course_ws.xacro), "--arg", "is_sm=false", env=_env())
     assert r.returncode == 0, r.stderr
     assert "GazeboSimSystem" in r.stdout  # is_sim kept its default
     assert "--arg is_sm" in r.stderr and "declared: is_sim" in r.stderr

@@ -55,7 +55,7 @@ def test_set_scene_puts_scene_objects_in_the_world_and_reports_the_carried_conta
     mesh = tmp_path / "bin.stl"
     mesh.write_bytes(trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(file_type="stl"))
     bin_ = Obstacle("bin", "mesh", mesh_path=str(mesh), xyz=(3.0, 3.0, 3.0))
-    # at 0 the carried box is in the table (tests/test_carried.py's case)
+    # at 0 the carried box is in the table (tests/planner/planning/test_carried.py's case)
     sim.set_scene([case.table, bin_], [case.attached(0.2)])
     m = sim.model
     names = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(m.ngeom)}

@@ -14,7 +14,6 @@ import time
 import numpy as np
 import pytest
 
-from arduinobot.description import load_description
 from arduinobot.execution.executor import ExecuteOptions, Executor, NotAtStart
 from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
 from arduinobot.execution.segments import SampledTrajectory
@@ -23,11 +22,6 @@ from tests.helpers.serve import REPO, start_server
 
 #: the twin's mesh pieces, computed once per machine as the command line keeps them
 CACHE = DiskCache()
-
-
-@pytest.fixture(scope="module")
-def desc():
-    return load_description()
 
 
 @pytest.fixture(scope="module")

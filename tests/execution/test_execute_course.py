@@ -9,19 +9,13 @@ from __future__ import annotations
 import json
 import os
 import re
-import subprocess
-import sys
 
 import pytest
 
-from tests.helpers.serve import REPO, start_server
+from tests.helpers.cli import run_cli
+from tests.helpers.serve import start_server
 
 GOAL = {"goal": {"joints": {"joint_1": 0.5, "joint_2": 0.3, "joint_3": 0.2}}, "seed": 3}
-
-
-def _cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
-                          text=True, cwd=REPO, timeout=600, env=env)
 
 
 def _needs(out: str) -> list[str]:
@@ -57,11 +51,11 @@ def course_service(course_model):
 def test_plan_simulate_through_a_service_replays_on_the_services_robot(
         course_service, course_model):
     goal = ["--goal", "joint_1=0.5,joint_2=0.3,joint_3=0.2", "--seed", "3", "--simulate"]
-    served = _cli("plan", *goal, "--connect", course_service.endpoint)
+    served = run_cli("plan", *goal, "--connect", course_service.endpoint)
     assert served.returncode == 0, served.stderr
-    local = _cli("plan", *goal, "--local", *course_model)
+    local = run_cli("plan", *goal, "--local", *course_model)
     assert local.returncode == 0, local.stderr
-    shipped = _cli("plan", *goal, "--local")
+    shipped = run_cli("plan", *goal, "--local")
     assert shipped.returncode == 0, shipped.stderr
     # the course's arm (a tenth of the shipped one's size) needs other torques: the
     # service's replay is the course robot's, not the shipped twin's
@@ -75,9 +69,9 @@ def test_execute_sim_through_a_service_runs_on_the_services_robot(
     req = tmp_path / "req.json"
     req.write_text(json.dumps(GOAL))
     run = ["--request", str(req), "--sim", "--fast", "--no-publish"]
-    served = _cli("execute", *run, "--connect", course_service.endpoint)
+    served = run_cli("execute", *run, "--connect", course_service.endpoint)
     assert served.returncode == 0, served.stderr
-    local = _cli("execute", *course_model, *run, "--local")
+    local = run_cli("execute", *course_model, *run, "--local")
     assert local.returncode == 0, local.stderr
     assert served.stdout.startswith("completed")
     assert _torques(served.stdout) == _torques(local.stdout)
@@ -87,9 +81,9 @@ def test_execute_takes_the_model_file_and_a_group_like_plan(course_model):
     # `home` is defined for both the arm and the gripper, as MoveIt's assistant writes it
     run = ["execute", *course_model, "--named", "home", "--sim", "--local", "--fast",
            "--no-publish"]
-    ambiguous = _cli(*run)
+    ambiguous = run_cli(*run)
     assert ambiguous.returncode == 1 and "group" in ambiguous.stderr
-    r = _cli(*run, "--group", "arm")
+    r = run_cli(*run, "--group", "arm")
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("completed")
 
@@ -123,7 +117,7 @@ def test_a_trajectory_that_does_not_fit_the_robot_is_refused(shipped_plan, tmp_p
         traj["joint_names"] = [*names[:-1], joint]
     f = tmp_path / "traj.json"
     f.write_text(json.dumps(body))
-    r = _cli("execute", str(f), "--sim", "--fast", "--no-publish", "--move-to-start")
+    r = run_cli("execute", str(f), "--sim", "--fast", "--no-publish", "--move-to-start")
     assert r.returncode == 1, r.stdout
     assert "INVALID_TRAJECTORY" in r.stderr and joint in r.stderr, r.stderr
     if limit is not None:
@@ -133,9 +127,9 @@ def test_a_trajectory_that_does_not_fit_the_robot_is_refused(shipped_plan, tmp_p
 def test_a_first_twin_of_a_model_says_what_it_builds(tmp_path):
     env = {**os.environ, "ARDUINOBOT_CACHE": str(tmp_path / "cache")}
     run = ["execute", "--named", "reach_left", "--sim", "--local", "--fast", "--no-publish"]
-    first = _cli(*run, env=env)
+    first = run_cli(*run, env=env)
     assert first.returncode == 0, first.stderr
     assert "building the MuJoCo twin" in first.stderr
     assert re.search(r"convex pieces of \w+\.STL", first.stderr), first.stderr
-    again = _cli(*run, env=env)  # kept in the cache: nothing to build, nothing said
+    again = run_cli(*run, env=env)  # kept in the cache: nothing to build, nothing said
     assert again.returncode == 0 and "building the MuJoCo twin" not in again.stderr

@@ -6,20 +6,14 @@ service's own request cap."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from arduinobot.contract.packed import PackedError, pack, unpack
+from tests.helpers.cli import run_cli
 from tests.helpers.pick_place import pick_and_place
-from tests.helpers.serve import REPO, start_server
-
-
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], capture_output=True,
-                          text=True, cwd=REPO, timeout=900)
+from tests.helpers.serve import start_server
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +84,7 @@ def test_a_long_task_file_runs_on_the_services_robot(slow_course_service, tmp_pa
     f = tmp_path / "pick_place.json"
     f.write_text(json.dumps(task))
     out = tmp_path / "report.json"
-    run = _cli("task", str(f), "--remote", "--connect", slow_course_service.endpoint,
+    run = run_cli("task", str(f), "--remote", "--connect", slow_course_service.endpoint,
                "--report", str(out))
     assert run.returncode == 0, run.stderr
     r = json.loads(out.read_text())
@@ -104,7 +98,7 @@ def test_a_long_plan_file_executes_on_the_services_robot(slow_course_service, tm
     traj = tmp_path / "traj.json"
     ep = ["--connect", slow_course_service.endpoint]
     # across the workspace, slower than the course's 0.1
-    plan = _cli("plan", "--start", "1.5,-0.6,0.6", "--goal", "-1.5,0.6,-0.6",
+    plan = run_cli("plan", "--start", "1.5,-0.6,0.6", "--goal", "-1.5,0.6,-0.6",
                 "--velocity-scaling", "0.02", "--acceleration-scaling", "0.02",
                 "--seed", "2", "--json", str(traj), *ep)
     assert plan.returncode == 0, plan.stderr
@@ -112,6 +106,6 @@ def test_a_long_plan_file_executes_on_the_services_robot(slow_course_service, tm
     assert body["duration"] > 15.0, body["duration"]
     # the file as plan --json writes it: JSON points, well over the 256 KiB request cap
     assert traj.stat().st_size > 256 * 1024
-    run = _cli("execute", str(traj), "--remote", "--move-to-start", *ep)
+    run = run_cli("execute", str(traj), "--remote", "--move-to-start", *ep)
     assert run.returncode == 0, run.stderr
     assert "completed" in run.stdout, run.stdout

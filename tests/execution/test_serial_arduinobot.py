@@ -126,11 +126,6 @@ class StampedSerial(SerialArduinobot):
 
 
 @pytest.fixture(scope="module")
-def desc():
-    return load_description()
-
-
-@pytest.fixture(scope="module")
 def planned(desc):
     from arduinobot.planner.planning.goals import NamedGoal
     from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest

@@ -20,11 +20,6 @@ CACHE = DiskCache()
 
 
 @pytest.fixture(scope="module")
-def desc():
-    return load_description()
-
-
-@pytest.fixture(scope="module")
 def planner(desc):
     from arduinobot.planner.planning.pipeline import MotionPlanner
     return MotionPlanner(desc)

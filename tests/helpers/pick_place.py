@@ -1,8 +1,8 @@
 """A pick and place on the course-like workspace (tests/helpers/course_workspace.py): a
 table with a box on it, a bin with walls beside it, and the task that moves the box into
 the bin (above, LIN down 5 cm, close, attach, LIN up, across, down, open, detach, up),
-in the task's JSON form (``<prefix>/task``'s ``task``). Shared by tests/test_task*.py and
-bench/task.py."""
+in the task's JSON form (``<prefix>/task``'s ``task``). Shared by
+tests/planner/tasks/test_task.py, tests/service/test_task_pool.py and bench/task.py."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Hostile scene inputs, seeded: mutations of apply requests (attach and detach too) and
-junk mesh bytes (for tests/test_scene_store.py, tests/test_scene_carry.py and
+junk mesh bytes (for tests/service/test_scene_store.py, tests/service/test_scene_carry.py and
 bench/scene.py)."""
 
 from __future__ import annotations

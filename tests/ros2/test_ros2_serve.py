@@ -2,7 +2,7 @@
 while the twin moves, as an independent rmw_zenoh peer (zenoh-ros2-sdk, PyPI) sees it.
 
 The SDK subscribes with the type hash it computes from the .msg texts (written to a
-folder here, as tests/test_ros2_zenoh.py does), so a key or attachment of ours that
+folder here, as tests/ros2/test_ros2_zenoh.py does), so a key or attachment of ours that
 rmw_zenoh's format would not accept never reaches its callback. Formats: src/arduinobot/ros2/rmw_zenoh
 docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5 ("Topic and Service name
 mapping to Zenoh key expressions", "Graph Cache").

@@ -1,5 +1,5 @@
 """The rmw_zenoh wire format, checked against rmw_zenoh's own documents and independent
-implementations (no network here; tests/test_ros2_zenoh.py talks over Zenoh).
+implementations (no network here; tests/ros2/test_ros2_zenoh.py talks over Zenoh).
 
 Sources (src/arduinobot/ros2/rmw_zenoh):
 - docs/design.md @ 99a6a2bd10b949052f4f12c5854825dc005e95a5: the key expression and

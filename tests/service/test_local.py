@@ -1,9 +1,9 @@
-"""src/arduinobot/service/local.py: `--local` answers through the service's own request -> reply path,
-without Zenoh, the server or the pool; src/arduinobot/client/ never reaches into the server's internals."""
+"""src/arduinobot/service/local.py: `--local` answers through the service's own request ->
+reply path, without Zenoh, the server or the pool (that no client imports the server's
+internals is a row of tests/test_layers.py)."""
 
 from __future__ import annotations
 
-import ast
 import json
 import subprocess
 import sys
@@ -71,30 +71,3 @@ def test_local_cli_loads_neither_zenoh_nor_the_server() -> None:
                        text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip().splitlines()[-1] == "[]"
-
-
-def _imports(path: Path) -> set[str]:
-    out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text("utf-8"))):
-        if isinstance(node, ast.Import):
-            out |= {a.name for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.module:
-            out.add(node.module)
-            out |= {f"{node.module}.{a.name}" for a in node.names}
-    return out
-
-
-def test_clients_import_nothing_from_the_servers_internals() -> None:
-    """Only `arduinobot serve` (src/arduinobot/cli/commands/serve.py) starts the server, so only it may
-    import it; nothing in src/arduinobot/client/ imports the handlers."""
-    bad = {}
-    pkg = ROOT / "src" / "arduinobot"
-    for path in sorted(p for d in ("client", "cli", "viewer") for p in (pkg / d).rglob("*.py")):
-        forbidden = {"arduinobot.service.plan.handlers"}
-        if path != pkg / "cli" / "commands" / "serve.py":
-            forbidden |= {"arduinobot.service.server", "arduinobot.service.process.pool", "arduinobot.service.process.worker"}
-        hit = _imports(path) & forbidden
-        if hit:
-            bad[str(path.relative_to(ROOT))] = sorted(hit)
-    assert not bad, bad
-

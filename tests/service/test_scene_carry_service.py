@@ -14,11 +14,12 @@ import pytest
 from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
 from tests.helpers.carry import shipped_case
+from tests.helpers.cli import run_cli
 from tests.helpers.fk import link_pose
 from tests.helpers.serve import start_servers
 from tests.planner.planning.test_carried import _box_hits
 from tests.service.test_scene_carry import _pose
-from tests.service.test_scene_service import _cli, _kill_tree
+from tests.service.test_scene_service import _kill_tree
 
 pytestmark = pytest.mark.slow  # every test here starts serve processes
 
@@ -151,15 +152,15 @@ def test_the_scene_attach_and_detach_commands_as_typed(case, tmp_path):
     try:
         with PlannerClient(srv.endpoint, timeout=120) as c:
             c.request("scene/apply", {"add": [_box_in_world(case, START)]})
-        out = _cli("scene", "attach", "carried_box", "--link", case.link, "--mass", "0.2",
+        out = run_cli("scene", "attach", "carried_box", "--link", case.link, "--mass", "0.2",
                    "--com", "0,0,0.01", "--touch", f"{case.link},gripper_left,gripper_right",
                    "--state", "-0.8", *con)
         assert out.returncode == 0, out.stderr
         assert "revision 2 (0 objects, 1 carried), at --state" in out.stdout
-        out = _cli("scene", "show", *con)
+        out = run_cli("scene", "show", *con)
         assert "1 carried" in out.stdout and f"in {case.link}'s frame" in out.stdout
         # fk prints where the carried box is at the asked state, by the independent walk
-        out = _cli("fk", "--joints", "joint_1=0.3,joint_2=0.2", "--link", case.link, *con)
+        out = run_cli("fk", "--joints", "joint_1=0.3,joint_2=0.2", "--link", case.link, *con)
         assert out.returncode == 0, out.stderr
         (line,) = [ln for ln in out.stdout.splitlines() if ln.startswith("carried_box ")]
         assert line.endswith(f"carried by {case.link}"), line
@@ -168,17 +169,17 @@ def test_the_scene_attach_and_detach_commands_as_typed(case, tmp_path):
                          case.q({"joint_1": 0.3, "joint_2": 0.2})) @ case.box.pose()
         assert xyz == pytest.approx(want[:3, 3].tolist(), abs=1e-4)  # printed to 0.1 mm
         saved = tmp_path / "cell.json"
-        assert _cli("scene", "save", str(saved), *con).returncode == 0
+        assert run_cli("scene", "save", str(saved), *con).returncode == 0
         body = json.loads(saved.read_text())
         assert body["attached"][0]["com"] == [0, 0, 0.01]
-        out = _cli("scene", "attach", "nothing", "--link", case.link, *con)
+        out = run_cli("scene", "attach", "nothing", "--link", case.link, *con)
         assert out.returncode == 1 and "attach[0].object" in out.stderr
-        out = _cli("scene", "detach", "carried_box", "--state", "joint_1=0.8", *con)
+        out = run_cli("scene", "detach", "carried_box", "--state", "joint_1=0.8", *con)
         assert out.returncode == 0 and "revision 3 (1 objects)" in out.stdout, out.stderr
-        out = _cli("scene", "detach", "carried_box", *con)
+        out = run_cli("scene", "detach", "carried_box", *con)
         assert out.returncode == 1 and "detach[0]" in out.stderr
         # a saved scene with a carried object loads back carried
-        out = _cli("scene", "load", str(saved), *con)
+        out = run_cli("scene", "load", str(saved), *con)
         assert out.returncode == 0 and "1 carried" in out.stdout, out.stderr
         with PlannerClient(srv.endpoint, timeout=120) as c:
             assert c.request("scene")["attached"] == body["attached"]

@@ -9,8 +9,6 @@ import base64
 import json
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 
@@ -21,8 +19,9 @@ import zenoh
 from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
 from arduinobot.contract.zconfig import zenoh_config
+from tests.helpers.cli import run_cli
 from tests.helpers.procs import process_tree
-from tests.helpers.serve import REPO, free_port, start_servers
+from tests.helpers.serve import free_port, start_servers
 from tests.service.test_service_security import secured  # noqa: F401 -- a fixture used below
 
 pytestmark = pytest.mark.slow  # every test here starts serve processes
@@ -258,55 +257,50 @@ def test_a_late_instance_catches_up_the_leader_fails_over_and_kill_9_loses_nothi
             srv.stop()
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args], cwd=REPO,
-                          capture_output=True, text=True, timeout=300)
-
-
 def test_the_scene_command_as_a_user_types_it(tmp_path):
     srv = start_servers([["--workers", "1", "--scene-file", str(tmp_path / "s.json")]])[0]
     con = ["--connect", srv.endpoint]
     mesh = tmp_path / "bin.stl"
     mesh.write_bytes(trimesh.creation.box(extents=(100, 100, 100)).export(file_type="stl"))
     try:
-        out = _cli("scene", "add", "box:table:1,1,0.1@0,1,0.5", "sphere:ball:0.05@1,1,1",
+        out = run_cli("scene", "add", "box:table:1,1,0.1@0,1,0.5", "sphere:ball:0.05@1,1,1",
                    *con)
         assert out.returncode == 0 and "revision 1 (2 objects)" in out.stdout, out.stderr
-        out = _cli("scene", "add-mesh", "bin", str(mesh), "--pose", "1.5,1.5,1.5",
+        out = run_cli("scene", "add-mesh", "bin", str(mesh), "--pose", "1.5,1.5,1.5",
                    "--scale", "0.001", "--if-revision", "1", *con)
         assert out.returncode == 0 and "revision 2" in out.stdout, out.stderr
-        out = _cli("scene", "remove", "ball", "--if-revision", "1", *con)
+        out = run_cli("scene", "remove", "ball", "--if-revision", "1", *con)
         assert out.returncode == 1 and "SCENE_CONFLICT" in out.stderr
         assert '"current_revision": 2' in out.stderr
-        out = _cli("scene", "show", *con)
+        out = run_cli("scene", "show", *con)
         assert "revision 2: 3 object(s)" in out.stdout and "stl mesh" in out.stdout
         saved = tmp_path / "cell.json"
-        out = _cli("scene", "save", str(saved), *con)
+        out = run_cli("scene", "save", str(saved), *con)
         assert out.returncode == 0 and json.loads(saved.read_text())["revision"] == 2
         # plan and check-state use the service's scene
-        out = _cli("check-state", "--joints", "0,0,0", "--json", *con)
+        out = run_cli("check-state", "--joints", "0,0,0", "--json", *con)
         assert json.loads(out.stdout)["scene_revision"] == 2
-        assert _cli("scene", "clear", *con).returncode == 0
-        out = _cli("scene", "load", str(saved), *con)
+        assert run_cli("scene", "clear", *con).returncode == 0
+        out = run_cli("scene", "load", str(saved), *con)
         assert out.returncode == 0 and "revision 4 (3 objects)" in out.stdout, out.stderr
-        out = _cli("scene", "add-mesh", "x", str(tmp_path / "none.stl"), *con)
+        out = run_cli("scene", "add-mesh", "x", str(tmp_path / "none.stl"), *con)
         assert out.returncode == 2 and "cannot read" in out.stderr
         # an object fixed in a link's frame moves with the link: 0.3 m above the claw
         # support it meets an orb at joint_1 = 0, not at joint_1 = 1
-        out = _cli("scene", "add", "sphere:orb:0.03@-0.02,1.02,1.757", *con)
+        out = run_cli("scene", "add", "sphere:orb:0.03@-0.02,1.02,1.757", *con)
         assert out.returncode == 0, out.stderr
-        out = _cli("scene", "add", "box:cam:0.05,0.05,0.05@0,0.2,0.3", "--frame",
+        out = run_cli("scene", "add", "box:cam:0.05,0.05,0.05@0,0.2,0.3", "--frame",
                    "claw_support", *con)
         assert out.returncode == 0 and "revision 6" in out.stdout, out.stderr
-        assert "cam" in _cli("scene", "show", *con).stdout.split("claw_support's frame")[0]
-        out = _cli("check-state", "--joints", "0,0,0", "--json", *con)
+        assert "cam" in run_cli("scene", "show", *con).stdout.split("claw_support's frame")[0]
+        out = run_cli("check-state", "--joints", "0,0,0", "--json", *con)
         assert sorted(json.loads(out.stdout)["pairs"]) == [["cam", "orb"]], out.stdout
-        out = _cli("check-state", "--joints", "1,0,0", "--json", *con)
+        out = run_cli("check-state", "--joints", "1,0,0", "--json", *con)
         assert json.loads(out.stdout)["valid"], out.stdout
-        out = _cli("fk", "--joints", "1,0,0", "--link", "claw_support", *con)
+        out = run_cli("fk", "--joints", "1,0,0", "--link", "claw_support", *con)
         (line,) = [ln for ln in out.stdout.splitlines() if ln.startswith("cam ")]
         assert line.endswith("fixed to claw_support"), line  # not "carried by": not picked up
-        out = _cli("scene", "add", "box:x:1,1,1@5,5,5", "--touch-links", "base_link", *con)
+        out = run_cli("scene", "add", "box:x:1,1,1@5,5,5", "--touch-links", "base_link", *con)
         assert out.returncode == 2 and "--touch-links needs --frame" in out.stderr
     finally:
         srv.stop()
@@ -314,12 +308,12 @@ def test_the_scene_command_as_a_user_types_it(tmp_path):
     wall = {"revision": 7, "objects": [{"id": "wall", "shape": "box", "size": [0.05, 2, 2],
                                         "xyz": [0, 0.25, 0.5]}], "attached": []}
     (tmp_path / "wall.json").write_text(json.dumps(wall))
-    out = _cli("check-state", "--local", "--scene", str(tmp_path / "wall.json"), "--joints",
+    out = run_cli("check-state", "--local", "--scene", str(tmp_path / "wall.json"), "--joints",
                "0,0,0", "--json")
     assert out.returncode == 1
     body = json.loads(out.stdout)
     assert body["scene_revision"] == 7 and ["base_link", "wall"] in body["pairs"]
-    out = _cli("check-state", "--scene", str(tmp_path / "wall.json"))
+    out = run_cli("check-state", "--scene", str(tmp_path / "wall.json"))
     assert out.returncode == 2 and "--scene is for --local" in out.stderr
 
 

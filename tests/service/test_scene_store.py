@@ -49,12 +49,6 @@ def mesh_obj(oid: str, data: bytes | str, fmt: str = "stl", **extra) -> dict:
     return {"id": oid, "shape": "mesh", "mesh": {"format": fmt, "data": b64(data)}, **extra}
 
 
-@pytest.fixture(scope="module")
-def description():
-    from arduinobot.description import load_description
-    return load_description()
-
-
 @pytest.fixture
 def builder(tmp_path):
     return SceneBuilder(LINKS, tmp_path / "meshes")
@@ -275,10 +269,10 @@ def test_with_scene_merges_pins_and_refuses_shadowing(builder):
     assert with_scene(SceneSnapshot(0), {"scene_revision": 0}, ()) == ((), 0)
 
 
-def test_a_plan_avoids_the_scene_and_names_its_revision(description, builder):
+def test_a_plan_avoids_the_scene_and_names_its_revision(desc, builder):
     from arduinobot.contract.errors import StartInCollision
     from arduinobot.service.plan.handlers import Handlers
-    h = Handlers(description)
+    h = Handlers(desc)
     state = applied(SceneState(), {"add": [mesh_obj("wall", stl_box((0.05, 2, 2)),
                                                     xyz=[0, 0.25, 0.5])]}, builder)
     free = h.check({"joints": {}}, scene=None)

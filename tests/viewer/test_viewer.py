@@ -23,7 +23,6 @@ from PIL import Image
 
 from arduinobot.cli.commands.view import read_obstacles
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.description import load_description
 from arduinobot.description.model import rpy_matrix
 from arduinobot.planner.planning.goals import JointGoal, NamedGoal
 from arduinobot.scene.obstacles import Obstacle
@@ -35,11 +34,6 @@ from tests.helpers.procs import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 FOLDED = -1.5  # joint_3 [rad]: the forearm folds down into the base (self-collision)
-
-
-@pytest.fixture(scope="module")
-def description():
-    return load_description()
 
 
 def _traj_json() -> dict:
@@ -120,9 +114,9 @@ def test_palette_has_no_collision_red():
         assert not _is_red(np.array([[[r, g, b]]])).any()
 
 
-def test_plots_carry_limits_and_render_png(description):
+def test_plots_carry_limits_and_render_png(desc):
     t = PlaybackTrajectory.from_json(_traj_json())
-    panels = plot_panels(t, joint_limits(description, t.joint_names))
+    panels = plot_panels(t, joint_limits(desc, t.joint_names))
     assert [p.quantity for p in panels] == ["position", "velocity", "acceleration", "effort"]
     assert panels[0].upper == pytest.approx([math.pi / 2] * 2, abs=1e-4)
     assert panels[1].upper == pytest.approx([10.0, 10.0])
@@ -301,11 +295,11 @@ def _free_port() -> int:
 
 
 @pytest.mark.slow
-def test_page_shows_robot_and_collision_in_chromium(description, tmp_path):
+def test_page_shows_robot_and_collision_in_chromium(desc, tmp_path):
     from arduinobot.viewer.app import RobotViewer
     from arduinobot.viewer.playback import PlaybackPanel
 
-    viewer = RobotViewer(description, port=_free_port())
+    viewer = RobotViewer(desc, port=_free_port())
     playback = PlaybackPanel(viewer)
     browser = None
     try:

@@ -18,7 +18,6 @@ from PIL import Image
 
 from arduinobot.client.client import PlannerClient
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.description import load_description
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.viewer.geometry import CARRIED_RGB, link_meshes
 from arduinobot.viewer.scene_view import NO_REVISION, ViewerScene, read_scene_file
@@ -39,11 +38,6 @@ BIN = {"id": "bin", "shape": "mesh", "xyz": [0.5, -0.5, 0.2], "rpy": [0, 0, 1.0]
 CUP = {"object": {"id": "cup", "shape": "box", "size": [0.06, 0.06, 0.06], "xyz": [0, 0, 0.2]},
        "link": "claw_support", "mass": 0.1}
 BENT = {"joint_1": 0.8, "joint_2": 0.4, "joint_3": -0.3, "joint_4": 0.0}
-
-
-@pytest.fixture(scope="module")
-def desc():
-    return load_description()
 
 
 def _scene(revision=3, objects=(TABLE, BALL, CAN, BIN), attached=(CUP,)):

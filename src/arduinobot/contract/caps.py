@@ -1,7 +1,7 @@
 """Every size cap of a request, in one place, and the cheap structural check.
 
 The schemas (``src/arduinobot/contract/schema/*.json``) repeat these figures where a field has one
-(``tests/test_schema.py`` checks they agree), and every refusal names its cap
+(``tests/contract/test_schema.py`` checks they agree), and every refusal names its cap
 (``details.limit``). :func:`check_structure` runs on the decoded payload before the JSON
 Schema validation, so the schema's work is bounded by :data:`MAX_ELEMENTS` whatever
 arrives: a 120 KB request of 60,000 array elements is refused in well under a

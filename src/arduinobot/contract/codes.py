@@ -3,7 +3,7 @@
 The planner's exceptions (:mod:`arduinobot.contract.errors`), the planning service's replies
 (``src/arduinobot/service/``), its schema (``src/arduinobot/contract/schema/error.json``), the client's exceptions
 (:mod:`arduinobot.client.errors`) and execution's (``src/arduinobot/service/execute/execution.py``, ``src/arduinobot/execution/``
-with its drivers) all take their codes from :class:`Code`; ``tests/test_codes.py`` fails
+with its drivers) all take their codes from :class:`Code`; ``tests/contract/test_codes.py`` fails
 if any of them uses a code not listed here, or if the schema's enum drifts from
 :data:`PLAN_SERVICE_CODES`. It lives in ``src/arduinobot/planner/``, the lowest layer, so every layer
 can import it.

@@ -1,7 +1,7 @@
 """One table of the ranges a request's numbers must lie in.
 
 The planner validates against it, the trajectory sampler and the executor check rates
-with it, the Python client pre-checks with it, and ``tests/test_ranges.py`` holds it equal
+with it, the Python client pre-checks with it, and ``tests/contract/test_ranges.py`` holds it equal
 to the JSON schemas in ``src/arduinobot/contract/schema/``, so the five places that once each wrote
 "(0, 60] s" and "[1, 1000] Hz" cannot drift apart.
 """

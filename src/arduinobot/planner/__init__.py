@@ -6,6 +6,15 @@ The errors, codes and ranges are imported with the package (they need nothing bu
 standard library); every other name is imported on first use (PEP 562), so importing
 ``planner`` for its errors, codes or ranges (the client does) does not load OMPL, FCL,
 numba or toppra.
+
+- ``kinematics/``: forward kinematics, inverse dynamics, IK, the joint limits.
+- ``collision/``: the collision world and the proof that a motion is free.
+- ``timing/``: from a path to a timed, verified trajectory.
+- ``planning/``: goals, OMPL search, the strategies and the one door (``MotionPlanner``).
+- ``tasks/``: ordered steps planned as a whole.
+- ``checks``: the request checks every layer shares (joint names, position limits).
+- ``path_limits``: the limits a time parameterisation works to, torque along a curve.
+- ``cache``: artifacts kept between runs, keyed by the content they came from.
 """
 
 from __future__ import annotations

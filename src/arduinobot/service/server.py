@@ -203,7 +203,7 @@ class PlannerService:
             # explicit undeclare of a complete queryable makes a router drop its route to
             # the other instances' complete queryables on the same key (gets then time
             # out for good), while closing the session hands the key over at once, as a
-            # crash does. tests/test_service_cluster.py holds it.
+            # crash does. tests/service/test_service_cluster.py holds it.
             self.session.close()
             self.session = None
         self._shared.clear()

@@ -10,14 +10,9 @@ from tests.helpers.fcl_bodies import fcl_objects, place
 
 
 @pytest.fixture(scope="module")
-def d():
-    return load_description()
-
-
-@pytest.fixture(scope="module")
-def world(d):
-    return CollisionWorld(d, obstacles=[Obstacle("table", "box", size=(0.6, 1.2, 0.05),
-                                                 xyz=(0, 1.0, 0.6))])
+def world(desc):
+    return CollisionWorld(desc, obstacles=[Obstacle("table", "box", size=(0.6, 1.2, 0.05),
+                                                    xyz=(0, 1.0, 0.6))])
 
 
 def _brute(w, q):
@@ -31,8 +26,8 @@ def _brute(w, q):
     return hits
 
 
-def test_broad_phase_never_hides_a_collision(world, d):
-    lim = d.robot.position_limits()
+def test_broad_phase_never_hides_a_collision(world, desc):
+    lim = desc.robot.position_limits()
     qs = np.random.default_rng(3).uniform(lim[:, 0], lim[:, 1], size=(300, 4))
     n_hit = 0
     for q in qs:
@@ -54,22 +49,21 @@ def test_first_invalid_and_obstacle_pair(world):
     assert world.first_invalid(qs[:i]) == -1
 
 
-def test_clearance_and_padding(d):
-    w = CollisionWorld(d)
+def test_clearance_and_padding(desc):
+    w = CollisionWorld(desc)
     c = w.check(np.zeros(4), clearance=True)
     assert c.valid and 0 < c.clearance < 0.05 and c.closest is not None
     d_min, pair = w.min_clearance(np.zeros((2, 4)))
     assert d_min == pytest.approx(c.clearance)
-    padded = CollisionWorld(d, padding=c.clearance + 0.005)
+    padded = CollisionWorld(desc, padding=c.clearance + 0.005)
     assert not padded.is_valid(np.zeros(4))
     with pytest.raises(InvalidRequest):
-        CollisionWorld(d, padding=-1)
+        CollisionWorld(desc, padding=-1)
 
 
 def test_link_trees_are_cached_by_content(tmp_path):
     import numpy as np
 
-    from arduinobot.description import load_description
     from arduinobot.planner.collision.world import CollisionWorld
     from arduinobot.service.process.disk_cache import DiskCache
     d = load_description()
@@ -85,13 +79,13 @@ def test_link_trees_are_cached_by_content(tmp_path):
     assert again.check(q) == first.check(q)
 
 
-def test_without_narrow_phase_a_world_is_conservative(d):
+def test_without_narrow_phase_a_world_is_conservative(desc):
     # trees alone: never accepts a state the exact world refuses (at its padding), and
     # refuses some free ones near contact - the price of asking no FCL
-    lim = d.robot.position_limits()
+    lim = desc.robot.position_limits()
     qs = np.random.default_rng(5).uniform(lim[:, 0], lim[:, 1], size=(300, 4))
     for pad in (0.0, 0.002):
-        exact = CollisionWorld(d, padding=pad)
+        exact = CollisionWorld(desc, padding=pad)
         trees = exact.with_scene((), narrow_phase=False)
         assert not trees.narrow_phase and trees.padding == pad
         verdicts = [(exact.is_valid(q), trees.is_valid(q)) for q in qs]
@@ -102,12 +96,12 @@ def test_without_narrow_phase_a_world_is_conservative(d):
         assert i == next(k for k, (_, t) in enumerate(verdicts) if not t)
 
 
-def test_pair_distance_to_a_box_is_fcl_distance_to_the_solid_box_at_free_states(d):
+def test_pair_distance_to_a_box_is_fcl_distance_to_the_solid_box_at_free_states(desc):
     # the box is measured by its surface (faster): at a free state that is the distance
     # to the solid box FCL's primitive gives
-    w = CollisionWorld(d, obstacles=[Obstacle("table", "box", size=(0.6, 1.2, 0.05),
+    w = CollisionWorld(desc, obstacles=[Obstacle("table", "box", size=(0.6, 1.2, 0.05),
                                               xyz=(0.3, 0.6, 1.0), rpy=(0.2, 0, 0.4))])
-    lim = d.robot.position_limits()
+    lim = desc.robot.position_limits()
     box = next(p for p, (_, b) in enumerate(w.pair_names) if b == "table")
     a, b = w.table.pairs.index[box]
     objs = fcl_objects(w)
@@ -124,8 +118,8 @@ def test_pair_distance_to_a_box_is_fcl_distance_to_the_solid_box_at_free_states(
     assert compared > 5
 
 
-def test_lower_bound_never_exceeds_the_exact_distance(world, d):
-    lim = d.robot.position_limits()
+def test_lower_bound_never_exceeds_the_exact_distance(world, desc):
+    lim = desc.robot.position_limits()
     qs = np.random.default_rng(8).uniform(lim[:, 0], lim[:, 1], size=(100, 4))
     positive = 0
     for q in qs:

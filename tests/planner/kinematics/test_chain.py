@@ -26,11 +26,6 @@ def _yourdfpy(d) -> yourdfpy.URDF:
         load_meshes=False, build_collision_scene_graph=False, load_collision_meshes=False)
 
 
-@pytest.fixture(scope="module")
-def desc():
-    return load_description(env={})
-
-
 def test_fk_matches_yourdfpy(desc):
     kin = Kinematics(desc.robot)
     ref = _yourdfpy(desc)

@@ -27,11 +27,6 @@ FULL = {"has_velocity_limits": True, "max_velocity": 10.0, "has_acceleration_lim
         "max_acceleration": 20.0, "has_jerk_limits": True, "max_jerk": 200.0}
 
 
-@pytest.fixture(scope="module")
-def desc():
-    return load_description()
-
-
 def with_yaml(desc, **entries):
     cfg = {n: dict(FULL) for n in ARM}
     for name, entry in entries.items():

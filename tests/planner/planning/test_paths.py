@@ -89,7 +89,7 @@ def test_errors(env):
 
 def test_no_path_found(env):
     # a free start and a free goal on either side of a wall the arm cannot pass (see
-    # tests/planning_scenes.py): the planner says NoPathFound, nothing else
+    # tests/helpers/planning_scenes.py): the planner says NoPathFound, nothing else
     d, _, _ = env
     w = CollisionWorld(d, obstacles=list(SPLIT))
     start = np.array([SPLIT_START[n] for n in w.kin.joint_names])

@@ -1,3 +1,10 @@
-"""From a path to a timed trajectory: blended curves (curve), jerk-limited and
-time-optimal timing (ruckig_timing, toppra_timing), the sampled trajectory (trajectory),
-its verification (verify) and braking along it (braking)."""
+"""From a path to a timed trajectory.
+
+- ``curve``: the blended curve both timings follow; ``curve_eval``: its states under
+  polynomial profiles, compiled.
+- ``profiles``: the registry of timing profiles; ``ruckig_timing``: jerk-limited (the
+  default); ``toppra_timing``: time-optimal.
+- ``trajectory``: the timed trajectory, sampled for motors.
+- ``verify``: every limit between samples, and collisions, before a trajectory is returned.
+- ``braking``: a moving arm braked to rest within the effort limits.
+"""

@@ -4,7 +4,7 @@ A request names its profile (``MotionRequest.profile``); the planner looks it up
 instead of branching on the name, so a new profile is one class and one entry in
 :data:`PROFILES`, and every place that needs to know a profile's nature (the verifier's
 jerk check, the schema's enum, the request check) reads it from the registry.
-``tests/test_pipeline.py`` holds :data:`PROFILES` equal to
+``tests/planner/planning/test_pipeline.py`` holds :data:`PROFILES` equal to
 :data:`arduinobot.planner.planning.motion.Profile` and to the plan request schema's enum.
 """
 
