@@ -27,6 +27,7 @@ from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, 
 from arduinobot.service import hoptrace
 from arduinobot.service.keyguard import addressed_exactly
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
+from arduinobot.service.perceive.perceive_service import perceive_extension
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.process.job import SHUTTING_DOWN, Job
 from arduinobot.service.process.memtrace import MemTrace, count_live
@@ -164,6 +165,10 @@ class PlannerService:
             # <prefix>/task: tasks planned by the pool, executed through <prefix>/execute
             self._extensions.append(task_extension(submit=self.submit, tasks_file=o.tasks_file,
                                                    scene=self._scene_now)(
+                self.session, p, desc, self._submit_plan))
+            # <prefix>/perceive: objects seen in a camera image (OpenCV on the first request)
+            self._extensions.append(perceive_extension(spec=o.description,
+                                                       scene=self._scene_now)(
                 self.session, p, desc, self._submit_plan))
         except Exception:
             self.close()
