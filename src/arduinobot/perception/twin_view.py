@@ -28,8 +28,9 @@ from arduinobot.perception.markers import MarkedObject, MarkerMap, cv_dictionary
 log = logging.getLogger(__name__)
 
 #: white printed around a marker, as a fraction of its side on each edge: the detector
-#: needs a light quiet zone to find the black border
-QUIET_ZONE = 0.2
+#: needs a light quiet zone to find the black border (a 6.5 cm marker's label fits an
+#: 8 cm face)
+QUIET_ZONE = 0.1
 MARKER_PX = 480  # [px] the marker's side in its texture: whole pixels per cell (6, 7, 8, 10)
 PLATE = 0.0005  # [m] thickness of the printed label (its back inside the object)
 PROUD = 0.0001  # [m] the print stands off the face: no depth fight, 0.1 mm off the map
