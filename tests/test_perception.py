@@ -223,3 +223,53 @@ def test_a_jpeg_gives_the_pose_and_the_padding_grows_the_box(course) -> None:
     wire = det.to_dict()
     assert wire["object"] == "box3" and wire["marker"] == 3
     np.testing.assert_allclose(wire["marker_xyz"], det.marker_pose[:3, 3])
+
+
+# --- layering ---------------------------------------------------------------------------
+
+def test_only_the_service_and_the_command_line_import_perception() -> None:
+    """The core never imports perception (OpenCV is the optional see extra), perception
+    imports nothing above it, and OpenCV and MuJoCo only inside its functions."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "src" / "arduinobot"
+
+    def imports(path: Path, *, top: bool = False) -> set[str]:
+        tree = ast.parse(path.read_text("utf-8"))
+        nodes = tree.body if top else list(ast.walk(tree))
+        out: set[str] = set()
+        for n in nodes:
+            if isinstance(n, ast.Import):
+                out |= {a.name for a in n.names}
+            elif isinstance(n, ast.ImportFrom) and n.module and n.level == 0:
+                out.add(n.module)
+        return out
+
+    core = ("planner", "execution", "description", "contract", "scene", "ros2", "client",
+            "viewer")
+    bad = {str(p): m for pkg in core for p in (root / pkg).rglob("*.py")
+           if (m := {i for i in imports(p) if i.startswith("arduinobot.perception")})}
+    assert not bad
+    users = {p.relative_to(root).parts[0] for p in root.rglob("*.py")
+             if any(i.startswith("arduinobot.perception") for i in imports(p))}
+    assert users == {"perception", "service", "cli"}
+    files = list((root / "perception").glob("*.py"))
+    assert len(files) >= 8
+    for p in files:
+        assert not {i for i in imports(p) if i.split(".")[1:2] in (["service"], ["cli"],
+                                                                  ["client"], ["viewer"])}, p
+        assert not imports(p, top=True) & {"cv2", "mujoco"}, p
+
+
+def test_an_image_over_the_pixel_cap_is_refused_from_its_header(course) -> None:
+    from arduinobot.perception.image import MAX_PIXELS, header_size
+    small = encode(np.full((48, 64, 3), 128, np.uint8))
+    assert header_size(small, "png") == (64, 48)
+    assert header_size(encode(np.full((48, 64, 3), 128, np.uint8), "jpeg"), "jpeg") == (64, 48)
+    # a 5000 x 5000 header (a decompression bomb's) is refused before decoding
+    big = small[:16] + (5000).to_bytes(4, "big") * 2 + small[24:]
+    assert 5000 * 5000 > MAX_PIXELS
+    with pytest.raises(ImageInvalid) as e:
+        _see(course, big, _map(3))
+    assert "cap" in e.value.message

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
 from arduinobot.perception.camera import CameraFrame, camera_frame
 from arduinobot.perception.detect import MarkerView, find_markers, marker_pose
@@ -166,8 +167,6 @@ def perceive(image: bytes, *, description: Description, markers: MarkerMap,
         InvalidRequest: an unknown camera link or joint (``field`` names it), or an image
             whose size is not the intrinsics'.
     """
-    from arduinobot.contract.errors import InvalidRequest
-
     frame = camera_frame(description, camera, state)  # a bad link fails before decoding
     gray = decode_gray(image, image_format=image_format)
     h, w = gray.shape

@@ -192,7 +192,7 @@ class PerceiveService:
         """Put ``obstacles`` into the kept scene (replacing same ids) and take ``unseen``
         out: one apply at the revision read; retried if the scene moved on meanwhile.
         The new revision, and the ids removed as unseen."""
-        failure: SceneApplyFailed | None = None
+        failure = SceneApplyFailed(Code.BUSY, "the kept scene did not answer", {})
         for _ in range(APPLY_ATTEMPTS):
             snap = self.scene()
             held = {o.id for o in snap.obstacles} if snap is not None else set()
@@ -221,7 +221,6 @@ class PerceiveService:
             if failure.code != Code.SCENE_CONFLICT:
                 break
             time.sleep(0.2)  # this instance's copy of the scene catches up
-        assert failure is not None
         raise failure
 
 
