@@ -41,8 +41,9 @@ class Seen:
 
 
 def see_on_twin(section: Any, desc: Description, *, model: str | None,
-                args: Mapping[str, str]) -> Seen:
-    """Render the ``see`` section's twin, detect its markers and place what they show."""
+                args: Mapping[str, str], obstacles: Any = ()) -> Seen:
+    """Render the ``see`` section's twin among the task's ``obstacles`` (their JSON form:
+    they can hide a marker), detect its markers and place what they show."""
     from arduinobot.perception.camera import camera_frame, default_camera
     from arduinobot.perception.image import encode
     from arduinobot.perception.intrinsics import camera_sensors
@@ -77,8 +78,11 @@ def see_on_twin(section: Any, desc: Description, *, model: str | None,
     lights = {1: (Light(direction=(0.2, 0.1, -1.0), diffuse=0.8, ambient=0.25),),
               2: (Light(directional=False, position=(0.2, -0.8, 1.2),
                         direction=(0.5, 1.0, -1.0), diffuse=0.45, ambient=0.1),)}
+    others = [Obstacle.from_mapping(o, where=f"obstacles[{i}]")
+              for i, o in enumerate(obstacles or ()) if isinstance(o, Mapping)
+              and o.get("id") not in truth and o.get("shape") != "mesh"]
     rgb = render(markers, poses, camera_frame(desc, link), intr,
-                 lights=lights[int(section.get("lights", 1))])
+                 lights=lights[int(section.get("lights", 1))], obstacles=others)
     seen = perceive(encode(rgb), description=desc, markers=markers, camera=link,
                     intrinsics=intr)
     for d in seen.detections:

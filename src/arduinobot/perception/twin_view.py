@@ -6,8 +6,8 @@ Headless rendering needs an OpenGL context without a display: Mesa's EGL (llvmpi
 machine without a GPU; Debian: libegl1, libegl-mesa0, libgbm1, libgl1-mesa-dri, which
 ``./dev`` installs), or OSMesa with ``MUJOCO_GL=osmesa``.
 
-The scene is the floor, the lights and the marked objects (the robot's own links are not
-drawn: a base camera looking out does not see them). MuJoCo's camera looks along its -z
+The scene is the floor, the lights, the marked objects and any other obstacles given (the
+robot's own links are not drawn: a base camera looking out does not see them). MuJoCo's camera looks along its -z
 with y up; the optical frame looks along +z with y down: the same x, the other two flipped.
 """
 
@@ -24,6 +24,7 @@ import numpy as np
 from arduinobot.perception.camera import CameraFrame
 from arduinobot.perception.intrinsics import Intrinsics
 from arduinobot.perception.markers import MarkedObject, MarkerMap, cv_dictionary_name
+from arduinobot.scene.obstacles import Obstacle
 
 log = logging.getLogger(__name__)
 
@@ -82,7 +83,7 @@ def _label_mesh(name: str, side: float) -> str:
             f'texcoord="{_f(np.array(uv))}" face="{" ".join(str(i) for f in faces for i in f)}"/>')
 
 
-def _geom_of(o: MarkedObject) -> str:
+def _geom_of(o: MarkedObject | Obstacle) -> str:
     if o.shape == "box":
         assert o.size is not None
         return f'type="box" size="{_f(np.asarray(o.size) / 2)}"'
@@ -100,7 +101,8 @@ def _frame(pose: np.ndarray) -> str:
 
 
 def scene_xml(markers: MarkerMap, poses: Mapping[str, np.ndarray], camera: CameraFrame,
-              intrinsics: Intrinsics, lights: Sequence[Light]) -> tuple[str, dict[str, bytes]]:
+              intrinsics: Intrinsics, lights: Sequence[Light],
+              obstacles: Sequence[Obstacle] = ()) -> tuple[str, dict[str, bytes]]:
     """The MJCF text of the scene and its texture files (name -> PNG bytes)."""
     assets: dict[str, bytes] = {}
     asset_xml, world = [], []
@@ -119,6 +121,12 @@ def scene_xml(markers: MarkerMap, poses: Mapping[str, np.ndarray], camera: Camer
         world += [f'<geom name="{o.id}" {_geom_of(o)} {_frame(pose)} rgba="0.55 0.35 0.2 1"/>',
                   f'<geom name="label{mid}" type="mesh" mesh="label{mid}" material="m{mid}" '
                   f'{_frame(label)}/>']
+    for i, ob in enumerate(obstacles):  # what else is there: it can hide a marker
+        if ob.shape == "mesh":
+            log.warning("twin camera: mesh obstacle %s is not drawn", ob.id)
+            continue
+        world.append(f'<geom name="obstacle{i}" {_geom_of(ob)} {_frame(ob.pose())} '
+                     'rgba="0.7 0.7 0.65 1"/>')
     for i, li in enumerate(lights):
         where = (f'dir="{_f(li.direction)}" directional="true"' if li.directional
                  else f'pos="{_f(li.position)}" dir="{_f(li.direction)}"')
@@ -147,17 +155,19 @@ def scene_xml(markers: MarkerMap, poses: Mapping[str, np.ndarray], camera: Camer
 
 
 def render(markers: MarkerMap, poses: Mapping[str, np.ndarray], camera: CameraFrame,
-           intrinsics: Intrinsics, *, lights: Sequence[Light] = (Light(),)) -> np.ndarray:
+           intrinsics: Intrinsics, *, lights: Sequence[Light] = (Light(),),
+           obstacles: Sequence[Obstacle] = ()) -> np.ndarray:
     """The camera's view of the objects at ``poses`` (object id -> world pose, shape
-    (4, 4)): an RGB image, shape (height, width, 3) uint8. ``intrinsics`` must be an
-    ideal pinhole (square pixels, centred, no distortion), as a Gazebo sensor's are."""
+    (4, 4)) among ``obstacles`` (drawn plain: a table can hide a marker): an RGB image,
+    shape (height, width, 3) uint8. ``intrinsics`` must be an ideal pinhole (square
+    pixels, centred, no distortion), as a Gazebo sensor's are."""
     if intrinsics.width <= 0 or intrinsics.height <= 0:
         raise ValueError("rendering needs the intrinsics' image size")
     if abs(intrinsics.fx - intrinsics.fy) > 1e-6 * intrinsics.fx or intrinsics.distortion:
         raise ValueError("MuJoCo renders an ideal pinhole only: fx = fy, no distortion")
     import mujoco
 
-    xml, assets = scene_xml(markers, poses, camera, intrinsics, lights)
+    xml, assets = scene_xml(markers, poses, camera, intrinsics, lights, obstacles)
     model = mujoco.MjModel.from_xml_string(xml, assets)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)

@@ -101,7 +101,8 @@ def resolve_task(ns: argparse.Namespace, desc: Description) -> Task:
             if not ns.sim:
                 raise UsageError(f"{f}: a task with 'see' runs on the twin: add --sim")
             from arduinobot.cli.see_task import see_on_twin, with_seen
-            ns.seen = see_on_twin(body.pop("see"), desc, model=ns.file, args=dict(ns.arg))
+            ns.seen = see_on_twin(body.pop("see"), desc, model=ns.file, args=dict(ns.arg),
+                                  obstacles=body.get("obstacles"))
             body = with_seen(body, ns.seen)
         return task_from_mapping(body, name=f.stem)
     tasks_file = Path(ns.tasks) if ns.tasks else desc.config.tasks
