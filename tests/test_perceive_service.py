@@ -146,3 +146,23 @@ def test_scene_see_as_a_user_types_it(course_service, view, tmp_path):
                           str(objects), "--connect", course_service.endpoint],
                          cwd=REPO, capture_output=True, text=True, timeout=300)
     assert bad.returncode != 0 and ".png" in bad.stderr
+
+
+def test_remove_unseen_takes_out_the_maps_objects_not_in_the_image(course_service, view):
+    two = {**MAP, "objects": {**MAP["objects"], "5": {
+        "id": "crate", "shape": "box", "size": [BOX, BOX, BOX],
+        "offset": {"xyz": [-BOX / 2, 0, 0], "rpy": [math.pi / 2, 0, -math.pi / 2]}}}}
+    crate = Origin(xyz=(0.75, 0.22, BOX / 2), rpy=(0.0, 0.0, 0.1)).matrix()
+    with PlannerClient(course_service.endpoint, timeout=60) as c:
+        both = c.request("perceive", {**_body(view({"box": FIRST, "crate": crate}, two)),
+                                      "markers": two, "apply": True})
+        assert sorted(d["object"] for d in both["detections"]) == ["box", "crate"]
+        ids = {o["id"] for o in c.request("scene")["objects"]}
+        assert {"box", "crate"} <= ids
+        kept = c.request("perceive", {**_body(view({"box": SECOND}, two)), "markers": two,
+                                      "apply": True})  # without remove_unseen: stays
+        assert kept["removed"] == [] and "crate" in {o["id"] for o in c.request("scene")["objects"]}
+        gone = c.request("perceive", {**_body(view({"box": SECOND}, two)), "markers": two,
+                                      "apply": True, "remove_unseen": True})
+        assert gone["removed"] == ["crate"]
+        assert "crate" not in {o["id"] for o in c.request("scene")["objects"]}
