@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 PKG = SRC / "arduinobot"
 
-FLOORS = ("contract", "description", "scene", "planner", "execution", "ros2", "service",
+FLOORS = ("contract", "description", "scene", "planner", "execution", "perception", "ros2",
+          "service",
           "client", "viewer", "cli")
 
 #: package -> the packages it may import (besides itself): every floor below it, but the

@@ -15,6 +15,7 @@ The packages, floor by floor (each imports only those below it; tests/test_layer
 - ``scene``: obstacles, attached objects, meshes sent inline.
 - ``planner``: kinematics, collision and its proof, OMPL search, timing, tasks.
 - ``execution``: the executor, the drivers, the MuJoCo twin.
+- ``perception``: camera images to scene objects through markers (the ``see`` extra).
 - ``ros2``: the rmw_zenoh wire.
 - ``service``: the Zenoh queryables, the worker pool, the kept scene, execute, tasks.
 - ``client``: the Python client library.

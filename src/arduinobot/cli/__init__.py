@@ -7,6 +7,7 @@
 - ``common``: loading the model from the options, printing summaries, running guarded.
 - ``remote_model``: the service's model fetched and cached for commands that draw or
   simulate it.
+- ``see_task``: a task file's ``see`` section on the twin (render, detect, plan).
 - ``simulate``: ``plan --simulate`` (the MuJoCo twin as a check).
 - ``ros2_execute``, ``ros2_options``: ``execute --ros2`` and the ROS 2 options.
 """

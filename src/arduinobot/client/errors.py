@@ -106,6 +106,26 @@ class SceneConflict(ServiceError):
     code: str = Code.SCENE_CONFLICT
 
 
+
+class ImageInvalid(ServiceError):
+    """perceive: the image is not a PNG/JPEG that decodes, or is all one colour."""
+    code: str = Code.IMAGE_INVALID
+
+
+class NoMarker(ServiceError):
+    """perceive: no marker of the dictionary (``details.dictionary``) is in the image."""
+    code: str = Code.NO_MARKER
+
+
+class UnknownMarker(ServiceError):
+    """perceive: markers whose ids the map lacks are seen (``details.markers``)."""
+    code: str = Code.UNKNOWN_MARKER
+
+
+class MarkerRefused(ServiceError):
+    """perceive: a marker is seen too small or at a grazing angle (``details.reason``)."""
+    code: str = Code.MARKER_REFUSED
+
 class MalformedReply(ServiceError):
     """A reply this client cannot read: a field its schema requires is missing or of the
     wrong type (``details.field``, ``details.reply``: plan, fk, ik or check). The service

@@ -48,13 +48,15 @@ Kind = Literal["plan", "fk", "ik", "check", "execute", "task"]
 SCHEMA_NAMES = ("plan_request", "plan_response", "error", "fk_request", "fk_response",
                 "ik_request", "ik_response", "check_request", "check_response",
                 "execute_request", "scene_apply_request", "scene_apply_response",
-                "scene_response", "task_request", "task_response")
+                "scene_response", "task_request", "task_response", "perceive_request",
+                "perceive_response")
 #: Requests whose element counts are not capped: an execute request carries a whole
 #: trajectory (thousands of points), bounded by the payload cap and read point by point.
 _UNCOUNTED: frozenset[str] = frozenset({"execute"})
 #: what :func:`validate` takes beyond the work kinds: the scene's apply request
 #: (decoded by :func:`arduinobot.service.scene.apply.decode_apply`, under its own size caps)
-OtherKind = Literal["scene_apply"]
+#: and perceive's (an image: :mod:`arduinobot.service.perceive`)
+OtherKind = Literal["scene_apply", "perceive"]
 #: Schema keywords whose figure is a cap or a bound: their refusals carry it as
 #: ``details.limit``.
 _LIMIT_KEYWORDS = ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum", "maxItems",

@@ -12,7 +12,7 @@
 - ``router``: a Zenoh router for a cluster of instances.
 - wings: ``process/`` (the pool, workers, zygote), ``plan/`` (plan, fk, ik, check
   bodies), ``scene/`` (the kept scene), ``execute/`` (moving the robot), ``task/``
-  (``<prefix>/task``).
+  (``<prefix>/task``), ``perceive/`` (``<prefix>/perceive``: objects seen by a camera).
 """
 
 import logging

@@ -26,6 +26,7 @@ from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, 
 from arduinobot.service import hoptrace
 from arduinobot.service.extension import Extension, Host
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
+from arduinobot.service.perceive.perceive_service import perceive_extension
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.process.job import SHUTTING_DOWN, Job
 from arduinobot.service.process.memtrace import MemTrace, count_live
@@ -155,8 +156,10 @@ class PlannerService:
             host = Host(self.session, p, desc, self.submit, self._submit_plan,
                         self._scene_now)
             # <prefix>/task (the service's own): tasks planned by the pool, executed
-            # through <prefix>/execute
-            for make in (*o.extensions, task_extension(tasks_file=o.tasks_file)):
+            # through <prefix>/execute; <prefix>/perceive: objects seen in a camera image
+            # (OpenCV imported on the first request)
+            for make in (*o.extensions, task_extension(tasks_file=o.tasks_file),
+                         perceive_extension(spec=o.description)):
                 self._extensions.append(make(host))
         except Exception:
             self.close()

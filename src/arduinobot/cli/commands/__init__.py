@@ -1,3 +1,4 @@
 """The subcommands, a module each: ``model`` (check, info, urdf, limits), ``serve``,
 ``srdf``, ``view``, ``plan`` (plan, fk, ik), ``state`` (check-state), ``execute``,
-``scene`` and ``task``. Each has ``add_parsers(sub)``."""
+``scene`` (with ``scene_see``: ``scene see IMAGE``) and ``task``. Each has
+``add_parsers(sub)``."""

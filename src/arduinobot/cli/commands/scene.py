@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from arduinobot.cli.argtypes import UsageError, joint_values, json_object, numbers, obstacle
+from arduinobot.cli.commands import scene_see
 from arduinobot.cli.common import EXIT_OK, add_connection_args, client, joints_by_name, wrote
 
 _POSE_HELP = ("X,Y,Z or X,Y,Z,ROLL,PITCH,YAW in the world frame (or --frame's) [m, rad] "
@@ -91,6 +92,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     a = action("load", "replace the scene by one saved with `scene save`")
     a.add_argument("file", metavar="FILE.json", type=json_object)
     _if_revision(a)
+    a = action("see", "put what a camera image shows into the scene: the objects its "
+               "markers sit on (objects.yaml), placed from the camera's pose")
+    scene_see.add_arguments(a)
     a = action("save", "write the scene to a file (`scene load` and `plan --local --scene` "
                "read it)")
     a.add_argument("file", metavar="FILE.json")
@@ -211,6 +215,9 @@ def cmd_scene(ns: argparse.Namespace) -> int:
         raise UsageError("the scene is the service's; `plan --local --scene FILE.json` "
                          "plans against a saved one")
     with client(ns) as c:
+        if ns.action == "see":
+            scene_see.run(ns, c)
+            return EXIT_OK
         if ns.action in ("show", "save"):
             scene = c.request("scene")
             if ns.action == "save":

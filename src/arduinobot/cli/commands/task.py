@@ -99,7 +99,15 @@ def resolve_task(ns: argparse.Namespace, desc: Description) -> Task:
     from arduinobot.planner.tasks import task_from_mapping
     f = _task_file(ns.task)
     if f is not None:
-        return task_from_mapping(_read_body(f), name=f.stem)
+        body = _read_body(f)
+        if isinstance(body, dict) and "see" in body:  # see and pick (cli/see_task.py)
+            if not ns.sim:
+                raise UsageError(f"{f}: a task with 'see' runs on the twin: add --sim")
+            from arduinobot.cli.see_task import see_on_twin, with_seen
+            ns.seen = see_on_twin(body.pop("see"), desc, model=ns.file, args=dict(ns.arg),
+                                  obstacles=body.get("obstacles"))
+            body = with_seen(body, ns.seen)
+        return task_from_mapping(body, name=f.stem)
     tasks_file = Path(ns.tasks) if ns.tasks else desc.config.tasks
     if tasks_file is None:
         raise UsageError(f"no tasks.yaml for '{desc.robot.name}' (give --tasks FILE or a "
@@ -193,10 +201,16 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, resu
     traj = SampledTrajectory(tuple(result.joint_names), ts, q, qd, qdd)
     opts = ExecuteOptions(rate=ns.rate, start_tolerance=ns.start_tolerance,
                           move_to_start=ns.move_to_start, realtime=ns.realtime)
-    on_tick, objects = None, ()
+    on_tick = None
+    objects: tuple[Any, ...] = ()
     if ns.sim:  # the task's scene in the twin, what it picks up a free body it grips
         from arduinobot.execution.robots.twin_tasks import grasp_schedule, task_objects, without
         objects = task_objects(task, result)
+        seen = getattr(ns, "seen", None)
+        if seen is not None:  # planned as seen; in the twin, where it really is
+            from dataclasses import replace
+            objects = tuple(replace(a, shape=seen.truth[a.id]) if a.id in seen.truth else a
+                            for a in objects)
         robot.set_scene(without(result.start_obstacles, objects), loose=objects)
         on_tick = grasp_schedule(robot, result)
     ex = Executor.for_description(robot, desc, options=opts, on_tick=on_tick)
@@ -208,6 +222,8 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, resu
     with sigint_sets(cancel):
         report = ex.execute(traj, cancel=cancel).to_dict()
     print(f"{report['outcome']}: {report['duration']:.3f} s")
+    if getattr(ns, "seen", None) is not None:
+        report["seen"] = list(ns.seen.detections)
     if objects:  # where the simulated objects ended (MuJoCo's state, not the plan's)
         report["objects"] = {a.id: robot.object_pose(a.id)[:3, 3].tolist() for a in objects}
         _print_objects(report["objects"])
