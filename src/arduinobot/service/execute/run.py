@@ -121,6 +121,7 @@ class Run:
     def _run(self, traj: SampledTrajectory) -> None:
         svc = self.svc
         watch = None
+        done: dict[str, Any] | None = None
         with answering(self.query, f"execution {self.execution}",
                        internal="the execution failed", coded=CODED, log_refusals=True):
             try:
@@ -143,19 +144,22 @@ class Run:
                     watch = None
                 _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
                           time.monotonic() - t0)
-                done: dict[str, Any] = {"event": "finished", "execution": self.execution,
-                                        "report": report.to_dict()}
+                done = {"event": "finished", "execution": self.execution,
+                        "report": report.to_dict()}
                 objects = (self.req.twin or {}).get("objects") or ()
                 if objects and hasattr(ex.robot, "object_pose"):
                     # where the twin's objects ended: MuJoCo's state, not the plan's
                     done["objects"] = {o["object"]["id"]: ex.robot.object_pose(
                         o["object"]["id"])[:3, 3].tolist() for o in objects}
-                self._reply(done)
             finally:
                 svc.running = None
                 if watch is not None:
                     watch.undeclare()
                 svc.finish()
+            # said once the robot is free: a client that sends its next motion as soon as
+            # it hears this one finished must not be told BUSY
+            if done is not None:
+                self._reply(done)
         self.query.drop()
 
     def _watch_client(self, client: str) -> zenoh.Subscriber:
