@@ -157,6 +157,8 @@ def cmd_info(ns: argparse.Namespace) -> int:
         for s in d.srdf.states:
             vals = ", ".join(f"{k}={v:g}" for k, v in s.values.items())
             print(f"named state {s.name} ({s.group}): {vals}")
+    for name, joints in d.derived.items():
+        print(f"group {name}: {', '.join(joints)} (no SRDF: derived from the tool point)")
     print(f"default group: {d.default_group()}")
     if d.tcp is not None:
         print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link} [{d.tcp.source}]")

@@ -1,0 +1,118 @@
+"""LeRobot's SO-101 folder as published (tests/helpers/so101.py), as a second arm's
+owner meets it: ``check``, ``info`` and ``ik`` typed as they would, and the kept scene
+of another robot staying out of its world."""
+
+from __future__ import annotations
+
+import json
+import logging
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import zenoh
+
+from arduinobot.contract.zconfig import zenoh_config
+from arduinobot.description import load_description
+from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.service.scene.sync import SceneService
+
+from .conftest import REPO
+from .helpers.serve import free_port
+from .helpers.so101 import ARM_JOINTS, GRIPPER_JOINT, make_so101
+
+
+def _cli(*args: str, cwd=REPO) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "arduinobot.cli.main", *args],
+                          capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def so101(tmp_path_factory):
+    return make_so101(tmp_path_factory.mktemp("so101"))
+
+
+def test_check_passes_the_published_folder_with_its_massless_tool_frame(so101):
+    r = _cli("check", so101.name, "--json", cwd=so101.parent)
+    report = json.loads(r.stdout)
+    fails = [f for f in report["findings"] if f["level"] == "FAIL"]
+    assert r.returncode == 0 and not fails, fails
+    frames = [f for f in report["findings"] if f["check"] == "link.frames"]
+    assert frames and frames[0]["details"]["frames"] == ["gripper_frame_link"]
+
+
+def test_tool_point_is_the_published_tool_frame_and_ik_leaves_the_jaw(so101):
+    d = load_description(so101, env={})
+    assert d.tcp is not None and d.tcp.parent_link == "gripper_frame_link"
+    assert d.default_group() == "arm"
+    assert d.group_joints()["arm"] == list(ARM_JOINTS)
+    assert d.group_joints()["gripper"] == [GRIPPER_JOINT]
+    r = _cli("ik", str(so101), "--local", "--position", "0.25,0,0.1", "--json")
+    assert r.returncode == 0, r.stderr
+    sols = json.loads(r.stdout)["solutions"]
+    assert sols, r.stdout
+    kin = Kinematics(d.robot)
+    names = list(kin.joint_names)
+    for s in sols:
+        q = np.array([s["joints"][n] if isinstance(s.get("joints"), dict) else
+                      s["positions"][names.index(n)] for n in names])
+        assert q[names.index(GRIPPER_JOINT)] == 0.0  # the jaw is not the arm
+        tip = kin.point_position(q, "gripper_frame_link", (0.0, 0.0, 0.0))
+        assert np.linalg.norm(tip - [0.25, 0, 0.1]) < 2e-3
+
+
+def test_a_config_folder_beside_the_bare_urdf_is_found(tmp_path):
+    urdf = make_so101(tmp_path, config=True)
+    r = _cli("info", urdf.name, cwd=urdf.parent)
+    assert r.returncode == 0, r.stderr
+    assert "config: the config/ beside the model file" in r.stdout
+    assert "named state rest (arm)" in r.stdout
+
+
+def _session(port: int) -> zenoh.Session:
+    return zenoh.open(zenoh_config(mode="peer", listen=[f"tcp/127.0.0.1:{port}"]))
+
+
+def test_kept_scene_is_per_robot_not_per_prefix(so101, tmp_path, monkeypatch, caplog):
+    """The course arm's litter bin, kept under the default prefix, is not in the
+    SO-101's world served under the same prefix; a scene file of another robot given
+    explicitly is said to be so."""
+    monkeypatch.setenv("ARDUINOBOT_STATE", str(tmp_path / "state"))
+    arm = load_description(None, env={})
+    arm_scene = SceneService(_session(free_port()), "arduinobot", "a",
+                             tuple(arm.robot.links), description=arm)
+    arm_scene.start()
+    try:
+        bin_ = {"id": "bin", "shape": "box", "size": [0.2, 0.2, 0.3], "xyz": [0.5, 0, 0.15]}
+        reply = arm_scene.session.get("arduinobot/scene/apply",
+                                      payload=json.dumps({"add": [bin_]}))
+        body = json.loads(next(iter(reply)).ok.payload.to_bytes())
+        assert body["revision"] == 1, body
+    finally:
+        arm_scene.close()
+        arm_scene.session.close()
+    arm_file = arm_scene.file.path
+    assert json.loads(arm_file.read_text())["robot"]["name"] == "arduinobot"
+
+    so = load_description(so101, env={})
+    so_scene = SceneService(_session(free_port()), "arduinobot", "b", tuple(so.robot.links),
+                            description=so)
+    so_scene.start()
+    try:
+        assert so_scene.state.ids() == ()
+        assert so_scene.file.path != arm_file
+    finally:
+        so_scene.close()
+        so_scene.session.close()
+
+    caplog.set_level(logging.WARNING, "arduinobot.service.scene.sync")
+    told = SceneService(_session(free_port()), "arduinobot", "c", tuple(so.robot.links),
+                        scene_file=arm_file, description=so)
+    told.start()
+    try:
+        assert "another robot's kept scene" in caplog.text
+        assert "'arduinobot'" in caplog.text and "'so101_new_calib'" in caplog.text
+    finally:
+        told.close()
+        told.session.close()
