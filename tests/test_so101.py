@@ -16,6 +16,7 @@ import zenoh
 from arduinobot.contract.zconfig import zenoh_config
 from arduinobot.description import load_description
 from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.planner.kinematics.limits import SERVO_ACCELERATION_CAP, JointLimits
 from arduinobot.service.scene.sync import SceneService
 
 from .conftest import REPO
@@ -30,25 +31,37 @@ def _cli(*args: str, cwd=REPO) -> subprocess.CompletedProcess[str]:
 
 @pytest.fixture(scope="module")
 def so101(tmp_path_factory):
+    """The folder as published: the shipped SO-101 config is found by the robot's name."""
     return make_so101(tmp_path_factory.mktemp("so101"))
 
 
-def test_check_passes_the_published_folder_with_its_massless_tool_frame(so101):
-    r = _cli("check", so101.name, "--json", cwd=so101.parent)
+@pytest.fixture(scope="module")
+def bare(tmp_path_factory):
+    """The same arm under a name no shipped config knows: no SRDF, no limits file."""
+    return make_so101(tmp_path_factory.mktemp("bare"), name="my_arm")
+
+
+def test_check_passes_a_bare_arm_with_its_massless_tool_frame_and_caps_accelerations(bare):
+    r = _cli("check", bare.name, "--json", cwd=bare.parent)
     report = json.loads(r.stdout)
     fails = [f for f in report["findings"] if f["level"] == "FAIL"]
     assert r.returncode == 0 and not fails, fails
     frames = [f for f in report["findings"] if f["check"] == "link.frames"]
     assert frames and frames[0]["details"]["frames"] == ["gripper_frame_link"]
+    capped = {f["subject"] for f in report["findings"] if f["check"] == "limits.acceleration"}
+    assert capped == set(ARM_JOINTS) | {GRIPPER_JOINT}  # 168 to 3e5 rad/s^2 derived
+    lim = JointLimits.from_description(load_description(bare, env={}))
+    assert np.all(lim.acceleration == SERVO_ACCELERATION_CAP)
 
 
-def test_tool_point_is_the_published_tool_frame_and_ik_leaves_the_jaw(so101):
-    d = load_description(so101, env={})
+def test_bare_arm_tool_point_is_its_tool_frame_and_ik_leaves_the_jaw(bare):
+    d = load_description(bare, env={})
+    assert d.srdf is None
     assert d.tcp is not None and d.tcp.parent_link == "gripper_frame_link"
     assert d.default_group() == "arm"
     assert d.group_joints()["arm"] == list(ARM_JOINTS)
     assert d.group_joints()["gripper"] == [GRIPPER_JOINT]
-    r = _cli("ik", str(so101), "--local", "--position", "0.25,0,0.1", "--json")
+    r = _cli("ik", str(bare), "--local", "--position", "0.25,0,0.1", "--json")
     assert r.returncode == 0, r.stderr
     sols = json.loads(r.stdout)["solutions"]
     assert sols, r.stdout
@@ -63,11 +76,35 @@ def test_tool_point_is_the_published_tool_frame_and_ik_leaves_the_jaw(so101):
 
 
 def test_a_config_folder_beside_the_bare_urdf_is_found(tmp_path):
-    urdf = make_so101(tmp_path, config=True)
+    urdf = make_so101(tmp_path, config=True, name="my_arm")
     r = _cli("info", urdf.name, cwd=urdf.parent)
     assert r.returncode == 0, r.stderr
     assert "config: the config/ beside the model file" in r.stdout
     assert "named state rest (arm)" in r.stdout
+
+
+def test_published_folder_gets_the_shipped_so101_config(so101):
+    r = _cli("check", so101.name, cwd=so101.parent)
+    assert r.returncode == 0, r.stdout
+    assert "FAIL" not in r.stdout and "limits.acceleration" not in r.stdout
+    r = _cli("info", so101.name, cwd=so101.parent)
+    assert r.returncode == 0, r.stderr
+    assert "the config shipped for so101_new_calib" in r.stdout
+    assert "github.com/TheRobotStudio/SO-ARM100" in r.stdout  # where the folder comes from
+    assert "tcp: (0.0, 0.0, -0.02) in gripper_frame_link" in r.stdout
+    d = load_description(so101, env={})
+    lim = JointLimits.from_description(d)
+    assert np.all(lim.velocity <= 4.7) and np.all(lim.acceleration <= 39.0)  # an STS3215's
+    assert set(d.srdf.groups) == {"arm", "gripper"}
+    # the tool point is between the jaws: the moving jaw's hinge behind it, the fingertip
+    # frame 2 cm beyond it, within the gripper's length of the wrist
+    kin = Kinematics(d.robot)
+    q = np.zeros(len(kin.joint_names))
+    tcp = kin.point_position(q, d.tcp.parent_link, d.tcp.xyz)
+    tips = kin.point_position(q, "gripper_frame_link", (0.0, 0.0, 0.0))
+    hinge = kin.point_position(q, "moving_jaw_so101_v1_link", (0.0, 0.0, 0.0))
+    assert np.linalg.norm(tcp - tips) == pytest.approx(0.02, abs=1e-9)
+    assert np.linalg.norm(tcp - hinge) < np.linalg.norm(tips - hinge)
 
 
 def _session(port: int) -> zenoh.Session:

@@ -112,10 +112,11 @@ def _link_xml(name: str, com: str, mass: float, inertia: str,
     return "".join(out)
 
 
-def so101_urdf() -> str:
-    """The published ``so101_new_calib.urdf``'s structure, meshes under ``assets/``."""
+def so101_urdf(name: str = "so101_new_calib") -> str:
+    """The published ``so101_new_calib.urdf``'s structure, meshes under ``assets/``;
+    ``name`` another robot name (one the shipped configs do not know)."""
     parts = ['<?xml version="1.0" encoding="utf-8"?>\n<!-- Generated using onshape-to-robot -->',
-             '\n<robot name="so101_new_calib">\n  <material name="3d_printed">\n'
+             '\n<robot name="' + name + '">\n  <material name="3d_printed">\n'
              '    <color rgba="1.0 0.82 0.12 1.0"/>\n  </material>\n']
     parts += [_link_xml(*link) for link in _LINKS[:6]]
     # the published dummy frame: a stray <origin> in the link, a 1e-9 kg zero inertia
@@ -149,11 +150,12 @@ def so101_urdf() -> str:
     return "".join(parts)
 
 
-def make_so101(root: Path, *, config: bool = False) -> Path:
+def make_so101(root: Path, *, config: bool = False, name: str = "so101_new_calib") -> Path:
     """Write the published folder under ``root / "SO101"``; the URDF's path.
 
     ``config=True`` adds a ``config/`` folder beside the bare URDF (an SRDF with the
-    groups ``arm`` and ``gripper``), as an owner who wrote one would keep it."""
+    groups ``arm`` and ``gripper``), as an owner who wrote one would keep it; ``name``:
+    the robot's name (another than the published one: an arm no shipped config knows)."""
     folder = root / "SO101"
     (folder / "assets").mkdir(parents=True, exist_ok=True)
     for mesh, (lo, hi) in MESH_BOUNDS.items():
@@ -162,10 +164,11 @@ def make_so101(root: Path, *, config: bool = False) -> Path:
         box.apply_translation([(low + h) / 2 for low, h in zip(lo, hi)])
         box.export(folder / "assets" / f"{mesh}.stl")
     urdf = folder / URDF_NAME
-    urdf.write_text(so101_urdf())
+    urdf.write_text(so101_urdf(name))
     if config:
         (folder / "config").mkdir(exist_ok=True)
-        (folder / "config" / "so101_new_calib.srdf").write_text(OWNER_SRDF)
+        (folder / "config" / f"{name}.srdf").write_text(
+            OWNER_SRDF.replace("so101_new_calib", name))
     return urdf
 
 
