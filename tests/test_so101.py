@@ -153,3 +153,27 @@ def test_kept_scene_is_per_robot_not_per_prefix(so101, tmp_path, monkeypatch, ca
     finally:
         told.close()
         told.session.close()
+
+
+def test_a_pose_goal_the_five_joints_cannot_hold_says_so_and_suggests_free_axes(so101):
+    """'The gripper pointing down' with every axis held: 5 joints set the position and
+    two axes; the error says so, suggests free_axes, and echoes no 16-digit quaternion.
+    With the axis freed, it plans."""
+    from arduinobot.contract.errors import GoalOutOfReach
+    from arduinobot.service.local import LocalService
+
+    svc = LocalService(load_description(so101, env={}))
+    # the tool's z (out of the jaws) along world -z, yawed off the arm's plane: a twist
+    # a yaw-pitch-pitch-pitch-roll arm cannot add at this point
+    goal = {"position": [0.18, 0.08, 0.05], "orientation": {"rpy": [3.14159, 0.0, 0.3]}}
+    with pytest.raises(GoalOutOfReach) as e:
+        svc.request("plan", {"goal": goal, "seed": 1})
+    msg = e.value.message
+    assert "5 joints" in msg and "free_axes" in msg and "at most 2" in msg, msg
+    assert e.value.details["orientation_dof"] == 2
+    assert not any(len(t) > 8 for t in msg.replace(",", " ").replace("]", " ").split()
+                   if t.lstrip("-[").replace(".", "").isdigit()), msg
+    free = e.value.details["suggest_free_axes"]
+    assert len(free) == 1
+    reply = svc.request("plan", {"goal": {**goal, "free_axes": free}, "seed": 1})
+    assert reply["verification"]["ok"], reply["verification"]
