@@ -177,3 +177,23 @@ def test_a_pose_goal_the_five_joints_cannot_hold_says_so_and_suggests_free_axes(
     assert len(free) == 1
     reply = svc.request("plan", {"goal": {**goal, "free_axes": free}, "seed": 1})
     assert reply["verification"]["ok"], reply["verification"]
+
+
+def test_in_process_work_keeps_and_reads_the_artifact_cache(so101, tmp_path):
+    """`check-state --local` builds the model's geometry into the user's artifact cache
+    (the one `serve` reads), so the next in-process command reads it."""
+    import os
+    env = {**os.environ, "ARDUINOBOT_CACHE": str(tmp_path / "cache")}
+    args = [sys.executable, "-m", "arduinobot.cli.main", "check-state", so101.name, "--local",
+            "--joints", "0,0,0,0,0,0"]
+    r = subprocess.run(args, capture_output=True, text=True, cwd=so101.parent, env=env,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    kept = sorted(p.relative_to(tmp_path / "cache") for p in (tmp_path / "cache").rglob("*.npz"))
+    assert kept, "nothing kept in the artifact cache"
+    stamps = {p: (tmp_path / "cache" / p).stat().st_mtime_ns for p in kept}
+    r = subprocess.run(args, capture_output=True, text=True, cwd=so101.parent, env=env,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    # read, not rebuilt: the same files, untouched
+    assert {p: (tmp_path / "cache" / p).stat().st_mtime_ns for p in kept} == stamps
