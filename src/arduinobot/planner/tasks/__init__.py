@@ -1,6 +1,7 @@
 """Tasks: an ordered list of steps (move, line, gripper, attach, detach, wait) planned as
 a whole before anything moves (:mod:`.steps` the model, :mod:`.sequence` the planning,
-:mod:`.named` the ``tasks.yaml`` of a MoveIt config)."""
+:mod:`.precheck` the names checked before planning, :mod:`.named` the ``tasks.yaml``
+of a MoveIt config)."""
 
 from arduinobot.planner.tasks.sequence import StepResult, TaskResult, TaskStepFailed, plan_task
 from arduinobot.planner.tasks.steps import (
