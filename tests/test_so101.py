@@ -197,3 +197,23 @@ def test_in_process_work_keeps_and_reads_the_artifact_cache(so101, tmp_path):
     assert r.returncode == 0, r.stderr
     # read, not rebuilt: the same files, untouched
     assert {p: (tmp_path / "cache" / p).stat().st_mtime_ns for p in kept} == stamps
+
+
+def test_srdf_output_for_a_bare_arm_writes_groups_end_effector_and_a_home_state(bare,
+                                                                                 tmp_path):
+    out = tmp_path / "my_arm.srdf"
+    r = _cli("srdf", str(bare), "--samples", "100", "--output", str(out))
+    assert r.returncode == 0, r.stderr
+    d = load_description(bare, env={}, srdf=out)
+    srdf = d.srdf
+    assert srdf is not None
+    assert srdf.groups["arm"].joints == ARM_JOINTS
+    assert srdf.groups["gripper"].joints == (GRIPPER_JOINT,)
+    (eff,) = srdf.end_effectors
+    assert (eff.parent_link, eff.group, eff.parent_group) == ("gripper_frame_link", "gripper",
+                                                              "arm")
+    assert srdf.named_state("home", "arm").values == dict.fromkeys(ARM_JOINTS, 0.0)
+    assert any(p.reason == "Adjacent" for p in srdf.disabled_collisions)
+    # the service reads it as the owner's: same tool point, arm the default group
+    assert d.tcp is not None and d.tcp.parent_link == "gripper_frame_link"
+    assert d.default_group() == "arm"
