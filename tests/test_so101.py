@@ -217,3 +217,18 @@ def test_srdf_output_for_a_bare_arm_writes_groups_end_effector_and_a_home_state(
     # the service reads it as the owner's: same tool point, arm the default group
     assert d.tcp is not None and d.tcp.parent_link == "gripper_frame_link"
     assert d.default_group() == "arm"
+
+
+@pytest.mark.slow
+def test_ready_line_does_not_claim_a_connection_nothing_answers(tmp_path):
+    """serve --connect to a port where nothing listens: the ready line says so instead
+    of 'connected to' (issue 38, item 7)."""
+    from .conftest import start_server
+    nobody = f"tcp/127.0.0.1:{free_port()}"
+    srv = start_server(["--workers", "1", "--connect", nobody,
+                        "--cache-dir", str(tmp_path / "cache")], timeout=240)
+    try:
+        assert "connected to" not in srv.ready_line
+        assert f"connecting to {nobody} (nothing answers there yet" in srv.ready_line
+    finally:
+        srv.stop()
