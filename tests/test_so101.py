@@ -232,3 +232,34 @@ def test_ready_line_does_not_claim_a_connection_nothing_answers(tmp_path):
         assert f"connecting to {nobody} (nothing answers there yet" in srv.ready_line
     finally:
         srv.stop()
+
+
+def test_tcp_yaml_rpy_turns_the_tool_frame_pose_goals_use(tmp_path):
+    """An owner's tcp.yaml turning the tool frame 90 deg about its z: a pose goal is of
+    that frame (issue 38, item 3), read from the config/ beside the bare URDF."""
+    from arduinobot.description.model import rpy_matrix
+    from arduinobot.planner.kinematics.rotations import quaternion_of_matrix
+    from arduinobot.service.local import LocalService
+
+    urdf = make_so101(tmp_path, config=True, name="my_arm")
+    (urdf.parent / "config" / "tcp.yaml").write_text(
+        "tcp:\n  parent_link: gripper_frame_link\n  xyz: [0.0, 0.0, 0.0]\n"
+        "  rpy: [0.0, 0.0, 1.5707963267948966]\n")
+    d = load_description(urdf, env={})
+    assert d.tcp is not None and d.tcp.rpy[2] == pytest.approx(np.pi / 2)
+    kin = Kinematics(d.robot)
+    names = list(kin.joint_names)
+    q = np.zeros(len(names))
+    q[[names.index(n) for n in ARM_JOINTS]] = [0.2, -0.5, 0.5, 1.0, 0.3]
+    link = kin.link_pose(q, "gripper_frame_link")
+    turn = rpy_matrix((0.0, 0.0, np.pi / 2))
+    goal = {"position": [float(v) for v in link[:3, 3]],
+            "orientation": {"quaternion": [float(v) for v in
+                                           quaternion_of_matrix(link[:3, :3] @ turn)]}}
+    reply = LocalService(d).request("plan", {"goal": goal, "seed": 2})
+    end = np.array(reply["trajectory"]["points"][-1]["positions"], float)
+    full = np.array([end[reply["trajectory"]["joint_names"].index(n)] for n in names])
+    got = kin.link_pose(full, "gripper_frame_link")
+    # the tool frame (the link's turned by rpy) is at the goal, not the link's own
+    np.testing.assert_allclose(got[:3, :3] @ turn, link[:3, :3] @ turn, atol=2e-3)
+    np.testing.assert_allclose(got[:3, 3], link[:3, 3], atol=1e-3)

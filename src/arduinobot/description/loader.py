@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 
 from arduinobot.description.errors import DescriptionError, InvalidModel
-from arduinobot.description.model import Origin, Robot
+from arduinobot.description.model import Origin, Robot, rpy_matrix
 from arduinobot.description.moveit_config import ConfigFiles, resolve_config
 from arduinobot.description.packages import (
     SHIPPED_PACKAGE_DIR,
@@ -45,15 +45,22 @@ SHIPPED_SIZE_NOTE = (
 
 @dataclass(frozen=True)
 class Tcp:
-    """The tool centre point: ``xyz`` [m] in ``parent_link``'s frame; ``source`` says
-    where it came from (``config/tcp.yaml``, or the rule that chose a default)."""
+    """The tool centre point: ``xyz`` [m] in ``parent_link``'s frame, and the tool
+    frame's orientation there, URDF roll-pitch-yaw ``rpy`` [rad] (pose goals and held
+    orientations are of this frame); ``source`` says where it came from
+    (``config/tcp.yaml``, or the rule that chose a default)."""
 
     parent_link: str
     xyz: tuple[float, float, float]
     source: str = "config/tcp.yaml"
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def origin(self) -> Origin:
-        return Origin(xyz=self.xyz)
+        return Origin(xyz=self.xyz, rpy=self.rpy)
+
+    def rotation(self) -> np.ndarray:
+        """The tool frame in ``parent_link``'s, shape (3, 3)."""
+        return rpy_matrix(self.rpy)
 
 
 @dataclass(frozen=True)
@@ -329,7 +336,16 @@ def _read_tcp(path: Path, robot: Robot) -> Tcp:
     if len(vec) != 3 or not np.all(np.isfinite(vec)):
         raise InvalidModel(f"xyz {xyz!r} must be 3 finite numbers [m]", file=path,
                            element="tcp.xyz")
-    return Tcp(parent_link=str(parent), xyz=(vec[0], vec[1], vec[2]))
+    rpy_raw = tcp.get("rpy", (0.0, 0.0, 0.0))
+    try:
+        rpy = tuple(float(v) for v in rpy_raw)
+    except (TypeError, ValueError):
+        rpy = ()
+    if len(rpy) != 3 or not np.all(np.isfinite(rpy)):
+        raise InvalidModel(f"rpy {rpy_raw!r} must be 3 finite numbers [rad]", file=path,
+                           element="tcp.rpy")
+    return Tcp(parent_link=str(parent), xyz=(vec[0], vec[1], vec[2]),
+               rpy=(rpy[0], rpy[1], rpy[2]))
 
 
 def _read_joint_limits(path: Path, robot: Robot

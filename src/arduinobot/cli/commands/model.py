@@ -191,7 +191,8 @@ def cmd_info(ns: argparse.Namespace) -> int:
         print(f"group {name}: {', '.join(joints)} (no SRDF: derived from the tool point)")
     print(f"default group: {d.default_group()}")
     if d.tcp is not None:
-        print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link} [{d.tcp.source}]")
+        turned = f" rpy {d.tcp.rpy}" if any(d.tcp.rpy) else ""
+        print(f"tcp: {d.tcp.xyz}{turned} in {d.tcp.parent_link} [{d.tcp.source}]")
     print(f"default scaling: velocity x{d.default_velocity_scaling:g}, acceleration "
           f"x{d.default_acceleration_scaling:g}")
     for line in limits_lines(d):
