@@ -263,3 +263,15 @@ def test_tcp_yaml_rpy_turns_the_tool_frame_pose_goals_use(tmp_path):
     # the tool frame (the link's turned by rpy) is at the goal, not the link's own
     np.testing.assert_allclose(got[:3, :3] @ turn, link[:3, :3] @ turn, atol=2e-3)
     np.testing.assert_allclose(got[:3, 3], link[:3, 3], atol=1e-3)
+
+
+def test_output_into_a_closed_pipe_ends_quietly(so101):
+    """`arduinobot info | head` with the reader gone first: no BrokenPipeError
+    traceback, the exit a C tool killed by SIGPIPE gives (issue 38, item 9)."""
+    proc = subprocess.Popen([sys.executable, "-m", "arduinobot.cli.main", "info", so101.name],
+                            cwd=so101.parent, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()  # the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141, err
+    assert "BrokenPipeError" not in err and "Traceback" not in err, err
