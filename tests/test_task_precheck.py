@@ -51,3 +51,11 @@ def test_a_task_without_typos_still_plans_every_step(planner):
     task = task_from_mapping(yaml.safe_load(TASK % "home"), name="fine")
     result = plan_task(planner, task)
     assert [s.kind for s in result.steps] == ["move", "move", "gripper", "move"]
+
+
+def test_a_mistyped_step_kind_gets_a_suggestion():
+    from arduinobot.contract.errors import InvalidRequest
+    with pytest.raises(InvalidRequest) as e:
+        task_from_mapping(yaml.safe_load("steps:\n  - mvoe: {named: home}\n"), name="t")
+    assert e.value.field == "steps[0]"
+    assert "'mvoe' (did you mean 'move'?)" in e.value.message, e.value.message
