@@ -3,7 +3,8 @@ physics model of the arm (meshes, inertias, servos capped at the motors' effort)
 read what happened, as `arduinobot execute traj.json --sim` does.
 
 Needs the twin's extra (`pip install -e '.[sim]'`). The first run on a
-model decomposes its meshes for MuJoCo (seconds); the cache keeps them for the next.
+model decomposes its meshes for MuJoCo (V-HACD: tens of seconds); the user's artifact
+cache (the one `serve` and `execute --sim` use) keeps them for the next.
 
     .venv/bin/python examples/04_execute_twin.py [ENDPOINT]   # with `arduinobot serve` running
 """
@@ -15,11 +16,12 @@ from arduinobot.description import load_description
 from arduinobot.execution.executor import ExecuteOptions, Executor, plan_start
 from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
 from arduinobot.execution.segments import SampledTrajectory
+from arduinobot.service.process.disk_cache import DiskCache
 
 endpoint = sys.argv[1] if len(sys.argv) > 1 else "tcp/127.0.0.1:7447"
 desc = load_description()  # the shipped arduinobot: the model `serve` runs by default
 
-with SimArduinobot(desc) as twin, PlannerClient(endpoint, timeout=30) as c:
+with SimArduinobot(desc, cache=DiskCache()) as twin, PlannerClient(endpoint, timeout=30) as c:
     # plan from where the twin is: execution refuses a trajectory that starts elsewhere
     res = c.plan(goal={"named": "reach_left"}, start=plan_start(twin, desc), seed=1)
     traj = SampledTrajectory.of(res)  # the reply's samples, parsed once

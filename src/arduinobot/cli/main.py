@@ -6,6 +6,7 @@ import argparse
 import difflib
 import inspect
 import logging
+import os
 import re
 import sys
 from collections.abc import Iterable, Sequence
@@ -120,6 +121,10 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: the exit code when stdout's reader went away (128 + SIGPIPE, as a C tool ends)
+EXIT_BROKEN_PIPE = 141
+
+
 def main(argv: list[str] | None = None) -> int:
     ns = build_parser().parse_args(argv)
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
@@ -128,7 +133,17 @@ def main(argv: list[str] | None = None) -> int:
     if ns.command in _OMPL_ALWAYS or (ns.command in _OMPL_LOCAL and ns.local):
         from arduinobot.planner.planning.search import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
-    return run_guarded(ns, ns.command_parser)
+    try:
+        rc = run_guarded(ns, ns.command_parser)
+        sys.stdout.flush()  # here, not at exit, so a closed pipe is caught below
+    except BrokenPipeError:
+        # `arduinobot fk | head`: the reader is gone, which is no error of ours. Point
+        # stdout at /dev/null so the interpreter's own flush at exit stays quiet, and end
+        # as a C tool killed by SIGPIPE would (128 + 13), for `set -o pipefail`.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+    return rc
 
 
 if __name__ == "__main__":

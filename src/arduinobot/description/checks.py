@@ -137,7 +137,14 @@ def _summarise(check: str, subjects: list[str], bad: list[Finding], what: str) -
 
 def _check_links(robot: Robot) -> Iterator[Finding]:
     bad: list[Finding] = []
-    links = [link for name, link in robot.links.items() if name != robot.root]
+    frames = robot.frame_links
+    links = [link for name, link in robot.links.items()
+             if name != robot.root and name not in frames]
+    if frames:
+        # a frame on a fixed joint is merged into its parent by simulators and planners
+        yield Finding("PASS", "link.frames", ", ".join(frames),
+                      "massless frame(s) on a fixed joint: merged into the parent link, "
+                      "no visual, collision or inertia needed", {"frames": list(frames)})
     for link in links:
         missing = [tag for tag, have in (("visual", link.visuals), ("collision", link.collisions),
                                          ("inertial", link.inertial)) if not have]
@@ -155,7 +162,9 @@ def _principal(inertial: Inertial) -> np.ndarray:
 
 def _check_inertials(robot: Robot, *, shipped: bool = False) -> Iterator[Finding]:
     bad: list[Finding] = []
-    with_inertial = [x for x in robot.links.values() if x.inertial is not None]
+    frames = robot.frame_links
+    with_inertial = [x for x in robot.links.values()
+                     if x.inertial is not None and x.name not in frames]
     for link in with_inertial:
         ine = link.inertial
         if ine is None:
@@ -323,7 +332,8 @@ def _check_config(robot: Robot, path: Path, packages: PackageIndex, *,
                   joint_limits: str | Path | None) -> Iterator[Finding]:
     try:
         files = resolve_config(robot.name, description_root=find_package_root(path.parent),
-                               packages=packages, moveit_config=moveit_config, srdf=srdf,
+                               packages=packages, model_folder=path.parent,
+                               moveit_config=moveit_config, srdf=srdf,
                                joint_limits=joint_limits)
     except DescriptionError as e:
         yield _fail_from(e, "config")

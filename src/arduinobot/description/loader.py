@@ -7,6 +7,7 @@ use, for the shipped arduinobot and for a user's own package alike.
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -15,7 +16,7 @@ import numpy as np
 import yaml
 
 from arduinobot.description.errors import DescriptionError, InvalidModel
-from arduinobot.description.model import Origin, Robot
+from arduinobot.description.model import Origin, Robot, rpy_matrix
 from arduinobot.description.moveit_config import ConfigFiles, resolve_config
 from arduinobot.description.packages import (
     SHIPPED_PACKAGE_DIR,
@@ -44,15 +45,22 @@ SHIPPED_SIZE_NOTE = (
 
 @dataclass(frozen=True)
 class Tcp:
-    """The tool centre point: ``xyz`` [m] in ``parent_link``'s frame; ``source`` says
-    where it came from (``config/tcp.yaml``, or the rule that chose a default)."""
+    """The tool centre point: ``xyz`` [m] in ``parent_link``'s frame, and the tool
+    frame's orientation there, URDF roll-pitch-yaw ``rpy`` [rad] (pose goals and held
+    orientations are of this frame); ``source`` says where it came from
+    (``config/tcp.yaml``, or the rule that chose a default)."""
 
     parent_link: str
     xyz: tuple[float, float, float]
     source: str = "config/tcp.yaml"
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def origin(self) -> Origin:
-        return Origin(xyz=self.xyz)
+        return Origin(xyz=self.xyz, rpy=self.rpy)
+
+    def rotation(self) -> np.ndarray:
+        """The tool frame in ``parent_link``'s, shape (3, 3)."""
+        return rpy_matrix(self.rpy)
 
 
 @dataclass(frozen=True)
@@ -76,6 +84,8 @@ class Description:
             (``initial_positions.yaml``), empty if absent.
         warnings: what loading tolerated (open meshes are the checker's business; this is
             e.g. a ``<material>`` inside ``<geometry>`` or SRDF pairs naming lost links).
+        derived: without an SRDF, the groups derived from the tool point
+            (:func:`derived_groups`: ``arm`` and ``gripper``), else empty.
     """
 
     robot: Robot
@@ -89,6 +99,7 @@ class Description:
     default_acceleration_scaling: float = 1.0
     initial_positions: Mapping[str, float] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    derived: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
 
     def summary(self) -> dict[str, object]:
         """What a request may name for this robot, JSON-ready: ``groups`` (name -> its
@@ -107,6 +118,8 @@ class Description:
         actuated = self.robot.actuated_joints
         groups = {g.name: [j for j in g.joints if j in actuated]
                   for g in (srdf.groups.values() if srdf is not None else ())}
+        if srdf is None:
+            groups.update({k: list(v) for k, v in self.derived.items()})
         groups["all"] = list(actuated)
         return groups
 
@@ -117,9 +130,11 @@ class Description:
 
     def default_group(self) -> str:
         """The planning group of a request that names none (see
-        :meth:`Srdf.default_group`); ``all`` without an SRDF."""
-        g = self.srdf.default_group() if self.srdf is not None else None
-        return g or "all"
+        :meth:`Srdf.default_group`); without an SRDF, the derived ``arm`` if the tool
+        point leaves a gripper out, else ``all``."""
+        if self.srdf is None:
+            return "arm" if "arm" in self.derived else "all"
+        return self.srdf.default_group() or "all"
 
 
 def model_path(path: str | Path | None) -> Path:
@@ -200,6 +215,7 @@ def load_description(
         raise InvalidModel("the model has no valid tree", file=p)
     root = find_package_root(p.parent)
     files = resolve_config(robot.name, description_root=root, packages=packages,
+                           model_folder=p.parent,
                            moveit_config=moveit_config, srdf=srdf, joint_limits=joint_limits)
     warnings = [*packages.warnings, *expansion_warnings, *(str(w) for w in report.warnings)]
     srdf_obj = None
@@ -223,7 +239,8 @@ def load_description(
                        package_root=root, packages=packages, config=files,
                        default_velocity_scaling=scaling[0],
                        default_acceleration_scaling=scaling[1], initial_positions=initial,
-                       warnings=tuple(warnings))
+                       warnings=tuple(warnings),
+                       derived=derived_groups(robot, tcp) if srdf_obj is None else {})
 
 
 def main_chain_tip(robot: Robot) -> str:
@@ -258,8 +275,41 @@ def default_tcp(robot: Robot, srdf: Srdf | None) -> Tcp:
             why = (f"end effector '{eff.name}' parent_link" if eff is not None
                    else f"tip of group '{group}'")
             return Tcp(tip, (0.0, 0.0, 0.0), f"default: origin of {tip} ({why})")
+    frame = tool_frame(robot)
+    if frame is not None:
+        return Tcp(frame, (0.0, 0.0, 0.0),
+                   f"default: origin of {frame} (the model's tool frame: a massless frame "
+                   "on a fixed joint named like one)")
     tip = main_chain_tip(robot)
     return Tcp(tip, (0.0, 0.0, 0.0), f"default: origin of {tip} (end of the main chain)")
+
+
+# Names a tool frame goes by: ROS-Industrial's tool0, onshape-to-robot's *_frame_link,
+# and the usual tcp / tool / ee / end_effector links.
+_TOOL_FRAME = re.compile(r"^tool0$|tcp|tool|_frame_link$|^ee(_link)?$|end_?effector",
+                         re.IGNORECASE)
+
+
+def tool_frame(robot: Robot) -> str | None:
+    """The model's tool frame, if it has one: the deepest leaf among its frame links
+    (:attr:`Robot.frame_links`) whose name reads like a tool frame; None otherwise."""
+    leaves = [f for f in robot.frame_links
+              if not robot.child_joints.get(f) and _TOOL_FRAME.search(f)]
+    if not leaves:
+        return None
+    return max(leaves, key=lambda f: len(robot.link_path(f)))
+
+
+def derived_groups(robot: Robot, tcp: Tcp) -> dict[str, tuple[str, ...]]:
+    """Groups for a model without an SRDF: ``arm``, the actuated joints from the root to
+    the tool point's link, and ``gripper``, the others, when the tool point leaves some
+    out (a jaw beside the tool frame); else none (every joint is the arm)."""
+    actuated = robot.actuated_joints
+    arm = tuple(j.name for j in robot.link_path(tcp.parent_link) if j.name in actuated)
+    rest = tuple(j for j in actuated if j not in arm)
+    if not arm or not rest:
+        return {}
+    return {"arm": arm, "gripper": rest}
 
 
 def _read_yaml(path: Path) -> object:
@@ -286,7 +336,16 @@ def _read_tcp(path: Path, robot: Robot) -> Tcp:
     if len(vec) != 3 or not np.all(np.isfinite(vec)):
         raise InvalidModel(f"xyz {xyz!r} must be 3 finite numbers [m]", file=path,
                            element="tcp.xyz")
-    return Tcp(parent_link=str(parent), xyz=(vec[0], vec[1], vec[2]))
+    rpy_raw = tcp.get("rpy", (0.0, 0.0, 0.0))
+    try:
+        rpy = tuple(float(v) for v in rpy_raw)
+    except (TypeError, ValueError):
+        rpy = ()
+    if len(rpy) != 3 or not np.all(np.isfinite(rpy)):
+        raise InvalidModel(f"rpy {rpy_raw!r} must be 3 finite numbers [rad]", file=path,
+                           element="tcp.rpy")
+    return Tcp(parent_link=str(parent), xyz=(vec[0], vec[1], vec[2]),
+               rpy=(rpy[0], rpy[1], rpy[2]))
 
 
 def _read_joint_limits(path: Path, robot: Robot

@@ -141,6 +141,11 @@ class Joint:
         return self.type not in ("fixed",)
 
 
+#: Below this mass [kg] a link on a fixed joint with no geometry is a frame, not a body
+#: (onshape-to-robot writes 1e-9 kg and a zero inertia for its dummy frames).
+FRAME_MASS = 1e-6
+
+
 @dataclass(frozen=True)
 class Robot:
     """A parsed robot: its links and joints as the URDF declares them.
@@ -196,6 +201,22 @@ class Robot:
             order.extend(kids)
             stack.extend(j.child for j in reversed(kids))
         return tuple(order)
+
+    @cached_property
+    def frame_links(self) -> tuple[str, ...]:
+        """Links that are only frames: on a fixed joint, with no visual and no collision,
+        and no inertial or a negligible mass (< :data:`FRAME_MASS` kg). ``tool0`` and
+        onshape-to-robot's ``*_frame_link`` are such; a simulator merges them into their
+        parent, and they name a tool point."""
+        out = []
+        for name, link in self.links.items():
+            j = self.parent_joint.get(name)
+            ine = link.inertial
+            if j is None or j.movable or link.visuals or link.collisions:
+                continue
+            if ine is None or ine.mass < FRAME_MASS:
+                out.append(name)
+        return tuple(out)
 
     @cached_property
     def actuated_joints(self) -> tuple[str, ...]:

@@ -192,11 +192,27 @@ def find_moveit_package(robot_name: str, description_package: str | None,
     return None
 
 
+#: Configs shipped for robots published without one, by the URDF's robot name, and where
+#: the owner's copy of that robot's folder comes from (said by ``info`` and ``check``).
+SHIPPED_CONFIGS_DIR = Path(__file__).resolve().parent / "configs"
+SHIPPED_CONFIG_ORIGINS = {
+    "so101_new_calib": "LeRobot's SO-101 as published in github.com/TheRobotStudio/SO-ARM100, "
+                       "folder Simulation/SO101 (so101_new_calib.urdf and assets/)",
+}
+
+
+def shipped_config(robot_name: str) -> Path | None:
+    """The config folder shipped for ``robot_name``, if any."""
+    d = SHIPPED_CONFIGS_DIR / robot_name
+    return d if robot_name in SHIPPED_CONFIG_ORIGINS and d.is_dir() else None
+
+
 def resolve_config(
     robot_name: str,
     *,
     description_root: Path | None,
     packages: PackageIndex,
+    model_folder: Path | None = None,
     moveit_config: str | Path | None = None,
     srdf: str | Path | None = None,
     joint_limits: str | Path | None = None,
@@ -204,9 +220,11 @@ def resolve_config(
     """Decide which configuration files describe the robot.
 
     Order: ``moveit_config`` if given; else the description package's own ``config/``
+    (for a bare URDF outside any package: the ``config/`` beside it, in ``model_folder``)
     when it holds an SRDF; else a MoveIt config package found among the known packages
-    and the description package's siblings. ``srdf`` and ``joint_limits`` override the
-    single files.
+    and the description package's siblings; else a config shipped for this robot's name
+    (:data:`SHIPPED_CONFIG_ORIGINS`). ``srdf`` and ``joint_limits`` override the single
+    files.
 
     Raises:
         DescriptionError: ``moveit_config``, ``srdf`` or ``joint_limits`` names a path
@@ -216,6 +234,10 @@ def resolve_config(
     pkg: Path | None = None
     how = "no configuration found (no SRDF: groups and named states from the URDF only)"
     desc_cfg = description_root / "config" if description_root else None
+    beside = "the description package's config/"
+    if desc_cfg is None and model_folder is not None:
+        # a bare URDF (no package.xml), as LeRobot and onshape-to-robot publish them
+        desc_cfg, beside = model_folder / "config", "the config/ beside the model file"
     if moveit_config is not None:
         pkg = Path(moveit_config).expanduser().resolve()
         if not pkg.is_dir():
@@ -225,7 +247,7 @@ def resolve_config(
         cfg = pkg / "config" if (pkg / "config").is_dir() else pkg
         how = "--moveit-config"
     elif default_srdf(desc_cfg, robot_name) is not None:
-        cfg, how = desc_cfg, "the description package's config/"
+        cfg, how = desc_cfg, beside
     else:
         desc_name = package_name(description_root) if description_root else None
         cands = list(packages.packages.items())
@@ -235,6 +257,10 @@ def resolve_config(
         if found is not None:
             pkg, how = found
             cfg = pkg / "config"
+        elif (shipped := shipped_config(robot_name)) is not None:
+            cfg = shipped
+            how = (f"the config shipped for {robot_name} ({SHIPPED_CONFIG_ORIGINS[robot_name]}); "
+                   "--moveit-config DIR to use your own")
     dirs = [d for d in (cfg, desc_cfg) if d is not None and d.is_dir()]
 
     def first(name: str) -> Path | None:

@@ -6,7 +6,7 @@ in MoveIt.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -282,6 +282,32 @@ def parse_srdf(text: str, robot: Robot, *, source: Path | None = None) -> Srdf:
     return Srdf(robot_name=root.get("name", ""), groups=groups, end_effectors=tuple(effs),
                 states=tuple(states), disabled_collisions=tuple(disabled), source=source,
                 warnings=tuple(warnings))
+
+
+def starter_srdf(robot: Robot, groups: Mapping[str, Sequence[str]], tool_link: str) -> str:
+    """A new SRDF for a model without one: the groups (``arm`` as a chain from the root
+    to ``tool_link``, others as joint lists), an end effector ``gripper`` on
+    ``tool_link`` when there is a ``gripper`` group, and a named state ``home`` of the
+    arm (each joint at 0, or the bound of its range nearest 0). Disabled pairs are
+    :func:`replace_disabled_collisions`' to add."""
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', f'<robot name="{robot.name}">']
+    arm = list(groups.get("arm", robot.actuated_joints))
+    lines.append(f'    <group name="arm">\n        <chain base_link="{robot.root}" '
+                 f'tip_link="{tool_link}"/>\n    </group>')
+    for name, joints in groups.items():
+        if name in ("arm", "all"):
+            continue
+        body = "".join(f'\n        <joint name="{j}"/>' for j in joints)
+        lines.append(f'    <group name="{name}">{body}\n    </group>')
+    limits = robot.position_limits(tuple(arm))
+    home = "".join(f'\n        <joint name="{j}" value="{float(min(max(0.0, lo), hi)):g}"/>'
+                   for j, (lo, hi) in zip(arm, limits))
+    lines.append(f'    <group_state name="home" group="arm">{home}\n    </group_state>')
+    if "gripper" in groups:
+        lines.append(f'    <end_effector name="gripper" parent_link="{tool_link}" '
+                     'group="gripper" parent_group="arm"/>')
+    lines.append("</robot>")
+    return "\n".join(lines) + "\n"
 
 
 def replace_disabled_collisions(text: str, pairs: Iterable[DisabledCollision]) -> str:

@@ -9,11 +9,12 @@ A request goes through the same steps as in a worker: encoded and decoded by
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, get_args
+from typing import Any, Literal, get_args
 
 from arduinobot.contract import wire
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
+from arduinobot.planner.cache import ArtifactCache
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.process.disk_cache import DiskCache
@@ -28,9 +29,15 @@ LOCAL_REQUEST_ID = "local"
 class LocalService:
     """One robot's request handlers in this process, answering as the service would."""
 
-    def __init__(self, description: Description, *, scene_file: str | None = None) -> None:
+    def __init__(self, description: Description, *, scene_file: str | None = None,
+                 cache: ArtifactCache | None | Literal["default"] = "default") -> None:
+        """``cache``: where built geometry (trees, hulls, part hulls, the no-SRDF pair
+        proof) is read and kept; by default the user's cache folder, the one ``serve``
+        reads (:class:`~arduinobot.service.process.disk_cache.DiskCache`), so in-process
+        work does not rebuild what a first run built; None keeps nothing."""
         self._description = description
-        self._handlers = Handlers(description)
+        self._handlers = Handlers(description,
+                                  cache=DiskCache() if cache == "default" else cache)
         #: a saved scene (``arduinobot scene save``) that plans and checks use, as the
         #: service uses its kept one
         self.scene = None if scene_file is None else load_scene(description, scene_file)

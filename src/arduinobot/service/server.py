@@ -174,7 +174,14 @@ class PlannerService:
         listen, connect = _endpoints(cfg, "listen"), _endpoints(cfg, "connect")
         where = f"listening on {', '.join(listen)}" if listen else "no listener"
         if connect:
-            where += f", connected to {', '.join(connect)}"
+            # the endpoints are what was asked; whether anything answers there is Zenoh's
+            # sessions (it keeps trying): say which, not "connected" when nothing listens
+            info = self.session.info
+            reached = len(list(info.routers_zid())) + len(list(info.peers_zid()))
+            where += (f", connecting to {', '.join(connect)} ({reached} router(s)/peer(s) "
+                      "reached)" if reached else
+                      f", connecting to {', '.join(connect)} (nothing answers there yet; "
+                      "Zenoh keeps trying)")
         _log.info("arduinobot service ready: instance %s, %d workers, robot '%s', %s; "
                   "serving %s (and %s/instance/%s/*), liveliness %s/alive/%s", self.instance,
                   o.workers, desc.robot.name, where,

@@ -86,7 +86,9 @@ def test_info_shows_the_applied_limits_and_their_origins(course_ws):
     assert "10 -> 1 " in row  # velocity: joint_limits.yaml's 10 at the default 0.1
     assert "  velocity: joint_limits.yaml x0.1" in out
     assert "  jerk: default (acceleration / 0.1 s) x0.1" in out
-    assert "  acceleration: default (from effort, gravity and inertia) x0.1" in out
+    # the course's hobby servos: 54-7500 rad/s^2 derived, each capped at a servo's 40
+    assert ("  acceleration: default (from effort, gravity and inertia, capped at 40) x0.1"
+            in out)
     assert "  effort: URDF" in out and "  position: URDF" in out
     assert "size:" not in out
 
@@ -127,7 +129,8 @@ def test_plot_panels_carry_the_applied_limits_and_their_origins(course):
     assert by["velocity"].upper == pytest.approx([1.0] * 4)  # not the full 10
     assert by["velocity"].limit_note == "joint_limits.yaml x0.1"
     assert by["effort"].limit_note == "URDF"
-    assert by["acceleration"].limit_note == "default (from effort, gravity and inertia) x0.1"
+    assert by["acceleration"].limit_note == \
+        "default (from effort, gravity and inertia, capped at 40) x0.1"
 
 
 def test_plan_plot_writes_a_png_with_the_applied_limits(course_reply, tmp_path):

@@ -6,12 +6,17 @@ import argparse
 import json
 import logging
 import sys
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from arduinobot.cli.common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, model_options
 from arduinobot.description import Description, build_package_index
 from arduinobot.description.loader import model_path, read_model
+
+if TYPE_CHECKING:
+    from arduinobot.description.checks import CheckReport
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,6 +56,8 @@ def cmd_check(ns: argparse.Namespace) -> int:
     from arduinobot.description.checks import check_model  # trimesh: only for this command
 
     report = check_model(ns.file, **model_options(ns))
+    if not report.failed:
+        report = _with_limit_findings(report, ns)
     if ns.json:
         print(json.dumps(report.to_json(), indent=2))
     else:
@@ -60,6 +67,28 @@ def cmd_check(ns: argparse.Namespace) -> int:
         print(f"{report.count('PASS')} passed, {report.count('WARN')} warnings, "
               f"{report.count('FAIL')} failed")
     return EXIT_FAIL if report.failed else EXIT_OK
+
+
+def _with_limit_findings(report: CheckReport, ns: argparse.Namespace) -> CheckReport:
+    """``report`` with what the planner's limits say of the model: a derived
+    acceleration capped at what a servo can do (a WARN naming the figure), or no limits
+    at all (a FAIL: planning refuses the model)."""
+    from arduinobot.contract.errors import LimitsError
+    from arduinobot.description.checks import Finding
+    from arduinobot.planner.kinematics.limits import SERVO_ACCELERATION_CAP, JointLimits
+    logging.getLogger("arduinobot.planner.kinematics.limits").setLevel(logging.ERROR)
+    try:
+        lim = JointLimits.from_description(load_from_args(ns))
+    except LimitsError as e:
+        return replace(report, findings=(*report.findings, Finding(
+            "FAIL", "limits", f"{e.joint}.{e.limit}", e.message)))
+    capped = {k.split(".")[0]: v.split("max M_ii(q) over ")[1].split(" seeded samples, ")[1]
+              for k, v in lim.sources.items() if "capped at" in v}
+    extra = [Finding("WARN", "limits.acceleration", joint,
+                     f"derived {why}; set max_acceleration in joint_limits.yaml to the "
+                     "servo's figure", {"cap": SERVO_ACCELERATION_CAP})
+             for joint, why in capped.items()]
+    return replace(report, findings=(*report.findings, *extra)) if extra else report
 
 
 def cmd_urdf(ns: argparse.Namespace) -> int:
@@ -83,8 +112,9 @@ def limits_lines(d: Description) -> list[str]:
     from arduinobot.planner.kinematics.applied_limits import applied_limits
     lim = applied_limits(d, d.robot.actuated_joints)
     scaled = lim.velocity_scaling != 1.0 or lim.acceleration_scaling != 1.0
+    w = max(12, *(len(j) + 2 for j in lim.joints))  # long joint names keep the columns
     out = ["limits" + (" (full -> applied at the default scaling):" if scaled else ":"),
-           f"  {'joint':<12}{'position [rad]':<22}{'velocity':<18}{'acceleration':<20}"
+           f"  {'joint':<{w}}{'position [rad]':<22}{'velocity':<18}{'acceleration':<20}"
            f"{'jerk':<20}effort"]
 
     def fig(kind: str, i: int) -> str:
@@ -92,7 +122,7 @@ def limits_lines(d: Description) -> list[str]:
         return f"{full:.4g}" if full == applied else f"{full:.4g} -> {applied:.4g}"
     for i, j in enumerate(lim.joints):
         pos = f"[{_fmt(lim.full['lower'][i])}, {_fmt(lim.full['upper'][i])}]"
-        out.append(f"  {j:<12}{pos:<22}{fig('velocity', i):<18}{fig('acceleration', i):<20}"
+        out.append(f"  {j:<{w}}{pos:<22}{fig('velocity', i):<18}{fig('acceleration', i):<20}"
                    f"{fig('jerk', i):<20}{fig('effort', i)}")
     out.append("limits from:")
     out.extend(lim.lines())
@@ -157,9 +187,12 @@ def cmd_info(ns: argparse.Namespace) -> int:
         for s in d.srdf.states:
             vals = ", ".join(f"{k}={v:g}" for k, v in s.values.items())
             print(f"named state {s.name} ({s.group}): {vals}")
+    for name, joints in d.derived.items():
+        print(f"group {name}: {', '.join(joints)} (no SRDF: derived from the tool point)")
     print(f"default group: {d.default_group()}")
     if d.tcp is not None:
-        print(f"tcp: {d.tcp.xyz} in {d.tcp.parent_link} [{d.tcp.source}]")
+        turned = f" rpy {d.tcp.rpy}" if any(d.tcp.rpy) else ""
+        print(f"tcp: {d.tcp.xyz}{turned} in {d.tcp.parent_link} [{d.tcp.source}]")
     print(f"default scaling: velocity x{d.default_velocity_scaling:g}, acceleration "
           f"x{d.default_acceleration_scaling:g}")
     for line in limits_lines(d):

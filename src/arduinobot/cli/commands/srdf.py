@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_srdf(ns: argparse.Namespace) -> int:
-    from arduinobot.description.srdf import replace_disabled_collisions
+    from arduinobot.description.srdf import replace_disabled_collisions, starter_srdf
     from arduinobot.planner.collision.acm_gen import (
         compute_acm,  # FCL, numba: only for this command
     )
@@ -57,8 +57,10 @@ def cmd_srdf(ns: argparse.Namespace) -> int:
     print(f"{len(r.disabled)} disabled pairs, {r.samples} samples (seed {ns.seed}), "
           f"{r.seconds:.2f} s")
     if ns.write or ns.output:
+        # a new one has the groups, end effector and home state the service derives
+        tool = d.tcp.parent_link if d.tcp is not None else d.robot.root
         base = Path(src).read_text(encoding="utf-8") if src is not None else \
-            f'<?xml version="1.0" encoding="UTF-8"?>\n<robot name="{d.robot.name}">\n</robot>\n'
+            starter_srdf(d.robot, d.derived, tool)
         text = replace_disabled_collisions(base, r.disabled)
         dest = Path(src) if ns.write and src is not None else Path(ns.output)
         dest.write_text(text, encoding="utf-8")

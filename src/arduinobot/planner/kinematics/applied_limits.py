@@ -124,6 +124,8 @@ def short_source(source: str) -> str:
     ``joint_limits.yaml``, or ``default (<rule>)`` for one the planner derived."""
     if source.startswith("derived: acceleration /"):  # "derived: acceleration / 0.1 s ramp"
         return f"default ({source.removeprefix('derived: ').split(' ramp')[0]})"
+    if source.startswith("derived") and "capped at" in source:
+        return f"default (from effort, gravity and inertia, capped at {source.split('capped at ')[1].split(' ')[0]})"
     if source.startswith("derived"):
         return "default (from effort, gravity and inertia)"
     if source.startswith("config/joint_limits.yaml"):

@@ -36,8 +36,8 @@ def tool_jacobian(kin: Kinematics, tcp: Tcp, chain: Chain, qs: np.ndarray
     qs = np.ascontiguousarray(np.atleast_2d(qs), float)
     poses = kin.link_poses_batch(qs)
     t = poses[:, chain.tcp_link]
-    rot = t[:, :3, :3]
-    p = rot @ np.asarray(tcp.xyz, float) + t[:, :3, 3]
+    p = t[:, :3, :3] @ np.asarray(tcp.xyz, float) + t[:, :3, 3]
+    rot = t[:, :3, :3] @ tcp.rotation()  # the tool frame (tcp.yaml's rpy)
     n = len(chain.joint_names)
     jp = np.zeros((len(qs), 3, n))
     jw = np.zeros((len(qs), 3, n))

@@ -16,6 +16,12 @@ Rules for missing figures:
   kept in reserve for the coupling and velocity terms the diagonal ignores. It fails
   (LimitsError) when the effort cannot hold the worst-case gravity torque or the
   joint moves no mass.
+  A figure beyond ``SERVO_ACCELERATION_CAP`` (40 rad/s^2) is capped there, with a
+  warning: the rule reads a URDF's nominal effort over CAD inertias, which for a small
+  arm of hobby or bus servos (an SG90, a Feetech STS3215) gives 1e3-3e5 rad/s^2, and no
+  such servo accelerates beyond about 40 rad/s^2 (the STS3215's acceleration register
+  tops out at 254 x 100 steps/s^2 = 39 rad/s^2). A ``max_acceleration`` in
+  joint_limits.yaml is taken as given.
 - jerk [rad/s^3]: ``acceleration / JERK_RAMP_TIME``: the full acceleration is reached
   in 0.1 s.
 """
@@ -40,6 +46,8 @@ ACCELERATION_MARGIN = 0.5
 DERIVATION_SAMPLES = 2000
 DERIVATION_SEED = 20240607
 JERK_RAMP_TIME = 0.1  # [s]
+#: the most a derived acceleration may be [rad/s^2]: what hobby and bus servos can do
+SERVO_ACCELERATION_CAP = 40.0
 
 _KINDS = ("lower", "upper", "velocity", "acceleration", "jerk", "effort")
 
@@ -178,10 +186,18 @@ def _derive_missing(description: Description, names: Sequence[str],
     if missing_acc:
         derived = derive_accelerations(description, [names[i] for i in missing_acc])
         for i, a in zip(missing_acc, derived):
+            rule = (f"derived: {ACCELERATION_MARGIN} x (effort - max |gravity torque|) / "
+                    f"max M_ii(q) over {DERIVATION_SAMPLES} seeded samples")
+            if a > SERVO_ACCELERATION_CAP:
+                _log.warning("%s: the acceleration derived from effort and inertia, %.4g "
+                             "rad/s^2, is beyond what a servo can do; using %g rad/s^2 (set "
+                             "max_acceleration in joint_limits.yaml)", names[i], a,
+                             SERVO_ACCELERATION_CAP)
+                rule += (f", {a:.4g} rad/s^2, capped at {SERVO_ACCELERATION_CAP:g} "
+                         "(beyond what a servo can do)")
+                a = SERVO_ACCELERATION_CAP
             vals["acceleration"][i] = a
-            sources[f"{names[i]}.acceleration"] = (
-                f"derived: {ACCELERATION_MARGIN} x (effort - max |gravity torque|) / "
-                f"max M_ii(q) over {DERIVATION_SAMPLES} seeded samples")
+            sources[f"{names[i]}.acceleration"] = rule
     for i, name in enumerate(names):
         if math.isnan(vals["jerk"][i]):
             vals["jerk"][i] = vals["acceleration"][i] / JERK_RAMP_TIME

@@ -31,7 +31,7 @@ def resolve_group(description: Description, group: str | None, goal: Goal) -> st
             several groups define when no group was given (naming them).
     """
     srdf = description.srdf
-    known = (*(srdf.groups if srdf is not None else ()), "all")  # the groups a request may name
+    known = tuple(description.group_joints())  # the groups a request may name, "all" too
     if group is not None:
         if not isinstance(group, str) or group not in known:
             raise InvalidRequest(f"{group!r} is not a group of this robot (groups: "

@@ -138,10 +138,9 @@ class PathPlanner:
         # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
         self.proof = Certifier(world, fraction=0.5)
         names = world.kin.joint_names
-        srdf = description.srdf
         self._groups: dict[str, tuple[str, ...]] = {
-            g.name: tuple(j for j in g.joints if j in names)
-            for g in (srdf.groups.values() if srdf is not None else ())}
+            g: tuple(j for j in joints if j in names)
+            for g, joints in description.group_joints().items()}
         self._groups["all"] = tuple(names)
         self._limits = description.robot.position_limits(names)
 

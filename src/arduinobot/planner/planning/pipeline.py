@@ -118,7 +118,8 @@ class MotionPlanner:
         tcp = self.description.tcp
         assert tcp is not None  # only for a line goal, which planned only with a tcp
         t = self.context.world(()).kin.link_pose(q, tcp.parent_link)
-        return t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3], t[:3, :3]
+        return (t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3],
+                t[:3, :3] @ tcp.rotation())
 
     # -- the context's resources and stages, for callers that time paths themselves ---
     @property

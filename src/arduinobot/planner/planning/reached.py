@@ -87,8 +87,8 @@ def reached(description: Description, kin: Kinematics, goal: Goal, q: np.ndarray
     rot = None
     if tcp is not None and tcp.parent_link in kin.link_index:
         t = kin.link_pose(q, tcp.parent_link)
-        rot = t[:3, :3]
-        p = rot @ np.asarray(tcp.xyz, float) + t[:3, 3]
+        p = t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3]
+        rot = t[:3, :3] @ tcp.rotation()  # the tool frame's, as goals give it
         pos = tuple(float(v) for v in p)
         ori, rpy = quaternion_of_matrix(rot), rpy_of_matrix(rot)
     ok = True

@@ -13,6 +13,7 @@ tool about, never answered with a different orientation.
 
 from __future__ import annotations
 
+import json
 import sys
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, TypedDict
@@ -165,13 +166,34 @@ def pose_candidates(goal: PoseGoal, *, world: CollisionWorld, description: Descr
     sols = pose_ik(world.kin, tcp, chain, start, np.asarray(goal.position, float), goal_r,
                    limits=limits, position_tolerance=goal.tolerance)
     if not sols:
-        raise GoalOutOfReach(
-            f"no joint state within the limits reaches the pose (position "
-            f"{list(goal.position)}, orientation {list(goal.orientation)} within "
-            f"{[round(float(v), 6) for v in limits]} rad)",
-            details={"position": list(goal.position), "orientation": list(goal.orientation),
-                     "orientation_limits": limits.tolist(), "joints": list(ik_joints)})
+        raise _pose_out_of_reach(goal, ik_joints, limits)
     return _free_solutions(sols, world=world, what="the pose")
+
+
+def _pose_out_of_reach(goal: PoseGoal, ik_joints: Sequence[str], limits: np.ndarray
+                       ) -> GoalOutOfReach:
+    """No IK state reaches the pose. With fewer than six joints and more orientation
+    axes held than the joints beyond three can set, that is the likely reason: say so
+    and suggest ``free_axes`` (a 5-joint arm sets the position and two axes)."""
+    n, held = len(ik_joints), list(goal.constrained)
+    can = max(0, n - POSITION_JOINTS)
+    pos = [round(float(v), 4) for v in goal.position]
+    quat = [round(float(v), 4) for v in goal.orientation]
+    why = ""
+    if n < 6 and len(held) > can:
+        free = [a for a in AXES if a in held][-(len(held) - can):]
+        why = (f": the group's {n} joints ({', '.join(ik_joints)}) set the position and at "
+               f"most {can} of the tool's rotation axes, and the goal holds {len(held)} "
+               f"({', '.join(held)}); free {len(held) - can} with free_axes (e.g. "
+               f"\"free_axes\": {json.dumps(free)}: a tool pointing down, free to turn "
+               "about its own axis) or give a position goal")
+    return GoalOutOfReach(
+        f"no joint state within the limits reaches the pose (position {pos}, orientation "
+        f"{quat} within {[round(float(v), 4) for v in limits]} rad){why}",
+        details={"position": list(goal.position), "orientation": list(goal.orientation),
+                 "orientation_limits": limits.tolist(), "joints": list(ik_joints),
+                 "constrained_axes": held, "orientation_dof": can,
+                 **({"suggest_free_axes": free} if why else {})})
 
 
 class ControllableAxis(TypedDict):

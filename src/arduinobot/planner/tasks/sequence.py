@@ -26,6 +26,7 @@ from arduinobot.planner.kinematics.rotations import rpy_of_matrix
 from arduinobot.planner.planning.goals import Goal, JointGoal, NamedGoal
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult
 from arduinobot.planner.planning.search import MAX_SEED
+from arduinobot.planner.tasks.precheck import check_task
 from arduinobot.planner.tasks.steps import (
     AttachStep,
     DetachStep,
@@ -220,11 +221,13 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
     """Plan every step of ``task`` in order, nothing executed.
 
     Raises:
-        TaskStepFailed: the first step that fails, with its own error and code.
+        TaskStepFailed: the first step that fails, with its own error and code (a name
+            the robot or the task lacks, in any step, before any is planned).
         InvalidRequest: the task's start (names, limits) is invalid.
     """
     t_start = time.perf_counter()
     desc = planner.description
+    check_task(task, desc)  # a typo in any step, before the first is planned
     names = planner.joint_names
     kin = planner.world(()).kin
     q = dict.fromkeys(names, 0.0)

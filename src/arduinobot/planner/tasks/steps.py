@@ -18,6 +18,7 @@ and optional ``label``, ``velocity_scaling``, ``acceleration_scaling`` and
 
 from __future__ import annotations
 
+import difflib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -207,7 +208,12 @@ def step_from_mapping(data: object, where: str) -> Step:
                              field=where)
     kinds = [k for k in STEP_KINDS if k in data]
     if len(kinds) != 1:
-        raise InvalidRequest(f"give exactly one of {', '.join(STEP_KINDS)}", field=where)
+        guesses = [f"'{k}' (did you mean '{m[0]}'?)" for k in data if isinstance(k, str)
+                   for m in [difflib.get_close_matches(k, STEP_KINDS, n=1, cutoff=0.6)]
+                   if k not in STEP_KINDS and m]
+        raise InvalidRequest(f"give exactly one of {', '.join(STEP_KINDS)}"
+                             + (f"; unknown {', '.join(guesses)}" if guesses else ""),
+                             field=where)
     kind = kinds[0]
     extra = sorted(set(data) - {kind, "label"} - _KEYS[kind])
     if extra:

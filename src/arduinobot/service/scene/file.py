@@ -3,22 +3,34 @@ file written so that a crash at any moment leaves the old scene or the new one."
 
 from __future__ import annotations
 
+import hashlib
 import json
+import logging
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.service.scene.store import SceneState
 
+_log = logging.getLogger(__name__)
+
+#: The key of a scene file that records which robot it was kept for.
+OWNER_KEY = "robot"
+
 
 class SceneFile:
     """The scene kept on disk: JSON written to a temporary file, synced, then renamed
     over the old one, so a crash at any moment leaves the old scene or the new one."""
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *,
+                 owner: Mapping[str, str] | None = None) -> None:
+        """``owner``: the robot this scene is kept for (:func:`scene_owner`), written
+        into the file so another robot's service can say the scene is not its own."""
         self.path = Path(path)
+        self.owner = dict(owner) if owner is not None else None
 
     def load(self) -> dict[str, Any] | None:
         """The scene file's JSON, or None if there is none yet.
@@ -43,8 +55,11 @@ class SceneFile:
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}-",
                                    suffix=".tmp")
         try:
+            body = state.to_json()
+            if self.owner is not None:
+                body[OWNER_KEY] = self.owner
             with os.fdopen(fd, "w", encoding="utf-8") as f:
-                json.dump(state.to_json(), f, separators=(",", ":"))
+                json.dump(body, f, separators=(",", ":"))
                 f.flush()
                 os.fsync(f.fileno())
             os.replace(tmp, self.path)
@@ -59,16 +74,53 @@ class SceneFile:
             os.close(dir_fd)
 
 
-def default_scene_file(prefix: str) -> Path:
-    """Where ``arduinobot serve`` keeps the scene of ``prefix`` by default:
-    ``$ARDUINOBOT_STATE``, else ``$XDG_STATE_HOME/arduinobot``, else
-    ``~/.local/state/arduinobot``; one file per prefix."""
+def _safe(text: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in text)
+
+
+def scene_owner(robot_name: str, model: str | os.PathLike[str] | None) -> dict[str, str]:
+    """Who a kept scene belongs to: the robot's name and its model file. Every robot
+    the command line serves is under the prefix ``arduinobot`` by default, and two models
+    may share a name (the shipped arduinobot and the course's printed one, ten times
+    smaller), so the model file is part of it."""
+    return {"name": robot_name, "model": str(model) if model is not None else ""}
+
+
+def owner_key(owner: Mapping[str, str]) -> str:
+    """A file-name-safe key of ``owner``: its name and a hash of its model file."""
+    digest = hashlib.sha256(owner.get("model", "").encode("utf-8")).hexdigest()[:10]
+    return f"{_safe(owner.get('name', 'robot'))}-{digest}"
+
+
+def state_dir() -> Path:
+    """``$ARDUINOBOT_STATE``, else ``$XDG_STATE_HOME/arduinobot``, else
+    ``~/.local/state/arduinobot``."""
     base = os.environ.get("ARDUINOBOT_STATE")
     if not base:
         xdg = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
         base = str(Path(xdg) / "arduinobot")
-    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in prefix)
-    return Path(base) / f"scene-{safe}.json"
+    return Path(base)
+
+
+def default_scene_file(prefix: str, owner: Mapping[str, str] | None = None) -> Path:
+    """Where ``arduinobot serve`` keeps the scene of ``prefix`` by default, in
+    :func:`state_dir`: one file per prefix and robot (``owner``, :func:`scene_owner`), so
+    one robot's obstacles never appear in another's world."""
+    if owner is None:
+        return state_dir() / f"scene-{_safe(prefix)}.json"
+    return state_dir() / f"scene-{_safe(prefix)}--{owner_key(owner)}.json"
+
+
+def foreign_owner(data: Mapping[str, Any], owner: Mapping[str, str] | None) -> str | None:
+    """Why the scene file ``data`` is not ``owner``'s (a sentence naming both robots), or
+    None when it is, or when either side does not say."""
+    kept = data.get(OWNER_KEY)
+    if owner is None or not isinstance(kept, Mapping):
+        return None
+    if kept.get("name") == owner.get("name") and kept.get("model") == owner.get("model"):
+        return None
+    return (f"it was kept for robot '{kept.get('name')}' (model {kept.get('model') or '?'}), "
+            f"not for '{owner.get('name')}' (model {owner.get('model') or '?'})")
 
 
 def mesh_dir_for(scene_file: str | os.PathLike[str]) -> Path:

@@ -53,7 +53,13 @@ from arduinobot.service.scene.apply import (
     with_robot_state,
 )
 from arduinobot.service.scene.carry import RobotFrames
-from arduinobot.service.scene.file import SceneFile, default_scene_file, mesh_dir_for
+from arduinobot.service.scene.file import (
+    SceneFile,
+    default_scene_file,
+    foreign_owner,
+    mesh_dir_for,
+    scene_owner,
+)
 from arduinobot.service.scene.members import Instances
 from arduinobot.service.scene.store import (
     SceneBuilder,
@@ -93,8 +99,12 @@ class SceneService:
                  description: Description | None = None,
                  robot: RobotFrames | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
-        path = scene_file if scene_file is not None else default_scene_file(prefix)
-        self.file = SceneFile(path)
+        owner = None if description is None else scene_owner(
+            description.robot.name, description.robot.source)
+        path = scene_file if scene_file is not None else default_scene_file(prefix, owner)
+        self.file = SceneFile(path, owner=owner)
+        # the one file per prefix kept before scenes were per robot (whose, it cannot say)
+        self._legacy = default_scene_file(prefix) if scene_file is None and owner else None
         # robot: who computes link poses and contacts (the service's: its worker pool)
         self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot if robot
                                     is not None or description is None
@@ -120,7 +130,17 @@ class SceneService:
     def start(self) -> None:
         """Load the file, take changes, catch up with the live instances, serve the keys."""
         data = self.file.load()
+        if data is None and self._legacy is not None and self._legacy.is_file():
+            _log.info("scene: none kept yet for this robot in %s; %s holds a scene kept "
+                      "before scenes were per robot (`arduinobot scene load %s` takes it)",
+                      self.file.path, self._legacy, self._legacy)
         if data is not None:
+            foreign = foreign_owner(data, self.file.owner)
+            if foreign is not None:
+                # an explicit --scene-file of another robot: the user's choice, said loudly
+                _log.warning("scene: %s holds another robot's kept scene: %s; its objects "
+                             "are loaded as they are (give --scene-file to keep this "
+                             "robot's scene elsewhere)", self.file.path, foreign)
             self._state = restore(data, self.builder)
             _log.info("scene: revision %d, %d objects from %s", self._state.revision,
                       len(self._state.objects), self.file.path)
