@@ -1,4 +1,8 @@
-"""Clients of the arduinobot service: the Python client and the `arduinobot` command."""
+"""Clients of the arduinobot service: the Python client and the `arduinobot` command.
+
+- ``client``: the Python client; ``replies``, ``errors``, ``stream``, ``balance``: its parts.
+- ``cloud_files``: .ply, .pcd, .xyz/.csv point clouds read into points to send.
+"""
 
 import logging
 
