@@ -6,4 +6,5 @@ One floor below the planner (it imports the contract and the description only).
 - ``mesh_codec``: a mesh sent inline (STL/OBJ/PLY, base64) decoded and bounded.
 - ``cloud``: a point cloud decoded and bounded, kept as occupied cells of a grid.
 - ``cloud_filter``: the cells that are the robot's own or inside known objects, removed.
+- ``cloud_unknown``: a camera's frustum and its shadow, for ``unknown: "occupied"``.
 """
