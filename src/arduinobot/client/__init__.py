@@ -8,6 +8,7 @@
 - ``stream``: the one follower of an execute or task stream (with cancel).
 - ``named_task``: a named task run for a progress-only caller (the ROS 2 task server).
 - ``balance``: the load balancer of ``spread=True``.
+- ``cloud_files``: .ply, .pcd, .xyz/.csv point clouds read into points to send.
 """
 
 import logging

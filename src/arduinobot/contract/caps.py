@@ -46,6 +46,10 @@ MIN_SCALING = 0.01
 #: Most trajectory samples (duration x sample_rate + 1) in one plan reply: about
 #: 310 bytes of JSON each for a 4-joint arm, so a reply stays under ~7 MB.
 MAX_SAMPLES = 20_000
+#: Most points in one point cloud (the scene's ``points`` objects).
+MAX_CLOUD_POINTS = 2_000_000
+#: Largest decoded point cloud [bytes] (its base64 text is 4/3 of it).
+MAX_CLOUD_BYTES = 32 * 2**20
 
 
 def check_structure(value: Any, *, counts: bool = True) -> None:

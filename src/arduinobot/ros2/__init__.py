@@ -7,8 +7,9 @@ hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attach
 :mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states`,
 :mod:`.controllers`, :mod:`.control_msgs` and :mod:`.trajectory_target` (trajectories
 to ros2_control's joint_trajectory_controllers) and
-:mod:`.task_server` (the course's /task_server action); :mod:`.errors`, one class per
-way the wire layer fails.
+:mod:`.task_server` (the course's /task_server action); :mod:`.pointcloud2`
+(a sensor_msgs/msg/PointCloud2's points, any fields layout); :mod:`.errors`, one class
+per way the wire layer fails.
 Nothing here imports ``src/arduinobot/client/`` or ``src/arduinobot/service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """
 

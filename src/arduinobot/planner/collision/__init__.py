@@ -10,6 +10,8 @@ sampled motions, and motions proven free between samples.
   body moves where it is now).
 - The world: ``world`` (:class:`~.world.CollisionWorld`: state checks, sweeps, a pair's
   distance by kind), ``compiled`` (calling numba kernels past the dispatcher).
+- Point clouds: ``cloud_body`` (a cloud's cells as one body: a tree of cell boxes),
+  ``cloud_keep`` (a cloud posed, self-filtered and kept, with its unknown space).
 - Allowed pairs: ``acm`` (the allowed-collision matrix), ``acm_gen`` (computing it as
   MoveIt's setup assistant does), ``acm_proof`` (pairs proven never to collide).
 - Proofs: ``certify`` (the certifier: the proof's outline and its compiled walk),

@@ -19,10 +19,12 @@ import trimesh
 
 from arduinobot.planner.collision.acm import AllowedCollisionMatrix
 from arduinobot.planner.collision.bodies import RobotBodies, ShapeCache, bvh
+from arduinobot.planner.collision.cloud_body import cell_geometry
 from arduinobot.planner.collision.hulls import Hull, mesh_hull, primitive_hull
 from arduinobot.planner.collision.obbtree import ObbTree, box_tree, build_tree
 from arduinobot.planner.collision.parts import Parts
 from arduinobot.planner.collision.table import BodyKind, checked_kinds
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 _Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
@@ -117,10 +119,11 @@ class SceneBodies:
     @classmethod
     def assemble(cls, robot: RobotBodies, obstacles: Sequence[Obstacle],
                  attached: Sequence[AttachedObject] = (), *,
-                 link_index: dict[str, int] | None = None) -> SceneBodies:
+                 link_index: dict[str, int] | None = None,
+                 clouds: Sequence[CloudObstacle] = ()) -> SceneBodies:
         """The robot's links (geometry shared, FCL objects new), the ``attached`` objects
-        (each on its link, ``link_index`` its index in ``Kinematics.link_names``) and
-        ``obstacles``."""
+        (each on its link, ``link_index`` its index in ``Kinematics.link_names``),
+        ``obstacles`` and ``clouds`` (each one body: :mod:`.cloud_body`)."""
         names, links = list(robot.names), list(robot.frames)
         kinds = [BodyKind.LINK] * len(names)
         trees, statics = list(robot.trees), list(robot.statics)
@@ -130,7 +133,8 @@ class SceneBodies:
                                             for i in range(len(robot.names))]
         objs = [fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
         surfaces: dict[int, fcl.CollisionObject] = {}
-        poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles), 1, 1))
+        poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles) + len(clouds),
+                                    1, 1))
         static_link = dict(zip(robot.names, robot.statics))
         for a in attached:
             if link_index is None or a.link not in link_index:
@@ -163,6 +167,17 @@ class SceneBodies:
                     robot.shapes.get(("box surface", o.size),
                                      partial(_box_surface, o.size)),
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
+            statics.append(True)
+            points.append((None, np.zeros((1, 3))))
+            hulls.append(hull)
+            parts.append(partial(Parts.of_hull, hull))
+        for c in clouds:  # world-frame cells: the identity pose
+            geom, tree, hull = robot.shapes.get(c.key(), partial(cell_geometry, c.cells))
+            names.append(c.id)
+            links.append(-1)
+            kinds.append(BodyKind.OBSTACLE)
+            trees.append(tree)
+            objs.append(fcl.CollisionObject(geom, fcl.Transform()))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
             hulls.append(hull)

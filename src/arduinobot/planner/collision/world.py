@@ -39,6 +39,7 @@ from arduinobot.planner.collision.obbtree import Forest, pair_candidates, state_
 from arduinobot.planner.collision.parts import PartBounds
 from arduinobot.planner.collision.table import BodyKind, BodyTable
 from arduinobot.planner.kinematics.chain import Kinematics
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import (
     AttachedObject,
     Obstacle,
@@ -50,6 +51,21 @@ _log = logging.getLogger(__name__)
 _STACK = 4096
 # [m] distance bounds for the clearance stop here: pairs farther apart sort last
 _CLEARANCE_CAP = 0.3
+
+
+def _validate_clouds(clouds: Sequence[CloudObstacle], obstacles: Sequence[Obstacle],
+                     attached: Sequence[AttachedObject], links: Sequence[str]
+                     ) -> tuple[CloudObstacle, ...]:
+    taken = {o.id for o in obstacles} | {a.id for a in attached} | set(links)
+    for i, c in enumerate(clouds):
+        if not isinstance(c, CloudObstacle):
+            raise InvalidRequest(f"expected a CloudObstacle, got {type(c).__name__}",
+                                 field=f"clouds[{i}]")
+        if c.id in taken:
+            raise InvalidRequest(f"id '{c.id}' is taken (a link, object or cloud)",
+                                 field=f"clouds[{i}].id")
+        taken.add(c.id)
+    return tuple(clouds)
 
 
 @dataclass(frozen=True)
@@ -96,7 +112,8 @@ class CollisionWorld:
                  padding: float = 0.0, acm: AllowedCollisionMatrix | None = None,
                  bodies: RobotBodies | None = None, cache: ArtifactCache | None = None,
                  narrow_phase: bool = True,
-                 attached: Sequence[AttachedObject] = ()) -> None:
+                 attached: Sequence[AttachedObject] = (),
+                 clouds: Sequence[CloudObstacle] = ()) -> None:
         if not np.isfinite(padding) or padding < 0:
             raise InvalidRequest(f"{padding!r} must be a finite number >= 0 [m]",
                                  field="padding")
@@ -108,6 +125,8 @@ class CollisionWorld:
         self.obstacles = validate_obstacles(obstacles, link_names=self.kin.link_names)
         self.attached = resolve_attached(description, tuple(attached),
                                          obstacles=self.obstacles)
+        self.clouds = _validate_clouds(clouds, self.obstacles, self.attached,
+                                       self.kin.link_names)
         self.checks = 0
         robot = description.robot
         if bodies is None:
@@ -116,7 +135,8 @@ class CollisionWorld:
             raise InvalidRequest("bodies were built for another description", field="bodies")
         self.bodies = bodies
         scene = SceneBodies.assemble(bodies, self.obstacles, self.attached,
-                                     link_index=dict(self.kin.link_index))
+                                     link_index=dict(self.kin.link_index),
+                                     clouds=self.clouds)
         names = scene.names
         self._objs = scene.objects
         self._surfaces = scene.surfaces
@@ -190,16 +210,19 @@ class CollisionWorld:
                    padding: float | None = None,
                    acm: AllowedCollisionMatrix | None = None,
                    narrow_phase: bool | None = None,
-                   attached: Sequence[AttachedObject] | None = None) -> CollisionWorld:
-        """A world for other obstacles (and padding [m], allowed pairs, narrow phase or
-        carried objects), sharing this one's robot geometry (and by default its other
-        settings, its carried objects too): milliseconds instead of a rebuild."""
+                   attached: Sequence[AttachedObject] | None = None,
+                   clouds: Sequence[CloudObstacle] | None = None) -> CollisionWorld:
+        """A world for other obstacles (and padding [m], allowed pairs, narrow phase,
+        carried objects or clouds), sharing this one's robot geometry (and by default its
+        other settings, its carried objects and clouds too): milliseconds instead of a
+        rebuild (a new cloud's geometry is built once per content)."""
         return CollisionWorld(self.description, obstacles=obstacles,
                               padding=self.padding if padding is None else padding,
                               acm=self.acm if acm is None else acm, bodies=self.bodies,
                               narrow_phase=self.narrow_phase if narrow_phase is None
                               else narrow_phase,
-                              attached=self.attached if attached is None else attached)
+                              attached=self.attached if attached is None else attached,
+                              clouds=self.clouds if clouds is None else clouds)
 
     def _place(self, poses: np.ndarray, b: int) -> None:
         # move body b's FCL object once per state (stamped), never for obstacles

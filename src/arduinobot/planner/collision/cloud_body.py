@@ -1,0 +1,240 @@
+"""A point cloud's cells as one collision body, and the robot's surface for its self-filter.
+
+A cloud of 50,000 cells is one body, not 50,000 (as VAMP keeps a cloud apart from its
+primitives): one more pair per link, so a state check and a proof cost about what a scene
+of a few boxes does. Its three geometries are each exact or conservative for the union of
+the cell boxes:
+
+- its OBB tree (:func:`cell_tree`) has one leaf per cell, the cell's own box (axis-aligned
+  in the world): the trees' distance bound at the leaves is a bound to the boxes
+  themselves, so a clearance the certifier proves holds for every point inside a cell;
+- its FCL geometry is the union's boundary (:func:`exposed_faces`: the faces of a cell
+  with no occupied neighbour across them, two triangles each); the distance from a body
+  outside the union to it is the distance to the union (FCL's OcTree would measure the
+  same, but costs 12-83 ms per mesh distance, too slow inside a proof);
+- its convex hull holds every cell's corners (a bound far from the cloud; near it the
+  certifier asks FCL).
+
+As for a mesh obstacle, a link state is decided by its surface against the union's: a
+link wholly inside a cell, or a cell wholly inside a link, is not seen at a state. Neither
+can be reached from a free state by a certified motion (the surfaces would cross), and the
+self-filter removes the cells in and near the robot at the state the cloud was taken.
+"""
+
+from __future__ import annotations
+
+import math
+
+import fcl
+import numba
+import numpy as np
+
+from arduinobot.planner.collision.hulls import Hull, mesh_hull
+from arduinobot.planner.collision.obbtree import ObbTree
+from arduinobot.scene.cloud import Cells
+
+# the six face directions and, per direction, its square's corners (unit cell, as
+# offsets from the cell's lower corner) wound outward
+_DIRS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+                 np.int64)
+_FACES = np.array([
+    [[1, 0, 0], [1, 1, 0], [1, 1, 1], [1, 0, 1]],
+    [[0, 0, 0], [0, 0, 1], [0, 1, 1], [0, 1, 0]],
+    [[0, 1, 0], [0, 1, 1], [1, 1, 1], [1, 1, 0]],
+    [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]],
+    [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
+    [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+], float)
+# [m] grown into every cell box of the tree against rounding (as box_tree's)
+_SLACK = 1e-9
+
+
+def _keys(index: np.ndarray, lo: np.ndarray) -> np.ndarray:
+    rel = index - lo
+    return (rel[:, 0] << 42) | (rel[:, 1] << 21) | rel[:, 2]
+
+
+def _runs(base: np.ndarray, axis: int, corners: np.ndarray) -> np.ndarray:
+    # open faces (their cells' lower corners, shape (m, 3)) facing along ``axis``, merged
+    # into one quad per run of neighbours along the next axis: the same surface in ~1/20
+    # the triangles (a 1 cm table's top: 240 quads, not 57,600), and FCL's BVH build is
+    # per triangle (7 s for 532k, measured)
+    if len(base) == 0:
+        return np.empty((0, 4, 3))
+    run, other = (axis + 1) % 3, (axis + 2) % 3
+    b = base[np.lexsort((base[:, run], base[:, other], base[:, axis]))]
+    new = np.ones(len(b), bool)
+    new[1:] = (b[1:, axis] != b[:-1, axis]) | (b[1:, other] != b[:-1, other]) | \
+        (b[1:, run] != b[:-1, run] + 1)
+    starts = np.flatnonzero(new)
+    length = np.diff(np.append(starts, len(b)))
+    scale = np.ones((len(starts), 1, 3))
+    scale[:, 0, run] = length
+    return b[starts].astype(float)[:, None, :] + corners[None] * scale
+
+
+def exposed_faces(cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+    """The boundary of the union of ``cells`` as triangles: vertices shape (v, 3) [m]
+    and faces shape (f, 3), two per run of cell faces without an occupied neighbour."""
+    idx = cells.index
+    lo = idx.min(axis=0) - 1  # a neighbour one below the lowest cell keys too
+    keys = _keys(idx, lo)  # the cells are sorted by row, so by key
+    quads = []
+    for d, corners in zip(_DIRS, _FACES):
+        nb = _keys(idx + d, lo)
+        pos = np.minimum(np.searchsorted(keys, nb), len(keys) - 1)
+        open_ = keys[pos] != nb
+        quads.append(_runs(idx[open_], int(np.flatnonzero(d)[0]), corners))
+    q = np.concatenate(quads) * cells.resolution  # (m, 4, 3)
+    vertices = q.reshape(-1, 3)
+    first = 4 * np.arange(len(q))
+    faces = np.concatenate([np.column_stack([first, first + 1, first + 2]),
+                            np.column_stack([first, first + 2, first + 3])])
+    return vertices, faces
+
+
+@numba.njit(cache=True, nogil=True)
+def _build(lo: np.ndarray, hi: np.ndarray, center: np.ndarray, half: np.ndarray,
+           left: np.ndarray, right: np.ndarray) -> int:
+    # Top down over the cells' boxes (lo, hi: (n, 3)), axis-aligned nodes, split at the
+    # median centre along the node's longest axis; one cell a leaf. Returns the node
+    # count (2n - 1).
+    n = lo.shape[0]
+    perm = np.arange(n)
+    mid = (lo + hi) * 0.5
+    stack = np.empty((2 * n + 2, 4), dtype=np.int64)  # start, end, parent, is_right
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, n, -1, 0
+    top, count = 1, 0
+    while top > 0:
+        top -= 1
+        s, e, parent, is_right = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        node = count
+        count += 1
+        bl = np.full(3, np.inf)
+        bh = np.full(3, -np.inf)
+        for i in range(s, e):
+            for a in range(3):
+                bl[a] = min(bl[a], lo[perm[i], a])
+                bh[a] = max(bh[a], hi[perm[i], a])
+        for a in range(3):
+            center[node, a] = 0.5 * (bl[a] + bh[a])
+            half[node, a] = 0.5 * (bh[a] - bl[a]) + 1e-9
+        left[node] = -1
+        right[node] = -1
+        if parent >= 0:
+            if is_right:
+                right[parent] = node
+            else:
+                left[parent] = node
+        if e - s <= 1:
+            continue
+        axis = 0
+        if bh[1] - bl[1] > bh[axis] - bl[axis]:
+            axis = 1
+        if bh[2] - bl[2] > bh[axis] - bl[axis]:
+            axis = 2
+        sub = perm[s:e]
+        order = np.argsort(mid[sub, axis], kind="mergesort")
+        perm[s:e] = sub[order]
+        m = s + (e - s) // 2
+        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = m, e, node, 1
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = \
+            s, m, node, 0
+        top += 2
+    return count
+
+
+def cell_tree(cells: Cells) -> ObbTree:
+    """An OBB tree (world axes) whose leaves are the cells' own boxes."""
+    lo = np.ascontiguousarray(cells.index * cells.resolution, float)
+    hi = lo + cells.resolution
+    cap = 2 * len(lo)
+    center, half = np.empty((cap, 3)), np.empty((cap, 3))
+    left, right = np.empty(cap, np.int64), np.empty(cap, np.int64)
+    n = _build(lo, hi, center, half, left, right)
+    axes = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, 3, 3)))
+    return ObbTree(center[:n].copy(), axes, half[:n].copy(), left[:n].copy(),
+                   right[:n].copy())
+
+
+def cell_hull(cells: Cells) -> Hull:
+    """A convex hull holding every cell's box."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    centers = cells.centers
+    try:  # the hull of the centres first: its vertices' cells hold the hull's corners
+        far = centers[ConvexHull(centers).vertices]
+    except QhullError:  # flat or too few cells: every centre
+        far = centers
+    r = cells.resolution / 2
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    return mesh_hull((far[:, None, :] + r * signs[None]).reshape(-1, 3))
+
+
+def cell_geometry(cells: Cells) -> tuple[fcl.CollisionGeometry, ObbTree, Hull]:
+    """The cloud body's FCL geometry, OBB tree and hull (see the module's docstring)."""
+    if len(cells) == 0:
+        raise ValueError("a cloud body needs at least one cell")
+    vertices, faces = exposed_faces(cells)
+    m = fcl.BVHModel()
+    m.beginModel(len(vertices), len(faces))
+    m.addSubModel(vertices, faces.astype(np.int32))
+    m.endModel()
+    return m, cell_tree(cells), cell_hull(cells)
+
+
+def _triangle_samples(tri: np.ndarray, spacing: float) -> np.ndarray:
+    # points on triangles (t, 3, 3) no farther than ``spacing`` from any point of them:
+    # a barycentric grid of steps no longer than spacing / 2, then one point per cube of
+    # edge spacing / (2 sqrt 3) (each point dropped is within spacing / 2 of one kept;
+    # CAD meshes gave 12M points at 5 mm unthinned, measured on the shipped arm)
+    step = spacing / 2
+    edges = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    steps = np.maximum(1, np.ceil(edges / step)).astype(np.int64)
+    cube = spacing / (2 * math.sqrt(3))
+    lo = tri.reshape(-1, 3).min(axis=0)
+
+    def thinned(p: np.ndarray) -> np.ndarray:
+        key = np.floor((p - lo) / cube).astype(np.int64)  # >= 0; < 2^21 for a 2.9 km link
+        _, first = np.unique((key[:, 0] << 42) | (key[:, 1] << 21) | key[:, 2],
+                             return_index=True)
+        return p[first]
+
+    out = []
+    for n in np.unique(steps):
+        sel = tri[steps == n]
+        i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+        keep = i + j <= n
+        a = (i[keep] / n)[None, :, None]
+        b = (j[keep] / n)[None, :, None]
+        for part in np.array_split(sel, max(1, len(sel) * int(keep.sum()) // 2_000_000)):
+            out.append(thinned((part[:, None, 0] * (1 - a - b) + part[:, None, 1] * a
+                                + part[:, None, 2] * b).reshape(-1, 3)))
+    return thinned(np.concatenate(out))
+
+
+def robot_surface(world: object, q: np.ndarray, *, spacing: float) -> np.ndarray:
+    """Points on every link's collision surface at state ``q`` (shape (dof,) [rad]),
+    world frame, shape (k, 3) [m]: every surface point lies within ``spacing`` [m] of
+    one (the link-frame samples are kept on the robot's geometry, per spacing)."""
+    bodies = world.bodies  # type: ignore[attr-defined]
+    key = f"cloud-surface-{spacing:.6g}"
+    local = bodies.proofs.get(key)
+    if local is None:
+        local = []
+        for (_link, verts), faces in zip(bodies.points, bodies.faces):
+            local.append(_triangle_samples(np.asarray(verts, float)[faces], spacing))
+        bodies.proofs[key] = local
+    poses = world.kin.link_poses(q)  # type: ignore[attr-defined]
+    out = []
+    for frame, pts in zip(bodies.frames, local):
+        t = poses[frame]
+        out.append(pts @ t[:3, :3].T + t[:3, 3])
+    return np.concatenate(out) if out else np.empty((0, 3))
+
+
+def surface_spacing(resolution: float) -> float:
+    """[m] how dense the self-filter's surface samples are for cells of ``resolution``:
+    a cell, at least 5 mm (finer costs memory and time and buys less than the padding;
+    the filter's reach grows by it)."""
+    return max(resolution, 0.005) if math.isfinite(resolution) else 0.005
