@@ -3,7 +3,8 @@ a serial driver for the real arduinobot, a MuJoCo twin, plug-in drivers and the 
 bus driver.
 
 - ``base``: :class:`Robot`, :class:`JointState`, the mimic map, the port errors;
-- ``serial_arduinobot``: the course's Arduino over serial;
+- ``serial_arduinobot``: the course's Arduino over serial; ``serial_port``: opening a
+  serial port, its failures coded (every serial driver's);
 - ``sim_arduinobot``, ``mjcf``, ``controller_gains``, ``twin_tasks``: the MuJoCo twin;
 - ``plugin``: ``--driver NAME|module:Class``, the :class:`Driver` protocol a plug-in
   meets, the ``arduinobot.drivers`` entry points (docs/drivers.md);

@@ -20,10 +20,8 @@ tick (``velocity * period``), and never outside its URDF position limits.
 
 from __future__ import annotations
 
-import errno
 import logging
 import math
-import os
 import time
 from collections.abc import Sequence
 
@@ -34,7 +32,6 @@ from arduinobot.description import Description
 from arduinobot.execution.robots.base import (
     JointState,
     MimicMap,
-    PortBusy,
     PortError,
     PortNotFound,
     Robot,
@@ -42,6 +39,7 @@ from arduinobot.execution.robots.base import (
     check_setpoint,
     initial_positions,
 )
+from arduinobot.execution.robots.serial_port import open_serial
 
 log = logging.getLogger(__name__)
 
@@ -76,38 +74,13 @@ def hardware_params(urdf: str) -> dict[str, str]:
 
 
 def open_port(port: str, baud: int) -> object:
-    """An exclusively locked pyserial port, 8N1, non-blocking reads, writes that give up
-    after :data:`WRITE_TIMEOUT`.
+    """The arduinobot's port (:func:`~arduinobot.execution.robots.serial_port.open_serial`),
+    writes giving up after :data:`WRITE_TIMEOUT`.
 
     Raises:
         PortNotFound, PortBusy, PortError: with the port and the reason.
     """
-    import serial  # optional dependency: only the serial driver needs it
-
-    is_url = "://" in port
-    if not is_url and not os.path.exists(port):
-        raise PortNotFound(f"serial port {port} does not exist (is the arduinobot plugged "
-                           "in? `ls /dev/ttyACM* /dev/ttyUSB*` lists the candidates)",
-                           details={"port": port})
-    try:
-        return serial.serial_for_url(port, baudrate=baud, bytesize=serial.EIGHTBITS,
-                                     parity=serial.PARITY_NONE,
-                                     stopbits=serial.STOPBITS_ONE, timeout=0,
-                                     write_timeout=WRITE_TIMEOUT, exclusive=True)
-    except serial.SerialException as e:
-        code = getattr(e, "errno", None)
-        if "exclusively lock" in str(e) or code in (errno.EBUSY, errno.EAGAIN):
-            raise PortBusy(f"serial port {port} is busy: another program holds it (a "
-                           "serial monitor, another `arduinobot execute`, a ros2_control "
-                           f"node); close it and retry ({e})", details={"port": port}) from None
-        if code == errno.ENOENT:
-            raise PortNotFound(f"serial port {port} does not exist ({e})",
-                               details={"port": port}) from None
-        if code == errno.EACCES:
-            raise PortError(f"no permission to open {port}: add yourself to the "
-                            f"'dialout' group ({e})", details={"port": port}) from None
-        raise PortError(f"cannot open serial port {port}: {e}",
-                        details={"port": port}) from None
+    return open_serial(port, baud, device="the arduinobot", write_timeout=WRITE_TIMEOUT)
 
 
 class SerialArduinobot(Robot):

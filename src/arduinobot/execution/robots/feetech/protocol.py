@@ -17,15 +17,14 @@ over-current 8, overload 32.
 
 from __future__ import annotations
 
-import errno
 import logging
-import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 from arduinobot.contract.codes import Code
-from arduinobot.execution.robots.base import PortBusy, PortError, PortNotFound, RobotError
+from arduinobot.execution.robots.base import PortError, RobotError
+from arduinobot.execution.robots.serial_port import open_serial
 
 log = logging.getLogger(__name__)
 
@@ -90,33 +89,13 @@ def to_sign_magnitude(value: int, sign_bit: int) -> int:
 
 
 def open_bus(port: str, baud: int) -> object:
-    """An exclusively locked pyserial port, 8N1 (:class:`FeetechBus` sets its read
-    timeout).
+    """The bus adapter's port (:func:`~arduinobot.execution.robots.serial_port.open_serial`;
+    :class:`FeetechBus` sets its read timeout).
 
     Raises:
         PortNotFound, PortBusy, PortError: with the port and the reason.
     """
-    import serial  # pyserial: a core dependency, imported with the driver only
-
-    if "://" not in port and not os.path.exists(port):
-        raise PortNotFound(f"serial port {port} does not exist (is the bus adapter plugged "
-                           "in? `ls /dev/ttyACM* /dev/ttyUSB*` lists the candidates)",
-                           details={"port": port})
-    try:
-        return serial.serial_for_url(port, baudrate=baud, bytesize=serial.EIGHTBITS,
-                                     parity=serial.PARITY_NONE,
-                                     stopbits=serial.STOPBITS_ONE, timeout=0.0,
-                                     write_timeout=1.0, exclusive=True)
-    except serial.SerialException as e:
-        code = getattr(e, "errno", None)
-        if "exclusively lock" in str(e) or code in (errno.EBUSY, errno.EAGAIN):
-            raise PortBusy(f"serial port {port} is busy: another program holds it ({e})",
-                           details={"port": port}) from None
-        if code == errno.EACCES:
-            raise PortError(f"no permission to open {port}: add yourself to the "
-                            f"'dialout' group ({e})", details={"port": port}) from None
-        raise PortError(f"cannot open serial port {port}: {e}",
-                        details={"port": port}) from None
+    return open_serial(port, baud, device="the bus adapter", write_timeout=1.0)
 
 
 class FeetechBus:
