@@ -22,7 +22,7 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
-from arduinobot.planner.kinematics.rotations import rpy_of_matrix
+from arduinobot.description.model import rpy_of
 from arduinobot.planner.planning.goals import Goal, JointGoal, NamedGoal
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult
 from arduinobot.planner.planning.search import MAX_SEED
@@ -213,7 +213,7 @@ def holding_link(description: Description) -> str:
 
 def _pose(m: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     return (tuple(float(v) for v in m[:3, 3]),  # type: ignore[return-value]
-            tuple(float(v) for v in rpy_of_matrix(m[:3, :3])))
+            tuple(float(v) for v in rpy_of(m[:3, :3])))
 
 
 def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:

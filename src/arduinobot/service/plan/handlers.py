@@ -18,6 +18,7 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
+from arduinobot.description.model import rpy_of
 from arduinobot.planner.cache import ArtifactCache
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
@@ -25,7 +26,7 @@ from arduinobot.planner.kinematics.ik import position_ik
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.tcp_goals import tcp_joints
 from arduinobot.service.plan.requests import joint_values, obstacles
-from arduinobot.service.scene.store import SceneSnapshot, rpy_of, with_scene
+from arduinobot.service.scene.store import SceneSnapshot, with_scene
 
 _log = logging.getLogger(__name__)
 
@@ -106,7 +107,7 @@ class Handlers:
                                      field=f"links[{i}]")
         poses = self.kin.link_poses(q)
         out = {link: {"xyz": [float(v) for v in poses[self.kin.link_index[link]][:3, 3]],
-                      "rpy": rpy_of(poses[self.kin.link_index[link]][:3, :3]),
+                      "rpy": list(rpy_of(poses[self.kin.link_index[link]][:3, :3])),
                       "matrix": poses[self.kin.link_index[link]].tolist()} for link in links}
         tcp = self.description.tcp
         tcp_xyz = None if tcp is None else [
@@ -160,7 +161,7 @@ class Handlers:
         for a in carried:
             t = poses[self.kin.link_index[a.link]] @ a.shape.pose()
             out[a.id] = {"link": a.link, "xyz": [float(v) for v in t[:3, 3]],
-                         "rpy": rpy_of(t[:3, :3]), "matrix": t.tolist(),
+                         "rpy": list(rpy_of(t[:3, :3])), "matrix": t.tolist(),
                          **({"fixed": True} if a.id in fixed else {})}
         return out
 

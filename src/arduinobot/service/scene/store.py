@@ -12,7 +12,6 @@ instances is :mod:`arduinobot.service.scene.sync`'s.
 from __future__ import annotations
 
 import logging
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -25,6 +24,7 @@ if TYPE_CHECKING:
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
+from arduinobot.description.model import rpy_of
 from arduinobot.scene.mesh_codec import decode_mesh, scale_of
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
 
@@ -315,17 +315,6 @@ def _posed(data: Mapping[str, Any], pose: np.ndarray) -> dict[str, Any]:
     out["xyz"] = [round(float(v), 12) + 0.0 for v in pose[:3, 3]]
     out["rpy"] = [round(v, 12) + 0.0 for v in rpy_of(pose[:3, :3])]
     return out
-
-
-def rpy_of(m: np.ndarray) -> list[float]:
-    """URDF roll-pitch-yaw [rad] of a rotation matrix, shape (3, 3)."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(m[2, 0]))))
-    if abs(math.cos(pitch)) > 1e-9:
-        roll = math.atan2(float(m[2, 1]), float(m[2, 2]))
-        yaw = math.atan2(float(m[1, 0]), float(m[0, 0]))
-    else:  # gimbal lock: put it all in yaw
-        roll, yaw = 0.0, math.atan2(-float(m[0, 1]), float(m[1, 1]))
-    return [roll, pitch, yaw]
 
 
 def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:

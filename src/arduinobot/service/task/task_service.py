@@ -80,13 +80,7 @@ def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = T
 
 def obstacle_json(o: Obstacle) -> dict[str, Any]:
     """An obstacle in the requests' form (plan_request.json's ``obstacles``)."""
-    body: dict[str, Any] = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz),
-                            "rpy": list(o.rpy)}
-    for k in ("size", "radius", "length", "mesh_path"):
-        v = getattr(o, k)
-        if v is not None:
-            body[k] = list(v) if isinstance(v, tuple) else v
-    return body
+    return o.to_json()
 
 
 def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str, Any]:
