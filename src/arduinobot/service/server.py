@@ -24,6 +24,7 @@ from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import PlanningError, ShuttingDown
 from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
+from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service import hoptrace
 from arduinobot.service.keyguard import addressed_exactly
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
@@ -33,7 +34,6 @@ from arduinobot.service.process.memtrace import MemTrace, count_live
 from arduinobot.service.process.pool import WorkerPool
 from arduinobot.service.process.worker import DescriptionSpec
 from arduinobot.service.scene.carry import PooledFrames
-from arduinobot.service.scene.store import SceneSnapshot
 from arduinobot.service.scene.sync import SceneService
 from arduinobot.service.task.task_service import task_extension
 

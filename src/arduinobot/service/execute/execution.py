@@ -56,7 +56,7 @@ from arduinobot.service.keyguard import addressed_exactly
 from arduinobot.service.messages import Failure, Outcome
 
 if TYPE_CHECKING:
-    from arduinobot.service.scene.store import SceneSnapshot
+    from arduinobot.scene.state import SceneSnapshot
 
 _log = logging.getLogger(__name__)
 

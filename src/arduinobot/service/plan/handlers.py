@@ -20,13 +20,14 @@ from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
 from arduinobot.description.model import rpy_of
 from arduinobot.planner.cache import ArtifactCache
+from arduinobot.planner.checks import joint_values
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik import position_ik
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.tcp_goals import tcp_joints
-from arduinobot.service.plan.requests import joint_values, obstacles
-from arduinobot.service.scene.store import SceneSnapshot, with_scene
+from arduinobot.scene.state import SceneSnapshot, with_scene
+from arduinobot.service.plan.requests import obstacles
 
 _log = logging.getLogger(__name__)
 
@@ -184,7 +185,8 @@ class Handlers:
     def frames(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """A ``frames`` job: a link's pose or a carried object's contacts for the kept
         scene's attach and detach (see :class:`arduinobot.service.scene.carry.PooledFrames`)."""
-        from arduinobot.service.scene.carry import RobotFrames, answer_frames
+        from arduinobot.planner.frames import RobotFrames
+        from arduinobot.service.scene.carry import answer_frames
         if self._frames is None:
             self._frames = RobotFrames(self.description)
         return answer_frames(self._frames, data)

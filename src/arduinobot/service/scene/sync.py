@@ -46,6 +46,14 @@ from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import PlanningError
 from arduinobot.description import Description
+from arduinobot.scene.frames import Frames
+from arduinobot.scene.state import (
+    SceneBuilder,
+    SceneState,
+    StateSource,
+    apply,
+    restore,
+)
 from arduinobot.service.keyguard import addressed_exactly
 from arduinobot.service.messages import Failure
 from arduinobot.service.scene.apply import (
@@ -54,16 +62,8 @@ from arduinobot.service.scene.apply import (
     decode_apply,
     with_robot_state,
 )
-from arduinobot.service.scene.carry import RobotFrames
 from arduinobot.service.scene.file import SceneFile, default_scene_file, mesh_dir_for
 from arduinobot.service.scene.members import Instances
-from arduinobot.service.scene.store import (
-    SceneBuilder,
-    SceneState,
-    StateSource,
-    apply,
-    restore,
-)
 
 _log = logging.getLogger(__name__)
 
@@ -94,14 +94,15 @@ class SceneService:
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
                  link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
                  description: Description | None = None,
-                 robot: RobotFrames | None = None) -> None:
+                 robot: Frames | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
         path = scene_file if scene_file is not None else default_scene_file(prefix)
         self.file = SceneFile(path)
         # robot: who computes link poses and contacts (the service's: its worker pool)
-        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot if robot
-                                    is not None or description is None
-                                    else RobotFrames(description))
+        if robot is None and description is not None:
+            from arduinobot.planner.frames import RobotFrames  # only a worker's frames
+            robot = RobotFrames(description)
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot)
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
         self._encoded: tuple[int, bytes] = (-1, b"")

@@ -34,9 +34,9 @@ from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
 from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.keyguard import addressed_exactly
 from arduinobot.service.messages import Failure, Outcome, Submit, Success, outcome_of
-from arduinobot.service.scene.store import SceneSnapshot, with_scene
 
 if TYPE_CHECKING:  # the planner (OMPL) loads in the workers, never with `serve`
     from arduinobot.planner.tasks import Task, TaskResult

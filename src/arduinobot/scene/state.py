@@ -1,5 +1,6 @@
-"""The planning scene that lasts: its objects at a revision and how an apply changes it
-(all or nothing); its file on disk is :mod:`arduinobot.service.scene.file`'s.
+"""The planning scene that lasts (the kept scene's model): its objects at a revision and
+how an apply changes it (all or nothing); its file on disk is
+:mod:`arduinobot.service.scene.file`'s, its service :mod:`arduinobot.service.scene`.
 
 A :class:`SceneState` is immutable: :func:`apply` builds the next one or raises, so a
 refused apply leaves the scene as it was by construction. Each object keeps its wire form
@@ -16,15 +17,13 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
-
-if TYPE_CHECKING:
-    from arduinobot.service.scene.carry import RobotFrames
+from typing import Any, Literal
 
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description.model import rpy_of
+from arduinobot.scene.frames import Frames, hold
 from arduinobot.scene.mesh_codec import decode_mesh, scale_of
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
 
@@ -113,7 +112,7 @@ class SceneBuilder:
     poses and collision checks) it can attach and detach too."""
 
     def __init__(self, link_names: Sequence[str], mesh_dir: str | os.PathLike[str], *,
-                 robot: RobotFrames | None = None) -> None:
+                 robot: Frames | None = None) -> None:
         self.link_names = frozenset(link_names)
         self.mesh_dir = Path(mesh_dir)
         self.robot = robot
@@ -278,28 +277,23 @@ def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
             built = builder.build(given, f"{where}.object")  # validated as given
             data = given if frame == link else _posed(
                 given, np.linalg.inv(link_pose) @ built.obstacle.pose())
-        held = _held(data, item, builder, f"{where}.object")
-        pairs = robot.link_contacts(held.attached, q)
-        if pairs:
-            raise InvalidRequest(
-                f"'{held.id}' already touches {', '.join(sorted({b for _, b in pairs}))} of "
-                f"the robot, not among its touch links {list(held.attached.touch_links)}: "
-                "move the arm, or name the link in touch_links", field=where,
-                details={"pairs": [list(p) for p in pairs]})
+        held = _held(data, item, builder, f"{where}.object", q=q)
         carried[held.id] = held
 
 
 def _held(obj: Mapping[str, Any], item: Mapping[str, Any], builder: SceneBuilder,
-          where: str) -> SceneAttached:
+          where: str, *, q: Any = None) -> SceneAttached:
     """A carried object from its wire object (pose in the link's frame) and the rest of
-    its attach item (link, touch_links, mass, com), with its default touch links."""
+    its attach item (link, touch_links, mass, com), with its default touch links; with a
+    state ``q`` (an attach, not a restore), refused if it touches the robot there
+    (:func:`arduinobot.scene.frames.hold`)."""
     built = builder.build(obj, where)
     robot = builder.robot
     assert robot is not None  # only an attach or a restore with a robot gets here
-    a = robot.resolve(AttachedObject(built.obstacle, item["link"],
-                                     tuple(item.get("touch_links") or ()),
-                                     float(item.get("mass", 0.0)), item.get("com"),
-                                     where=where.removesuffix(".object")))
+    a = hold(robot, built.obstacle, item["link"], q,
+             touch_links=tuple(item.get("touch_links") or ()),
+             mass=float(item.get("mass", 0.0)), com=item.get("com"),
+             where=where.removesuffix(".object"), check=q is not None)
     data: dict[str, Any] = {"object": dict(obj), "link": a.link,
                             "touch_links": list(a.touch_links), "mass": a.mass}
     if a.com is not None:
