@@ -111,3 +111,25 @@ def test_numbers_of_the_command_line():
     with pytest.raises(InvalidRequest) as e:
         Mesh.from_numbers([1.0], where="o")
     assert e.value.field == "o.shape"
+
+
+def test_an_inline_field_belongs_to_its_shape_alone(tmp_path):
+    from arduinobot.scene.shapes import check_inline
+
+    with pytest.raises(InvalidRequest) as e:
+        check_inline(Sphere, {"shape": "sphere", "radius": 1, "scale": [1, 1, 1]}, where="add[0]")
+    assert e.value.field == "add[0].scale" and "only a mesh object" in str(e.value)
+    check_inline(Mesh, {"mesh": {}, "scale": 1}, where="add[0]")  # its own: no refusal
+    assert Box.stored({"size": [1, 1, 1]}, where="add[0]", folder=tmp_path) == {"size": [1, 1, 1]}
+    with pytest.raises(InvalidRequest) as e:
+        Mesh.stored({}, where="add[0]", folder=tmp_path)
+    assert e.value.field == "add[0].mesh"
+
+
+def test_a_urdf_primitive_is_its_shape():
+    from arduinobot.description.model import Geometry
+    from arduinobot.scene.shapes import of_geometry
+
+    assert of_geometry(Geometry("cylinder", radius=0.1, length=0.4)) == Cylinder(0.1, 0.4)
+    assert of_geometry(Geometry("box", size=(0.1, 0.2, 0.3))).mjcf() == ("box", "0.05 0.1 0.15")
+    assert of_geometry(Geometry("mesh", uri="package://x/a.stl")) is None

@@ -84,11 +84,14 @@ class Shape(ABC):
         cli_form: its dimensions on the command line (``"sx,sy,sz"``); None: it has none
             (a mesh file).
         portable: it means the same to another process (a file path does not).
+        inline: the fields a kept-scene object sends in place of its file (a mesh's
+            ``mesh`` and ``scale``), see :meth:`stored`.
     """
 
     kind: ClassVar[str]
     cli_form: ClassVar[str | None] = None
     portable: ClassVar[bool] = True
+    inline: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
@@ -125,6 +128,13 @@ class Shape(ABC):
     def json_of_numbers(cls, values: Sequence[float]) -> dict[str, Any]:
         """Its dimension fields from the numbers of its :attr:`cli_form` (unchecked)."""
         raise InvalidRequest(f"a {cls.kind} has no numeric form", field="shape")
+
+    @classmethod
+    def stored(cls, data: Mapping[str, Any], *, where: str, folder: Path) -> dict[str, Any]:
+        """A kept-scene object's fields (``data``, its wire form) with its :attr:`inline`
+        payload written to a content-addressed file in ``folder`` and named by its
+        dimension field; a shape without one: ``data`` as is."""
+        return dict(data)
 
     def to_json(self) -> dict[str, Any]:
         """Its dimension fields (tuples as lists), as :meth:`from_json` reads them."""
@@ -207,6 +217,25 @@ def shape_class(kind: object, *, field: str = "shape") -> type[Shape]:
 def dimension_fields() -> frozenset[str]:
     """Every dimension field of any registered shape."""
     return frozenset(f for c in _SHAPES.values() for f in c.field_names())
+
+
+def of_geometry(geometry: Any) -> Shape | None:
+    """A URDF geometry (:class:`arduinobot.description.model.Geometry`) as its shape when
+    its kind's dimension fields are the geometry's own (box, sphere, cylinder); None
+    otherwise (a mesh: a file and a scale, read as the link's)."""
+    cls = _SHAPES.get(geometry.kind)
+    if cls is None or not all(hasattr(geometry, f) for f in cls.field_names()):
+        return None
+    return cls.from_json({f: getattr(geometry, f) for f in cls.field_names()},
+                         where="geometry")
+
+
+def check_inline(cls: type[Shape], data: Mapping[str, Any], *, where: str) -> None:
+    """Refuse an inline field (:attr:`Shape.inline`) that ``cls`` does not take."""
+    for key in sorted({k for c in _SHAPES.values() for k in c.inline} - set(cls.inline)):
+        if key in data:
+            owners = " or ".join(c.kind for c in _SHAPES.values() if key in c.inline)
+            raise InvalidRequest(f"only a {owners} object takes it", field=f"{where}.{key}")
 
 
 def _fcl() -> Any:
@@ -359,6 +388,20 @@ class Mesh(Shape):
     mesh_path: str
     kind: ClassVar[str] = "mesh"
     portable: ClassVar[bool] = False
+    inline: ClassVar[tuple[str, ...]] = ("mesh", "scale")
+
+    @classmethod
+    def stored(cls, data: Mapping[str, Any], *, where: str, folder: Path) -> dict[str, Any]:
+        if "mesh" not in data:
+            raise InvalidRequest("a mesh object needs mesh {format, data}",
+                                 field=f"{where}.mesh")
+        from arduinobot.scene.mesh_codec import decode_mesh, scale_of
+
+        mesh = decode_mesh(data["mesh"], scale=scale_of(data.get("scale"), f"{where}.scale"),
+                           field=f"{where}.mesh")
+        out = {k: v for k, v in data.items() if k not in cls.inline}
+        out["mesh_path"] = str(mesh.write(folder))
+        return out
 
     @classmethod
     def _checked(cls, name: str, value: object, field: str) -> Any:

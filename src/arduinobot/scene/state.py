@@ -24,8 +24,8 @@ import numpy as np
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description.model import rpy_of
 from arduinobot.scene.frames import Frames, hold
-from arduinobot.scene.mesh_codec import decode_mesh, scale_of
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
+from arduinobot.scene.shapes import check_inline, shape_class
 
 _log = logging.getLogger(__name__)
 
@@ -140,18 +140,11 @@ class SceneBuilder:
         oid = data.get("id")
         if oid in self.link_names:
             raise InvalidRequest(f"id '{oid}' is also a link name", field=f"{where}.id")
-        geometry = {k: v for k, v in data.items()
-                    if k not in ("frame", "mesh", "scale", "touch_links")}
-        if data.get("shape") == "mesh":
-            if "mesh" not in data:
-                raise InvalidRequest("a mesh object needs mesh {format, data}",
-                                     field=f"{where}.mesh")
-            mesh = decode_mesh(data["mesh"], scale=scale_of(data.get("scale"), f"{where}.scale"),
-                               field=f"{where}.mesh")
-            geometry["mesh_path"] = str(mesh.write(self.mesh_dir))
-        elif "mesh" in data or "scale" in data:
-            bad = "mesh" if "mesh" in data else "scale"
-            raise InvalidRequest("only a mesh object takes it", field=f"{where}.{bad}")
+        geometry = {k: v for k, v in data.items() if k not in ("frame", "touch_links")}
+        if "shape" in data:  # (without one, the obstacle names the missing field)
+            cls = shape_class(data["shape"], field=f"{where}.shape")
+            check_inline(cls, data, where=where)
+            geometry = cls.stored(geometry, where=where, folder=self.mesh_dir)
         obstacle = Obstacle.from_mapping(geometry, where=where)
         extra = data.get("touch_links") or ()
         if frame == WORLD:

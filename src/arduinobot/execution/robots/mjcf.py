@@ -37,6 +37,7 @@ import numpy as np
 from arduinobot.description.model import Joint, Robot, Shape, rpy_matrix
 from arduinobot.planner.cache import ArtifactCache, content_key
 from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.shapes import of_geometry
 
 #: told what is being built, for a user waiting on a first twin: ``progress(message)``
 Progress = Callable[[str], None]
@@ -142,9 +143,12 @@ def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | Non
     g = shape.geometry
     pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
     common = f'{pose} contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4" mass="0"'
-    if g.kind == "mesh":
-        if g.path is None:
-            return None
+    prim = of_geometry(g)
+    if prim is not None:  # a primitive
+        geom = prim.mjcf()
+        return None if geom is None else \
+            f'<geom type="{geom[0]}" size="{geom[1]}" name="{_esc(name)}" {common}/>'
+    if g.path is not None:
         out = []
         for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS,
                                                cache=cache, progress=progress)):
@@ -152,19 +156,6 @@ def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | Non
             out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
                        f'{common}/>')
         return " ".join(out)
-    size = _size(g.kind, g.size, g.radius, g.length)
-    return None if size is None else \
-        f'<geom type="{g.kind}" size="{size}" name="{_esc(name)}" {common}/>'
-
-
-def _size(kind: str, size: Any, radius: Any, length: Any) -> str | None:
-    """MJCF's size [m] of a box (half extents), sphere or cylinder (radius, half length)."""
-    if kind == "box":
-        return _f(0.5 * np.asarray(size, float))
-    if kind == "sphere":
-        return repr(float(radius))
-    if kind == "cylinder":
-        return f"{float(radius)!r} {0.5 * float(length)!r}"
     return None
 
 
