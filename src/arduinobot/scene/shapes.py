@@ -136,6 +136,14 @@ class Shape(ABC):
         dimension field; a shape without one: ``data`` as is."""
         return dict(data)
 
+    @classmethod
+    def summary(cls, data: Mapping[str, Any]) -> str:
+        """Its dimensions in words, from its wire form ``data`` (as a listing prints
+        them: ``size 1,1,0.1``)."""
+        return " ".join(f"{k} " + (",".join(f"{x:g}" for x in v) if isinstance(v, list)
+                                   else f"{v:g}")
+                        for k in cls.field_names() if (v := data.get(k)) is not None)
+
     def to_json(self) -> dict[str, Any]:
         """Its dimension fields (tuples as lists), as :meth:`from_json` reads them."""
         return {k: list(v) if isinstance(v, tuple) else v
@@ -402,6 +410,15 @@ class Mesh(Shape):
         out = {k: v for k, v in data.items() if k not in cls.inline}
         out["mesh_path"] = str(mesh.write(folder))
         return out
+
+    @classmethod
+    def summary(cls, data: Mapping[str, Any]) -> str:
+        if "mesh" not in data:  # a file of this machine's
+            return f"mesh file {data.get('mesh_path')}"
+        import base64
+
+        size = len(base64.b64decode(data["mesh"]["data"]))
+        return f"{data['mesh']['format']} mesh, {size} bytes, scale {data.get('scale', 1)}"
 
     @classmethod
     def _checked(cls, name: str, value: object, field: str) -> Any:
