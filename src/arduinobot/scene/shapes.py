@@ -92,11 +92,15 @@ class Shape(ABC):
     cli_form: ClassVar[str | None] = None
     portable: ClassVar[bool] = True
     inline: ClassVar[tuple[str, ...]] = ()
+    has_surface: ClassVar[bool] = False
 
     @classmethod
     def field_names(cls) -> tuple[str, ...]:
         """Its JSON dimension fields, in order."""
-        return tuple(f.name for f in fields(cls))
+        names = _FIELD_NAMES.get(cls)
+        if names is None:  # once a class: dataclasses.fields is slow in a request's loop
+            names = _FIELD_NAMES[cls] = tuple(f.name for f in fields(cls))
+        return names
 
     @classmethod
     def from_json(cls: type[S], data: Mapping[str, Any], *, where: str) -> S:
@@ -151,7 +155,11 @@ class Shape(ABC):
 
     def key(self) -> tuple:
         """What it is as written (kind and dimensions; a mesh: its path)."""
-        return (self.kind, *(getattr(self, k) for k in self.field_names()))
+        key = self.__dict__.get("_key")
+        if key is None:  # built once: a world cache looks up every obstacle's per request
+            key = self.__dict__["_key"] = (self.kind, *[getattr(self, k)
+                                                        for k in self.field_names()])
+        return key
 
     def content_key(self) -> tuple:
         """What its geometry depends on (a mesh: its file's bytes, hashed)."""
@@ -190,7 +198,8 @@ class Shape(ABC):
 
     def surface(self) -> trimesh.Trimesh | None:
         """A closed primitive's surface for distances that must see its inside (FCL
-        reads a point in a primitive solid as touching); None: not needed."""
+        reads a point in a primitive solid as touching); None: not needed (then
+        :attr:`has_surface` is False, read without building anything)."""
         return None
 
     def mjcf(self) -> tuple[str, str] | None:
@@ -199,6 +208,8 @@ class Shape(ABC):
 
 
 _SHAPES: dict[str, type[Shape]] = {}
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}
+_DIMENSIONS: list[frozenset[str]] = [frozenset()]  # every shape's fields, kept by register
 
 
 def register(cls: type[S]) -> type[S]:
@@ -206,6 +217,7 @@ def register(cls: type[S]) -> type[S]:
     if cls.kind in _SHAPES:
         raise ValueError(f"shape kind '{cls.kind}' is registered twice")
     _SHAPES[cls.kind] = cls
+    _DIMENSIONS[0] = _DIMENSIONS[0] | set(cls.field_names())
     return cls
 
 
@@ -224,7 +236,7 @@ def shape_class(kind: object, *, field: str = "shape") -> type[Shape]:
 
 def dimension_fields() -> frozenset[str]:
     """Every dimension field of any registered shape."""
-    return frozenset(f for c in _SHAPES.values() for f in c.field_names())
+    return _DIMENSIONS[0]
 
 
 def of_geometry(geometry: Any) -> Shape | None:
@@ -274,6 +286,7 @@ class Box(Shape):
     size: tuple[float, float, float]
     kind: ClassVar[str] = "box"
     cli_form: ClassVar[str | None] = "sx,sy,sz"
+    has_surface: ClassVar[bool] = True
 
     @classmethod
     def _checked(cls, name: str, value: object, field: str) -> Any:

@@ -140,7 +140,7 @@ class SceneBodies:
             kinds.append(BodyKind.OBSTACLE)
             trees.append(tree)
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-            if o.geometry.surface() is not None:
+            if o.geometry.has_surface:
                 surfaces[len(objs) - 1] = fcl.CollisionObject(
                     robot.shapes.get(("surface", o.geometry.content_key()),
                                      partial(_surface, o)),
