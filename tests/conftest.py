@@ -47,8 +47,8 @@ def desc():
 @pytest.fixture
 def scene_builder(desc, tmp_path):
     """A kept scene's builder for the shipped arm (it can attach and fix objects to links)."""
-    from arduinobot.service.scene.carry import RobotFrames
-    from arduinobot.service.scene.store import SceneBuilder
+    from arduinobot.planner.frames import RobotFrames
+    from arduinobot.scene.state import SceneBuilder
     return SceneBuilder(tuple(desc.robot.links), tmp_path / "meshes", robot=RobotFrames(desc))
 
 

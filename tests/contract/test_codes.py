@@ -29,7 +29,7 @@ NOT_CODES = frozenset({
     "INSTALL_HINT",
     # the model's file format, named in `arduinobot limits` (src/arduinobot/planner/kinematics/applied_limits.py)
     "URDF",
-    # the kept scene (src/arduinobot/service/scene/store.py): its state folder and its object cap
+    # the kept scene (src/arduinobot/scene/state.py): its state folder and its object cap
     "ARDUINOBOT_STATE", "XDG_STATE_HOME", "MAX_SCENE_OBJECTS",
     # `arduinobot check` outcomes (printed, never on the wire)
     "PASS", "WARN", "FAIL", "FAILED",

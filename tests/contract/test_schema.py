@@ -9,7 +9,7 @@ import pytest
 
 from arduinobot.contract import caps, wire
 from arduinobot.contract.errors import InvalidRequest, JointLimitViolation
-from arduinobot.service.plan.requests import joint_values
+from arduinobot.planner.checks import joint_values
 
 
 def test_every_schema_is_a_valid_draft_2020_12_schema():

@@ -75,8 +75,8 @@ def test_set_scene_puts_scene_objects_in_the_world_and_reports_the_carried_conta
 
 def test_the_execute_service_gives_its_twin_the_kept_scene_when_it_changes(case):
     from arduinobot.execution.robots.spec import RobotSpec
+    from arduinobot.scene.state import SceneSnapshot
     from arduinobot.service.execute.execution import ExecuteService
-    from arduinobot.service.scene.store import SceneSnapshot
 
     sim = SimArduinobot(case.d, cache=CACHE)
     svc = ExecuteService(None, "p", case.d, RobotSpec())  # no session: nothing served
@@ -108,8 +108,8 @@ def test_a_blend_gives_the_twin_its_world_at_the_switch_and_the_arm_moves_on(cas
     from arduinobot.execution.segments import SampledTrajectory
     from arduinobot.planner.planning.goals import NamedGoal
     from arduinobot.planner.planning.motion import MotionRequest
+    from arduinobot.scene.state import SceneSnapshot
     from arduinobot.service.execute.twin_scene import TwinScene
-    from arduinobot.service.scene.store import SceneSnapshot
 
     sim = SimArduinobot(case.d, cache=CACHE)
     twin = TwinScene()
@@ -159,8 +159,8 @@ def test_a_blend_gives_the_twin_its_world_at_the_switch_and_the_arm_moves_on(cas
 
 
 def test_a_blend_leaves_a_running_tasks_objects_as_the_twin_has_them(case):
+    from arduinobot.scene.state import SceneSnapshot
     from arduinobot.service.execute.twin_scene import TwinScene
-    from arduinobot.service.scene.store import SceneSnapshot
 
     sim = SimArduinobot(case.d, cache=CACHE)
     twin = TwinScene()

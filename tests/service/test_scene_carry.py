@@ -1,4 +1,4 @@
-"""Attach and detach in the kept scene without a service (arduinobot.service.scene.store with
+"""Attach and detach in the kept scene without a service (arduinobot.scene.state with
 arduinobot.service.scene.carry): an object taken into its link's frame where it is, put down in the
 world where the link holds it, refusals coded with the field and the scene unchanged,
 the file and a restore keep it, plans and checks (and fk) carry it."""
@@ -14,10 +14,10 @@ from scipy.spatial.transform import Rotation
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, JointLimitViolation, PlanningError
+from arduinobot.scene.state import SceneBuilder, SceneState, apply, restore
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.scene.apply import decode_apply
 from arduinobot.service.scene.file import SceneFile
-from arduinobot.service.scene.store import SceneBuilder, SceneState, apply, restore
 from tests.helpers.fk import link_pose
 from tests.helpers.scene_fuzz import carry_seeds, mutate
 

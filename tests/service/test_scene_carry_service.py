@@ -31,7 +31,7 @@ case = pytest.fixture(shipped_case, scope="module", name="case")
 def _box_in_world(case, state) -> dict:
     """The case's box (in its link's frame) as a free object where the link holds it at
     ``state``."""
-    from arduinobot.service.scene.store import rpy_of
+    from arduinobot.description.model import rpy_of
     t = link_pose(case.d.robot, case.link, case.names, case.q(state)) @ case.box.pose()
     return {"id": case.box.id, "shape": "box", "size": list(case.box.size),
             "xyz": t[:3, 3].tolist(), "rpy": rpy_of(t[:3, :3])}

@@ -14,9 +14,9 @@ from arduinobot.client.replies import FkReply
 from arduinobot.contract import wire
 from arduinobot.contract.errors import InvalidRequest, StartInCollision
 from arduinobot.scene.obstacles import rigid_links
+from arduinobot.scene.state import SceneBuilder, SceneState, restore
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.scene.file import SceneFile
-from arduinobot.service.scene.store import SceneBuilder, SceneState, restore
 from tests.helpers.carry import CarryCase
 from tests.helpers.fk import link_pose
 from tests.planner.planning.test_carried import _box_hits

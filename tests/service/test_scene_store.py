@@ -1,5 +1,5 @@
 """The kept scene without a service: meshes, applies (all or nothing), the file, the
-schemas, and plans against a scene (arduinobot.scene.mesh_codec, arduinobot.service.scene.store)."""
+schemas, and plans against a scene (arduinobot.scene.mesh_codec, arduinobot.scene.state)."""
 
 from __future__ import annotations
 
@@ -19,9 +19,7 @@ from arduinobot.scene.mesh_codec import (
     MAX_MESH_TRIANGLES,
     decode_mesh,
 )
-from arduinobot.service.scene.apply import MAX_APPLY_PAYLOAD, decode_apply
-from arduinobot.service.scene.file import SceneFile
-from arduinobot.service.scene.store import (
+from arduinobot.scene.state import (
     MAX_SCENE_OBJECTS,
     SceneBuilder,
     SceneSnapshot,
@@ -30,6 +28,8 @@ from arduinobot.service.scene.store import (
     restore,
     with_scene,
 )
+from arduinobot.service.scene.apply import MAX_APPLY_PAYLOAD, decode_apply
+from arduinobot.service.scene.file import SceneFile
 from tests.helpers.scene_fuzz import binary_stl as _binary_stl
 from tests.helpers.scene_fuzz import junk_mesh as _junk_mesh
 from tests.helpers.scene_fuzz import mutate as _mutate

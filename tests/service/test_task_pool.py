@@ -21,11 +21,11 @@ from arduinobot.client import errors
 from arduinobot.contract import wire
 from arduinobot.description import load_description
 from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service.messages import HELD_SCENE, Done, JobMsg, Stop, Success, TakenMark
 from arduinobot.service.process.slot import Slot
 from arduinobot.service.process.worker import DEFAULT_PLANNING_TIME, job_deadline, serve_jobs
 from arduinobot.service.process.zygote import WorkerProcess
-from arduinobot.service.scene.store import SceneSnapshot
 from tests.helpers.fk import link_pose
 from tests.helpers.serve import start_server
 

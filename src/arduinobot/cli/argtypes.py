@@ -12,10 +12,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from arduinobot.scene.shapes import kinds, shape_class
+
 #: joint values as given: positional (in the model's order) or by name
 JointValues = tuple[float, ...] | dict[str, float]
 
-_OBSTACLE_FORMS = "box:ID:sx,sy,sz@x,y,z[@r,p,y], sphere:ID:r@x,y,z or cylinder:ID:r,l@x,y,z"
+_FORMS = [f"{k}:ID:{c.cli_form}@x,y,z" for k in kinds()
+          if (c := shape_class(k)).cli_form is not None]
+_FORMS[0] += "[@r,p,y]"
+_OBSTACLE_FORMS = ", ".join(_FORMS[:-1]) + " or " + _FORMS[-1]
 
 
 class UsageError(Exception):
@@ -139,20 +144,18 @@ def _too_many(values: Sequence[float], names: Sequence[str], order: Sequence[str
 
 
 def obstacle(text: str) -> dict[str, Any]:
-    """``box:ID:sx,sy,sz@x,y,z[@r,p,y]``, ``sphere:ID:r@...``, ``cylinder:ID:r,l@...`` as
-    the service's obstacle object (sizes and positions [m], rpy [rad])."""
+    """``box:ID:sx,sy,sz@x,y,z[@r,p,y]``, ``sphere:ID:r@...``, ``cylinder:ID:r,l@...`` (each
+    shape with a numeric form, :attr:`arduinobot.scene.shapes.Shape.cli_form`) as the
+    service's obstacle object (sizes and positions [m], rpy [rad])."""
     head, *poses = text.split("@")
     parts = head.split(":")
-    if len(parts) != 3 or parts[0] not in ("box", "sphere", "cylinder") or len(poses) > 2:
+    if len(parts) != 3 or parts[0] not in kinds() or len(poses) > 2 \
+            or (cls := shape_class(parts[0])).cli_form is None:
         raise argparse.ArgumentTypeError(f"'{text}' must be {_OBSTACLE_FORMS}")
     shape, oid, dims = parts
     o: dict[str, Any] = {"id": oid, "shape": shape}
-    if shape == "box":
-        o["size"] = _floats(dims, 3, "size ")
-    elif shape == "sphere":
-        o["radius"] = _floats(dims, 1, "radius ")[0]
-    else:
-        o["radius"], o["length"] = _floats(dims, 2, "radius,length ")
+    count = len((cls.cli_form or "").split(","))
+    o.update(cls.json_of_numbers(_floats(dims, count, f"{','.join(cls.field_names())} ")))
     for key, pose in zip(("xyz", "rpy"), poses):
         o[key] = _floats(pose, 3, f"{key} ")
     return o

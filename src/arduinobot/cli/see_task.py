@@ -121,9 +121,5 @@ def with_seen(body: dict[str, Any], seen: Seen) -> dict[str, Any]:
 
 
 def _unpadded(o: Obstacle, pad: float) -> Obstacle:
-    from dataclasses import replace
-    if o.shape == "box":
-        assert o.size is not None
-        return replace(o, size=(o.size[0] - 2 * pad, o.size[1] - 2 * pad, o.size[2] - 2 * pad))
-    return replace(o, radius=float(o.radius or 0) - pad,
-                   length=None if o.length is None else o.length - 2 * pad)
+    """``o`` without the padding ``pad`` [m] its detection put on it."""
+    return Obstacle(o.id, o.geometry.grown(-pad), xyz=o.xyz, rpy=o.rpy)

@@ -20,13 +20,13 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
+from arduinobot.description.model import rpy_of as rpy_of_matrix
 from arduinobot.perception.camera import CameraFrame, camera_frame
 from arduinobot.perception.detect import MarkerView, find_markers, marker_pose
 from arduinobot.perception.errors import MarkerRefused, NoMarker, UnknownMarker
 from arduinobot.perception.image import ImageFormat, decode_gray
 from arduinobot.perception.intrinsics import Intrinsics
 from arduinobot.perception.markers import MarkedObject, MarkerMap
-from arduinobot.planner.kinematics.rotations import rpy_of_matrix
 from arduinobot.scene.obstacles import Obstacle
 
 log = logging.getLogger(__name__)

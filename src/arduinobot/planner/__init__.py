@@ -15,6 +15,8 @@ numba or toppra.
 - ``checks``: the request checks every layer shares (joint names, position limits).
 - ``path_limits``: the limits a time parameterisation works to, torque along a curve.
 - ``cache``: artifacts kept between runs, keyed by the content they came from.
+- ``frames``: the robot's link poses and contacts for the scene's attach and detach
+  (:class:`~arduinobot.scene.frames.Frames` on the planner's kinematics and bodies).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ everywhere, with the same field.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -62,3 +62,28 @@ def check_positions(names: Sequence[str], values: Iterable[float], limits: np.nd
         if not lo - LIMIT_TOL <= v <= hi + LIMIT_TOL:
             raise JointLimitViolation(name, float(v), float(lo), float(hi),
                                       field=f"{field}.{name}")
+
+
+def joint_values(description: Description, values: Mapping[str, float] | None, *,
+                 field: str) -> dict[str, float]:
+    """Check a ``{joint: value}`` map: actuated joints only, within position limits.
+
+    Args:
+        values: joint values [rad]; ``None`` is an empty map.
+        field: the request field named in errors (``start``, ``goal.joints``).
+
+    Returns:
+        Every actuated joint's value in actuated-joint order, 0 for a joint missing from
+        ``values``.
+
+    Raises:
+        InvalidRequest: an unknown joint, a fixed joint, or a mimic joint (naming its leader).
+        JointLimitViolation: a value outside the joint's position limits.
+    """
+    actuated = description.robot.actuated_joints
+    values = dict(values or {})
+    check_joint_names(description, values, field=field)
+    names = [n for n in actuated if n in values]
+    check_positions(names, [float(values[n]) for n in names],
+                    description.robot.position_limits(tuple(names)), field=field)
+    return {n: float(values.get(n, 0.0)) for n in actuated}

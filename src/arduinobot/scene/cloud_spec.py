@@ -20,7 +20,7 @@ from typing import Any
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.scene.cloud import DecodedPoints, UnknownSpace, check_resolution, decode_points
 from arduinobot.scene.cloud_filter import DEFAULT_PADDING
-from arduinobot.scene.obstacles import _finite_vec
+from arduinobot.scene.obstacles import finite_vec
 
 KEYS = frozenset({"id", "shape", "points", "resolution", "frame", "xyz", "rpy", "padding",
                   "unknown", "camera"})
@@ -108,6 +108,6 @@ def _placement(data: Mapping[str, Any], link_names: Sequence[str], where: str, *
         raise InvalidRequest(f"{frame!r} is neither 'world' nor a link of the robot",
                              field=f"{where}.{frame_key}",
                              details={"links": sorted(link_names)})
-    x, y, z = _finite_vec(data.get("xyz", (0.0, 0.0, 0.0)), 3, f"{where}.xyz")
-    r, p, w = _finite_vec(data.get("rpy", (0.0, 0.0, 0.0)), 3, f"{where}.rpy")
+    x, y, z = finite_vec(data.get("xyz", (0.0, 0.0, 0.0)), 3, f"{where}.xyz")
+    r, p, w = finite_vec(data.get("rpy", (0.0, 0.0, 0.0)), 3, f"{where}.rpy")
     return Placement(frame, (x, y, z), (r, p, w))

@@ -10,7 +10,7 @@ hull for the collision world's bounds). Each refusal is an
 
 The canonical file is the scaled mesh as binary STL named by the SHA-256 of its bytes, so
 an obstacle's ``mesh_path`` is its content key: the planner's world cache
-(``arduinobot.planner.planning.pipeline._obstacle_key``) then reuses a world for the same geometry
+(:meth:`arduinobot.scene.obstacles.Obstacle.key`) then reuses a world for the same geometry
 and builds a new one for new geometry, whatever the object's id.
 """
 

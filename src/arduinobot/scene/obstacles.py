@@ -1,4 +1,5 @@
-"""Scene obstacles: boxes, spheres, cylinders and meshes placed in the world frame.
+"""Scene obstacles (shapes, :mod:`.shapes`, placed in the world frame) and the objects
+the robot carries.
 
 An :class:`Obstacle` is validated when it is built, so a bad request fails with the
 field that is wrong (``obstacles[2].size``) before any collision object exists.
@@ -7,102 +8,91 @@ field that is wrong (``obstacles[2].size``) before any collision object exists.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Literal, SupportsFloat, SupportsIndex, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description.model import Origin
+from arduinobot.scene.shapes import Shape, dimension_fields, finite_vec, shape_class
 
 if TYPE_CHECKING:  # numba: not for a client that only parses obstacles
     from arduinobot.planner.kinematics.dynamics import Payload
 
-ShapeKind = Literal["box", "sphere", "cylinder", "mesh"]
-_KINDS = ("box", "sphere", "cylinder", "mesh")
-
-
-def _finite_vec(value: object, n: int, field: str, *, positive: bool = False) -> tuple[float, ...]:
-    if not isinstance(value, Iterable):
-        raise InvalidRequest(f"{value!r} must be {n} numbers", field=field)
-    try:
-        vec = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        raise InvalidRequest(f"{value!r} must be {n} numbers", field=field) from None
-    if len(vec) != n or not all(math.isfinite(v) for v in vec):
-        raise InvalidRequest(f"{value!r} must be {n} finite numbers", field=field)
-    if positive and any(v <= 0 for v in vec):
-        raise InvalidRequest(f"{value!r} must be > 0 [m]", field=field)
-    return vec
-
-
-def _positive(value: object, field: str) -> float:
-    if not isinstance(value, (str, SupportsFloat, SupportsIndex)):  # what float() takes
-        raise InvalidRequest(f"{value!r} is not a number", field=field)
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidRequest(f"{value!r} is not a number", field=field) from None
-    if not math.isfinite(v) or v <= 0:
-        raise InvalidRequest(f"{value!r} must be a finite number > 0 [m]", field=field)
-    return v
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Obstacle:
-    """One obstacle of the scene.
+    """One obstacle of the scene: a shape placed in the world frame.
+
+    Built as ``Obstacle("table", "box", size=(1, 1, 0.1), xyz=...)`` (the shape's name and
+    its dimension fields, :mod:`.shapes`) or ``Obstacle("table", Box((1, 1, 0.1)))``; its
+    dimensions read through it (``o.size``; None when its shape has no such field).
 
     Attributes:
         id: a unique name, used in colliding pairs (``("horizontal_arm", "table")``).
-        shape: box, sphere, cylinder or mesh.
-        size: box edge lengths (x, y, z) [m], centred on the pose.
-        radius: sphere or cylinder radius [m].
-        length: cylinder length along its z axis [m], centred on the pose.
-        mesh_path: a mesh file (STL, OBJ, ...) in metres, in the obstacle frame.
+        geometry: its shape (:class:`.shapes.Shape`), in the obstacle's frame.
         xyz: position [m] in the world frame.
         rpy: URDF roll-pitch-yaw [rad].
         where: the field prefix named in errors (e.g. ``obstacles[2]``).
     """
 
     id: str
-    shape: ShapeKind
-    size: tuple[float, float, float] | None = None
-    radius: float | None = None
-    length: float | None = None
-    mesh_path: str | None = None
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    where: str = "obstacle"
+    geometry: Shape
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    where: str
 
-    def __post_init__(self) -> None:
-        w = self.where
-        if not isinstance(self.id, str) or not self.id:
+    def __init__(self, id: str, shape: str | Shape | None = None, *,
+                 xyz: Sequence[float] = (0.0, 0.0, 0.0), rpy: Sequence[float] = (0.0, 0.0, 0.0),
+                 where: str = "obstacle", geometry: Shape | None = None, **dims: object) -> None:
+        w = where
+        if not isinstance(id, str) or not id:
             raise InvalidRequest("must be a non-empty string", field=f"{w}.id")
-        if self.shape not in _KINDS:
-            raise InvalidRequest(f"'{self.shape}' is not one of {', '.join(_KINDS)}",
-                                 field=f"{w}.shape")
+        given = geometry if geometry is not None else shape
+        cls = type(given) if isinstance(given, Shape) else shape_class(given, field=f"{w}.shape")
         set_ = object.__setattr__
-        set_(self, "xyz", _finite_vec(self.xyz, 3, f"{w}.xyz"))
-        set_(self, "rpy", _finite_vec(self.rpy, 3, f"{w}.rpy"))
-        if self.shape == "box":
-            if self.size is None:
-                raise InvalidRequest("a box needs size (x, y, z) [m]", field=f"{w}.size")
-            set_(self, "size", _finite_vec(self.size, 3, f"{w}.size", positive=True))
-        elif self.shape == "sphere":
-            set_(self, "radius", _positive(self.radius, f"{w}.radius"))
-        elif self.shape == "cylinder":
-            set_(self, "radius", _positive(self.radius, f"{w}.radius"))
-            set_(self, "length", _positive(self.length, f"{w}.length"))
+        set_(self, "id", id)
+        set_(self, "xyz", finite_vec(xyz, 3, f"{w}.xyz"))
+        set_(self, "rpy", finite_vec(rpy, 3, f"{w}.rpy"))
+        set_(self, "where", where)
+        if isinstance(given, Shape):
+            if dims:
+                raise InvalidRequest(f"unknown field(s) {', '.join(sorted(dims))}", field=w)
+            set_(self, "geometry", given)
         else:
-            if not self.mesh_path or not Path(self.mesh_path).is_file():
-                raise InvalidRequest(f"mesh file {self.mesh_path!r} does not exist",
-                                     field=f"{w}.mesh_path")
+            set_(self, "geometry", cls.from_json(
+                {k: v for k, v in dims.items() if v is not None}, where=w))
+
+    def __getattr__(self, name: str) -> Any:
+        # a shape's dimension read through the obstacle (o.size); only called when normal
+        # lookup failed, so never for id, geometry, xyz, rpy (guarded while unpickling)
+        if name.startswith("_") or "geometry" not in self.__dict__:
+            raise AttributeError(name)
+        g = self.__dict__["geometry"]
+        if name in g.field_names():
+            return getattr(g, name)
+        if name in dimension_fields():
+            return None
+        raise AttributeError(f"'Obstacle' object has no attribute '{name}'")
+
+    @property
+    def shape(self) -> str:
+        """Its shape's name (``box``, ``sphere``, ...)."""
+        return self.geometry.kind
 
     def pose(self) -> np.ndarray:
         """The obstacle's pose in the world frame, shape (4, 4)."""
         return Origin(xyz=self.xyz, rpy=self.rpy).matrix()
+
+    def key(self) -> tuple:
+        """What it is and where (``where`` only names fields in errors)."""
+        return (self.id, self.geometry.key(), self.xyz, self.rpy)
+
+    def to_json(self) -> dict[str, Any]:
+        """The requests' form (plan_request.json's ``obstacles``)."""
+        return {"id": self.id, "shape": self.shape, **self.geometry.to_json(),
+                "xyz": list(self.xyz), "rpy": list(self.rpy)}
 
     @classmethod
     def from_mapping(cls, data: object, *, where: str = "obstacle") -> Obstacle:
@@ -110,14 +100,18 @@ class Obstacle:
         refused with InvalidRequest."""
         if not isinstance(data, Mapping):
             raise InvalidRequest("must be an object", field=where)
-        known = {"id", "shape", "size", "radius", "length", "mesh_path", "xyz", "rpy"}
-        extra = sorted(set(data) - known)
-        if extra:
-            raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
         for key in ("id", "shape"):
             if key not in data:
                 raise InvalidRequest("is required", field=f"{where}.{key}")
+        extra = sorted(set(data) - _PLACED - dimension_fields())
+        if extra:
+            raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
         return cls(where=where, **{k: v for k, v in data.items()})
+
+    from_json = from_mapping
+
+
+_PLACED = frozenset({"id", "shape", "xyz", "rpy"})  # an obstacle's own fields; the rest: its shape's
 
 
 def validate_obstacles(obstacles: Sequence[Obstacle], *,
@@ -135,33 +129,6 @@ def validate_obstacles(obstacles: Sequence[Obstacle], *,
             raise InvalidRequest(f"id '{o.id}' is also a link name", field=f"obstacles[{i}].id")
         seen.add(o.id)
     return tuple(obstacles)
-
-
-def _box_unit(size: np.ndarray) -> np.ndarray:
-    x, y, z = np.asarray(size, float) ** 2
-    return np.diag([y + z, x + z, x + y]) / 12.0
-
-
-def _unit_inertia(o: Obstacle) -> tuple[np.ndarray, np.ndarray]:
-    """A shape's centroid (its frame) and its inertia per kg about it [m^2], as a uniform
-    solid."""
-    if o.shape == "box":
-        return np.zeros(3), _box_unit(np.asarray(o.size))
-    if o.shape == "sphere":
-        assert o.radius is not None  # Obstacle checks every shape's dimensions
-        return np.zeros(3), np.eye(3) * 0.4 * o.radius ** 2
-    if o.shape == "cylinder":
-        assert o.radius is not None and o.length is not None
-        r2, l2 = o.radius ** 2, o.length ** 2
-        return np.zeros(3), np.diag([(3 * r2 + l2) / 12, (3 * r2 + l2) / 12, r2 / 2])
-    import trimesh  # only a mesh needs it
-
-    mesh = cast(trimesh.Trimesh, trimesh.load(o.mesh_path, force="mesh"))
-    if mesh.is_watertight and mesh.volume > 0:
-        return (np.asarray(mesh.center_mass, float),
-                np.asarray(mesh.moment_inertia, float) / float(mesh.mass))
-    lo, hi = mesh.bounds
-    return (lo + hi) / 2, _box_unit(hi - lo)
 
 
 @dataclass(frozen=True)
@@ -195,7 +162,7 @@ class AttachedObject:
             raise InvalidRequest(f"{self.mass!r} must be a finite mass >= 0 [kg]",
                                  field=f"{self.where}.mass")
         if self.com is not None:
-            object.__setattr__(self, "com", _finite_vec(self.com, 3, f"{self.where}.com"))
+            object.__setattr__(self, "com", finite_vec(self.com, 3, f"{self.where}.com"))
 
     @property
     def id(self) -> str:
@@ -207,7 +174,7 @@ class AttachedObject:
         box's), all in the link's frame, for :meth:`.InverseDynamics.with_payloads`."""
         from arduinobot.planner.kinematics.dynamics import Payload
 
-        centroid, inertia = _unit_inertia(self.shape)
+        centroid, inertia = self.shape.geometry.unit_inertia()
         pose = self.shape.pose()
         rot = pose[:3, :3]
         com = np.asarray(self.com, float) if self.com is not None \
@@ -219,15 +186,12 @@ class AttachedObject:
 
     def shape_key(self) -> tuple:
         """What its geometry and placement are (``where`` only names fields in errors)."""
-        o = self.shape
-        return (o.id, o.shape, o.size, o.radius, o.length, o.mesh_path, o.xyz, o.rpy,
-                self.link, self.touch_links)
+        return (self.shape.key(), self.link, self.touch_links)
 
     def payload_key(self) -> tuple:
         """What its inverse dynamics depends on."""
         o = self.shape
-        return (self.link, self.mass, self.com, o.shape, o.size, o.radius, o.length,
-                o.mesh_path, o.xyz, o.rpy)
+        return (self.link, self.mass, self.com, o.geometry.key(), o.xyz, o.rpy)
 
     @classmethod
     def from_mapping(cls, data: object, *, where: str = "attached") -> AttachedObject:
@@ -254,13 +218,7 @@ class AttachedObject:
 
     def to_mapping(self) -> dict:
         """The wire format (see :meth:`from_mapping`)."""
-        o = self.shape
-        obj: dict = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz), "rpy": list(o.rpy)}
-        for k in ("size", "radius", "length", "mesh_path"):
-            v = getattr(o, k)
-            if v is not None:
-                obj[k] = list(v) if isinstance(v, tuple) else v
-        out: dict = {"object": obj, "link": self.link, "touch_links": list(self.touch_links),
+        out: dict = {"object": self.shape.to_json(), "link": self.link, "touch_links": list(self.touch_links),
                      "mass": self.mass}
         if self.com is not None:
             out["com"] = list(self.com)

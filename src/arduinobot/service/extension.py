@@ -20,7 +20,7 @@ from arduinobot.description import Description
 from arduinobot.service.messages import Submit, SubmitPlan
 
 if TYPE_CHECKING:
-    from arduinobot.service.scene.store import SceneSnapshot
+    from arduinobot.scene.state import SceneSnapshot
 
 
 @dataclass(frozen=True)

@@ -15,12 +15,12 @@ from arduinobot.contract import wire
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
 from arduinobot.planner.cache import ArtifactCache
+from arduinobot.planner.frames import RobotFrames
+from arduinobot.scene.state import SceneBuilder, SceneSnapshot, restore
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.process.disk_cache import DiskCache
-from arduinobot.service.scene.carry import RobotFrames
 from arduinobot.service.scene.file import SceneFile
-from arduinobot.service.scene.store import SceneBuilder, SceneSnapshot, restore
 
 #: the ``request_id`` of every local reply (a worker puts its job id there)
 LOCAL_REQUEST_ID = "local"

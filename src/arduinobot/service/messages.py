@@ -99,7 +99,7 @@ class JobMsg:
     kind: str
     payload: bytes | str | Mapping[str, Any]
     base_deadline: float
-    #: the kept scene the request is answered against (:class:`arduinobot.service.scene.store.SceneSnapshot`),
+    #: the kept scene the request is answered against (:class:`arduinobot.scene.state.SceneSnapshot`),
     #: or :data:`HELD_SCENE`: the one this worker was sent last (a kept scene of 20
     #: primitives is 2.7 KB pickled, ~60 us to pickle and unpickle: sent once per worker
     #: and revision, not with every job)

@@ -23,6 +23,7 @@ import zenoh
 from arduinobot.contract import wire
 from arduinobot.contract.errors import PlanningError, ShuttingDown
 from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
+from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service import hoptrace
 from arduinobot.service.extension import Extension, Host
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
@@ -34,7 +35,6 @@ from arduinobot.service.process.pool import WorkerPool
 from arduinobot.service.process.worker import DescriptionSpec
 from arduinobot.service.queries import guarded, reply_failure
 from arduinobot.service.scene.carry import PooledFrames
-from arduinobot.service.scene.store import SceneSnapshot
 from arduinobot.service.scene.sync import SceneService
 from arduinobot.service.task.task_service import task_extension
 

@@ -8,14 +8,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import trimesh
 
 from arduinobot.description import Description
-from arduinobot.description.meshes import concatenate, load_mesh, primitive_mesh, shape_mesh
-from arduinobot.description.model import Geometry
+from arduinobot.description.meshes import concatenate, load_mesh, shape_mesh
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.scene.obstacles import Obstacle
 
@@ -81,11 +79,11 @@ def link_meshes(description: Description, kin: Kinematics) -> tuple[LinkMesh, ..
 
 
 def obstacle_mesh(obstacle: Obstacle) -> trimesh.Trimesh:
-    """An obstacle's triangles in its own frame [m]."""
-    if obstacle.shape == "mesh":
-        return load_mesh(Path(obstacle.mesh_path or ""), element=f"obstacle '{obstacle.id}'")
-    return primitive_mesh(Geometry(kind=obstacle.shape, size=obstacle.size,
-                                   radius=obstacle.radius, length=obstacle.length))
+    """An obstacle's triangles in its own frame [m] (a file: loaded once, as a link's)."""
+    source = obstacle.geometry.source
+    if source is not None:
+        return load_mesh(source, element=f"obstacle '{obstacle.id}'")
+    return obstacle.geometry.triangles()
 
 
 def world_bounds(meshes: Sequence[LinkMesh], poses: np.ndarray,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict
 from typing import TYPE_CHECKING, Protocol
 
 from arduinobot.contract.errors import InvalidRequest
@@ -73,12 +72,12 @@ class RemoteBackend:
     def __init__(self, endpoint: str, *, obstacles: Sequence[Obstacle] = (),
                  prefix: str = "arduinobot") -> None:
         """Raises:
-            InvalidRequest: a mesh obstacle (the service's requests carry only boxes,
-                spheres and cylinders: a mesh file's path means nothing to it)."""
+            InvalidRequest: an obstacle whose shape means nothing to another process
+                (a mesh file's path: :attr:`arduinobot.scene.shapes.Shape.portable`)."""
         for i, o in enumerate(obstacles):
-            if o.shape == "mesh":
+            if not o.geometry.portable:
                 raise InvalidRequest(
-                    f"'{o.id}' is a mesh: the service takes boxes, spheres and cylinders "
+                    f"'{o.id}' is a {o.shape}: the service takes boxes, spheres and cylinders "
                     "(plan without --connect to plan around it in this process)",
                     field=f"obstacles[{i}].shape")
         self.endpoint, self.prefix = endpoint, prefix
@@ -104,7 +103,5 @@ class RemoteBackend:
 
 
 def obstacle_json(o: Obstacle) -> dict:
-    """An obstacle in the service's wire format: the fields that are set (but ``where``,
-    the prefix its errors name), tuples as lists."""
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(o).items()
-            if v is not None and k != "where"}
+    """An obstacle in the service's wire format."""
+    return o.to_json()

@@ -2,7 +2,7 @@
 (``arduinobot scene save``), read into triangles and poses (free objects in the world,
 carried objects on their link) and into what the page's collision check takes.
 
-The objects are read by the service's own reader (:func:`arduinobot.service.scene.store.restore`),
+The objects are read by the service's own reader (:func:`arduinobot.scene.state.restore`),
 so the viewer draws a mesh from the same bytes, scale and checks the planner uses, and
 refuses what the service would. Pure numpy/trimesh: tested without a browser.
 """
@@ -93,9 +93,9 @@ class ViewerScene:
             arduinobot.contract.errors.InvalidRequest: naming the object's field (``objects[2].size``,
                 ``attached[0]``: a link this model does not have).
         """
+        from arduinobot.planner.frames import RobotFrames
+        from arduinobot.scene.state import SceneBuilder, restore
         from arduinobot.service.process.disk_cache import DiskCache
-        from arduinobot.service.scene.carry import RobotFrames
-        from arduinobot.service.scene.store import SceneBuilder, restore
 
         folder = Path(mesh_dir) if mesh_dir is not None else DiskCache().root / "meshes"
         builder = SceneBuilder(tuple(description.robot.links), folder,

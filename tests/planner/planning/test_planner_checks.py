@@ -8,7 +8,7 @@ import pytest
 
 from arduinobot.contract.errors import GoalOutOfReach, InvalidRequest, JointLimitViolation
 from arduinobot.description import load_description
-from arduinobot.planner.checks import LIMIT_TOL, check_joint_names, check_positions
+from arduinobot.planner.checks import LIMIT_TOL, check_joint_names, check_positions, joint_values
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik import position_ik
@@ -16,7 +16,6 @@ from arduinobot.planner.planning.goal_states import resolve_goal
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.motion import MotionRequest
 from arduinobot.planner.planning.paths import PathRequest
-from arduinobot.service.plan.requests import joint_values
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ from typing import Any
 from arduinobot.cli.argtypes import UsageError, joint_values, json_object, numbers, obstacle
 from arduinobot.cli.commands import scene_see
 from arduinobot.cli.common import EXIT_OK, add_connection_args, client, joints_by_name, wrote
+from arduinobot.scene.shapes import shape_class
 
 _POSE_HELP = ("X,Y,Z or X,Y,Z,ROLL,PITCH,YAW in the world frame (or --frame's) [m, rad] "
               "(default 0)")
@@ -257,14 +258,6 @@ def _print(scene: dict[str, Any]) -> None:
 
 
 def _line(o: dict[str, Any]) -> str:
-    if o["shape"] == "box":
-        dims = "size " + ",".join(f"{v:g}" for v in o["size"])
-    elif o["shape"] == "sphere":
-        dims = f"radius {o['radius']:g}"
-    elif o["shape"] == "cylinder":
-        dims = f"radius {o['radius']:g} length {o['length']:g}"
-    else:
-        size = len(base64.b64decode(o["mesh"]["data"]))
-        dims = f"{o['mesh']['format']} mesh, {size} bytes, scale {o.get('scale', 1)}"
+    dims = shape_class(o["shape"]).summary(o)
     xyz = ",".join(f"{v:g}" for v in o.get("xyz", (0, 0, 0)))
     return f"{o['id']:<20} {o['shape']:<8} {dims}  @ {xyz}"

@@ -36,6 +36,8 @@ import numpy as np
 
 from arduinobot.description.model import Joint, Robot, Shape, rpy_matrix
 from arduinobot.planner.cache import ArtifactCache, content_key
+from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.shapes import of_geometry
 
 #: told what is being built, for a user waiting on a first twin: ``progress(message)``
 Progress = Callable[[str], None]
@@ -141,9 +143,12 @@ def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | Non
     g = shape.geometry
     pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
     common = f'{pose} contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4" mass="0"'
-    if g.kind == "mesh":
-        if g.path is None:
-            return None
+    prim = of_geometry(g)
+    if prim is not None:  # a primitive
+        geom = prim.mjcf()
+        return None if geom is None else \
+            f'<geom type="{geom[0]}" size="{geom[1]}" name="{_esc(name)}" {common}/>'
+    if g.path is not None:
         out = []
         for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS,
                                                cache=cache, progress=progress)):
@@ -151,57 +156,42 @@ def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | Non
             out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
                        f'{common}/>')
         return " ".join(out)
-    size = _size(g.kind, g.size, g.radius, g.length)
-    return None if size is None else \
-        f'<geom type="{g.kind}" size="{size}" name="{_esc(name)}" {common}/>'
-
-
-def _size(kind: str, size: Any, radius: Any, length: Any) -> str | None:
-    """MJCF's size [m] of a box (half extents), sphere or cylinder (radius, half length)."""
-    if kind == "box":
-        return _f(0.5 * np.asarray(size, float))
-    if kind == "sphere":
-        return repr(float(radius))
-    if kind == "cylinder":
-        return f"{float(radius)!r} {0.5 * float(length)!r}"
     return None
 
 
-def obstacle_geoms(obstacles: Sequence[Mapping[str, Any]], *,
+def obstacle_geoms(obstacles: Sequence[Mapping[str, Any] | Obstacle], *,
                    assets: list[str] | None = None, cache: ArtifactCache | None = None,
                    progress: Progress | None = None, prefix: str = "obstacle",
                    extra: str = "") -> list[str]:
-    """Geoms for plain obstacles (``{"id", "shape", "size"|"radius"|"length", "xyz",
-    "rpy"}``, the plan request's form, or a mesh file as ``"mesh_path"``, in metres: the
-    kept scene's form) [m, rad], named ``<prefix>:<id>``; a mesh's convex pieces go to
-    ``assets`` (needed for a mesh)."""
+    """Geoms for plain obstacles (:class:`Obstacle`, or one in the plan request's form, a
+    mesh file as ``"mesh_path"`` in metres: the kept scene's form), named
+    ``<prefix>:<id>``; a shape without an MJCF primitive (a mesh) as convex pieces of its
+    file, which go to ``assets`` (needed then)."""
     out = []
-    for o in obstacles:
-        pose = (f'pos="{_f(o.get("xyz", (0, 0, 0)))}" '
-                f'quat="{_quat(rpy_matrix(tuple(o.get("rpy", (0, 0, 0)))))}"')
-        name = _esc(f'{prefix}:{o["id"]}')
+    for i, form in enumerate(obstacles):
+        o = obstacle_form(form, where=f"obstacles[{i}]")
+        pose = f'pos="{_f(o.xyz)}" quat="{_quat(rpy_matrix(o.rpy))}"'
+        name = _esc(f'{prefix}:{o.id}')
         common = f'{pose} contype="1" conaffinity="1" rgba="0.3 0.6 0.9 0.5"{extra}'
-        if o["shape"] == "mesh" and o.get("mesh_path") and assets is not None:
-            for i, vs in enumerate(mesh_parts(Path(o["mesh_path"]), (1.0, 1.0, 1.0),
-                                              COLLISION_PARTS, cache=cache, progress=progress)):
-                assets.append(f'<mesh name="{name}/{i}" vertex="{_f(vs)}"/>')
-                out.append(f'<geom name="{name}/{i}" type="mesh" mesh="{name}/{i}" {common}/>')
+        geom = o.geometry.mjcf()
+        if geom is not None:
+            out.append(f'<geom name="{name}" type="{geom[0]}" size="{geom[1]}" {common}/>')
             continue
-        size = _size(o["shape"], o.get("size"), o.get("radius"), o.get("length"))
-        if size is None:
-            raise ValueError(f"obstacle shape {o['shape']!r} is not box, sphere, cylinder "
-                             "or a mesh file")
-        out.append(f'<geom name="{name}" type="{o["shape"]}" size="{size}" {common}/>')
+        source = o.geometry.source  # its convex pieces, as a link's mesh
+        if source is None or assets is None:
+            raise ValueError(f"obstacle '{o.id}' ({o.shape}) needs assets and a file for "
+                             "its convex pieces")
+        for j, vs in enumerate(mesh_parts(source, (1.0, 1.0, 1.0), COLLISION_PARTS,
+                                          cache=cache, progress=progress)):
+            assets.append(f'<mesh name="{name}/{j}" vertex="{_f(vs)}"/>')
+            out.append(f'<geom name="{name}/{j}" type="mesh" mesh="{name}/{j}" {common}/>')
     return out
 
 
-def obstacle_form(o: Any) -> dict[str, Any]:
-    """A :class:`arduinobot.scene.obstacles.Obstacle` (or a mapping, kept) as :func:`obstacle_geoms`
-    takes it."""
-    if isinstance(o, Mapping):
-        return dict(o)
-    return {k: getattr(o, k) for k in ("id", "shape", "size", "radius", "length",
-                                       "mesh_path", "xyz", "rpy")}
+def obstacle_form(o: Any, *, where: str = "obstacle") -> Obstacle:
+    """An :class:`arduinobot.scene.obstacles.Obstacle` as is, or one in the requests' form
+    (a mapping) as one."""
+    return o if isinstance(o, Obstacle) else Obstacle.from_mapping(o, where=where)
 
 
 def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
@@ -217,7 +207,7 @@ def carried_body(a: Any, assets: list[str], cache: ArtifactCache | None,
         t = np.asarray(p.inertia, float)
         lines.append(f'  <inertial pos="{_f(p.com)}" mass="{p.mass!r}" fullinertia="'
                      f'{_f([t[0, 0], t[1, 1], t[2, 2], t[0, 1], t[0, 2], t[1, 2]])}"/>')
-    lines += ["  " + g for g in obstacle_geoms([obstacle_form(a.shape)], assets=assets,
+    lines += ["  " + g for g in obstacle_geoms([a.shape], assets=assets,
                                                 cache=cache, progress=progress,
                                                 prefix=prefix, extra=' mass="0"')]
     lines.append("</body>")
@@ -277,7 +267,7 @@ def loose_body(a: Any, assets: list[str], cache: ArtifactCache | None,
 
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
-            obstacles: Sequence[Mapping[str, Any]] = (),
+            obstacles: Sequence[Mapping[str, Any] | Obstacle] = (),
             attached: Sequence[Any] = (), loose: Sequence[Any] = (),
             cache: ArtifactCache | None = None, progress: Progress | None = None) -> str:
     """The MJCF text of ``robot`` (see the module doc).
@@ -285,7 +275,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     Args:
         gains: per actuated joint.
         excluded: link pairs whose contacts are ignored (besides parent/child pairs).
-        obstacles: world obstacles, as in a plan request (or :func:`obstacle_form`'s).
+        obstacles: world obstacles, as in a plan request, or :class:`Obstacle` objects.
         attached: carried objects (:class:`arduinobot.scene.obstacles.AttachedObject`, touch links
             resolved), each welded inside its link.
         loose: objects free in the world (:func:`loose_body`, touch links resolved), each
@@ -339,7 +329,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
                for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
     eq = [f"    {e}" for e in _mimic_equalities(robot)]
     act = [f"    {e}" for e in _actuators(robot, gains)]
-    world = obstacle_geoms([obstacle_form(o) for o in obstacles], assets=assets, cache=cache,
+    world = obstacle_geoms(obstacles, assets=assets, cache=cache,
                            progress=progress)
     free = [line for a in loose for line in loose_body(a, assets, cache, progress)]
     parts = [f'<mujoco model="{_esc(robot.name)}">',

@@ -6,16 +6,13 @@ the pairs worth checking.
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import partial
 from itertools import combinations
-from typing import cast
 
 import fcl
 import numpy as np
-import trimesh
 
 from arduinobot.planner.collision.acm import AllowedCollisionMatrix
 from arduinobot.planner.collision.bodies import RobotBodies, ShapeCache, bvh
@@ -30,40 +27,25 @@ from arduinobot.scene.obstacles import AttachedObject, Obstacle
 _Geometry = tuple[fcl.CollisionGeometry, ObbTree, Hull]
 
 
-def _shape_key(o: Obstacle) -> tuple:
-    """What an obstacle's geometry depends on (not its id or pose): a mesh's file bytes
-    (hashed: the same content under another name, or a file rewritten in place, is told
-    apart), a primitive's dimensions."""
-    if o.shape == "mesh":
-        assert o.mesh_path is not None
-        with open(o.mesh_path, "rb") as f:
-            return ("mesh", hashlib.sha256(f.read()).digest())
-    return (o.shape, o.size, o.radius, o.length)
-
-
 def _obstacle_geometry(o: Obstacle, shapes: ShapeCache) -> _Geometry:
-    return shapes.get(_shape_key(o), lambda: _build_geometry(o))
+    # by content (not id or pose): the same mesh under another name is built once
+    return shapes.get(o.geometry.content_key(), lambda: _build_geometry(o))
 
 
 def _build_geometry(o: Obstacle) -> _Geometry:
-    # Obstacle checked that its shape's dimensions (or mesh file) are set
-    if o.shape == "box":
-        assert o.size is not None
-        return fcl.Box(*o.size), box_tree(np.asarray(o.size) / 2), primitive_hull(o)
-    if o.shape == "sphere":
-        assert o.radius is not None
-        return fcl.Sphere(o.radius), box_tree(np.full(3, o.radius)), primitive_hull(o)
-    if o.shape == "cylinder":
-        assert o.radius is not None and o.length is not None
-        return (fcl.Cylinder(o.radius, o.length),
-                box_tree(np.array([o.radius, o.radius, o.length / 2])), primitive_hull(o))
-    mesh = cast("trimesh.Trimesh", trimesh.load(o.mesh_path, force="mesh"))  # force: one mesh
+    g = o.geometry
+    half = g.half_extents()
+    if half is not None and g.hull_points() is not None:  # a primitive: no triangles read
+        return g.collision_geometry(), box_tree(half), primitive_hull(o)
+    mesh = g.triangles()
     return (bvh(mesh), build_tree(mesh.vertices, mesh.faces),
             mesh_hull(np.asarray(mesh.vertices, float)))
 
 
-def _box_surface(size: tuple[float, float, float]) -> fcl.BVHModel:
-    return bvh(trimesh.creation.box(extents=size))
+def _surface(o: Obstacle) -> fcl.BVHModel:
+    surface = o.geometry.surface()
+    assert surface is not None
+    return bvh(surface)
 
 
 def _enclosing_points(tree: ObbTree) -> np.ndarray:
@@ -162,10 +144,10 @@ class SceneBodies:
             kinds.append(BodyKind.OBSTACLE)
             trees.append(tree)
             objs.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-            if o.shape == "box" and o.size is not None:
+            if o.geometry.has_surface:
                 surfaces[len(objs) - 1] = fcl.CollisionObject(
-                    robot.shapes.get(("box surface", o.size),
-                                     partial(_box_surface, o.size)),
+                    robot.shapes.get(("surface", o.geometry.content_key()),
+                                     partial(_surface, o)),
                     fcl.Transform(pose[:3, :3], pose[:3, 3]))
             statics.append(True)
             points.append((None, np.zeros((1, 3))))

@@ -18,8 +18,8 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description.model import Origin
+from arduinobot.description.model import rpy_of as rpy_of_matrix
 from arduinobot.planner.collision.cloud_body import robot_surface, surface_spacing
-from arduinobot.planner.kinematics.rotations import rpy_of_matrix
 from arduinobot.scene.cloud import CloudObstacle, UnknownSpace, posed
 from arduinobot.scene.cloud_filter import CloudCounts, inside_objects, kept_cells, near_surface
 from arduinobot.scene.cloud_spec import CloudSpec, Placement
@@ -61,8 +61,8 @@ def _carried_in_world(world: object, link_poses: np.ndarray) -> list[Obstacle]:
     for a in world.attached:  # type: ignore[attr-defined]
         pose = link_poses[world.kin.link_index[a.link]] @ a.shape.pose()  # type: ignore[attr-defined]
         o = a.shape
-        out.append(Obstacle(o.id, o.shape, o.size, o.radius, o.length, o.mesh_path,
-                            tuple(pose[:3, 3]), rpy_of_matrix(pose[:3, :3])))
+        out.append(Obstacle(o.id, o.geometry, xyz=tuple(pose[:3, 3]),
+                            rpy=rpy_of_matrix(pose[:3, :3])))
     return out
 
 

@@ -39,9 +39,6 @@ HULL_VERSION = "1"
 _SLACK = 1e-9
 # [m] a hull leaving points farther out than this is not trusted (the box stands in)
 _MAX_OUTSIDE = 1e-10
-# sides of the prism that stands in for a cylinder obstacle (circumscribed: it holds
-# the cylinder, so its support is never short of the cylinder's)
-_PRISM_SIDES = 24
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,24 +119,11 @@ def mesh_hull(vertices: np.ndarray, cache: ArtifactCache | None = None) -> Hull:
 def primitive_hull(o: Obstacle) -> Hull:
     """A box, sphere or cylinder obstacle as its own convex set (a cylinder's
     circumscribed prism for the support)."""
-    # Obstacle checked that its shape's dimensions are set
-    if o.shape == "box":
-        assert o.size is not None
-        half = np.asarray(o.size, float) / 2
-        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
-        return Hull(corners * half, 0.0, fcl.Box(*o.size))
-    if o.shape == "sphere":
-        assert o.radius is not None
-        return Hull(np.zeros((1, 3)), float(o.radius), fcl.Sphere(o.radius))
-    if o.shape == "cylinder":
-        assert o.radius is not None and o.length is not None
-        ang = 2 * np.pi * np.arange(_PRISM_SIDES) / _PRISM_SIDES
-        r = o.radius / np.cos(np.pi / _PRISM_SIDES)
-        ring = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
-        verts = np.vstack([np.column_stack([ring, np.full(_PRISM_SIDES, z)])
-                           for z in (-o.length / 2, o.length / 2)])
-        return Hull(verts, 0.0, fcl.Cylinder(o.radius, o.length))
-    raise ValueError(f"obstacle '{o.id}' is a {o.shape}, not a primitive: use mesh_hull")
+    hull = o.geometry.hull_points()
+    if hull is None:
+        raise ValueError(f"obstacle '{o.id}' is a {o.shape}, not a primitive: use mesh_hull")
+    points, radius = hull
+    return Hull(points, radius, o.geometry.collision_geometry())
 
 
 @numba.njit(cache=True, nogil=True)

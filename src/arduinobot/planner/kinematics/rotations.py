@@ -14,9 +14,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description.model import rotation_rows
 
-__all__ = ["unit_quaternion", "quaternion_of_rpy", "quaternion_of_matrix", "rpy_of_matrix",
-           "matrix_of_quaternion", "rotation_error"]
+__all__ = ["unit_quaternion", "quaternion_of_rpy", "quaternion_of_matrix",
+           "matrix_of_quaternion", "rotation_error"]  # roll-pitch-yaw of a matrix: model.rpy_of
 
 
 def unit_quaternion(q: Sequence[float], *, where: str = "goal.orientation"
@@ -57,39 +58,12 @@ def matrix_of_quaternion(q: Sequence[float]) -> np.ndarray:
     return Rotation.from_quat(np.asarray(q, float)).as_matrix()
 
 
-#: how far from orthonormal (largest entry of R R^T - I) a matrix may be for the closed
-#: forms below; anything else goes to scipy, which takes the nearest rotation
-_ORTHONORMAL = 1e-9
-#: |sin(pitch)| past which roll and yaw are not separable (gimbal lock): scipy's convention
-_LOCK = 1.0 - 1e-9
-
-
-def _rows(r: np.ndarray) -> list[list[float]] | None:
-    """``r``'s rows as floats if it is a proper rotation matrix (3, 3), else None."""
-    m = np.asarray(r, float)
-    if m.shape != (3, 3):
-        return None
-    rows = m.tolist()  # nine floats: plain arithmetic beats numpy's per-call cost here
-    u, v, w = rows
-    grams = (_dot(u, u) - 1.0, _dot(v, v) - 1.0, _dot(w, w) - 1.0, _dot(u, v), _dot(u, w),
-             _dot(v, w))
-    if not all(abs(x) <= _ORTHONORMAL for x in grams):  # NaN fails too
-        return None
-    det = (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-           + u[2] * (v[0] * w[1] - v[1] * w[0]))
-    return rows if det > 0.0 else None
-
-
-def _dot(x: list[float], y: list[float]) -> float:
-    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2]
-
-
 def quaternion_of_matrix(r: np.ndarray) -> tuple[float, float, float, float]:
     """The quaternion (x, y, z, w), w >= 0, of a rotation matrix, shape (3, 3).
 
     Shepperd's closed form on nine floats (a service reply computes one per plan: scipy's
     ``Rotation`` costs ~35 us a call there); scipy for a matrix that is not a rotation."""
-    rows = _rows(r)
+    rows = rotation_rows(r)
     if rows is None:
         return unit_quaternion(Rotation.from_matrix(np.asarray(r, float)).as_quat())
     (a, b, c), (d, e, f), (g, h, i) = rows
@@ -109,17 +83,6 @@ def quaternion_of_matrix(r: np.ndarray) -> tuple[float, float, float, float]:
     n = math.sqrt(sum(x * x for x in q))
     sign = -1.0 if q[3] < 0 else 1.0
     return tuple(sign * x / n for x in q)  # type: ignore[return-value]
-
-
-def rpy_of_matrix(r: np.ndarray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw [rad] of a rotation matrix, shape (3, 3) (closed form; scipy's at
-    gimbal lock and for a matrix that is not a rotation)."""
-    rows = _rows(r)
-    if rows is None or abs(rows[2][0]) > _LOCK:
-        return tuple(float(x) for x in Rotation.from_matrix(np.asarray(r, float))
-                     .as_euler("xyz"))  # type: ignore[return-value]
-    (a, _, _), (d, _, _), (g, h, i) = rows
-    return (math.atan2(h, i), math.asin(-g), math.atan2(d, a))
 
 
 def rotation_error(goal: np.ndarray, reached: np.ndarray) -> np.ndarray:

@@ -56,8 +56,7 @@ MAX_ATTEMPTS = 8
 
 def _obstacle_key(obstacles: tuple[Obstacle, ...]) -> tuple:
     # ``where`` only names the field in errors; the geometry is what matters
-    return tuple((o.id, o.shape, o.size, o.radius, o.length, o.mesh_path, o.xyz, o.rpy)
-                 for o in obstacles)
+    return tuple(o.key() for o in obstacles)
 
 
 def _attached_key(attached: tuple[AttachedObject, ...]) -> tuple:

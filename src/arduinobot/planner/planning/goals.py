@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -194,3 +194,50 @@ def check_goal(goal: object) -> None:
     """
     if not isinstance(goal, (JointGoal, NamedGoal, PositionGoal, PoseGoal, LineGoal)):
         raise InvalidRequest(f"unknown goal type {type(goal).__name__}", field="goal")
+
+
+def goal_from_mapping(data: object, where: str = "goal") -> Goal:
+    """A goal's JSON form (``src/arduinobot/contract/schema/plan_request.json``'s ``goal``, a
+    task's move step): exactly one of ``joints``, ``named``, ``position`` (a pose with
+    ``orientation``), ``line``; the one parser of it. Errors name ``where...``."""
+    if not isinstance(data, Mapping):
+        raise InvalidRequest("must be a goal object (joints, named, position or line)",
+                             field=where)
+    forms = [k for k in ("joints", "named", "position", "line") if k in data]
+    if len(forms) != 1:
+        raise InvalidRequest("give exactly one of joints, named, position, line", field=where)
+    if "joints" in data:
+        if not isinstance(data["joints"], Mapping):
+            raise InvalidRequest("must map joint names to values [rad]", field=f"{where}.joints")
+        return JointGoal(dict(data["joints"]), where=f"{where}.joints",
+                         tolerances=dict(data.get("tolerances", {})))
+    if "named" in data:
+        if not isinstance(data["named"], str):
+            raise InvalidRequest("must be a state name", field=f"{where}.named")
+        return NamedGoal(data["named"])
+    if "line" in data:
+        return line_from_mapping(data["line"], f"{where}.line")
+    tolerance = _tolerance(data.get("tolerance", 0.0), f"{where}.tolerance")
+    position = data["position"]
+    if "orientation" not in data:
+        return PositionGoal(position, where=f"{where}.position", tolerance=tolerance)
+    o = data["orientation"]
+    if not isinstance(o, Mapping) or ("quaternion" in o) == ("rpy" in o):
+        raise InvalidRequest("give exactly one of quaternion, rpy", field=f"{where}.orientation")
+    quat = o["quaternion"] if "quaternion" in o else quaternion_of_rpy(o["rpy"])
+    options: dict[str, Any] = {"tolerance": tolerance,
+                               "free_axes": tuple(data.get("free_axes", ()))}
+    if "orientation_tolerances" in data:
+        options["orientation_tolerances"] = tuple(data["orientation_tolerances"])
+    return PoseGoal(position=tuple(position), orientation=tuple(quat), **options)
+
+
+def line_from_mapping(data: object, where: str) -> LineGoal:
+    """A line goal's JSON form: ``{position}`` or ``{offset, frame}``."""
+    if not isinstance(data, Mapping):
+        raise InvalidRequest("must be {position} or {offset, frame}", field=where)
+    extra = sorted(set(data) - {"position", "offset", "frame"})
+    if extra:
+        raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+    return LineGoal(position=data.get("position"), offset=data.get("offset"),
+                    frame=data.get("frame", "world"))

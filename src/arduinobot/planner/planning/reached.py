@@ -16,12 +16,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from arduinobot.description import Description
+from arduinobot.description.model import rpy_of
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.rotations import (
     matrix_of_quaternion,
     quaternion_of_matrix,
     rotation_error,
-    rpy_of_matrix,
 )
 from arduinobot.planner.planning.goal_states import named_values
 from arduinobot.planner.planning.goals import (
@@ -90,7 +90,7 @@ def reached(description: Description, kin: Kinematics, goal: Goal, q: np.ndarray
         p = t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3]
         rot = t[:3, :3] @ tcp.rotation()  # the tool frame's, as goals give it
         pos = tuple(float(v) for v in p)
-        ori, rpy = quaternion_of_matrix(rot), rpy_of_matrix(rot)
+        ori, rpy = quaternion_of_matrix(rot), rpy_of(rot)
     ok = True
     pos_err = ori_err = None
     joint_err: dict[str, float] = {}

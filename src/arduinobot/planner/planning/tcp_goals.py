@@ -27,12 +27,12 @@ from arduinobot.contract.errors import (
     OrientationNotControllable,
 )
 from arduinobot.description import Description, Tcp
+from arduinobot.description.model import rpy_of
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.rotations import (
     matrix_of_quaternion,
     quaternion_of_matrix,
     rotation_error,
-    rpy_of_matrix,
 )
 from arduinobot.planner.planning.goals import AXES, PoseGoal, PositionGoal
 
@@ -249,6 +249,6 @@ def _not_controllable(goal: PoseGoal, chain: Chain, q: np.ndarray, rot: np.ndarr
         details={"joints": list(names), "orientation_dof": max(0, len(names) - 3),
                  "constrained_axes": list(goal.constrained), "exceeded_axes": over,
                  "reached": {"orientation": list(quaternion_of_matrix(rot)),
-                             "rpy": list(rpy_of_matrix(rot)),
+                             "rpy": list(rpy_of(rot)),
                              "q": [float(v) for v in q]},
                  "residuals": {"orientation": [float(v) for v in err]}})

@@ -15,14 +15,14 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
-from arduinobot.planner.kinematics.rotations import rpy_of_matrix
+from arduinobot.planner.frames import RobotFrames
 from arduinobot.planner.planning.goals import Goal, JointGoal, NamedGoal
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult
 from arduinobot.planner.planning.search import MAX_SEED
@@ -38,6 +38,7 @@ from arduinobot.planner.tasks.steps import (
     Task,
     WaitStep,
 )
+from arduinobot.scene.frames import attach, detach
 from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 if TYPE_CHECKING:  # the service imports this module before it plans anything
@@ -212,11 +213,6 @@ def holding_link(description: Description) -> str:
                          "effector and no tcp)", field="link")
 
 
-def _pose(m: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    return (tuple(float(v) for v in m[:3, 3]),  # type: ignore[return-value]
-            tuple(float(v) for v in rpy_of_matrix(m[:3, :3])))
-
-
 def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
     """Plan every step of ``task`` in order, nothing executed.
 
@@ -229,7 +225,8 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
     desc = planner.description
     check_task(task, desc)  # a typo in any step, before the first is planned
     names = planner.joint_names
-    kin = planner.world(()).kin
+    world = planner.world(())
+    frames = RobotFrames(desc, kin=world.kin, bodies=world.bodies)  # attach, detach
     q = dict.fromkeys(names, 0.0)
     if task.start is not None:
         q.update({k: float(v) for k, v in task.start.items()})
@@ -267,13 +264,10 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
                         f"{', '.join(o.id for o in obstacles) or 'none'})",
                         field=f"steps[{i}].attach")
                 link = step.link or holding_link(desc)
-                in_link = np.linalg.inv(kin.link_pose(vec(q), link)) @ obstacles[k].pose()
-                xyz, rpy = _pose(in_link)
-                shape = replace(obstacles.pop(k), xyz=xyz, rpy=rpy,
-                                where=f"steps[{i}].attach")
-                attached.append(AttachedObject(shape=shape, link=link,
-                                               touch_links=step.touch_links, mass=step.mass,
-                                               where=f"steps[{i}]"))
+                attached.append(attach(frames, obstacles[k], link, vec(q),
+                                       touch_links=step.touch_links, mass=step.mass,
+                                       where=f"steps[{i}].attach"))
+                obstacles.pop(k)
                 held = (step.object, link)
             elif isinstance(step, DetachStep):
                 k = next((j for j, a in enumerate(attached) if a.id == step.object), None)
@@ -283,10 +277,7 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
                         f"{', '.join(a.id for a in attached) or 'nothing'})",
                         field=f"steps[{i}].detach")
                 carried = attached.pop(k)
-                world = kin.link_pose(vec(q), carried.link) @ carried.shape.pose()
-                xyz, rpy = _pose(world)
-                obstacles.append(replace(carried.shape, xyz=xyz, rpy=rpy,
-                                         where=f"steps[{i}].detach"))
+                obstacles.append(detach(frames, carried, vec(q), where=f"steps[{i}].detach"))
                 held = (step.object, carried.link)
             done.append(StepResult(i, step.kind, step.label, start, dict(q),
                                    step.seconds if isinstance(step, WaitStep) else 0.0,

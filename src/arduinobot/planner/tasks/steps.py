@@ -25,14 +25,11 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.planner.kinematics.rotations import quaternion_of_rpy
 from arduinobot.planner.planning.goals import (
     Goal,
-    JointGoal,
     LineGoal,
-    NamedGoal,
-    PoseGoal,
-    PositionGoal,
+    goal_from_mapping,
+    line_from_mapping,
 )
 from arduinobot.planner.planning.search import check_seed
 from arduinobot.scene.obstacles import Obstacle
@@ -139,51 +136,6 @@ def _number(value: object, where: str, *, low: float = -math.inf,
             or not math.isfinite(value) or not low <= value <= high:
         raise InvalidRequest(f"{value!r} must be a number in [{low:g}, {high:g}]", field=where)
     return float(value)
-
-
-def goal_from_mapping(data: object, where: str) -> Goal:
-    """A plan request's goal (``src/arduinobot/contract/schema/plan_request.json``'s ``goal``): exactly
-    one of ``joints``, ``named``, ``position`` (a pose with ``orientation``), ``line``."""
-    if not isinstance(data, Mapping):
-        raise InvalidRequest("must be a goal object (joints, named, position or line)",
-                             field=where)
-    forms = [k for k in ("joints", "named", "position", "line") if k in data]
-    if len(forms) != 1:
-        raise InvalidRequest("give exactly one of joints, named, position, line", field=where)
-    if "joints" in data:
-        if not isinstance(data["joints"], Mapping):
-            raise InvalidRequest("must map joint names to values [rad]", field=f"{where}.joints")
-        return JointGoal(dict(data["joints"]), where=f"{where}.joints",
-                         tolerances=dict(data.get("tolerances", {})))
-    if "named" in data:
-        if not isinstance(data["named"], str):
-            raise InvalidRequest("must be a state name", field=f"{where}.named")
-        return NamedGoal(data["named"])
-    if "line" in data:
-        return line_from_mapping(data["line"], f"{where}.line")
-    tolerance = _number(data.get("tolerance", 0.0), f"{where}.tolerance", low=0.0)
-    position = data["position"]
-    if "orientation" not in data:
-        return PositionGoal(position, where=f"{where}.position", tolerance=tolerance)
-    o = data["orientation"]
-    if not isinstance(o, Mapping) or ("quaternion" in o) == ("rpy" in o):
-        raise InvalidRequest("give exactly one of quaternion, rpy", field=f"{where}.orientation")
-    quat = o["quaternion"] if "quaternion" in o else quaternion_of_rpy(o["rpy"])
-    options: dict[str, Any] = {"tolerance": tolerance,
-                               "free_axes": tuple(data.get("free_axes", ()))}
-    if "orientation_tolerances" in data:
-        options["orientation_tolerances"] = tuple(data["orientation_tolerances"])
-    return PoseGoal(position=tuple(position), orientation=tuple(quat), **options)
-
-
-def line_from_mapping(data: object, where: str) -> LineGoal:
-    if not isinstance(data, Mapping):
-        raise InvalidRequest("must be {position} or {offset, frame}", field=where)
-    extra = sorted(set(data) - {"position", "offset", "frame"})
-    if extra:
-        raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
-    return LineGoal(position=data.get("position"), offset=data.get("offset"),
-                    frame=data.get("frame", "world"))
 
 
 _MOTION_KEYS = {"velocity_scaling", "acceleration_scaling", "planning_time"}

@@ -57,7 +57,7 @@ from arduinobot.service.messages import Failure, Outcome, SubmitPlan
 from arduinobot.service.queries import answering, guarded, reply_failure
 
 if TYPE_CHECKING:
-    from arduinobot.service.scene.store import SceneSnapshot
+    from arduinobot.scene.state import SceneSnapshot
 
 _log = logging.getLogger(__name__)
 

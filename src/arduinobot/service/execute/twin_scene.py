@@ -13,7 +13,7 @@ from arduinobot.contract import wire
 from arduinobot.execution.robots.base import Robot
 
 if TYPE_CHECKING:
-    from arduinobot.service.scene.store import SceneSnapshot
+    from arduinobot.scene.state import SceneSnapshot
 
 _log = logging.getLogger(__name__)
 

@@ -27,10 +27,10 @@ from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description, read_model_text
+from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service.extension import Host
 from arduinobot.service.process.worker import DescriptionSpec
 from arduinobot.service.queries import guarded
-from arduinobot.service.scene.store import SceneSnapshot
 
 _log = logging.getLogger(__name__)
 
@@ -112,11 +112,11 @@ class PerceiveService:
         except ImportError:
             raise InvalidRequest("this service cannot see: install the 'see' extra "
                                  "(opencv-python-headless)", field="image") from None
+        from arduinobot.description.model import rpy_of as rpy_of_matrix
         from arduinobot.perception.camera import default_camera
         from arduinobot.perception.errors import ImageInvalid
         from arduinobot.perception.intrinsics import Intrinsics
         from arduinobot.perception.locate import perceive
-        from arduinobot.planner.kinematics.rotations import rpy_of_matrix
 
         sensors = self.sensors()
         camera = body.get("camera") or default_camera(self.description,

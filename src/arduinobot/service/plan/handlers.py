@@ -18,14 +18,16 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
+from arduinobot.description.model import rpy_of
 from arduinobot.planner.cache import ArtifactCache
+from arduinobot.planner.checks import joint_values
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik import position_ik
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.tcp_goals import tcp_joints
-from arduinobot.service.plan.requests import joint_values, obstacles
-from arduinobot.service.scene.store import SceneSnapshot, rpy_of, with_scene
+from arduinobot.scene.state import SceneSnapshot, with_scene
+from arduinobot.service.plan.requests import obstacles
 
 _log = logging.getLogger(__name__)
 
@@ -106,7 +108,7 @@ class Handlers:
                                      field=f"links[{i}]")
         poses = self.kin.link_poses(q)
         out = {link: {"xyz": [float(v) for v in poses[self.kin.link_index[link]][:3, 3]],
-                      "rpy": rpy_of(poses[self.kin.link_index[link]][:3, :3]),
+                      "rpy": list(rpy_of(poses[self.kin.link_index[link]][:3, :3])),
                       "matrix": poses[self.kin.link_index[link]].tolist()} for link in links}
         tcp = self.description.tcp
         tcp_xyz = None if tcp is None else [
@@ -160,7 +162,7 @@ class Handlers:
         for a in carried:
             t = poses[self.kin.link_index[a.link]] @ a.shape.pose()
             out[a.id] = {"link": a.link, "xyz": [float(v) for v in t[:3, 3]],
-                         "rpy": rpy_of(t[:3, :3]), "matrix": t.tolist(),
+                         "rpy": list(rpy_of(t[:3, :3])), "matrix": t.tolist(),
                          **({"fixed": True} if a.id in fixed else {})}
         return out
 
@@ -183,7 +185,8 @@ class Handlers:
     def frames(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """A ``frames`` job: a link's pose or a carried object's contacts for the kept
         scene's attach and detach (see :class:`arduinobot.service.scene.carry.PooledFrames`)."""
-        from arduinobot.service.scene.carry import RobotFrames, answer_frames
+        from arduinobot.planner.frames import RobotFrames
+        from arduinobot.service.scene.carry import answer_frames
         if self._frames is None:
             self._frames = RobotFrames(self.description)
         return answer_frames(self._frames, data)

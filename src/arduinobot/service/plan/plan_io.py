@@ -17,20 +17,12 @@ from arduinobot.contract.errors import PlanningError
 from arduinobot.contract.packed import pack
 from arduinobot.contract.wire import check_finite
 from arduinobot.description import Description
-from arduinobot.planner.kinematics.rotations import quaternion_of_rpy
-from arduinobot.planner.planning.goals import (
-    Goal,
-    JointGoal,
-    LineGoal,
-    NamedGoal,
-    PoseGoal,
-    PositionGoal,
-)
+from arduinobot.planner.planning.goals import Goal, goal_from_mapping
 from arduinobot.planner.planning.pipeline import MotionRequest
 from arduinobot.planner.timing.trajectory import check_sample_count
 from arduinobot.scene.obstacles import AttachedObject, resolve_attached
+from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.plan.requests import obstacles
-from arduinobot.service.scene.store import SceneSnapshot, with_scene
 
 #: the reply's trajectory: a sample object per point, or each array in one base64 string
 TrajectoryFormat = Literal["points", "packed"]
@@ -44,29 +36,9 @@ _OPTIONS: dict[str, Callable[[Any], Any]] = {
 
 
 def goal(description: Description, data: Mapping[str, Any]) -> Goal:
-    """The goal of a plan request (exactly one of joints, named, position (a pose with an
-    orientation), line)."""
-    if "joints" in data:
-        # joint names and limits: checked where every goal is, by the planner
-        return JointGoal(dict(data["joints"]), where="goal.joints",
-                         tolerances=dict(data.get("tolerances", {})))
-    if "named" in data:
-        return NamedGoal(data["named"])  # looked up in the request's group by the planner
-    if "line" in data:
-        line = data["line"]
-        return LineGoal(position=line.get("position"), offset=line.get("offset"),
-                        frame=line.get("frame", "world"))
-    position = tuple(float(v) for v in data["position"])
-    tolerance = float(data.get("tolerance", 0.0))
-    if "orientation" not in data:
-        return PositionGoal(position, tolerance=tolerance)  # type: ignore[arg-type]
-    o = data["orientation"]
-    quat = o["quaternion"] if "quaternion" in o else quaternion_of_rpy(o["rpy"])
-    options: dict[str, Any] = {"tolerance": tolerance,
-                               "free_axes": tuple(data.get("free_axes", ()))}
-    if "orientation_tolerances" in data:
-        options["orientation_tolerances"] = tuple(data["orientation_tolerances"])
-    return PoseGoal(position=position, orientation=tuple(quat), **options)  # type: ignore[arg-type]
+    """The goal of a plan request (:func:`arduinobot.planner.planning.goals.goal_from_mapping`;
+    joint names and limits, a named state's group: checked by the planner)."""
+    return goal_from_mapping(data, "goal")
 
 
 def attached(description: Description, items: Any, *, scene: SceneSnapshot | None = None,
@@ -84,7 +56,7 @@ def plan_request(description: Description, data: Mapping[str, Any], *,
                  scene: SceneSnapshot | None = None) -> MotionRequest:
     """A validated v1 plan request (see ``src/arduinobot/contract/schema/plan_request.json``) as a
     :class:`arduinobot.planner.planning.motion.MotionRequest` whose obstacles are the kept
-    ``scene``'s plus the request's own (see :func:`arduinobot.service.scene.store.with_scene`), and
+    ``scene``'s plus the request's own (see :func:`arduinobot.scene.state.with_scene`), and
     whose carried objects are the scene's plus the request's ``attached`` (for it
     alone). A missing start is all actuated joints at 0."""
     opts = {k: convert(data[k]) for k, convert in _OPTIONS.items() if k in data}

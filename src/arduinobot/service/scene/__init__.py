@@ -1,9 +1,10 @@
 """The kept scene: one planning scene every plan and check uses, kept on disk and shared
 by the instances.
 
-- ``store``: the scene's state, snapshots and revisions, on disk.
-- ``apply``: ``<prefix>/scene/apply`` requests decoded and applied.
-- ``carry``: attach and detach (objects carried by a link).
+The scene's model (state, apply, attach/detach) is :mod:`arduinobot.scene.state`'s.
+
+- ``apply``: ``<prefix>/scene/apply`` requests decoded, with the robot's state.
+- ``carry``: the frames attach and detach need, asked of the worker pool.
 - ``file``: the scene file.
 - ``members``: the instances sharing one scene.
 - ``sync``: the leader and its followers.

@@ -20,8 +20,8 @@ import zenoh
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, PlanningError
-from arduinobot.service.scene.carry import RobotFrames
-from arduinobot.service.scene.store import StateSource
+from arduinobot.scene.frames import Frames
+from arduinobot.scene.state import StateSource
 
 _log = logging.getLogger(__name__)
 
@@ -78,7 +78,7 @@ def _check_depth(value: Any) -> None:
 
 
 def with_robot_state(change: dict[str, Any], *, session: zenoh.Session, prefix: str,
-                     robot: RobotFrames | None) -> tuple[dict[str, Any], StateSource]:
+                     robot: Frames | None) -> tuple[dict[str, Any], StateSource]:
     """``change`` (an attach or detach) with the robot's ``state``, and where the state
     came from: the request's own, else the executing robot's (``<prefix>/robot_state``),
     else all joints at 0 (no robot serves its state).
@@ -94,7 +94,7 @@ def with_robot_state(change: dict[str, Any], *, session: zenoh.Session, prefix: 
     return {**change, "state": {}}, "zero"
 
 
-def robot_state(session: zenoh.Session, prefix: str, robot: RobotFrames | None
+def robot_state(session: zenoh.Session, prefix: str, robot: Frames | None
                 ) -> dict[str, float] | None:
     """The executing robot's actuated joints, or None if no robot serves its state
     (or the scene has no robot).

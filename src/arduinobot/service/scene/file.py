@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.service.scene.store import SceneState
+from arduinobot.scene.state import SceneState
 
 _log = logging.getLogger(__name__)
 

@@ -45,6 +45,14 @@ import zenoh
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.description import Description
+from arduinobot.scene.frames import Frames
+from arduinobot.scene.state import (
+    SceneBuilder,
+    SceneState,
+    StateSource,
+    apply,
+    restore,
+)
 from arduinobot.service.queries import answering, guarded, reply_error
 from arduinobot.service.scene.apply import (
     MAX_APPLY_PAYLOAD,
@@ -52,7 +60,6 @@ from arduinobot.service.scene.apply import (
     decode_apply,
     with_robot_state,
 )
-from arduinobot.service.scene.carry import RobotFrames
 from arduinobot.service.scene.file import (
     SceneFile,
     default_scene_file,
@@ -61,13 +68,6 @@ from arduinobot.service.scene.file import (
     scene_owner,
 )
 from arduinobot.service.scene.members import Instances
-from arduinobot.service.scene.store import (
-    SceneBuilder,
-    SceneState,
-    StateSource,
-    apply,
-    restore,
-)
 
 _log = logging.getLogger(__name__)
 
@@ -97,7 +97,7 @@ class SceneService:
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
                  link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
                  description: Description | None = None,
-                 robot: RobotFrames | None = None) -> None:
+                 robot: Frames | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
         owner = None if description is None else scene_owner(
             description.robot.name, description.robot.source)
@@ -106,9 +106,10 @@ class SceneService:
         # the one file per prefix kept before scenes were per robot (whose, it cannot say)
         self._legacy = default_scene_file(prefix) if scene_file is None and owner else None
         # robot: who computes link poses and contacts (the service's: its worker pool)
-        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot if robot
-                                    is not None or description is None
-                                    else RobotFrames(description))
+        if robot is None and description is not None:
+            from arduinobot.planner.frames import RobotFrames  # only a worker's frames
+            robot = RobotFrames(description)
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot)
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
         self._encoded: tuple[int, bytes] = (-1, b"")

@@ -33,10 +33,10 @@ from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
 from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.extension import Host
 from arduinobot.service.messages import Failure, Outcome, Submit, Success, outcome_of
 from arduinobot.service.queries import guarded, reply_error, reply_failure
-from arduinobot.service.scene.store import SceneSnapshot, with_scene
 
 if TYPE_CHECKING:  # the planner (OMPL) loads in the workers, never with `serve`
     from arduinobot.planner.tasks import Task, TaskResult
@@ -73,13 +73,7 @@ def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = T
 
 def obstacle_json(o: Obstacle) -> dict[str, Any]:
     """An obstacle in the requests' form (plan_request.json's ``obstacles``)."""
-    body: dict[str, Any] = {"id": o.id, "shape": o.shape, "xyz": list(o.xyz),
-                            "rpy": list(o.rpy)}
-    for k in ("size", "radius", "length", "mesh_path"):
-        v = getattr(o, k)
-        if v is not None:
-            body[k] = list(v) if isinstance(v, tuple) else v
-    return body
+    return o.to_json()
 
 
 def task_trajectory(result: TaskResult, sample_rate: float = 100.0) -> dict[str, Any]:

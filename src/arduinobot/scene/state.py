@@ -1,5 +1,6 @@
-"""The planning scene that lasts: its objects at a revision and how an apply changes it
-(all or nothing); its file on disk is :mod:`arduinobot.service.scene.file`'s.
+"""The planning scene that lasts (the kept scene's model): its objects at a revision and
+how an apply changes it (all or nothing); its file on disk is
+:mod:`arduinobot.service.scene.file`'s, its service :mod:`arduinobot.service.scene`.
 
 A :class:`SceneState` is immutable: :func:`apply` builds the next one or raises, so a
 refused apply leaves the scene as it was by construction. Each object keeps its wire form
@@ -12,21 +13,19 @@ instances is :mod:`arduinobot.service.scene.sync`'s.
 from __future__ import annotations
 
 import logging
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
-
-if TYPE_CHECKING:
-    from arduinobot.service.scene.carry import RobotFrames
+from typing import Any, Literal
 
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
-from arduinobot.scene.mesh_codec import decode_mesh, scale_of
+from arduinobot.description.model import rpy_of
+from arduinobot.scene.frames import Frames, hold
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
+from arduinobot.scene.shapes import check_inline, shape_class
 
 _log = logging.getLogger(__name__)
 
@@ -113,7 +112,7 @@ class SceneBuilder:
     poses and collision checks) it can attach and detach too."""
 
     def __init__(self, link_names: Sequence[str], mesh_dir: str | os.PathLike[str], *,
-                 robot: RobotFrames | None = None) -> None:
+                 robot: Frames | None = None) -> None:
         self.link_names = frozenset(link_names)
         self.mesh_dir = Path(mesh_dir)
         self.robot = robot
@@ -141,18 +140,11 @@ class SceneBuilder:
         oid = data.get("id")
         if oid in self.link_names:
             raise InvalidRequest(f"id '{oid}' is also a link name", field=f"{where}.id")
-        geometry = {k: v for k, v in data.items()
-                    if k not in ("frame", "mesh", "scale", "touch_links")}
-        if data.get("shape") == "mesh":
-            if "mesh" not in data:
-                raise InvalidRequest("a mesh object needs mesh {format, data}",
-                                     field=f"{where}.mesh")
-            mesh = decode_mesh(data["mesh"], scale=scale_of(data.get("scale"), f"{where}.scale"),
-                               field=f"{where}.mesh")
-            geometry["mesh_path"] = str(mesh.write(self.mesh_dir))
-        elif "mesh" in data or "scale" in data:
-            bad = "mesh" if "mesh" in data else "scale"
-            raise InvalidRequest("only a mesh object takes it", field=f"{where}.{bad}")
+        geometry = {k: v for k, v in data.items() if k not in ("frame", "touch_links")}
+        if "shape" in data:  # (without one, the obstacle names the missing field)
+            cls = shape_class(data["shape"], field=f"{where}.shape")
+            check_inline(cls, data, where=where)
+            geometry = cls.stored(geometry, where=where, folder=self.mesh_dir)
         obstacle = Obstacle.from_mapping(geometry, where=where)
         extra = data.get("touch_links") or ()
         if frame == WORLD:
@@ -278,28 +270,23 @@ def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
             built = builder.build(given, f"{where}.object")  # validated as given
             data = given if frame == link else _posed(
                 given, np.linalg.inv(link_pose) @ built.obstacle.pose())
-        held = _held(data, item, builder, f"{where}.object")
-        pairs = robot.link_contacts(held.attached, q)
-        if pairs:
-            raise InvalidRequest(
-                f"'{held.id}' already touches {', '.join(sorted({b for _, b in pairs}))} of "
-                f"the robot, not among its touch links {list(held.attached.touch_links)}: "
-                "move the arm, or name the link in touch_links", field=where,
-                details={"pairs": [list(p) for p in pairs]})
+        held = _held(data, item, builder, f"{where}.object", q=q)
         carried[held.id] = held
 
 
 def _held(obj: Mapping[str, Any], item: Mapping[str, Any], builder: SceneBuilder,
-          where: str) -> SceneAttached:
+          where: str, *, q: Any = None) -> SceneAttached:
     """A carried object from its wire object (pose in the link's frame) and the rest of
-    its attach item (link, touch_links, mass, com), with its default touch links."""
+    its attach item (link, touch_links, mass, com), with its default touch links; with a
+    state ``q`` (an attach, not a restore), refused if it touches the robot there
+    (:func:`arduinobot.scene.frames.hold`)."""
     built = builder.build(obj, where)
     robot = builder.robot
     assert robot is not None  # only an attach or a restore with a robot gets here
-    a = robot.resolve(AttachedObject(built.obstacle, item["link"],
-                                     tuple(item.get("touch_links") or ()),
-                                     float(item.get("mass", 0.0)), item.get("com"),
-                                     where=where.removesuffix(".object")))
+    a = hold(robot, built.obstacle, item["link"], q,
+             touch_links=tuple(item.get("touch_links") or ()),
+             mass=float(item.get("mass", 0.0)), com=item.get("com"),
+             where=where.removesuffix(".object"), check=q is not None)
     data: dict[str, Any] = {"object": dict(obj), "link": a.link,
                             "touch_links": list(a.touch_links), "mass": a.mass}
     if a.com is not None:
@@ -315,17 +302,6 @@ def _posed(data: Mapping[str, Any], pose: np.ndarray) -> dict[str, Any]:
     out["xyz"] = [round(float(v), 12) + 0.0 for v in pose[:3, 3]]
     out["rpy"] = [round(v, 12) + 0.0 for v in rpy_of(pose[:3, :3])]
     return out
-
-
-def rpy_of(m: np.ndarray) -> list[float]:
-    """URDF roll-pitch-yaw [rad] of a rotation matrix, shape (3, 3)."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(m[2, 0]))))
-    if abs(math.cos(pitch)) > 1e-9:
-        roll = math.atan2(float(m[2, 1]), float(m[2, 2]))
-        yaw = math.atan2(float(m[1, 0]), float(m[0, 0]))
-    else:  # gimbal lock: put it all in yaw
-        roll, yaw = 0.0, math.atan2(-float(m[0, 1]), float(m[1, 1]))
-    return [roll, pitch, yaw]
 
 
 def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:

@@ -1,0 +1,77 @@
+"""What the scene's attach and detach need of the robot, computed in this process
+(:class:`arduinobot.scene.frames.Frames`): a state's link poses and whether a carried
+object already touches a link it may not.
+
+Built once, lazily: the kinematics on the first attach or detach, the robot's collision
+geometry on the first contact check (a collision world with the carried object alone:
+its contacts with the scene are the plans' business, a box picked from a table rests on
+it). A worker of the service's pool holds one for the kept scene; a task plans with one
+sharing its planner's kinematics and robot bodies.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import numpy as np
+
+from arduinobot.description import Description
+from arduinobot.planner.checks import joint_values
+from arduinobot.scene.obstacles import AttachedObject
+
+
+class RobotFrames:
+    """One robot description's link poses and carried-object contacts.
+
+    Args:
+        kin: its :class:`~arduinobot.planner.kinematics.chain.Kinematics` (None: built
+            on first use).
+        bodies: its robot's collision bodies (None: built on the first contact check).
+    """
+
+    def __init__(self, description: Description, *, kin: Any = None,
+                 bodies: Any = None) -> None:
+        self.description = description
+        self._lock = threading.Lock()
+        self._kin = kin
+        self._bodies = bodies
+
+    def kinematics(self) -> Any:
+        """The robot's kinematics (built on the first call)."""
+        with self._lock:
+            if self._kin is None:
+                from arduinobot.planner.kinematics.chain import Kinematics
+                self._kin = Kinematics(self.description.robot)
+            return self._kin
+
+    def state(self, values: Any, *, field: str) -> np.ndarray:
+        """``{joint: value}`` (None: all 0) as positions in the kinematics' joint order.
+
+        Raises:
+            InvalidRequest, JointLimitViolation: naming ``field``.
+        """
+        vals = joint_values(self.description, values, field=field)
+        return np.array([vals[n] for n in self.kinematics().joint_names], float)
+
+    def link_pose(self, q: np.ndarray, link: str) -> np.ndarray:
+        """``link``'s pose in the world frame at ``q``, shape (4, 4)."""
+        kin = self.kinematics()
+        return np.asarray(kin.link_poses(q)[kin.link_index[link]], float)
+
+    def link_contacts(self, a: AttachedObject, q: np.ndarray) -> list[tuple[str, str]]:
+        """The pairs (``a.id``, link) of ``a`` at ``q`` with robot links that are not its
+        touch links."""
+        from arduinobot.planner.collision.world import CollisionWorld
+
+        with self._lock:
+            world = CollisionWorld(self.description, attached=(a,), bodies=self._bodies)
+            self._bodies = world.bodies  # the robot's geometry, built once
+        links = set(self.description.robot.links)
+        out = []
+        for x, y in world.check(q).pairs:
+            if a.id in (x, y):
+                other = y if x == a.id else x
+                if other in links:
+                    out.append((a.id, other))
+        return sorted(set(out))

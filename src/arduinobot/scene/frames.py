@@ -1,0 +1,88 @@
+"""Attach and detach, once, for the kept scene and for tasks: what they need of the robot
+(:class:`Frames`: a state's link poses and a carried object's contacts with the robot)
+and the one contact rule.
+
+The scene does not compute frames itself (that is the planner's kinematics and collision
+world, a floor up): :class:`arduinobot.planner.frames.RobotFrames` does in its process,
+:class:`arduinobot.service.scene.carry.PooledFrames` asks a worker of the service's pool.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Protocol
+
+import numpy as np
+
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.description.model import rpy_of
+from arduinobot.scene.obstacles import AttachedObject, Obstacle, resolve_attached
+
+
+class Frames(Protocol):
+    """What attach and detach ask of the robot. A state ``q`` is what :meth:`state`
+    returns (opaque to the scene)."""
+
+    description: Any
+
+    def state(self, values: Any, *, field: str) -> Any:
+        """``{joint: value}`` (None: all 0), checked (errors name ``field``)."""
+        ...
+
+    def link_pose(self, q: Any, link: str) -> np.ndarray:
+        """``link``'s pose in the world frame at ``q``, shape (4, 4)."""
+        ...
+
+    def link_contacts(self, a: AttachedObject, q: Any) -> list[tuple[str, str]]:
+        """The pairs (``a.id``, link) of ``a`` at ``q`` with links not among its touch
+        links, sorted."""
+        ...
+
+
+def pose_of(m: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """A pose (4, 4) as ``xyz`` [m] and URDF ``rpy`` [rad]."""
+    x, y, z = (float(v) for v in m[:3, 3])
+    return (x, y, z), rpy_of(m[:3, :3])
+
+
+def hold(frames: Frames, shape: Obstacle, link: str, q: Any, *,
+         touch_links: tuple[str, ...] = (), mass: float = 0.0,
+         com: tuple[float, float, float] | None = None, where: str = "attached",
+         check: bool = True) -> AttachedObject:
+    """``shape`` (posed in ``link``'s frame) carried by ``link``, with its default touch
+    links if it names none; with ``check``, refused if at ``q`` it already touches a link
+    of the robot that is not a touch link (the one contact rule: an object picked up
+    into the arm would be in collision from its first state on).
+
+    Raises:
+        InvalidRequest: an unknown link or touch link; a contact (``details.pairs``, at
+            field ``where``).
+    """
+    a = resolve_attached(frames.description, (AttachedObject(
+        shape, link, tuple(touch_links), mass, com, where=where),))[0]
+    if check:
+        pairs = frames.link_contacts(a, q)
+        if pairs:
+            raise InvalidRequest(
+                f"'{a.id}' already touches {', '.join(sorted({b for _, b in pairs}))} of "
+                f"the robot, not among its touch links {list(a.touch_links)}: "
+                "move the arm, or name the link in touch_links", field=where,
+                details={"pairs": [list(p) for p in pairs]})
+    return a
+
+
+def attach(frames: Frames, obstacle: Obstacle, link: str, q: Any, *,
+           touch_links: tuple[str, ...] = (), mass: float = 0.0,
+           where: str = "attached") -> AttachedObject:
+    """``obstacle`` (posed in the world) taken into ``link``'s frame where it is at
+    ``q``, and held (:func:`hold`, contacts checked)."""
+    xyz, rpy = pose_of(np.linalg.inv(frames.link_pose(q, link)) @ obstacle.pose())
+    return hold(frames, replace(obstacle, xyz=xyz, rpy=rpy, where=f"{where}.object"), link,
+                q, touch_links=touch_links, mass=mass, where=where)
+
+
+def detach(frames: Frames, carried: AttachedObject, q: Any, *,
+           where: str = "obstacle") -> Obstacle:
+    """``carried`` put down in the world where its link holds it at ``q``."""
+    xyz, rpy = pose_of(frames.link_pose(q, carried.link) @ carried.shape.pose())
+    return replace(carried.shape, xyz=xyz, rpy=rpy, where=where)
