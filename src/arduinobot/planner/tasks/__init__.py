@@ -1,9 +1,16 @@
 """Tasks: an ordered list of steps (move, line, gripper, attach, detach, wait) planned as
-a whole before anything moves (:mod:`.steps` the model, :mod:`.sequence` the planning,
-:mod:`.precheck` the names checked before planning; the named tasks of a ``tasks.yaml``
-are read by :func:`arduinobot.description.moveit_config.read_tasks`)."""
+a whole before anything moves. The named tasks of a ``tasks.yaml`` are read by
+:func:`arduinobot.description.moveit_config.read_tasks`.
 
-from arduinobot.planner.tasks.sequence import StepResult, TaskResult, TaskStepFailed, plan_task
+- ``steps``: the model (a task, its steps, parsed from JSON or YAML).
+- ``precheck``: the names a task's steps use, checked before anything is planned.
+- ``sequence``: the planning, step after step through the one door.
+- ``results``: what it gives (each step's result, the task's) and a step's failure.
+- ``gripper``: the gripper's group, the goal a gripper step names, the holding link.
+"""
+
+from arduinobot.planner.tasks.results import StepResult, TaskResult, TaskStepFailed
+from arduinobot.planner.tasks.sequence import plan_task
 from arduinobot.planner.tasks.steps import (
     AttachStep,
     DetachStep,

@@ -13,6 +13,8 @@ from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
 from arduinobot.description.errors import SrdfError
 from arduinobot.planner.planning.goals import JointGoal, NamedGoal
+from arduinobot.planner.tasks.gripper import gripper_goal, gripper_group
+from arduinobot.planner.tasks.results import TaskStepFailed
 from arduinobot.planner.tasks.steps import AttachStep, DetachStep, GripperStep, MoveStep, Task
 
 
@@ -23,8 +25,6 @@ def check_task(task: Task, description: Description) -> None:
         TaskStepFailed: the first such step, with its InvalidRequest naming the field
             (``planned_steps`` 0: nothing was planned).
     """
-    from arduinobot.planner.tasks.sequence import TaskStepFailed, gripper_goal, gripper_group
-
     groups = description.group_joints()
     actuated = set(description.robot.actuated_joints)
     links = description.robot.links
