@@ -41,8 +41,6 @@ MAY_IMPORT: dict[str, frozenset[str]] = {
 #: (the importing file under src/arduinobot, the package it imports, why it is allowed).
 #: A row whose import is gone fails the test too: delete the row then.
 KNOWN_EXCEPTIONS: frozenset[tuple[str, str, str]] = frozenset({
-    # issue 37, step 2: a payload belongs to the scene, its dynamics to the planner
-    ("scene/obstacles.py", "planner", "issue 37 step 2: Payload lives in planner.kinematics"),
 })
 
 

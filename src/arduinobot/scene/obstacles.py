@@ -10,16 +10,15 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description.model import Origin
+from arduinobot.scene.payload import Payload
 from arduinobot.scene.shapes import Shape, dimension_fields, finite_vec, shape_class
 
-if TYPE_CHECKING:  # numba: not for a client that only parses obstacles
-    from arduinobot.planner.kinematics.dynamics import Payload
 
 @dataclass(frozen=True, init=False)
 class Obstacle:
@@ -172,7 +171,6 @@ class AttachedObject:
         """Its mass at its centre of mass (``com``, else the shape's centroid) with the
         shape's inertia as a uniform solid (a mesh that is not closed: its bounding
         box's), all in the link's frame, for :meth:`.InverseDynamics.with_payloads`."""
-        from arduinobot.planner.kinematics.dynamics import Payload
 
         centroid, inertia = self.shape.geometry.unit_inertia()
         pose = self.shape.pose()

@@ -16,7 +16,6 @@ that link's (parallel axes), so the verifier and the effort-limited timing see i
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,6 +25,7 @@ from arduinobot.description.model import Robot, rpy_matrix
 from arduinobot.planner.kinematics.chain import FIXED, ChainArrays, Kinematics
 from arduinobot.planner.kinematics.rnea import rnea_batch
 from arduinobot.planner.path_limits import torque_coefficients
+from arduinobot.scene.payload import Payload
 
 # rnea_batch's model arrays: the chain's (ChainArrays) then mass, com, inertia
 _DynamicsArrays = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -73,24 +73,6 @@ def _lump_fixed(args: ChainArrays, mass: np.ndarray, com: np.ndarray,
     idx = np.array(keep, dtype=np.int64)
     return (par, org, jtype[idx], axis[idx], src[idx], scale[idx], offset[idx], m, c,
             inertia_c)
-
-
-@dataclass(frozen=True)
-class Payload:
-    """A rigid mass a link carries.
-
-    Attributes:
-        link: the link that holds it.
-        mass: [kg], >= 0.
-        com: its centre of mass in the link's frame [m], shape (3,).
-        inertia: its inertia about its centre of mass in the link's axes [kg m^2],
-            shape (3, 3).
-    """
-
-    link: str
-    mass: float
-    com: tuple[float, float, float]
-    inertia: tuple[tuple[float, float, float], ...]
 
 
 def combine_inertia(m1: float, c1: np.ndarray, i1: np.ndarray, m2: float, c2: np.ndarray,
