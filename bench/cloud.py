@@ -25,11 +25,11 @@ import time
 import numpy as np
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.certify import Certifier
 from arduinobot.planner.collision.cloud_keep import keep_cloud
+from arduinobot.planner.collision.proof.certify import Certifier
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal
-from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
 from arduinobot.scene.cloud import encode_points
 from arduinobot.scene.cloud_spec import CloudSpec
 from arduinobot.scene.obstacles import Obstacle

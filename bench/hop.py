@@ -235,7 +235,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--keep", metavar="DIR",
                     help="generate the model and its cache here and keep them (faster reruns)")
     args = ap.parse_args(argv)
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     folder = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench-hop-"))
     folder.mkdir(parents=True, exist_ok=True)

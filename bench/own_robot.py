@@ -116,7 +116,7 @@ def no_srdf_suite(d: Description, n: int, folder: Path) -> dict[str, dict]:
 
 
 def main(n: int = 40) -> None:
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-own-robot-"))
     t0 = time.perf_counter()

@@ -73,7 +73,7 @@ from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
 from arduinobot.client.replies import PlanReply
 from arduinobot.contract.errors import PlanningError
-from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.proof.certify import Certifier
 from arduinobot.planner.planning.pipeline import MotionPlanner
 from arduinobot.planner.timing.curve import build_curve
 from arduinobot.service.process.disk_cache import DiskCache
@@ -363,7 +363,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--state-checks", type=int, default=40,
                     help="random states MPlib and our checker both judge (per model)")
     args = ap.parse_args(argv)
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
     out: dict[str, Any] = {"n": args.n, "planning_time": args.planning_time}

@@ -19,10 +19,10 @@ import trimesh
 
 from arduinobot.contract.errors import PlanningError
 from arduinobot.description import Description, load_description
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal
-from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, problems
@@ -88,7 +88,7 @@ def suite(d: Description, n: int) -> dict[str, dict]:
 
 
 def main(n: int = 30) -> None:
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     summary = suite(load_description(), n)
     with tempfile.TemporaryDirectory() as tmp:

@@ -100,7 +100,7 @@ def throughput(workers: int, clients: int, requests: int, rounds: int) -> tuple[
 
 
 def main() -> None:
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=30)

@@ -37,7 +37,7 @@ PROFILES = ("jerk_limited", "time_optimal")
 
 
 def main(n: int = 8) -> None:
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     d = load_description()
     mp = MotionPlanner(d)

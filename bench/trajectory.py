@@ -66,7 +66,7 @@ def _recheck_task(i: int):
 
 
 def main(n: int = 8) -> None:
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     global MODEL_FILES
     d = load_description()

@@ -1,7 +1,7 @@
 """An independent re-check of timed trajectories, for the benchmarks only.
 
 It shares no code with the planner's checks (arduinobot.planner.timing.verify, arduinobot.planner.kinematics.dynamics,
-arduinobot.planner.kinematics.chain, arduinobot.planner.collision, arduinobot.planner.collision.motion_check): the URDF is parsed by
+arduinobot.planner.kinematics.chain, arduinobot.planner.collision, arduinobot.planner.collision.proof.motion_check): the URDF is parsed by
 yourdfpy, forward kinematics is the few lines below, torques come from MuJoCo's inverse
 dynamics on an MJCF built from the URDF's inertials and joints (the approach of
 tests/planner/kinematics/test_dynamics.py; the mimic joint_5 is driven by joint_4 and its torque folds

@@ -12,7 +12,7 @@ import numpy as np
 
 from arduinobot.description import load_description
 from arduinobot.description.loader import read_model_text
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.scene.obstacles import Obstacle
 

@@ -19,7 +19,7 @@ import pytest
 from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
 from arduinobot.description import load_description
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
 from tests.helpers.cli import run_cli

@@ -29,7 +29,7 @@ from arduinobot.ros2.actions import (
     GoalHandle,
     action_endpoints,
 )
-from arduinobot.ros2.graph import Token
+from arduinobot.ros2.wire.graph import Token
 
 # port and session are fixtures: the same loopback session as the topic and service tests
 from tests.ros2.test_ros2_zenoh import port, raw_session, session, wait_for  # noqa: F401

@@ -12,7 +12,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.ros2.pointcloud2 import decode_pointcloud2
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.types import TypeStore
 from arduinobot.scene import cloud
 
 ROSBAGS = get_typestore(Stores.ROS2_JAZZY)

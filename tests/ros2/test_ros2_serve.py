@@ -22,7 +22,7 @@ from zenoh_ros2_sdk import message_registry
 
 from arduinobot.client.client import PlannerClient
 from arduinobot.description import load_description
-from arduinobot.ros2.graph import Token, query_graph
+from arduinobot.ros2.wire.graph import Token, query_graph
 from tests.helpers.serve import free_port, start_server
 from tests.ros2.test_ros2_zenoh import MSGS, wait_for
 

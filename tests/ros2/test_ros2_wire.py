@@ -37,7 +37,7 @@ from arduinobot.ros2 import (
     TypeStore,
     UnknownType,
 )
-from arduinobot.ros2.graph import (
+from arduinobot.ros2.wire.graph import (
     EndpointInfo,
     NodeInfo,
     Token,
@@ -46,7 +46,7 @@ from arduinobot.ros2.graph import (
     node_token,
     topic_key,
 )
-from arduinobot.ros2.names import fully_qualified, validate_namespace, validate_node_name
+from arduinobot.ros2.wire.names import fully_qualified, validate_namespace, validate_node_name
 
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 ADD_TWO_INTS_HASH = "RIHS01_e118de6bf5eeb66a2491b5bda11202e7b68f198d6f67922cf30364858239c81a"

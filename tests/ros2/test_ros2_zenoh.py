@@ -41,8 +41,8 @@ from arduinobot.ros2 import (
     UnknownType,
     open_joint_states,
 )
-from arduinobot.ros2.graph import Token, gid_of
 from arduinobot.ros2.joint_states import JointStates
+from arduinobot.ros2.wire.graph import Token, gid_of
 from tests.helpers.serve import free_port
 
 MSGS = {

@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
     if ns.command in _OMPL_ALWAYS or (ns.command in _OMPL_LOCAL and ns.local):
-        from arduinobot.planner.planning.search import set_ompl_log_level
+        from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     try:
         rc = run_guarded(ns, ns.command_parser)

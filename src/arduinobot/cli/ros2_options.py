@@ -48,7 +48,7 @@ def ros2_settings(ns: argparse.Namespace, *, flag: str = "--ros2") -> Ros2Settin
         return None
     try:  # only now: the ros2 extra is optional
         from arduinobot.ros2 import InvalidName, InvalidOption
-        from arduinobot.ros2.names import domain_id_from_env, validate_namespace
+        from arduinobot.ros2.wire.names import domain_id_from_env, validate_namespace
     except ImportError as e:
         raise UsageError(f"{flag} needs the ros2 extra (pip install 'arduinobot[ros2]'): "
                          f"{e}") from e

@@ -2,14 +2,13 @@
 
 No ROS install: keys, liveliness tokens and attachments are built here from rmw_zenoh's
 design document and source (each module cites the file and commit); CDR and RIHS01 type
-hashes come from ``rosbags``. Layers: :mod:`.types` (CDR, hashes), :mod:`.attachment`,
-:mod:`.qos`, :mod:`.names`, :mod:`.graph` (keys, tokens, GIDs), then :mod:`.topics` and
-:mod:`.services` (endpoints), :mod:`.node`, :mod:`.actions`, :mod:`.joint_states`,
-:mod:`.controllers`, :mod:`.control_msgs` and :mod:`.trajectory_target` (trajectories
-to ros2_control's joint_trajectory_controllers) and
-:mod:`.task_server` (the course's /task_server action); :mod:`.pointcloud2`
-(a sensor_msgs/msg/PointCloud2's points, any fields layout); :mod:`.errors`, one class
-per way the wire layer fails.
+hashes come from ``rosbags``. Layers: ``wire/`` (the ROS 2 types' CDR and hashes, QoS,
+names, the graph's tokens and GIDs, topics, services, the node), ``attachment``, then
+``actions``, ``joint_states``,
+``controllers``, ``control_msgs`` and ``trajectory_target`` (trajectories to
+ros2_control's joint_trajectory_controllers) and ``task_server`` (the course's
+/task_server action); ``pointcloud2`` (a sensor_msgs/msg/PointCloud2's points, any
+fields layout); ``errors``, one class per way the wire layer fails.
 Nothing here imports ``src/arduinobot/client/`` or ``src/arduinobot/service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """
 
@@ -34,10 +33,10 @@ from arduinobot.ros2.errors import (
     UnknownType,
 )
 from arduinobot.ros2.joint_states import JointStates, open_joint_states
-from arduinobot.ros2.node import Node
-from arduinobot.ros2.qos import QoS
 from arduinobot.ros2.task_server import TaskServer
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.node import Node
+from arduinobot.ros2.wire.qos import QoS
+from arduinobot.ros2.wire.types import TypeStore
 
 __all__ = [
     "ActionClient", "ActionServer", "Attachment", "AttachmentLayout", "ControllerFailed",

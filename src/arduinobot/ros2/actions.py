@@ -29,10 +29,10 @@ from typing import Any
 import numpy as np
 
 from arduinobot.ros2.errors import EntityClosed, GoalAlreadyEnded, InvalidOption
-from arduinobot.ros2.node import Node
-from arduinobot.ros2.qos import ACTION_STATUS
-from arduinobot.ros2.services import PendingRequest
-from arduinobot.ros2.topics import MessageInfo
+from arduinobot.ros2.wire.node import Node
+from arduinobot.ros2.wire.qos import ACTION_STATUS
+from arduinobot.ros2.wire.services import PendingRequest
+from arduinobot.ros2.wire.topics import MessageInfo
 
 log = logging.getLogger(__name__)
 

@@ -20,7 +20,7 @@ lengths):
   ``"source_gid"``, then the GID as a length-prefixed slice (``ze_serializer_serialize_str``
   / ``_int64`` / ``_buf`` in that release's attachment_helpers.cpp). A node on that
   release cannot read the current layout, nor the other way round: pick the layout with
-  the ``attachment=`` option of :class:`arduinobot.ros2.node.Node` (``sudo apt upgrade`` of
+  the ``attachment=`` option of :class:`arduinobot.ros2.wire.node.Node` (``sudo apt upgrade`` of
   ``ros-jazzy-rmw-zenoh-cpp`` is the better fix).
 """
 

@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from typing import Literal
 
 from arduinobot.ros2.errors import InvalidOption
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.types import TypeStore
 
 FOLLOW_JOINT_TRAJECTORY = "control_msgs/action/FollowJointTrajectory"
 ControlMsgs = Literal["auto", "jazzy", "rolling"]

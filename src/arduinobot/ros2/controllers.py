@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from arduinobot.ros2.errors import InvalidOption, NoController
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.types import TypeStore
 
 log = logging.getLogger(__name__)
 

@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any
 
 from arduinobot.ros2.attachment import AttachmentLayout
 from arduinobot.ros2.errors import InvalidOption, MessageMismatch
-from arduinobot.ros2.node import Node
-from arduinobot.ros2.qos import QoS
+from arduinobot.ros2.wire.node import Node
+from arduinobot.ros2.wire.qos import QoS
 
 if TYPE_CHECKING:
     import zenoh

@@ -7,7 +7,7 @@ The course defines the type in its ``arduinobot_msgs`` package,
 The type is registered here from that .action text; rosidl names it
 ``arduinobot_msgs/action/ArduinobotTask`` and its services' DDS types
 ``arduinobot_msgs::action::dds_::ArduinobotTask_SendGoal_`` (... ``_GetResult_``,
-``_FeedbackMessage_``), as :mod:`arduinobot.ros2.types` makes them.
+``_FeedbackMessage_``), as :mod:`arduinobot.ros2.wire.types` makes them.
 
 :class:`TaskServer` does the ROS 2 side only: it asks ``known(number)`` whether a task
 exists (else the goal is rejected), runs it with ``run(number, on_progress, cancel)`` on a
@@ -26,7 +26,7 @@ from collections.abc import Callable
 from typing import Any
 
 from arduinobot.ros2.actions import ActionServer, GoalHandle
-from arduinobot.ros2.node import Node
+from arduinobot.ros2.wire.node import Node
 
 log = logging.getLogger(__name__)
 

@@ -40,8 +40,8 @@ from arduinobot.ros2.errors import (
     GoalRejected,
     InvalidOption,
 )
-from arduinobot.ros2.graph import endpoint_selector, query_graph
-from arduinobot.ros2.node import Node
+from arduinobot.ros2.wire.graph import endpoint_selector, query_graph
+from arduinobot.ros2.wire.node import Node
 
 if TYPE_CHECKING:
     import zenoh
@@ -92,7 +92,7 @@ def detect_control_msgs(session: zenoh.Session, controller: Controller, *, domai
                         ) -> Literal["jazzy", "rolling"] | None:
     """Which control_msgs the controller's feedback publisher announces (its liveliness
     token's type hash), or None when it announces none we know."""
-    from arduinobot.ros2.names import fully_qualified
+    from arduinobot.ros2.wire.names import fully_qualified
     name = action_endpoints(fully_qualified(controller.action, namespace))["feedback"]
     for version in ("jazzy", "rolling"):
         types = control_msgs_types(version)

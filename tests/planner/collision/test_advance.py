@@ -6,8 +6,8 @@ import pytest
 
 from arduinobot.description import load_description
 from arduinobot.description.meshes import shape_mesh
-from arduinobot.planner.collision.advance import tree_lower_bound
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.advance import tree_lower_bound
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.scene.obstacles import Obstacle
 from tests.helpers.fcl_bodies import fcl_objects, place

@@ -1,4 +1,4 @@
-"""Certified collision checking between samples (arduinobot.planner.collision.certify), against FCL."""
+"""Certified collision checking between samples (arduinobot.planner.collision.proof.certify), against FCL."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.certificate import Certificate, combine
-from arduinobot.planner.collision.certify import Certifier
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.certificate import Certificate, combine
+from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.timing.curve import build_curve
 from arduinobot.scene.obstacles import Obstacle
@@ -123,7 +123,7 @@ def test_a_blend_whose_bulge_crosses_an_obstacle_is_refused(needle):
 def test_the_planner_never_returns_a_path_that_grazes_between_samples(needle):
     from arduinobot.contract.errors import NoPathFound
     from arduinobot.planner.planning.goals import JointGoal
-    from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+    from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
     pp = PathPlanner(needle, needle.description)
     # the straight line's samples are free, so the sampled search accepts it; its
     # certification fails, and a certified re-plan finds no way around in one joint
@@ -286,7 +286,7 @@ def test_a_grazing_path_is_planned_again_with_finer_samples_then_certified_edges
     # (the search samples edges 0.02 rad apart; a path grazing between samples is planned
     # again 0.01 rad apart, as before that step was doubled, and only then with every
     # edge certified: several times slower)
-    from arduinobot.planner.planning.paths import FINEST_STEP, PLAN_STEP, PathPlanner
+    from arduinobot.planner.planning.pathfinding.paths import FINEST_STEP, PLAN_STEP, PathPlanner
     pp = PathPlanner(needle, needle.description)
     finer = pp._retry()
     assert pp.step == PLAN_STEP and finer.step == PLAN_STEP / 2 == FINEST_STEP
@@ -305,7 +305,7 @@ def test_a_claw_over_the_base_hollow_is_certified_millimetres_not_microns(course
     # are no parts)
     from dataclasses import replace
 
-    from arduinobot.planner.collision import ladder
+    from arduinobot.planner.collision.proof import ladder
     d = load_description(course_ws.xacro, package_dirs=[course_ws.src], env={})
     world = CollisionWorld(d)
     edge = np.array([[-1.2003252626449796, -0.41068828429081816, -0.8292884824147762,

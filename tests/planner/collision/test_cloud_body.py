@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.certify import Certifier
 from arduinobot.planner.collision.cloud_body import (
     cell_geometry,
     cell_tree,
@@ -17,10 +16,11 @@ from arduinobot.planner.collision.cloud_body import (
     robot_surface,
     surface_spacing,
 )
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal
-from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
 from arduinobot.scene.cloud import Cells, CloudObstacle, finite_points
 from arduinobot.scene.cloud_filter import kept_cells
 

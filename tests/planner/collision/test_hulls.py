@@ -1,4 +1,4 @@
-"""Convex-hull distance bounds (src/arduinobot/planner/collision/hulls.py): never above FCL's exact
+"""Convex-hull distance bounds (src/arduinobot/planner/collision/bounds/hulls.py): never above FCL's exact
 distance, on the shipped arm and on the course workspace's CAD links (millimetre meshes
 with open edges), against every obstacle shape, nor warm-started from a stale or any
 direction; equal to it for convex bodies."""
@@ -10,8 +10,8 @@ import pytest
 import trimesh
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.hulls import mesh_hull, separation, warm_bound
-from arduinobot.planner.collision.ladder import Ladder
+from arduinobot.planner.collision.bounds.hulls import mesh_hull, separation, warm_bound
+from arduinobot.planner.collision.proof.ladder import Ladder
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.scene.obstacles import Obstacle
 
@@ -121,7 +121,7 @@ def test_separation_along_any_direction_is_below_the_distance(seed):
 
 def test_convex_bodies_get_their_exact_distance():
     # a box obstacle and a sphere obstacle are convex: the bound is their distance
-    from arduinobot.planner.collision.hulls import HullBounds, primitive_hull
+    from arduinobot.planner.collision.bounds.hulls import HullBounds, primitive_hull
     box = Obstacle("b", "box", size=(0.1, 0.2, 0.3))
     ball = Obstacle("s", "sphere", radius=0.05)
     tb = np.eye(4)

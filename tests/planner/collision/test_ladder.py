@@ -1,4 +1,4 @@
-"""The certifier's near-contact ladder (planner/collision/ladder.py): the still pairs'
+"""The certifier's near-contact ladder (planner/collision/proof/ladder.py): the still pairs'
 remembered bound, and the rungs each certificate counts."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.certificate import combine
-from arduinobot.planner.collision.certify import Certifier
-from arduinobot.planner.collision.ladder import Ladder
+from arduinobot.planner.collision.proof.certificate import combine
+from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.ladder import Ladder
 from arduinobot.planner.collision.world import CollisionWorld
 
 # the claw coming down over the course base's hollow (tests/test_certify.py)

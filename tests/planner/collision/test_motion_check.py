@@ -1,11 +1,11 @@
-"""src/arduinobot/planner/collision/motion_check.py: a sampled edge checks each of its states once (the
+"""src/arduinobot/planner/collision/proof/motion_check.py: a sampled edge checks each of its states once (the
 end and the middle first), and its verdict is every state's, on a real world too."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from arduinobot.planner.collision.motion_check import sampled_motion_valid
+from arduinobot.planner.collision.proof.motion_check import sampled_motion_valid
 from arduinobot.scene.obstacles import Obstacle
 
 

@@ -1,4 +1,4 @@
-"""One-dimensional pairs proven by cached cells (src/arduinobot/planner/collision/certify.py): the two
+"""One-dimensional pairs proven by cached cells (src/arduinobot/planner/collision/proof/certify.py): the two
 fingers along the mimic, a link turning past an obstacle about one axis. Their bound is
 never above the pair's true distance anywhere on the motion, the verdicts are the walk's,
 and the cells are kept with the world."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.certify import Certifier
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.scene.obstacles import Obstacle
 

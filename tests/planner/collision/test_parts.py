@@ -1,4 +1,4 @@
-"""Part hulls (src/arduinobot/planner/collision/parts.py): their union holds every mesh's surface, their
+"""Part hulls (src/arduinobot/planner/collision/bounds/parts.py): their union holds every mesh's surface, their
 bound never exceeds FCL's exact distance on the course workspace's CAD links (concave,
 millimetre meshes with open edges and long slivers), they come back from the cache,
 and a convex mesh keeps its hull alone."""
@@ -14,10 +14,10 @@ from scipy.spatial import ConvexHull, QhullError
 
 from arduinobot.description import load_description
 from arduinobot.description.meshes import shape_mesh
-from arduinobot.planner.collision.gjk import gjk_direction
-from arduinobot.planner.collision.hulls import mesh_hull
-from arduinobot.planner.collision.ladder import Ladder
-from arduinobot.planner.collision.parts import PartBounds, Parts, build_parts, mesh_parts
+from arduinobot.planner.collision.bounds.gjk import gjk_direction
+from arduinobot.planner.collision.bounds.hulls import mesh_hull
+from arduinobot.planner.collision.bounds.parts import PartBounds, Parts, build_parts, mesh_parts
+from arduinobot.planner.collision.proof.ladder import Ladder
 from arduinobot.planner.collision.world import CollisionWorld
 
 
@@ -177,7 +177,7 @@ def test_a_tree_must_match_its_parts():
 # -- the builder's shortcuts give what the plain numpy gives ----------------------------------
 
 def test_unique_rows_is_numpys_unique_by_rows():
-    from arduinobot.planner.collision.parts import _unique_rows
+    from arduinobot.planner.collision.bounds.parts import _unique_rows
 
     rng = np.random.default_rng(5)
     pts = rng.integers(-3, 4, size=(2000, 3)).astype(float) / 7  # many repeats
@@ -189,7 +189,7 @@ def test_unique_rows_is_numpys_unique_by_rows():
 
 
 def test_largest_is_the_head_of_a_stable_argsort():
-    from arduinobot.planner.collision.parts import _largest
+    from arduinobot.planner.collision.bounds.parts import _largest
 
     rng = np.random.default_rng(6)
     for n in (5, 32, 33, 500):
@@ -198,7 +198,7 @@ def test_largest_is_the_head_of_a_stable_argsort():
 
 
 def test_gap_stops_early_at_the_same_farthest_point():
-    from arduinobot.planner.collision.parts import _gap, _point_triangle
+    from arduinobot.planner.collision.bounds.parts import _gap, _point_triangle
 
     rng = np.random.default_rng(7)
     tri = rng.uniform(-1, 1, size=(300, 3, 3))

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.certify import Certifier
-from arduinobot.planner.collision.resume import WALK, Status, Stop, new_walk
+from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.resume import WALK, Status, Stop, new_walk
 from arduinobot.planner.collision.table import BodyKind, BodyTable, checked_kinds, place_carried
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.scene.obstacles import Obstacle

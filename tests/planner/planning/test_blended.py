@@ -1,14 +1,14 @@
-"""arduinobot.planner.planning.blended: a path's blends proven with it in one walk."""
+"""arduinobot.planner.planning.pathfinding.blended: a path's blends proven with it in one walk."""
 
 import numpy as np
 import pytest
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
-from arduinobot.planner.planning.blended import prove_blended
 from arduinobot.planner.planning.goals import JointGoal
-from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.blended import prove_blended
+from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
 from arduinobot.planner.timing.curve import build_curve
 from arduinobot.scene.obstacles import Obstacle
 

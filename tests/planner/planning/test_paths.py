@@ -3,10 +3,10 @@ import pytest
 
 from arduinobot.contract.errors import InvalidRequest, NoPathFound, StartInCollision
 from arduinobot.description import load_description
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal, NamedGoal
-from arduinobot.planner.planning.paths import PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
 from arduinobot.scene.obstacles import Obstacle
 from tests.helpers.planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
 

@@ -15,7 +15,7 @@ from arduinobot.planner.kinematics.ik import position_ik
 from arduinobot.planner.planning.goal_states import resolve_goal
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.motion import MotionRequest
-from arduinobot.planner.planning.paths import PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PathRequest
 
 
 @pytest.fixture(scope="module")

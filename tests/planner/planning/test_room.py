@@ -1,4 +1,4 @@
-"""Room kept per pair (src/arduinobot/planner/planning/room.py): on the course-like workspace (CAD
+"""Room kept per pair (src/arduinobot/planner/planning/pathfinding/room.py): on the course-like workspace (CAD
 meshes, its camera on the base), detours keep 2 mm for every pair that has it at both
 ends, also when one pair cannot have it anywhere (a shim 1.5 mm under the turntable,
 as the course's camera sits by its base plate): that pair loses the room alone."""
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from arduinobot.description import load_description
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal
-from arduinobot.planner.planning.paths import PLAN_STEP, ROOM, PathPlanner, PathRequest
-from arduinobot.planner.planning.room import Guarded, short_of_room
+from arduinobot.planner.planning.pathfinding.paths import PLAN_STEP, ROOM, PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.room import Guarded, short_of_room
 from arduinobot.scene.obstacles import Obstacle
 
 BALL = Obstacle("ball", "sphere", radius=0.15, xyz=(0.5, 0.5, 0.9))

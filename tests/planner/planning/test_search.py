@@ -5,9 +5,9 @@ import pytest
 
 from arduinobot.contract.errors import InvalidRequest, NoPathFound
 from arduinobot.description import load_description
-from arduinobot.planner.collision.motion_check import sampled_motion_valid
+from arduinobot.planner.collision.proof.motion_check import sampled_motion_valid
 from arduinobot.planner.collision.world import CollisionWorld
-from arduinobot.planner.planning.search import (
+from arduinobot.planner.planning.pathfinding.search import (
     MAX_SEED,
     PLANNERS,
     available_planners,
@@ -26,7 +26,7 @@ def world():
 
 
 def test_a_seed_out_of_range_names_its_field():
-    from arduinobot.planner.planning.search import check_seed
+    from arduinobot.planner.planning.pathfinding.search import check_seed
 
     for seed in (None, 0, MAX_SEED):
         check_seed(seed)

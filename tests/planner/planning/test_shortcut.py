@@ -1,11 +1,11 @@
-"""src/arduinobot/planner/planning/shortcut.py: simplification keeps every edge free by the caller's
+"""src/arduinobot/planner/planning/pathfinding/shortcut.py: simplification keeps every edge free by the caller's
 judge, never lengthens the path, keeps its ends, and is seeded."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from arduinobot.planner.planning.shortcut import reduce_vertices, shortcut_path
+from arduinobot.planner.planning.pathfinding.shortcut import reduce_vertices, shortcut_path
 
 
 def _wall(a: np.ndarray, b: np.ndarray) -> bool:

@@ -20,8 +20,8 @@ from arduinobot.description.errors import DescriptionError
 from arduinobot.description.moveit_config import CartesianLimits, read_cartesian_limits
 from arduinobot.planner.kinematics.ik import position_ik
 from arduinobot.planner.planning.goals import LineGoal
+from arduinobot.planner.planning.lines.straight_line import MAX_DEVIATION
 from arduinobot.planner.planning.pipeline import MotionPlanner, MotionRequest
-from arduinobot.planner.planning.straight_line import MAX_DEVIATION
 from arduinobot.scene.obstacles import Obstacle
 from tests.helpers.fk import tool_frames
 

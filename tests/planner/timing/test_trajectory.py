@@ -9,7 +9,7 @@ import pytest
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import load_description
-from arduinobot.planner.collision.motion_check import interpolate
+from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.path_limits import ActiveLimits
 from arduinobot.planner.timing.curve import build_curve

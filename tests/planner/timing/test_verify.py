@@ -100,7 +100,7 @@ def test_with_a_certificate_limits_are_still_checked_between_samples():
     # collisions proven elsewhere: the grid for the limits alone still finds the peak
     from types import SimpleNamespace
 
-    from arduinobot.planner.collision.certificate import Certificate
+    from arduinobot.planner.collision.proof.certificate import Certificate
     traj = _traj(rate=1.0)
     sampled = np.max(np.abs(traj.efforts), axis=0)
     ts = np.linspace(0.0, traj.duration, 20001)

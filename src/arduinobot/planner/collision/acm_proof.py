@@ -6,7 +6,7 @@ never because samples missed it. The proof is a branch and bound over the box of
 joints that move the two links relative to each other (their limits): at the centre
 ``c`` of a box with half widths ``h``, the OBB trees give a lower bound ``d`` on the
 pair's distance, and no point of one link moves relative to the other by more than
-``sum_k weight_k h_k`` anywhere in the box (:func:`arduinobot.planner.collision.advance.pair_weights`). If
+``sum_k weight_k h_k`` anywhere in the box (:func:`arduinobot.planner.collision.proof.advance.pair_weights`). If
 ``d`` exceeds that by ``margin``, the whole box is proven; else it is split in two along
 its most mobile joint, until an exact contact is found (the pair can touch) or the
 budget runs out (unproven: the pair stays checked).
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from arduinobot.planner.cache import ArtifactCache, content_key
-from arduinobot.planner.collision.advance import tree_lower_bound
+from arduinobot.planner.collision.proof.advance import tree_lower_bound
 from arduinobot.planner.collision.table import BodyKind
 from arduinobot.planner.collision.world import CollisionWorld
 

@@ -16,10 +16,10 @@ import numpy as np
 
 from arduinobot.planner.collision.acm import AllowedCollisionMatrix
 from arduinobot.planner.collision.bodies import RobotBodies, ShapeCache, bvh
+from arduinobot.planner.collision.bounds.hulls import Hull, mesh_hull, primitive_hull
+from arduinobot.planner.collision.bounds.obbtree import ObbTree, box_tree, build_tree
+from arduinobot.planner.collision.bounds.parts import Parts
 from arduinobot.planner.collision.cloud_body import cell_geometry
-from arduinobot.planner.collision.hulls import Hull, mesh_hull, primitive_hull
-from arduinobot.planner.collision.obbtree import ObbTree, box_tree, build_tree
-from arduinobot.planner.collision.parts import Parts
 from arduinobot.planner.collision.table import BodyKind, checked_kinds
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle

@@ -16,9 +16,9 @@ import trimesh
 from arduinobot.description import Description
 from arduinobot.description.meshes import shape_mesh
 from arduinobot.planner.cache import ArtifactCache
-from arduinobot.planner.collision.hulls import Hull, mesh_hull
-from arduinobot.planner.collision.obbtree import ObbTree, cached_tree
-from arduinobot.planner.collision.parts import Parts, mesh_parts
+from arduinobot.planner.collision.bounds.hulls import Hull, mesh_hull
+from arduinobot.planner.collision.bounds.obbtree import ObbTree, cached_tree
+from arduinobot.planner.collision.bounds.parts import Parts, mesh_parts
 from arduinobot.planner.kinematics.chain import Kinematics
 
 _T = TypeVar("_T")

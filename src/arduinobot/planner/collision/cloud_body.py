@@ -29,8 +29,8 @@ import fcl
 import numba
 import numpy as np
 
-from arduinobot.planner.collision.hulls import Hull, mesh_hull
-from arduinobot.planner.collision.obbtree import ObbTree
+from arduinobot.planner.collision.bounds.hulls import Hull, mesh_hull
+from arduinobot.planner.collision.bounds.obbtree import ObbTree
 from arduinobot.scene.cloud import Cells
 
 # the six face directions and, per direction, its square's corners (unit cell, as

@@ -4,7 +4,7 @@ obstacles in python-fcl.
 Built once per (description, obstacles, carried objects, padding) and reused for every check; the
 robot's geometry (:mod:`.bodies`) is shared by every world of it. A check is fast FK
 (numba), an OBB-tree broad phase over every checked pair (numba,
-:mod:`arduinobot.planner.collision.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
+:mod:`arduinobot.planner.collision.bounds.obbtree`), and FCL's exact narrow phase only for the pairs the trees cannot
 separate; FCL objects are built once and only moved.
 """
 
@@ -23,20 +23,20 @@ from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
 from arduinobot.planner.cache import ArtifactCache
 from arduinobot.planner.collision.acm import AllowedCollisionMatrix
-from arduinobot.planner.collision.advance import (
+from arduinobot.planner.collision.assembly import SceneBodies, carried_touch
+from arduinobot.planner.collision.bodies import RobotBodies
+from arduinobot.planner.collision.bounds.hulls import HullBounds
+from arduinobot.planner.collision.bounds.obbtree import Forest, pair_candidates, state_candidates
+from arduinobot.planner.collision.bounds.parts import PartBounds
+from arduinobot.planner.collision.compiled import Direct
+from arduinobot.planner.collision.proof.advance import (
     SweepCarry,
     Work,
     pair_weights,
     sweep,
     tree_lower_bound,
 )
-from arduinobot.planner.collision.assembly import SceneBodies, carried_touch
-from arduinobot.planner.collision.bodies import RobotBodies
-from arduinobot.planner.collision.body_speed import moving_by_static
-from arduinobot.planner.collision.compiled import Direct
-from arduinobot.planner.collision.hulls import HullBounds
-from arduinobot.planner.collision.obbtree import Forest, pair_candidates, state_candidates
-from arduinobot.planner.collision.parts import PartBounds
+from arduinobot.planner.collision.proof.body_speed import moving_by_static
 from arduinobot.planner.collision.table import BodyKind, BodyTable
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.scene.cloud import CloudObstacle
@@ -416,7 +416,7 @@ class CollisionWorld:
         """Index of the first colliding state of ``qs`` (shape (m, dof)), -1 if none.
 
         Every state is decided (nothing between states is implied): pairs that
-        conservative advancement (:mod:`arduinobot.planner.collision.advance`) proves apart are skipped, the
+        conservative advancement (:mod:`arduinobot.planner.collision.proof.advance`) proves apart are skipped, the
         rest go to the narrow phase. The walk stops at the first colliding state.
         """
         qs = np.ascontiguousarray(qs, dtype=float).reshape(-1, self.dof)

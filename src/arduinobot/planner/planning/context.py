@@ -33,16 +33,16 @@ from arduinobot.description import Description
 from arduinobot.planner.cache import ArtifactCache
 from arduinobot.planner.checks import check_joint_names, check_positions
 from arduinobot.planner.collision.acm_proof import proven_never_pairs
-from arduinobot.planner.collision.certificate import Certificate
-from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.proof.certificate import Certificate
+from arduinobot.planner.collision.proof.certify import Certifier
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.dynamics import InverseDynamics
 from arduinobot.planner.kinematics.limits import JointLimits
 from arduinobot.planner.path_limits import ActiveLimits, Derating
 from arduinobot.planner.planning.goal_states import resolve_group
 from arduinobot.planner.planning.motion import MotionRequest, Profile
-from arduinobot.planner.planning.paths import PathPlanner
-from arduinobot.planner.planning.search import check_seed
+from arduinobot.planner.planning.pathfinding.paths import PathPlanner
+from arduinobot.planner.planning.pathfinding.search import check_seed
 from arduinobot.planner.timing.curve import Curve, build_curve
 from arduinobot.planner.timing.profiles import TimingProfile, build_profiles
 from arduinobot.planner.timing.trajectory import CurveTiming, JointTrajectory

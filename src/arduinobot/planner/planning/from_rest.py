@@ -12,11 +12,11 @@ import time
 
 import numpy as np
 
-from arduinobot.planner.collision.certificate import combine
+from arduinobot.planner.collision.proof.certificate import combine
 from arduinobot.planner.planning.context import PlanningContext
 from arduinobot.planner.planning.goals import JointGoal, NamedGoal, PoseGoal, PositionGoal
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult
-from arduinobot.planner.planning.paths import PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PathRequest
 from arduinobot.planner.planning.strategy import moves_at_start
 from arduinobot.planner.timing.curve import build_curve
 

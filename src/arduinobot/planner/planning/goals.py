@@ -9,7 +9,7 @@ tolerance, and the reply says how far from the exact goal it ended
 The goals are plain values checked when built; :mod:`arduinobot.planner.planning.goal_states`
 resolves them to joint states (:mod:`arduinobot.planner.planning.tcp_goals` for tcp positions and
 poses). A :class:`LineGoal` (a straight tcp move, Pilz's LIN) is planned by
-:mod:`arduinobot.planner.planning.straight_line`, not resolved to goal states.
+:mod:`arduinobot.planner.planning.lines.straight_line`, not resolved to goal states.
 """
 
 from __future__ import annotations

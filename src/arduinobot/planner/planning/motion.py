@@ -20,7 +20,7 @@ from arduinobot.planner.planning.goals import (
     PositionGoal,
     check_goal,
 )
-from arduinobot.planner.planning.line_path import LineReport
+from arduinobot.planner.planning.lines.line_path import LineReport
 from arduinobot.planner.planning.reached import Reached
 from arduinobot.planner.timing.trajectory import JointTrajectory
 from arduinobot.planner.timing.verify import VerificationReport

@@ -22,7 +22,7 @@ import numpy as np
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
 from arduinobot.planner.cache import ArtifactCache
-from arduinobot.planner.collision.certificate import Certificate
+from arduinobot.planner.collision.proof.certificate import Certificate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.dynamics import InverseDynamics
 from arduinobot.planner.kinematics.limits import JointLimits
@@ -30,10 +30,10 @@ from arduinobot.planner.planning.context import MAX_ATTEMPTS, PlanningContext
 from arduinobot.planner.planning.from_rest import FromRest
 from arduinobot.planner.planning.goal_states import resolve_group
 from arduinobot.planner.planning.goals import LineGoal
+from arduinobot.planner.planning.lines.straight_line import StraightLine, line_target
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult, Profile
 from arduinobot.planner.planning.moving_start import FromMovingState
 from arduinobot.planner.planning.reached import Reached, reached
-from arduinobot.planner.planning.straight_line import StraightLine, line_target
 from arduinobot.planner.planning.strategy import Strategy, moves_at_start
 from arduinobot.planner.timing.curve import Curve
 from arduinobot.planner.timing.trajectory import JointTrajectory

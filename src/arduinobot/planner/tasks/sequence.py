@@ -23,7 +23,7 @@ from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.planner.frames import RobotFrames
 from arduinobot.planner.planning.goals import Goal
 from arduinobot.planner.planning.motion import MotionRequest
-from arduinobot.planner.planning.search import MAX_SEED
+from arduinobot.planner.planning.pathfinding.search import MAX_SEED
 from arduinobot.planner.tasks.gripper import gripper_goal, gripper_group, holding_link
 from arduinobot.planner.tasks.precheck import check_task
 from arduinobot.planner.tasks.results import StepResult, TaskResult, TaskStepFailed

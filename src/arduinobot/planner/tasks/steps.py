@@ -31,7 +31,7 @@ from arduinobot.planner.planning.goals import (
     goal_from_mapping,
     line_from_mapping,
 )
-from arduinobot.planner.planning.search import check_seed
+from arduinobot.planner.planning.pathfinding.search import check_seed
 from arduinobot.scene.obstacles import Obstacle
 
 StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]

@@ -10,7 +10,7 @@ the waypoint and ends on the outgoing edge ``r`` after it::
 Its tangent turns from ``u1`` to ``u2`` by a smoothstep, so the curve is C2 (curvature is
 zero where a blend meets an edge) and every blend point lies in the triangle
 (edge point, waypoint, edge point) -- close to the checked corridor but not inside it, so
-each blend is certified free over its whole length (:mod:`arduinobot.planner.collision.certify`);
+each blend is certified free over its whole length (:mod:`arduinobot.planner.collision.proof.certify`);
 a colliding blend is shrunk, and after ``max_shrinks`` halvings the corner becomes a hard
 stop: the curve is split there and the motion comes to rest at the waypoint (each edge is
 a straight line, so that is exact).
@@ -34,7 +34,7 @@ from arduinobot.contract.errors import InvalidRequest
 from arduinobot.planner.checks import CHECK_STEP
 
 if TYPE_CHECKING:
-    from arduinobot.planner.collision.certificate import Certificate
+    from arduinobot.planner.collision.proof.certificate import Certificate
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +54,7 @@ class CornerReport:
 
     ``radius`` [rad] is the blend radius kept (0 unless blended); ``shrinks`` counts halvings.
     ``certificate``: the kept blend's proof when a certifier checked it
-    (:class:`arduinobot.planner.collision.certificate.Certificate`), else None.
+    (:class:`arduinobot.planner.collision.proof.certificate.Certificate`), else None.
     """
 
     index: int
@@ -185,7 +185,7 @@ def build_curve(waypoints: np.ndarray, checker: _Checker | _Certifier | None, *,
 
     Args:
         waypoints: the checked path, shape (k, dof), k >= 2.
-        checker: a :class:`arduinobot.planner.collision.certify.Certifier` (each blend is certified free over
+        checker: a :class:`arduinobot.planner.collision.proof.certify.Certifier` (each blend is certified free over
             its whole length), or anything with ``first_invalid(qs) -> int`` (a
             CollisionWorld: blends sampled at ``step``); None skips the blend checks (only
             for paths known to lie in free space, e.g. tests).

@@ -9,7 +9,7 @@ passes if it is <= 1 + ``TOLERANCE`` (1e-6 relative): only the rounding of limit
 exactly (ruckig saturates its limits) is forgiven.
 
 Collisions: the certificate of the curve the trajectory follows decides them over the
-whole continuous motion (:mod:`arduinobot.planner.collision.certify`). Without one, states at most
+whole continuous motion (:mod:`arduinobot.planner.collision.proof.certify`). Without one, states at most
 ``step`` (0.002 rad) apart are checked with ``first_invalid``, and the minimum clearance,
 an FCL distance query (~ms per state), is measured on ``clearance_states`` of them.
 """
@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from arduinobot.planner.checks import CHECK_STEP
-from arduinobot.planner.collision.certificate import Certificate
+from arduinobot.planner.collision.proof.certificate import Certificate
 from arduinobot.planner.path_limits import BatchDynamics, Derating, LimitsLike
 from arduinobot.planner.timing.trajectory import JointTrajectory
 
@@ -64,7 +64,7 @@ class VerificationReport:
             motion (every checked pair, every point between samples); else measured on
             ``clearance_states`` states. ``closest_pair`` is its pair.
         certified: collisions were decided by the curve's certificate
-            (:mod:`arduinobot.planner.collision.certify`), not by sampling.
+            (:mod:`arduinobot.planner.collision.proof.certify`), not by sampling.
         derating: factors applied to the limits to get here; ``attempts`` timings tried.
         tolerance: relative tolerance on the ratios.
     """

@@ -17,7 +17,7 @@ import time
 def main() -> int:
     t0 = time.perf_counter()
     from arduinobot.description import load_description
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     from arduinobot.service.plan.handlers import Handlers
     from arduinobot.service.process.disk_cache import DiskCache
     set_ompl_log_level("none")

@@ -82,7 +82,7 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     logging.basicConfig(level=log_level,
                         format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
-    from arduinobot.planner.planning.search import set_ompl_log_level
+    from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     # as the command line sets it for -v / -vv (the serving process leaves it to us)
     set_ompl_log_level("debug" if log_level <= logging.DEBUG else
                        "info" if log_level <= logging.INFO else "none")

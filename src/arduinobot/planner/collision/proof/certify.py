@@ -6,7 +6,7 @@ straight edge when ``u1 == u2``, a corner blend of :mod:`arduinobot.planner.timi
 a piece every joint's speed ``|q_k'(sigma)|`` stays between ``|u1_k|`` and ``|u2_k|`` (the
 tangent moves from ``u1`` to ``u2`` by a smoothstep), so a point of one body moves
 relative to another by at most ``speed = sum_k weight_k max(|u1_k|, |u2_k|)`` per unit of
-``sigma`` (``weight`` [m/rad] from :func:`arduinobot.planner.collision.advance.pair_weights`).
+``sigma`` (``weight`` [m/rad] from :func:`arduinobot.planner.collision.proof.advance.pair_weights`).
 
 Conservative advancement per checked pair: at ``sigma``, the OBB trees give a lower bound
 ``d`` on the pair's distance; no point of the next ``(d - covered) / speed`` of the piece
@@ -36,15 +36,15 @@ from typing import Any
 import numba
 import numpy as np
 
-from arduinobot.planner.collision.advance import Work, tree_lower_bound
-from arduinobot.planner.collision.body_speed import local_rates, local_step
-from arduinobot.planner.collision.certificate import Certificate
+from arduinobot.planner.collision.bounds.hulls import HullPack, warm_bound
+from arduinobot.planner.collision.bounds.obbtree import Forest
 from arduinobot.planner.collision.compiled import Direct
-from arduinobot.planner.collision.hulls import HullPack, warm_bound
-from arduinobot.planner.collision.ladder import GAP, HOLD, SOFT, STILL, Ladder
-from arduinobot.planner.collision.obbtree import Forest
-from arduinobot.planner.collision.one_dim import OneDimProver
-from arduinobot.planner.collision.resume import Motion, Proof, Status, Stop, new_walk
+from arduinobot.planner.collision.proof.advance import Work, tree_lower_bound
+from arduinobot.planner.collision.proof.body_speed import local_rates, local_step
+from arduinobot.planner.collision.proof.certificate import Certificate
+from arduinobot.planner.collision.proof.ladder import GAP, HOLD, SOFT, STILL, Ladder
+from arduinobot.planner.collision.proof.one_dim import OneDimProver
+from arduinobot.planner.collision.proof.resume import Motion, Proof, Status, Stop, new_walk
 from arduinobot.planner.collision.table import Bodies, Pairs, place_carried
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Chain, _fk_into

@@ -1,7 +1,7 @@
 """How fast a body moves where it is now: a motion bound for the next step, not for all
 configurations.
 
-The certifier's bound per pair (:func:`arduinobot.planner.collision.advance.pair_weights`) holds in
+The certifier's bound per pair (:func:`arduinobot.planner.collision.proof.advance.pair_weights`) holds in
 every configuration: a joint moves a body's points by at most the farthest they ever get
 from its axis, the whole arm stretched out. An arm folded near its base moves its hand
 far slower than that, and conservative advancement near a contact then takes steps ten

@@ -1,6 +1,6 @@
 """The protocol between the certifier's compiled walk and its Python side.
 
-The walk (:func:`arduinobot.planner.collision.certify._advance`) runs in numba until a point needs a
+The walk (:func:`arduinobot.planner.collision.proof.certify._advance`) runs in numba until a point needs a
 bound it cannot compute there (a hull query through FCL, or FCL's exact distance); it
 then stops, says why (:class:`Status`) and where (a :data:`WALK` record), and Python
 computes the bound and calls it again from that point with the bound injected.

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from arduinobot.ros2.attachment import Attachment, AttachmentLayout
 from arduinobot.ros2.errors import EntityClosed, Ros2Error, ServiceFailed
-from arduinobot.ros2.graph import (
+from arduinobot.ros2.wire.graph import (
     EndpointInfo,
     endpoint_selector,
     endpoint_token,
@@ -30,8 +30,8 @@ from arduinobot.ros2.graph import (
     query_graph,
     topic_key,
 )
-from arduinobot.ros2.topics import MessageInfo
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.topics import MessageInfo
+from arduinobot.ros2.wire.types import TypeStore
 
 if TYPE_CHECKING:
     import zenoh

@@ -8,7 +8,7 @@ Service name mapping", "Graph Cache") and rmw_zenoh_cpp/src/detail/liveliness_ut
 - node token: ``@ros2_lv/<domain_id>/<zid>/<node_id>/<node_id>/NN/<enclave>/<ns>/<name>``
 - endpoint token: ``@ros2_lv/<domain_id>/<zid>/<node_id>/<entity_id>/<MP|MS|SS|SC>/
   <enclave>/<ns>/<node name>/<name>/<dds type>/<hash>/<qos>``, every chunk mangled
-  (``/`` -> ``%``), the QoS as :meth:`arduinobot.ros2.qos.QoS.encode`.
+  (``/`` -> ``%``), the QoS as :meth:`arduinobot.ros2.wire.qos.QoS.encode`.
 - GID: XXH3-128 (seed 0) of the token's key expression, its low 64 bits then its high 64
   bits, little-endian (``simplified_XXH3_128bits``, a copy of stock XXH3). rmw_zenoh's
   graph cache derives an entity's GID from its token the same way, so the GID we put in
@@ -24,8 +24,8 @@ from typing import TYPE_CHECKING, Any, Literal, TypeGuard
 import xxhash
 
 from arduinobot.ros2.errors import MalformedToken
-from arduinobot.ros2.names import demangle, mangle
-from arduinobot.ros2.qos import QoS
+from arduinobot.ros2.wire.names import demangle, mangle
+from arduinobot.ros2.wire.qos import QoS
 
 if TYPE_CHECKING:
     import zenoh

@@ -2,7 +2,7 @@
 
 A detour is first searched with every pair the group moves kept ``room`` farther apart
 than the clearance (by the OBB trees alone: :meth:`PathPlanner.roomy
-<arduinobot.planner.planning.paths.PathPlanner.roomy>`). A pair that lacks that room where the
+<arduinobot.planner.planning.pathfinding.paths.PathPlanner.roomy>`). A pair that lacks that room where the
 motion starts or ends, and cannot leave it by a short edge (a camera bolted a millimetre
 from the turntable, which every joint_1 motion turns past it), used to switch the room
 off for every pair. :class:`Guarded` lets such a pair lose it alone: the roomy world
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from arduinobot.planner.collision.motion_check import StateChecker
+from arduinobot.planner.collision.proof.motion_check import StateChecker
 from arduinobot.planner.collision.world import CollisionWorld
 
 __all__ = ["Guarded", "StateChecker", "short_of_room"]

@@ -25,8 +25,13 @@ import numba
 import numpy as np
 
 from arduinobot.description.model import Joint, Robot
-from arduinobot.planner.collision.body_speed import local_rates
-from arduinobot.planner.collision.obbtree import Forest, box_in_frame, in_box_frame, relative_pose
+from arduinobot.planner.collision.bounds.obbtree import (
+    Forest,
+    box_in_frame,
+    in_box_frame,
+    relative_pose,
+)
+from arduinobot.planner.collision.proof.body_speed import local_rates
 from arduinobot.planner.collision.table import Bodies, Pairs, place_carried
 from arduinobot.planner.kinematics.chain import Chain, _fk_into
 

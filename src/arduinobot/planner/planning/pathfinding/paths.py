@@ -17,16 +17,16 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, NoPathFound, StartInCollision
 from arduinobot.description import Description
-from arduinobot.planner.collision.certificate import Certificate
-from arduinobot.planner.collision.certify import Certifier
-from arduinobot.planner.collision.motion_check import motion_valid, sampled_motion_valid
+from arduinobot.planner.collision.proof.certificate import Certificate
+from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.motion_check import motion_valid, sampled_motion_valid
 from arduinobot.planner.collision.world import CollisionWorld
-from arduinobot.planner.planning.blended import prove_blended
 from arduinobot.planner.planning.goal_states import check_limits, resolve_goal, resolve_group
 from arduinobot.planner.planning.goals import Goal, check_goal
-from arduinobot.planner.planning.room import Guarded, StateChecker, short_of_room
-from arduinobot.planner.planning.search import available_planners, check_seed, search
-from arduinobot.planner.planning.shortcut import shortcut_path
+from arduinobot.planner.planning.pathfinding.blended import prove_blended
+from arduinobot.planner.planning.pathfinding.room import Guarded, StateChecker, short_of_room
+from arduinobot.planner.planning.pathfinding.search import available_planners, check_seed, search
+from arduinobot.planner.planning.pathfinding.shortcut import shortcut_path
 from arduinobot.planner.timing.curve import Curve
 
 _log = logging.getLogger(__name__)
@@ -82,14 +82,14 @@ class PathResult:
     Attributes:
         joint_names: the order of the joint vectors.
         path: waypoints, shape (k, dof), k >= 2, first = start; every straight segment
-            is certified free over its whole length (:mod:`arduinobot.planner.collision.certify`).
+            is certified free over its whole length (:mod:`arduinobot.planner.collision.proof.certify`).
         planner: the planner that produced it ("straight line" if none was needed).
         timings: seconds per stage: validate, straight_line, plan, simplify, recheck.
         checks: state validity checks made (narrow or broad phase).
         straight_line: the straight line to the goal was free.
         length: joint-space path length [rad] (sum of Euclidean segment lengths).
         certificate: the proof that every segment is free, with its certified clearance
-            (:class:`arduinobot.planner.collision.certificate.Certificate`); reused for anything that follows the
+            (:class:`arduinobot.planner.collision.proof.certificate.Certificate`); reused for anything that follows the
             segments, such as the straight parts of a blended curve.
         curve: when solved with ``blend``, the path's corners blended as
             :func:`arduinobot.planner.timing.curve.build_curve` would (default radii), every blend

@@ -4,7 +4,7 @@ Two checks of an edge a -> b, both at a fixed joint step [rad] (not OMPL's fract
 the space's extent): :func:`sampled_motion_valid` checks its states that far apart in one
 batched call (fast: what search and shortcutting try thousands of times), and
 :func:`motion_valid` proves it free over its whole length with
-:class:`arduinobot.planner.collision.certify.Certifier` (what a returned path must pass).
+:class:`arduinobot.planner.collision.proof.certify.Certifier` (what a returned path must pass).
 """
 
 from __future__ import annotations
@@ -16,12 +16,12 @@ import numpy as np
 import ompl.base as ob
 from numpy.typing import ArrayLike
 
-from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.proof.certify import Certifier
 
 
 class StateChecker(Protocol):
     """What search and shortcutting ask of a world (a :class:`CollisionWorld` is one; so
-    is :class:`arduinobot.planner.planning.room.Guarded`)."""
+    is :class:`arduinobot.planner.planning.pathfinding.room.Guarded`)."""
 
     def is_valid(self, q: ArrayLike) -> bool: ...
 

@@ -2,14 +2,14 @@
 
 :class:`StraightLine` plans a :class:`~arduinobot.planner.planning.goals.LineGoal` from rest:
 
-1. the line's joint path by dense IK (:func:`~arduinobot.planner.planning.line_path.follow_line`):
+1. the line's joint path by dense IK (:func:`~arduinobot.planner.planning.lines.line_path.follow_line`):
    every vertex within the joint limits and collision-free, the joints never jumping;
    where it cannot go on: :class:`~arduinobot.contract.errors.LineInterrupted` with the fraction;
 2. certified: the polyline through the vertices is proven free over its whole length
-   (:class:`~arduinobot.planner.collision.certify.Certifier`), its corners blended and each blend
+   (:class:`~arduinobot.planner.collision.proof.certify.Certifier`), its corners blended and each blend
    proven (:func:`~arduinobot.planner.timing.curve.build_curve`): the proof covers every position
    the trajectory takes (a failed proof is a ``collision`` interruption at its place);
-3. timed (:mod:`arduinobot.planner.planning.line_timing`): one jerk-limited profile of the curve
+3. timed (:mod:`arduinobot.planner.planning.lines.line_timing`): one jerk-limited profile of the curve
    parameter, tightened until the verifier passes every joint limit (velocity,
    acceleration, jerk, effort) and the tcp's speed, acceleration (max_trans_acc speeding
    up, max_trans_dec slowing down) and angular speed are within the MoveIt config's
@@ -41,8 +41,8 @@ from arduinobot.contract.errors import (
 )
 from arduinobot.description import Tcp
 from arduinobot.description.moveit_config import CartesianLimits, read_cartesian_limits
-from arduinobot.planner.collision.certificate import Certificate, combine
-from arduinobot.planner.collision.certify import Certifier
+from arduinobot.planner.collision.proof.certificate import Certificate, combine
+from arduinobot.planner.collision.proof.certify import Certifier
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.ik_numeric import Chain, build_chain
 from arduinobot.planner.kinematics.ik_pose import tool_jacobian
@@ -50,14 +50,14 @@ from arduinobot.planner.kinematics.rotations import rotation_error
 from arduinobot.planner.planning.context import PlanningContext
 from arduinobot.planner.planning.goal_states import resolve_group
 from arduinobot.planner.planning.goals import LineGoal
-from arduinobot.planner.planning.line_path import (
+from arduinobot.planner.planning.lines.line_path import (
     MAX_TURN,
     LinePath,
     LineReport,
     follow_line,
     line_deviation,
 )
-from arduinobot.planner.planning.line_timing import Bounds, TcpMotion, line_timing, tcp_motion
+from arduinobot.planner.planning.lines.line_timing import Bounds, TcpMotion, line_timing, tcp_motion
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult
 from arduinobot.planner.planning.strategy import moves_at_start
 from arduinobot.planner.planning.tcp_goals import tcp_joints

@@ -31,8 +31,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from arduinobot.planner.collision.certificate import Rungs
-from arduinobot.planner.collision.resume import Proof
+from arduinobot.planner.collision.proof.certificate import Rungs
+from arduinobot.planner.collision.proof.resume import Proof
 
 if TYPE_CHECKING:
     from arduinobot.planner.collision.world import CollisionWorld

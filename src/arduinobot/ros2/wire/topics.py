@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 from arduinobot.ros2.attachment import Attachment, AttachmentLayout
 from arduinobot.ros2.errors import EntityClosed, Ros2Error
-from arduinobot.ros2.graph import EndpointInfo, endpoint_token, gid_of, topic_key
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.graph import EndpointInfo, endpoint_token, gid_of, topic_key
+from arduinobot.ros2.wire.types import TypeStore
 
 if TYPE_CHECKING:
     import zenoh

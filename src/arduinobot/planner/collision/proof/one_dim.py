@@ -27,8 +27,8 @@ import numba
 import numpy as np
 
 from arduinobot.planner.cache import content_key
-from arduinobot.planner.collision.advance import Work, tree_lower_bound
-from arduinobot.planner.collision.hulls import warm_bound
+from arduinobot.planner.collision.bounds.hulls import warm_bound
+from arduinobot.planner.collision.proof.advance import Work, tree_lower_bound
 from arduinobot.planner.collision.table import BodyKind
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import _fk_into

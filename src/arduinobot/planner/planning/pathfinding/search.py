@@ -18,7 +18,7 @@ import ompl.geometric as og
 import ompl.util as ou
 
 from arduinobot.contract.errors import InvalidRequest, NoPathFound
-from arduinobot.planner.collision.motion_check import (
+from arduinobot.planner.collision.proof.motion_check import (
     MotionChecker,
     StateChecker,
     StateCodec,

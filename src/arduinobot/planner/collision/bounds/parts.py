@@ -35,8 +35,8 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from arduinobot.planner.cache import ArtifactCache, content_key
-from arduinobot.planner.collision.gjk import gjk_direction
-from arduinobot.planner.collision.hulls import _SLACK, Hull, _along, _box, _qhull
+from arduinobot.planner.collision.bounds.gjk import gjk_direction
+from arduinobot.planner.collision.bounds.hulls import _SLACK, Hull, _along, _box, _qhull
 
 _log = logging.getLogger(__name__)
 

@@ -23,9 +23,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from arduinobot.planner.collision.certificate import Certificate
-from arduinobot.planner.collision.certify import SAMPLE_STEP, Certifier
-from arduinobot.planner.collision.motion_check import StateChecker
+from arduinobot.planner.collision.proof.certificate import Certificate
+from arduinobot.planner.collision.proof.certify import SAMPLE_STEP, Certifier
+from arduinobot.planner.collision.proof.motion_check import StateChecker
 from arduinobot.planner.timing.curve import Curve, build_curve
 
 

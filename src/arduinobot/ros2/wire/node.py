@@ -16,12 +16,19 @@ from typing import TYPE_CHECKING, Any
 
 from arduinobot.ros2.attachment import LAYOUTS, AttachmentLayout
 from arduinobot.ros2.errors import EntityClosed, InvalidOption
-from arduinobot.ros2.graph import EndpointInfo, EntityKind, NodeInfo, Token, node_token, query_graph
-from arduinobot.ros2.names import fully_qualified, validate_namespace, validate_node_name
-from arduinobot.ros2.qos import DEFAULT, SERVICES_DEFAULT, QoS
-from arduinobot.ros2.services import ServiceClient, ServiceServer
-from arduinobot.ros2.topics import MessageInfo, Publisher, Subscription
-from arduinobot.ros2.types import TypeStore
+from arduinobot.ros2.wire.graph import (
+    EndpointInfo,
+    EntityKind,
+    NodeInfo,
+    Token,
+    node_token,
+    query_graph,
+)
+from arduinobot.ros2.wire.names import fully_qualified, validate_namespace, validate_node_name
+from arduinobot.ros2.wire.qos import DEFAULT, SERVICES_DEFAULT, QoS
+from arduinobot.ros2.wire.services import ServiceClient, ServiceServer
+from arduinobot.ros2.wire.topics import MessageInfo, Publisher, Subscription
+from arduinobot.ros2.wire.types import TypeStore
 
 if TYPE_CHECKING:
     import zenoh
@@ -103,7 +110,7 @@ class Node:
     def create_service(self, name: str, type_name: str, handler: Callable[..., Any], *,
                        deferred: bool = False, qos: QoS = SERVICES_DEFAULT) -> ServiceServer:
         """A server of ``type_name`` (``pkg/srv/Name``) on ``name``; see
-        :class:`arduinobot.ros2.services.ServiceServer` for ``handler`` and ``deferred``."""
+        :class:`arduinobot.ros2.wire.services.ServiceServer` for ``handler`` and ``deferred``."""
         ep = self._endpoint("SS", name, type_name, qos)
         return self._keep(ServiceServer(self.session, ep, self.types, type_name, handler,
                                         attachment=self.attachment, deferred=deferred))
