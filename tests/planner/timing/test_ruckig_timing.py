@@ -1,6 +1,7 @@
 """Jerk-limited timing: on the curve, within every limit, close to the time-optimal bound."""
 
 import numpy as np
+import pytest
 
 from arduinobot.planner.path_limits import ActiveLimits, Derating
 from arduinobot.planner.timing.curve import build_curve
@@ -101,3 +102,23 @@ def test_speed_change_distance_matches_ruckig():
         dv = abs(v1 - v0)
         t = dv / a + a / j if dv >= a * a / j else 2 * np.sqrt(dv / j)
         assert abs(tr.duration - t) < 1e-6
+
+
+def test_a_piece_on_a_boundary_of_ruckigs_cases_is_timed_not_refused():
+    # ruckig (community) raises "error in step 1" on this exact rest-to-rest input, whose
+    # profile takes exactly 0.4 s; it reached a user as INTERNAL (a course arm without
+    # an SRDF, joint_1 to 0.8 rad). The piece is timed within the limits instead.
+    from ruckig import InputParameter, Ruckig, RuckigError, Trajectory
+
+    from arduinobot.planner.timing.ruckig_timing import JerkLimitedTiming
+    length, v, a, j = 0.9433981132056605, 11.792476415070755, 47.16990566028302, \
+        471.69905660283024
+    inp, tr = InputParameter(1), Trajectory(1)
+    inp.current_position, inp.target_position = [0.0], [length]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [v], [a], [j]
+    with pytest.raises(RuckigError):  # the failure this guards against is still ruckig's
+        Ruckig(1).calculate(inp, tr)
+    piece = JerkLimitedTiming(None)._piece(length, 0.0, 0.0, v, a, j)
+    assert piece.duration == pytest.approx(0.4, rel=1e-6)
+    ext = piece.position_extrema[0]
+    assert -1e-9 <= ext.min and ext.max <= length + 1e-9

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numba
 import numpy as np
-from ruckig import InputParameter, Result, Ruckig, Trajectory
+from ruckig import InputParameter, Result, Ruckig, RuckigError, Trajectory
 
 from arduinobot.contract.errors import TrajectoryError
 from arduinobot.planner.path_limits import ActiveLimits, BatchDynamics, torque_coefficients
@@ -270,11 +270,25 @@ class JerkLimitedTiming:
         inp.target_position = [float(length)]
         inp.target_velocity = [v1]
         inp.target_acceleration = [0.0]
-        inp.max_velocity = [float(v)]
-        inp.max_acceleration = [float(a)]
-        inp.max_jerk = [float(j)]
         tr = Trajectory(1)
-        res = self._otg.calculate(inp, tr)
+        # ruckig's calculation can fail on a profile that sits exactly on a boundary
+        # between its cases (a 0.943 rad piece at 11.79 rad/s, 47.17 rad/s^2, 471.7
+        # rad/s^3 takes exactly 0.4 s: RuckigError "error in step 1"); limits a hair
+        # lower (still within the robot's) leave the boundary
+        for shave in (1.0, 1.0 - 1e-9):
+            inp.max_velocity = [float(v) * shave]
+            inp.max_acceleration = [float(a) * shave]
+            inp.max_jerk = [float(j) * shave]
+            try:
+                res = self._otg.calculate(inp, tr)
+                break
+            except RuckigError as e:
+                error = str(e).strip().splitlines()[0] if str(e).strip() else "RuckigError"
+        else:
+            raise TrajectoryError(f"ruckig failed on a curve piece: {error}",
+                                  details={"stage": "ruckig", "length": float(length),
+                                           "v0": float(v0), "v1": float(v1),
+                                           "limits": [float(v), float(a), float(j)]})
         if res not in (Result.Working, Result.Finished):
             raise TrajectoryError(f"ruckig failed on a curve piece: {res}",
                                   details={"stage": "ruckig", "result": str(res),
