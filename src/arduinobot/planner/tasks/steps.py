@@ -217,9 +217,11 @@ def _gripper_command(value: object, where: str) -> str | float | tuple[float, ..
                          "values (the leader, then its mimics)", field=where)
 
 
-def task_from_mapping(data: object, *, where: str = "", name: str | None = None) -> Task:
+def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
+                      files: bool = True) -> Task:
     """A :class:`Task` from its JSON form; ``where`` prefixes every field named in an
-    error (``tasks.pick.steps[2]``)."""
+    error (``tasks.pick.steps[2]``); ``files``: whether its obstacles may name files of
+    this machine (False for a task from the wire: :meth:`.Obstacle.from_mapping`)."""
     pre = f"{where}." if where else ""
     if isinstance(data, Sequence) and not isinstance(data, str):
         data = {"steps": data}  # a tasks.yaml entry may be its steps alone
@@ -247,7 +249,7 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None)
         start=None if start is None else {str(k): _number(v, f"{pre}start.{k}")
                                           for k, v in start.items()},
         obstacles=tuple(o if isinstance(o, Obstacle) else
-                        Obstacle.from_mapping(o, where=f"{pre}obstacles[{i}]")
+                        Obstacle.from_mapping(o, where=f"{pre}obstacles[{i}]", files=files)
                         for i, o in enumerate(obstacles)),
         velocity_scaling=None if vs is None else _number(vs, f"{pre}velocity_scaling",
                                                          low=0.01, high=1.0),
