@@ -38,6 +38,9 @@ StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
 STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait")
 #: the longest wait step [s]: a task is a motion, not a timer
 MAX_WAIT = 60.0
+#: the heaviest object an attach step may give [kg]: plan_request.json's attached mass
+#: (past it the inverse dynamics overflows: a NaN effort at 1e308 kg)
+MAX_MASS = 1000.0
 
 
 @dataclass(frozen=True)
@@ -131,10 +134,17 @@ class Task:
 
 
 def _number(value: object, where: str, *, low: float = -math.inf,
-            high: float = math.inf) -> float:
+            high: float = math.inf, unit: str = "") -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not math.isfinite(value) or not low <= value <= high:
-        raise InvalidRequest(f"{value!r} must be a number in [{low:g}, {high:g}]", field=where)
+        # the bound broken, as a schema's refusal gives it (details.limit)
+        limit = None
+        if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                and math.isfinite(value):
+            limit = high if value > high else low
+        raise InvalidRequest(f"{value!r} must be a number in [{low:g}, {high:g}]"
+                             + (f" [{unit}]" if unit else ""), field=where,
+                             details={"limit": limit} if limit is not None else None)
     return float(value)
 
 
@@ -201,9 +211,10 @@ def step_from_mapping(data: object, where: str) -> Step:
                 or not all(isinstance(t, str) for t in touch):
             raise InvalidRequest("must be a list of link names", field=f"{where}.touch_links")
         return AttachStep(value, link=link,
-                          mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0),
+                          mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0,
+                                       high=MAX_MASS, unit="kg"),
                           touch_links=tuple(touch), label=label)
-    return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT), label=label)
+    return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT, unit="s"), label=label)
 
 
 def _gripper_command(value: object, where: str) -> str | float | tuple[float, ...]:
