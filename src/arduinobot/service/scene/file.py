@@ -8,7 +8,7 @@ import json
 import logging
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -124,5 +124,47 @@ def foreign_owner(data: Mapping[str, Any], owner: Mapping[str, str] | None) -> s
 
 
 def mesh_dir_for(scene_file: str | os.PathLike[str]) -> Path:
-    """The folder of a scene file's canonical mesh files (beside it)."""
-    return Path(scene_file).parent / "meshes"
+    """The folder of a scene file's canonical mesh files (beside it), its own: files no
+    revision of this scene uses are collected (:func:`collect_meshes`), which a folder
+    shared with another scene's would make unsafe. They are a cache: the scene file
+    holds each mesh inline, and :func:`arduinobot.scene.state.restore` writes them again."""
+    p = Path(scene_file)
+    return p.parent / "meshes" / p.stem
+
+
+def mesh_files(state: SceneState) -> set[Path]:
+    """The files ``state``'s objects are read from (free, fixed in a link, carried)."""
+    shapes = [o.obstacle.geometry for o in state.objects]
+    shapes += [a.attached.shape.geometry for a in state.attached]
+    return {Path(src) for g in shapes if (src := g.source) is not None}
+
+
+def collect_meshes(folder: Path, keep: Iterable[SceneState]) -> int:
+    """Remove every mesh file of ``folder`` that no state of ``keep`` uses (a refused
+    apply's, a removed object's) and every temporary file a killed writer left; the
+    number removed. Only a scene's own writer calls it, holding its lock (no write is
+    under way in ``folder``)."""
+    used = {p.resolve() for st in keep for p in mesh_files(st)}
+    removed = 0
+    try:
+        entries = list(folder.iterdir())
+    except FileNotFoundError:
+        return 0
+    except OSError as e:  # never in the way of the apply it follows: said, not raised
+        _log.warning("scene: cannot list %s to collect its mesh files: %s", folder, e)
+        return 0
+    for f in entries:
+        stale = (f.suffix == ".stl" and f.resolve() not in used) or \
+            (f.name.startswith(".mesh-") and f.suffix == ".tmp")
+        if not stale or not f.is_file():
+            continue
+        try:
+            f.unlink()
+            removed += 1
+        except FileNotFoundError:
+            pass
+        except OSError as e:
+            _log.warning("scene: cannot remove the unused mesh file %s: %s", f, e)
+    if removed:
+        _log.info("scene: %d mesh file(s) no revision uses removed from %s", removed, folder)
+    return removed
