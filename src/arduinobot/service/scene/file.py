@@ -12,7 +12,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, StorageError
 from arduinobot.scene.state import SceneState
 
 _log = logging.getLogger(__name__)
@@ -51,6 +51,19 @@ class SceneFile:
         return data
 
     def save(self, state: SceneState) -> None:
+        """Write ``state`` (see the class).
+
+        Raises:
+            StorageError: the disk refused it (full, read-only: ``details.errno``); the
+                old file stands. The path and the OS's words go to the log only.
+        """
+        try:
+            self._save(state)
+        except OSError as e:
+            _log.error("scene: could not write %s: %s", self.path, e)
+            raise StorageError.of(e, "the scene's file") from None
+
+    def _save(self, state: SceneState) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}-",
                                    suffix=".tmp")
