@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -80,3 +81,20 @@ def test_each_scene_file_has_its_own_mesh_folder(tmp_path: Path) -> None:
     a, b = tmp_path / "scene-a.json", tmp_path / "scene-b.json"
     assert mesh_dir_for(a) != mesh_dir_for(b)
     assert mesh_dir_for(a).parent == mesh_dir_for(b).parent == tmp_path / "meshes"
+
+
+def test_a_killed_writers_temporary_files_go_at_start(tmp_path: Path) -> None:
+    from arduinobot.service.scene.file import STALE_TMP_AGE, SceneFile
+
+    path = tmp_path / "scene.json"
+    path.write_text('{"revision": 0, "objects": [], "attached": []}')
+    old = tmp_path / ".scene.json-abc123.tmp"   # a kill -9 mid-write, long ago
+    young = tmp_path / ".scene.json-def456.tmp"  # a live writer's, being written
+    other = tmp_path / ".other.json-abc123.tmp"  # another scene file's
+    for f in (old, young, other):
+        f.write_text("{")
+    long_ago = old.stat().st_mtime - 2 * STALE_TMP_AGE
+    os.utime(old, (long_ago, long_ago))
+    os.utime(other, (long_ago, long_ago))
+    assert SceneFile(path).clean() == 1
+    assert not old.exists() and young.exists() and other.exists() and path.exists()

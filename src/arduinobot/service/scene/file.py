@@ -3,11 +3,13 @@ file written so that a crash at any moment leaves the old scene or the new one."
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import json
 import logging
 import os
 import tempfile
+import time
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -17,6 +19,9 @@ from arduinobot.scene.state import SceneState
 
 _log = logging.getLogger(__name__)
 
+#: How old a scene file's temporary file must be to be a killed writer's [s] (a live
+#: writer renames its own within a second).
+STALE_TMP_AGE = 60.0
 #: The key of a scene file that records which robot it was kept for.
 OWNER_KEY = "robot"
 
@@ -49,6 +54,32 @@ class SceneFile:
         if not isinstance(data, dict):
             raise InvalidRequest(f"scene file {self.path} is not a scene object")
         return data
+
+    def clean(self, *, older_than: float = STALE_TMP_AGE) -> int:
+        """Remove the temporary files of this scene file that a killed writer left
+        (``.<name>-*.tmp``, last written over ``older_than`` [s] ago: a live writer's is
+        younger); the number removed."""
+        removed = 0
+        now = time.time()
+        try:
+            stale = list(self.path.parent.glob(f".{glob.escape(self.path.name)}-*.tmp"))
+        except OSError as e:
+            _log.warning("scene: cannot list %s for stale temporary files: %s",
+                         self.path.parent, e)
+            return 0
+        for f in stale:
+            try:
+                if now - f.stat().st_mtime > older_than:
+                    f.unlink()
+                    removed += 1
+            except FileNotFoundError:
+                pass
+            except OSError as e:
+                _log.warning("scene: cannot remove the stale temporary file %s: %s", f, e)
+        if removed:
+            _log.info("scene: %d temporary file(s) of a killed writer removed beside %s",
+                      removed, self.path)
+        return removed
 
     def save(self, state: SceneState) -> None:
         """Write ``state`` (see the class).

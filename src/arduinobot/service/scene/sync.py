@@ -133,6 +133,7 @@ class SceneService:
     # -- lifecycle ---------------------------------------------------------------------
     def start(self) -> None:
         """Load the file, take changes, catch up with the live instances, serve the keys."""
+        self.file.clean()  # what a kill -9 mid-write left
         data = self.file.load()
         if data is None and self._legacy is not None and self._legacy.is_file():
             _log.info("scene: none kept yet for this robot in %s; %s holds a scene kept "
