@@ -64,3 +64,33 @@ def test_a_named_task_of_the_service_may_name_a_mesh_file(tmp_path: Path) -> Non
     from arduinobot.planner.tasks import task_from_mapping
     task = task_from_mapping(job["task"], where=job["where"], files=job["files"])
     assert task.obstacles[0].mesh_path == str(there)
+
+
+@pytest.mark.slow  # starts serve
+def test_through_serve_a_task_mesh_path_is_refused_and_an_attach_mass_bounded(tmp_path: Path
+                                                                              ) -> None:
+    from tests.helpers.serve import start_server
+    from tests.service.test_task_pool import _task_query
+
+    there = tmp_path / "part.stl"
+    trimesh.creation.box(extents=(0.05, 0.05, 0.05)).export(there)
+    srv = start_server(["--workers", "1", "--no-robot", "--scene-file",
+                        str(tmp_path / "scene.json")])
+    try:
+        answers = {}
+        for name, path in (("there", str(there)), ("missing", str(tmp_path / "no.stl"))):
+            (reply,) = _task_query(srv.endpoint, {"task": _task(path)})
+            answers[name] = reply["error"]
+            answers[name]["details"].pop("request_id")  # each request's own
+        for err in answers.values():
+            assert err["code"] == "INVALID_REQUEST"
+            assert err["details"]["field"] == "task.obstacles[1].mesh_path"
+            assert str(tmp_path) not in err["message"]
+        assert answers["there"] == answers["missing"]  # no file-existence oracle
+        heavy = {"obstacles": [{"id": "box", "shape": "box", "size": [0.05, 0.05, 0.05]}],
+                 "steps": [{"attach": "box", "mass": 1e308}]}
+        (reply,) = _task_query(srv.endpoint, {"task": heavy, "trajectories": False})
+        assert reply["error"]["details"]["field"] == "task.steps[0].mass"
+        assert reply["error"]["details"]["limit"] == 1000.0
+    finally:
+        srv.stop()
