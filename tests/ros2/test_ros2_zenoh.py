@@ -260,6 +260,13 @@ def test_services_with_the_sdk_client_bad_requests_and_handler_errors(
                                          timeout=5) if r.err is not None]
         assert errs and b"ROS2_MALFORMED_CDR" in errs[0].payload.to_bytes()
         assert server.rejected == 2 and isinstance(server.last_error, MalformedCdr)
+        # a wildcard reaching the key (a get("5/**") once started an action's goal):
+        # unanswered, the handler never runs, and nothing is counted
+        served = server.served
+        for wild in ("5/**", server.key.rsplit("/", 1)[0] + "/*"):
+            got = list(other.get(wild, payload=b"\x00\x01", attachment=att, timeout=2))
+            assert got == [], wild
+        assert server.rejected == 2 and server.served == served
         # our own client: a handler's exception is an error reply, and the server goes on
         ours = node.create_client("add_two_ints", "example_interfaces/srv/AddTwoInts")
         assert ours.wait_for_server(5)

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.zconfig import check_prefix
 from arduinobot.scene.shapes import kinds, shape_class
 
 #: joint values as given: positional (in the model's order) or by name
@@ -185,6 +187,14 @@ def xacro_arg(text: str) -> tuple[str, str]:
     if not sep or not name:
         raise argparse.ArgumentTypeError(f"'{text}' must be NAME=VALUE or NAME:=VALUE")
     return name, value
+
+
+def key_prefix(text: str) -> str:
+    """A ``--prefix``: literal chunks only (:func:`arduinobot.contract.zconfig.check_prefix`)."""
+    try:
+        return check_prefix(text)
+    except InvalidRequest as e:
+        raise argparse.ArgumentTypeError(e.message) from None
 
 
 def positive_int(text: str) -> int:

@@ -13,7 +13,14 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
-from arduinobot.cli.argtypes import JointValues, Mimic, UsageError, joint_map, xacro_arg
+from arduinobot.cli.argtypes import (
+    JointValues,
+    Mimic,
+    UsageError,
+    joint_map,
+    key_prefix,
+    xacro_arg,
+)
 from arduinobot.client.errors import ServiceError, ServiceUnavailable
 from arduinobot.contract.errors import PlanningError
 from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX
@@ -59,7 +66,8 @@ def add_connection_args(g: argparse._ArgumentGroup, *, timeout_help: str,
     g.add_argument("--connect", action="append", metavar="ENDPOINT",
                    help="the service's (or a router's) zenoh endpoint, repeatable "
                    f"(default {DEFAULT_ENDPOINT})")
-    g.add_argument("--prefix", default=DEFAULT_PREFIX, help="the service's key prefix")
+    g.add_argument("--prefix", default=DEFAULT_PREFIX, type=key_prefix,
+                   help="the service's key prefix")
     g.add_argument("--timeout", type=float, default=60.0, metavar="S", help=timeout_help)
     g.add_argument("--config", metavar="FILE", help="a zenoh JSON5 config for the client "
                    "session (TLS, credentials)")

@@ -106,6 +106,12 @@ class SceneConflict(ServiceError):
     code: str = Code.SCENE_CONFLICT
 
 
+class StorageError(ServiceError):
+    """The instance could not keep the scene on its disk (full, read-only:
+    ``details.errno``); nothing changed. Retry once the disk is fixed."""
+    code: str = Code.STORAGE
+
+
 
 class ImageInvalid(ServiceError):
     """perceive: the image is not a PNG/JPEG that decodes, or is all one colour."""

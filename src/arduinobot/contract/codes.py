@@ -40,6 +40,7 @@ class Code(str, Enum):
     SHUTTING_DOWN = "SHUTTING_DOWN"
     INTERNAL = "INTERNAL"
     SCENE_CONFLICT = "SCENE_CONFLICT"
+    STORAGE = "STORAGE"
     # perceive's (src/arduinobot/perception/): what a camera image could not give
     IMAGE_INVALID = "IMAGE_INVALID"
     NO_MARKER = "NO_MARKER"
@@ -76,7 +77,7 @@ PLAN_SERVICE_CODES: tuple[Code, ...] = (
     Code.GOAL_OUT_OF_REACH, Code.NO_PATH_FOUND, Code.TRAJECTORY_FAILED, Code.INVALID_LIMITS,
     Code.LINE_INTERRUPTED, Code.ORIENTATION_NOT_CONTROLLABLE,
     Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL,
-    Code.SCENE_CONFLICT, Code.IMAGE_INVALID, Code.NO_MARKER, Code.UNKNOWN_MARKER,
+    Code.SCENE_CONFLICT, Code.STORAGE, Code.IMAGE_INVALID, Code.NO_MARKER, Code.UNKNOWN_MARKER,
     Code.MARKER_REFUSED)
 
 #: The execute service's and the drivers' codes, in docs/service.md's second table's order.

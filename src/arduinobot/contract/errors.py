@@ -6,6 +6,8 @@ Each carries what a user needs to act: the field, the joints, the colliding pair
 
 from __future__ import annotations
 
+import errno
+import os
 from collections.abc import Mapping, Sequence
 
 from arduinobot.contract.codes import Code
@@ -136,6 +138,23 @@ class ShuttingDown(PlanningError):
     """The service instance is stopping and did not take (or finish) the request."""
 
     code: Code = Code.SHUTTING_DOWN
+
+
+class StorageError(PlanningError):
+    """This machine's disk refused a write the request needs (full, read-only, over a
+    quota): ``details.errno`` names the OS error; the message names what was being kept,
+    never a path of the server."""
+
+    code: Code = Code.STORAGE
+
+    @classmethod
+    def of(cls, err: OSError, what: str) -> StorageError:
+        """The refusal of ``err`` (an OSError of writing ``what``: "the scene's file"),
+        without its file names."""
+        name = errno.errorcode.get(err.errno or 0, errno.errorcode[errno.EIO])
+        reason = os.strerror(err.errno) if err.errno else "input/output error"
+        return cls(f"could not write {what} on this instance's disk: {reason.lower()} "
+                   f"({name})", details={"errno": name})
 
 
 class SceneConflict(PlanningError):

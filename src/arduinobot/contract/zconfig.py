@@ -10,6 +10,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
+from arduinobot.contract.errors import InvalidRequest
+
 if TYPE_CHECKING:
     import zenoh
 
@@ -18,6 +20,23 @@ Mode = Literal["peer", "client", "router"]
 #: Where ``arduinobot serve`` listens and the client connects by default.
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 DEFAULT_PREFIX = "arduinobot"
+#: What no chunk of a prefix may hold: Zenoh's wildcards (``*``, ``**``, ``$*``) and the
+#: characters it reserves (``#``, ``?``), whitespace.
+_NOT_LITERAL = frozenset("*$#? \t\r\n")
+
+
+def check_prefix(prefix: str) -> str:
+    """``prefix`` if it is a literal key expression (chunks of ordinary characters
+    between single ``/``), else InvalidRequest naming ``prefix``: a wildcard prefix
+    (``*``) would make a service answer every other prefix's keys."""
+    chunks = prefix.split("/") if isinstance(prefix, str) else [""]
+    bad = sorted({c for c in prefix if c in _NOT_LITERAL}) if isinstance(prefix, str) else []
+    if bad or any(not c for c in chunks):
+        raise InvalidRequest(
+            f"{prefix!r} must be literal chunks joined by single '/' (no "
+            + (", ".join(repr(c) for c in bad) if bad else "empty chunk") + ")",
+            field="prefix")
+    return prefix
 
 
 def zenoh_config(*, mode: Mode | None = None, listen: Sequence[str] | None = None,

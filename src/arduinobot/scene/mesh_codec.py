@@ -31,7 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, StorageError
 
 _log = logging.getLogger(__name__)
 
@@ -67,11 +67,24 @@ class MeshGeometry:
 
     def write(self, directory: str | os.PathLike[str]) -> Path:
         """The canonical file ``<directory>/<sha256>.stl``, written once (atomically:
-        a temporary file renamed, so a reader never sees half of it)."""
+        a temporary file renamed, so a reader never sees half of it).
+
+        Raises:
+            StorageError: the disk refused it (full, read-only: ``details.errno``); the
+                path and the OS's words go to the log only.
+        """
         d = Path(directory)
         path = d / f"{self.sha256}.stl"
         if path.is_file() and path.stat().st_size == len(self.stl):
             return path
+        try:
+            self._write(d, path)
+        except OSError as e:
+            _log.error("mesh: could not write %s: %s", path, e)
+            raise StorageError.of(e, "a mesh file") from None
+        return path
+
+    def _write(self, d: Path, path: Path) -> None:
         d.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=d, prefix=".mesh-", suffix=".tmp")
         try:
@@ -83,7 +96,6 @@ class MeshGeometry:
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
-        return path
 
 
 def scale_of(value: object, field: str) -> tuple[float, float, float]:

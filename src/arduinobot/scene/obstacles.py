@@ -94,9 +94,17 @@ class Obstacle:
                 "xyz": list(self.xyz), "rpy": list(self.rpy)}
 
     @classmethod
-    def from_mapping(cls, data: object, *, where: str = "obstacle") -> Obstacle:
+    def from_mapping(cls, data: object, *, where: str = "obstacle",
+                     files: bool = True) -> Obstacle:
         """Build from a JSON-like mapping (the service's wire format); anything else is
-        refused with InvalidRequest."""
+        refused with InvalidRequest.
+
+        Args:
+            files: whether it may name a file of this machine (a mesh's ``mesh_path``:
+                a shape that is not :attr:`~arduinobot.scene.shapes.Shape.portable`).
+                False for anything from the wire: a path from a client would read any
+                file the server can, past every mesh cap, and tell whether it exists.
+        """
         if not isinstance(data, Mapping):
             raise InvalidRequest("must be an object", field=where)
         for key in ("id", "shape"):
@@ -105,12 +113,28 @@ class Obstacle:
         extra = sorted(set(data) - _PLACED - dimension_fields())
         if extra:
             raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+        if not files:
+            refuse_files(data, where=where)
         return cls(where=where, **{k: v for k, v in data.items()})
 
     from_json = from_mapping
 
 
 _PLACED = frozenset({"id", "shape", "xyz", "rpy"})  # an obstacle's own fields; the rest: its shape's
+
+
+def refuse_files(data: Mapping[str, Any], *, where: str) -> None:
+    """Refuse an obstacle's wire form ``data`` that names a file of this machine (a
+    shape that is not portable: a mesh's ``mesh_path``), before anything looks at the
+    file: the refusal neither echoes the path nor tells whether it exists."""
+    cls = shape_class(data.get("shape"), field=f"{where}.shape")
+    if cls.portable:
+        return
+    names = cls.field_names()
+    raise InvalidRequest(
+        f"a {cls.kind} is not read from a file of the server: send it inline to the "
+        "kept scene (<prefix>/scene/apply, its mesh {format, data}) and name it there",
+        field=f"{where}.{names[0] if names else 'shape'}")
 
 
 def validate_obstacles(obstacles: Sequence[Obstacle], *,

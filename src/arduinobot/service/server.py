@@ -22,7 +22,13 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.errors import PlanningError, ShuttingDown
-from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, Mode, zenoh_config
+from arduinobot.contract.zconfig import (
+    DEFAULT_ENDPOINT,
+    DEFAULT_PREFIX,
+    Mode,
+    check_prefix,
+    zenoh_config,
+)
 from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service import hoptrace
 from arduinobot.service.extension import Extension, Host
@@ -87,6 +93,9 @@ class ServeOptions:
     scene_file: str | None = None
     #: the named tasks of <prefix>/task (None: the MoveIt config's tasks.yaml)
     tasks_file: str | None = None
+
+    def __post_init__(self) -> None:
+        check_prefix(self.prefix)  # a wildcard prefix would answer every other prefix
 
 
 def _package_version() -> str:

@@ -1,5 +1,6 @@
 """The verifier: passes good trajectories, catches each kind of violation, derates."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -160,3 +161,31 @@ def test_limit_grid_misses_no_velocity_or_acceleration_peak_by_more_than_half_a_
     h_default = np.diff(Verifier(LIMITS, DYN, WORLD).limit_states(_traj())[0]).max()
     h_slow = np.diff(Verifier(slow, DYN, WORLD).limit_states(_traj(slow))[0]).max()
     assert h_slow < h_default
+
+
+def test_non_finite_efforts_are_never_verified():
+    # a 1e308 kg payload: the inverse dynamics' efforts overflow to NaN, whose ratio to
+    # any limit compared false with "> 1", so the trajectory passed (issue 39, item 8)
+    from arduinobot.planner.kinematics.dynamics import Payload
+
+    traj = _traj()
+    link = list(DYN.robot.links)[-1]
+    zero = ((0.0, 0.0, 0.0),) * 3
+    heavy = DYN.with_payloads([Payload(link, 1e308, (0.0, 0.0, 0.0), zero)])
+    assert np.isnan(heavy.torques_batch(traj.positions, traj.velocities,
+                                        traj.accelerations)).any()
+    rep = Verifier(LIMITS, heavy, WORLD, clearance_states=0).verify(traj)
+    assert not rep.ok and not rep.finite and "effort" in rep.violations
+    assert rep.collision_free  # the failure is the numbers', not a collision
+
+
+def test_a_nan_sample_is_never_verified():
+    # a NaN acceleration: its ratio (and the jerk's, by differences) is NaN, which no
+    # "> 1" comparison catches; with jerk not enforced, still no trajectory
+    traj = _traj()
+    acc = np.array(traj.accelerations, float)
+    acc[len(acc) // 2, 1] = np.nan
+    bad = dataclasses.replace(traj, accelerations=acc)
+    rep = Verifier(LIMITS, DYN, WORLD, clearance_states=0).verify(bad, enforce_jerk=False)
+    assert not rep.ok and not rep.finite and "acceleration" in rep.violations
+    assert json.loads(rep.to_json())["finite"] is False

@@ -14,7 +14,7 @@ import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from arduinobot.cli.argtypes import UsageError, positive_int
+from arduinobot.cli.argtypes import UsageError, key_prefix, positive_int
 from arduinobot.cli.common import EXIT_FAIL, EXIT_OK, add_model_args, model_options
 
 if TYPE_CHECKING:
@@ -58,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--multicast-scouting", action="store_true",
                    help="announce the service on the LAN by multicast scouting (off by "
                    "default, even with --config)")
-    p.add_argument("--prefix", default="arduinobot", help="key expression prefix "
+    p.add_argument("--prefix", default="arduinobot", type=key_prefix, help="key expression prefix "
                    "(default: arduinobot)")
     p.add_argument("--workers", type=positive_int, default=os.cpu_count() or 1, metavar="N",
                    help="planning worker processes (default: the number of cores, "

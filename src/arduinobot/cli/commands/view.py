@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from arduinobot.cli.argtypes import UsageError
+from arduinobot.cli.argtypes import UsageError, key_prefix
 from arduinobot.cli.common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 from arduinobot.client.errors import ServiceUnavailable
 from arduinobot.contract.errors import InvalidRequest
@@ -85,7 +85,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="show the live <prefix>/joint_states of a running 'arduinobot "
                    "execute' (sim or real arm) and the kept scene as it changes, through "
                    "--connect (default tcp/127.0.0.1:7447)")
-    p.add_argument("--prefix", default="arduinobot", help="the service's key prefix "
+    p.add_argument("--prefix", default="arduinobot", type=key_prefix,
+                   help="the service's key prefix "
                    "(its kept scene, --follow)")
     p.set_defaults(func=cmd_view)
 

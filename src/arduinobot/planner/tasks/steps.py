@@ -38,6 +38,9 @@ StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
 STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait")
 #: the longest wait step [s]: a task is a motion, not a timer
 MAX_WAIT = 60.0
+#: the heaviest object an attach step may give [kg]: plan_request.json's attached mass
+#: (past it the inverse dynamics overflows: a NaN effort at 1e308 kg)
+MAX_MASS = 1000.0
 
 
 @dataclass(frozen=True)
@@ -131,10 +134,17 @@ class Task:
 
 
 def _number(value: object, where: str, *, low: float = -math.inf,
-            high: float = math.inf) -> float:
+            high: float = math.inf, unit: str = "") -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not math.isfinite(value) or not low <= value <= high:
-        raise InvalidRequest(f"{value!r} must be a number in [{low:g}, {high:g}]", field=where)
+        # the bound broken, as a schema's refusal gives it (details.limit)
+        limit = None
+        if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                and math.isfinite(value):
+            limit = high if value > high else low
+        raise InvalidRequest(f"{value!r} must be a number in [{low:g}, {high:g}]"
+                             + (f" [{unit}]" if unit else ""), field=where,
+                             details={"limit": limit} if limit is not None else None)
     return float(value)
 
 
@@ -201,9 +211,10 @@ def step_from_mapping(data: object, where: str) -> Step:
                 or not all(isinstance(t, str) for t in touch):
             raise InvalidRequest("must be a list of link names", field=f"{where}.touch_links")
         return AttachStep(value, link=link,
-                          mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0),
+                          mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0,
+                                       high=MAX_MASS, unit="kg"),
                           touch_links=tuple(touch), label=label)
-    return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT), label=label)
+    return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT, unit="s"), label=label)
 
 
 def _gripper_command(value: object, where: str) -> str | float | tuple[float, ...]:
@@ -217,9 +228,11 @@ def _gripper_command(value: object, where: str) -> str | float | tuple[float, ..
                          "values (the leader, then its mimics)", field=where)
 
 
-def task_from_mapping(data: object, *, where: str = "", name: str | None = None) -> Task:
+def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
+                      files: bool = True) -> Task:
     """A :class:`Task` from its JSON form; ``where`` prefixes every field named in an
-    error (``tasks.pick.steps[2]``)."""
+    error (``tasks.pick.steps[2]``); ``files``: whether its obstacles may name files of
+    this machine (False for a task from the wire: :meth:`.Obstacle.from_mapping`)."""
     pre = f"{where}." if where else ""
     if isinstance(data, Sequence) and not isinstance(data, str):
         data = {"steps": data}  # a tasks.yaml entry may be its steps alone
@@ -247,7 +260,7 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None)
         start=None if start is None else {str(k): _number(v, f"{pre}start.{k}")
                                           for k, v in start.items()},
         obstacles=tuple(o if isinstance(o, Obstacle) else
-                        Obstacle.from_mapping(o, where=f"{pre}obstacles[{i}]")
+                        Obstacle.from_mapping(o, where=f"{pre}obstacles[{i}]", files=files)
                         for i, o in enumerate(obstacles)),
         velocity_scaling=None if vs is None else _number(vs, f"{pre}velocity_scaling",
                                                          low=0.01, high=1.0),

@@ -48,7 +48,7 @@ class VerificationReport:
     """What the verifier found.
 
     Attributes:
-        ok: every enforced ratio <= 1 + tolerance and no collision.
+        ok: every enforced ratio <= 1 + tolerance, no collision, and every value finite.
         joint_names: column order of ``ratios``.
         ratios: quantity -> worst ratio to the limit per joint (1.0 = at the limit).
         worst: quantity -> worst ratio over joints.
@@ -67,6 +67,8 @@ class VerificationReport:
             (:mod:`arduinobot.planner.collision.proof.certify`), not by sampling.
         derating: factors applied to the limits to get here; ``attempts`` timings tried.
         tolerance: relative tolerance on the ratios.
+        finite: every time, position, velocity, acceleration, jerk and effort of the
+            trajectory (samples and the grid between them) is a finite number.
     """
 
     ok: bool
@@ -87,6 +89,7 @@ class VerificationReport:
     attempts: int = 1
     tolerance: float = TOLERANCE
     certified: bool = False
+    finite: bool = True
 
     @property
     def worst_overall(self) -> tuple[str, float]:
@@ -108,7 +111,8 @@ class VerificationReport:
                 "closest_pair": list(self.closest_pair),
                 "clearance_states": self.clearance_states,
                 "derating": self.derating.to_dict(), "attempts": self.attempts,
-                "tolerance": self.tolerance, "certified": self.certified}
+                "tolerance": self.tolerance, "certified": self.certified,
+                "finite": self.finite}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict())
@@ -281,7 +285,11 @@ class Verifier:
         ratios = dict(zip(QUANTITIES, _of_peaks(limits, peaks)))  # QUANTITIES' order
         enforced = QUANTITIES if enforce_jerk else tuple(k for k in QUANTITIES if k != "jerk")
         worst = {k: float(np.max(v)) for k, v in ratios.items()}
-        violations = tuple(k for k in enforced if worst[k] > 1.0 + TOLERANCE)
+        # "not <=": a NaN ratio (a NaN effort of a 1e308 kg payload) is a violation too
+        violations = tuple(k for k in enforced if not worst[k] <= 1.0 + TOLERANCE)
+        # every value a number, enforced or not: a NaN jerk or time is no trajectory
+        finite = bool(np.isfinite(peaks).all() and np.isfinite(t).all()
+                      and math.isfinite(traj.duration))
         pairs: tuple[tuple[str, str], ...] = ()
         when, checked, max_step = None, 0, 0.0
         if certificate is not None:
@@ -309,13 +317,13 @@ class Verifier:
             else:
                 clearance, closest, n_clear = math.inf, ("", ""), 0
         return VerificationReport(
-            ok=not violations and free, joint_names=tuple(traj.joint_names),
+            ok=not violations and free and finite, joint_names=tuple(traj.joint_names),
             ratios={k: tuple(float(x) for x in v) for k, v in ratios.items()},
             worst=worst, enforced=tuple(enforced), violations=violations,
             collision_free=free, colliding_time=when, colliding_pairs=pairs,
             checked_states=checked, max_step=max_step, min_clearance=float(clearance),
             closest_pair=(closest[0], closest[1]), clearance_states=n_clear, derating=derating,
-            attempts=attempts, certified=certificate is not None)
+            attempts=attempts, certified=certificate is not None, finite=finite)
 
 
 def derate(report: VerificationReport, current: Derating, *, margin: float = 0.98,

@@ -101,6 +101,14 @@ class ServiceServer:
         self._closed = False
 
     def _on_query(self, query: Any) -> None:
+        # exact queries only: a wildcard (``0/**``) reaches every service key it
+        # intersects, past an access rule written for the key, and would start an
+        # action's goal (a task) for whoever asked for everything; rmw_zenoh's clients
+        # ask the exact key. Left unanswered, as if the key were hidden.
+        if str(query.key_expr) != self.key:
+            log.debug("%s: not answering a query on '%s' (only its own key)",
+                      self.endpoint.name, query.key_expr)
+            return
         try:
             raw_att = query.attachment
             att = Attachment.decode(None if raw_att is None else raw_att.to_bytes(),

@@ -3,20 +3,25 @@ file written so that a crash at any moment leaves the old scene or the new one."
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import json
 import logging
 import os
 import tempfile
-from collections.abc import Mapping
+import time
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, StorageError
 from arduinobot.scene.state import SceneState
 
 _log = logging.getLogger(__name__)
 
+#: How old a scene file's temporary file must be to be a killed writer's [s] (a live
+#: writer renames its own within a second).
+STALE_TMP_AGE = 60.0
 #: The key of a scene file that records which robot it was kept for.
 OWNER_KEY = "robot"
 
@@ -50,7 +55,46 @@ class SceneFile:
             raise InvalidRequest(f"scene file {self.path} is not a scene object")
         return data
 
+    def clean(self, *, older_than: float = STALE_TMP_AGE) -> int:
+        """Remove the temporary files of this scene file that a killed writer left
+        (``.<name>-*.tmp``, last written over ``older_than`` [s] ago: a live writer's is
+        younger); the number removed."""
+        removed = 0
+        now = time.time()
+        try:
+            stale = list(self.path.parent.glob(f".{glob.escape(self.path.name)}-*.tmp"))
+        except OSError as e:
+            _log.warning("scene: cannot list %s for stale temporary files: %s",
+                         self.path.parent, e)
+            return 0
+        for f in stale:
+            try:
+                if now - f.stat().st_mtime > older_than:
+                    f.unlink()
+                    removed += 1
+            except FileNotFoundError:
+                pass
+            except OSError as e:
+                _log.warning("scene: cannot remove the stale temporary file %s: %s", f, e)
+        if removed:
+            _log.info("scene: %d temporary file(s) of a killed writer removed beside %s",
+                      removed, self.path)
+        return removed
+
     def save(self, state: SceneState) -> None:
+        """Write ``state`` (see the class).
+
+        Raises:
+            StorageError: the disk refused it (full, read-only: ``details.errno``); the
+                old file stands. The path and the OS's words go to the log only.
+        """
+        try:
+            self._save(state)
+        except OSError as e:
+            _log.error("scene: could not write %s: %s", self.path, e)
+            raise StorageError.of(e, "the scene's file") from None
+
+    def _save(self, state: SceneState) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}-",
                                    suffix=".tmp")
@@ -124,5 +168,47 @@ def foreign_owner(data: Mapping[str, Any], owner: Mapping[str, str] | None) -> s
 
 
 def mesh_dir_for(scene_file: str | os.PathLike[str]) -> Path:
-    """The folder of a scene file's canonical mesh files (beside it)."""
-    return Path(scene_file).parent / "meshes"
+    """The folder of a scene file's canonical mesh files (beside it), its own: files no
+    revision of this scene uses are collected (:func:`collect_meshes`), which a folder
+    shared with another scene's would make unsafe. They are a cache: the scene file
+    holds each mesh inline, and :func:`arduinobot.scene.state.restore` writes them again."""
+    p = Path(scene_file)
+    return p.parent / "meshes" / p.stem
+
+
+def mesh_files(state: SceneState) -> set[Path]:
+    """The files ``state``'s objects are read from (free, fixed in a link, carried)."""
+    shapes = [o.obstacle.geometry for o in state.objects]
+    shapes += [a.attached.shape.geometry for a in state.attached]
+    return {Path(src) for g in shapes if (src := g.source) is not None}
+
+
+def collect_meshes(folder: Path, keep: Iterable[SceneState]) -> int:
+    """Remove every mesh file of ``folder`` that no state of ``keep`` uses (a refused
+    apply's, a removed object's) and every temporary file a killed writer left; the
+    number removed. Only a scene's own writer calls it, holding its lock (no write is
+    under way in ``folder``)."""
+    used = {p.resolve() for st in keep for p in mesh_files(st)}
+    removed = 0
+    try:
+        entries = list(folder.iterdir())
+    except FileNotFoundError:
+        return 0
+    except OSError as e:  # never in the way of the apply it follows: said, not raised
+        _log.warning("scene: cannot list %s to collect its mesh files: %s", folder, e)
+        return 0
+    for f in entries:
+        stale = (f.suffix == ".stl" and f.resolve() not in used) or \
+            (f.name.startswith(".mesh-") and f.suffix == ".tmp")
+        if not stale or not f.is_file():
+            continue
+        try:
+            f.unlink()
+            removed += 1
+        except FileNotFoundError:
+            pass
+        except OSError as e:
+            _log.warning("scene: cannot remove the unused mesh file %s: %s", f, e)
+    if removed:
+        _log.info("scene: %d mesh file(s) no revision uses removed from %s", removed, folder)
+    return removed

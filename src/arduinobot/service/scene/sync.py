@@ -62,6 +62,7 @@ from arduinobot.service.scene.apply import (
 )
 from arduinobot.service.scene.file import (
     SceneFile,
+    collect_meshes,
     default_scene_file,
     foreign_owner,
     mesh_dir_for,
@@ -112,6 +113,8 @@ class SceneService:
         self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot)
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
+        # the scene before this one: a plan that took it may still read its mesh files
+        self._previous = self._state
         self._encoded: tuple[int, bytes] = (-1, b"")
         # one thread applies (and forwards), another takes changes from the leader: a
         # follower forwarding an apply can still take the leader's sync of it
@@ -130,6 +133,7 @@ class SceneService:
     # -- lifecycle ---------------------------------------------------------------------
     def start(self) -> None:
         """Load the file, take changes, catch up with the live instances, serve the keys."""
+        self.file.clean()  # what a kill -9 mid-write left
         data = self.file.load()
         if data is None and self._legacy is not None and self._legacy.is_file():
             _log.info("scene: none kept yet for this robot in %s; %s holds a scene kept "
@@ -142,9 +146,10 @@ class SceneService:
                 _log.warning("scene: %s holds another robot's kept scene: %s; its objects "
                              "are loaded as they are (give --scene-file to keep this "
                              "robot's scene elsewhere)", self.file.path, foreign)
-            self._state = restore(data, self.builder)
+            self._state = self._previous = restore(data, self.builder)
             _log.info("scene: revision %d, %d objects from %s", self._state.revision,
                       len(self._state.objects), self.file.path)
+        self._collect()  # what a killed instance left: meshes of refused or old scenes
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
         liveliness = self.session.liveliness()
         self._entities += self.instances.subscribe()
@@ -268,12 +273,33 @@ class SceneService:
     def _lead(self, query: zenoh.Query, raw: bytes) -> None:
         self._lead_change(query, decode_apply(raw))
 
+    def _collect(self) -> None:
+        """Remove the mesh files neither this scene nor the one before it uses (the
+        caller holds the lock, or nothing else runs yet)."""
+        collect_meshes(self.builder.mesh_dir, (self._state, self._previous))
+
+    def _install(self, new: Callable[[], SceneState]) -> tuple[SceneState, SceneState]:
+        """The scene ``new()`` builds (on disk before anyone hears of it) made this
+        instance's, under the lock; the scene before and after. The mesh files it wrote
+        are collected if it fails (a refused apply leaves none), and those no scene uses
+        any more if it does."""
+        with self._lock:
+            before = self._state
+            try:
+                state = new()
+                if state is not before:
+                    self.file.save(state)
+            except BaseException:
+                self._collect()
+                raise
+            if state is not before:
+                self._previous, self._state = before, state
+            self._collect()
+            return before, state
+
     def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any],
                      source: StateSource | None = None) -> None:
-        with self._lock:
-            new = apply(self._state, change, self.builder)
-            self.file.save(new)  # on disk before anyone hears of it
-            old, self._state = self._state, new
+        old, new = self._install(lambda: apply(self._state, change, self.builder))
         self._replicate(old.revision, new.revision, change)
         added = [o.id for o in new.objects if o.id not in set(old.ids())]
         removed = [i for i in old.ids() if i not in set(new.ids())]
@@ -315,21 +341,18 @@ class SceneService:
         msg = orjson.loads(raw)
         sender = str(msg["from"])
         if sender != self.instance:
-            with self._lock:
+            def taken() -> SceneState:
                 state = self._state
                 if state.revision == msg["base"]:
-                    new = apply(state, msg["change"], self.builder)
-                elif state.revision < msg["revision"]:  # missed some: take it all
+                    return apply(state, msg["change"], self.builder)
+                if state.revision < msg["revision"]:  # missed some: take it all
                     _log.info("scene: at revision %d, %s sent %d -> %d: fetching its scene",
                               state.revision, sender, msg["base"], msg["revision"])
-                    new = self._fetch(sender) or state
-                else:
-                    _log.warning("scene: at revision %d, %s sent %d -> %d: ignored",
-                                 state.revision, sender, msg["base"], msg["revision"])
-                    new = state
-                if new is not state:
-                    self.file.save(new)
-                    self._state = new
+                    return self._fetch(sender) or state
+                _log.warning("scene: at revision %d, %s sent %d -> %d: ignored",
+                             state.revision, sender, msg["base"], msg["revision"])
+                return state
+            self._install(taken)
         query.reply(query.key_expr, orjson.dumps({"revision": self._state.revision}),
                     encoding=wire.JSON)
 
@@ -359,11 +382,10 @@ class SceneService:
                          "scene of the others and the file", ", ".join(sorted(missing)))
         best = max(scenes.values(), key=lambda d: d.get("revision", -1), default=None)
         if best is not None and best.get("revision", -1) > self._state.revision:
-            new = restore(best, self.builder)
-            with self._lock:
-                if new.revision > self._state.revision:
-                    self.file.save(new)
-                    self._state = new
+            # restored under the lock: its mesh files are written where a sync collects
+            _, new = self._install(lambda: restore(best, self.builder)
+                                if best.get("revision", -1) > self._state.revision
+                                else self._state)
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
 
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:

@@ -157,22 +157,29 @@ class TaskService:
     def _on_task(self, query: zenoh.Query) -> None:
         zb = query.payload
         body = wire.decode("task", zb.to_bytes() if zb is not None else b"")
-        task, where, name = self.source(body)
-        execute = bool(body.get("execute", False))
-        start = None
-        if execute and not (isinstance(task, Mapping) and task.get("start") is not None):
-            start = self._robot_start()  # a task without a start starts where the arm is
-        outcome = self._plan({
-            "task": task, "where": where, "name": name, "start": start,
-            "trajectories": bool(body.get("trajectories", True)), "execute": execute,
-            "start_tolerance": body.get("start_tolerance", 0.01),
-            "move_to_start": bool(body.get("move_to_start", False))})
+        outcome = self._plan(self.job(body))
         if isinstance(outcome, Failure):
             reply_failure(query, outcome)
             return
         query.reply(f"{self.prefix}/task", outcome.body, encoding=wire.JSON)
         if outcome.execute is not None:
             self._execute(query, outcome.execute)
+
+    def job(self, body: Mapping[str, Any]) -> dict[str, Any]:
+        """The ``task`` job of a decoded request ``body`` (what :func:`answer_task`
+        reads); an executed task without a start asks the robot where it is."""
+        task, where, name = self.source(body)
+        execute = bool(body.get("execute", False))
+        start = None
+        if execute and not (isinstance(task, Mapping) and task.get("start") is not None):
+            start = self._robot_start()  # a task without a start starts where the arm is
+        return {
+            # a task from the wire names no file of this machine; tasks.yaml's may
+            "task": task, "where": where, "name": name, "start": start,
+            "files": "task" not in body,
+            "trajectories": bool(body.get("trajectories", True)), "execute": execute,
+            "start_tolerance": body.get("start_tolerance", 0.01),
+            "move_to_start": bool(body.get("move_to_start", False))}
 
     def _plan(self, job: Mapping[str, Any]) -> Outcome:
         """The task job's outcome, from the pool (which answers every job exactly once:
@@ -227,7 +234,8 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
         PlanningError: the task's refusal (a field, a step that failed: its own code).
     """
     from arduinobot.planner.tasks import plan_task, task_from_mapping
-    task = task_from_mapping(data["task"], where=data["where"], name=data["name"])
+    task = task_from_mapping(data["task"], where=data["where"], name=data["name"],
+                             files=bool(data.get("files", False)))
     obstacles, _ = with_scene(scene, {}, task.obstacles)
     task = replace(task, obstacles=obstacles)
     if data.get("start") is not None and task.start is None:
