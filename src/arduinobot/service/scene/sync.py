@@ -235,8 +235,10 @@ class SceneService:
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
         source = None
-        if change.get("attach") or change.get("detach"):
-            # the state here, once: the leader and every follower replay this one
+        if change.get("attach") or change.get("detach") or any(
+                o.get("shape") == "points" for o in change.get("add") or ()):
+            # the state here, once: the leader and every follower replay this one (a
+            # cloud is self-filtered at the state it was taken)
             change, source = with_robot_state(change, session=self.session,
                                               prefix=self.prefix, robot=self.builder.robot)
             raw = orjson.dumps(change)
@@ -288,6 +290,9 @@ class SceneService:
                                  "attached": len(new.attached)}
         if source is not None:
             reply["state_source"] = source
+        taken = {o.get("id") for o in change.get("add") or () if o.get("shape") == "points"}
+        if taken:  # what became of each cloud's points
+            reply["clouds"] = {c.id: dict(c.counts) for c in new.clouds if c.id in taken}
         query.reply(query.key_expr, orjson.dumps(reply), encoding=wire.JSON)
 
     def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> None:
