@@ -16,6 +16,7 @@ from arduinobot.client.client import PlannerClient
 from arduinobot.description import load_description
 from arduinobot.planner.planning.pipeline import MotionPlanner
 from arduinobot.scene.cloud import CloudObstacle, encode_points, voxelise
+from tests.helpers.cli import run_cli
 from tests.helpers.serve import start_servers
 from tests.planner.planning.test_carried import _dense
 from tests.scene.test_scene_cloud import _hits, _on_the_robot, _table_and_pillar
@@ -103,5 +104,53 @@ def test_a_cloud_through_the_service(tmp_path):
             assert c.request("scene")["revision"] == rev + 1
             far = c.request("check", {"joints": {"joint_1": 1.5}})
             assert far["clouds"] == {"camera": "free"}
+    finally:
+        srv.stop()
+
+
+def test_the_scene_add_cloud_command_as_typed(tmp_path):
+    import trimesh
+
+    rng = np.random.default_rng(11)
+    wall = np.column_stack([np.full(400, -1.0), rng.uniform(-1, 1, 400),
+                            rng.uniform(0.2, 1.0, 400)])
+    xyz = tmp_path / "wall.xyz"
+    xyz.write_text("x y z intensity\n" + "\n".join(f"{x} {y} {z} 7" for x, y, z in wall)
+                   + "\nnan nan nan 0\n")
+    ply = tmp_path / "wall.ply"
+    trimesh.PointCloud(wall + [0.0, 0.0, 0.5]).export(str(ply))
+    srv = start_servers([["--workers", "1", "--scene-file", str(tmp_path / "s.json")]])[0]
+    con = ["--connect", srv.endpoint]
+    try:
+        out = run_cli("scene", "add-cloud", "wall", str(xyz), "--resolution", "0.02",
+                      "--state", "joint_1=0.3", *con)
+        assert out.returncode == 0, out.stderr
+        assert "at --state" in out.stdout
+        assert "cloud wall: 400 of 401 points kept" in out.stdout, out.stdout
+        assert "1 not finite" in out.stdout and "unseen space free" in out.stdout
+        out = run_cli("scene", "show", *con)
+        assert "wall" in out.stdout and "cells 0.02 m" in out.stdout, out.stdout
+        # the same id from a .ply, in a link's frame: the cloud is replaced
+        out = run_cli("scene", "add-cloud", "wall", str(ply), "--frame", "base_link",
+                      "--pose", "0,0,0.1", *con)
+        assert out.returncode == 0 and "revision 2 (1 objects)" in out.stdout, out.stderr
+        saved = tmp_path / "cell.json"
+        assert run_cli("scene", "save", str(saved), *con).returncode == 0
+        out = run_cli("scene", "load", str(saved), *con)
+        assert out.returncode == 0 and "revision 3 (1 objects)" in out.stdout, out.stderr
+        with PlannerClient(srv.endpoint, timeout=120) as c:
+            (obj,) = c.request("scene")["objects"]
+            assert obj["state"] == {"joint_1": 0.0, "joint_2": 0.0, "joint_3": 0.0,
+                                    "joint_4": 0.0} and obj["frame"] == "base_link"
+        # refusals: a file that is no cloud, a frame that is no link, occupied without
+        # a camera
+        bad = tmp_path / "scan.bin"
+        bad.write_bytes(b"\0" * 12)
+        out = run_cli("scene", "add-cloud", "x", str(bad), *con)
+        assert out.returncode != 0 and "FILE" in out.stderr, out.stderr
+        out = run_cli("scene", "add-cloud", "x", str(xyz), "--frame", "camera_link", *con)
+        assert out.returncode == 1 and "add[0].frame" in out.stderr, out.stderr
+        out = run_cli("scene", "add-cloud", "x", str(xyz), "--unknown", "occupied", *con)
+        assert out.returncode != 0 and "--camera" in out.stderr, out.stderr
     finally:
         srv.stop()

@@ -276,8 +276,9 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
     if change.get("attach") or change.get("detach"):
         _carry(change, objects, carried, builder)
     for item, where in taken:  # after the carrying: what the robot holds is filtered too
-        c = builder.build_cloud(item, where, change.get("state"), objects=objects.values(),
-                                carried=carried.values())
+        c = builder.build_cloud({k: v for k, v in item.items() if k != "state"}, where,
+                                item.get("state", change.get("state")),
+                                objects=objects.values(), carried=carried.values())
         clouds[c.id] = c
     total = len(objects) + len(carried) + len(clouds)
     if total > max_objects:

@@ -236,7 +236,8 @@ class SceneService:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
         source = None
         if change.get("attach") or change.get("detach") or any(
-                o.get("shape") == "points" for o in change.get("add") or ()):
+                o.get("shape") == "points" and "state" not in o
+                for o in change.get("add") or ()):
             # the state here, once: the leader and every follower replay this one (a
             # cloud is self-filtered at the state it was taken)
             change, source = with_robot_state(change, session=self.session,
@@ -286,7 +287,8 @@ class SceneService:
                                           "detached": detached,
                                           "cleared": bool(change.get("clear"))}),
                             encoding=wire.JSON)
-        reply: dict[str, Any] = {"revision": new.revision, "objects": len(new.objects),
+        reply: dict[str, Any] = {"revision": new.revision,
+                                 "objects": len(new.objects) + len(new.clouds),
                                  "attached": len(new.attached)}
         if source is not None:
             reply["state_source"] = source
