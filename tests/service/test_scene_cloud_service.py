@@ -13,6 +13,7 @@ import pytest
 
 from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
+from arduinobot.client.cloud_files import read_cloud_file
 from arduinobot.description import load_description
 from arduinobot.planner.planning.pipeline import MotionPlanner
 from arduinobot.scene.cloud import CloudObstacle, encode_points, voxelise
@@ -142,12 +143,17 @@ def test_the_scene_add_cloud_command_as_typed(tmp_path):
             (obj,) = c.request("scene")["objects"]
             assert obj["state"] == {"joint_1": 0.0, "joint_2": 0.0, "joint_3": 0.0,
                                     "joint_4": 0.0} and obj["frame"] == "base_link"
+            # the Python client, as docs/service.md shows it
+            applied = c.apply(add=[{"id": "wall", "shape": "points", "resolution": 0.02,
+                                    "points": encode_points(read_cloud_file(xyz))}],
+                              state={"joint_1": 0.3})
+            assert applied.clouds["wall"]["kept"] == 400 and applied.objects == 1
         # refusals: a file that is no cloud, a frame that is no link, occupied without
         # a camera
         bad = tmp_path / "scan.bin"
         bad.write_bytes(b"\0" * 12)
         out = run_cli("scene", "add-cloud", "x", str(bad), *con)
-        assert out.returncode != 0 and "FILE" in out.stderr, out.stderr
+        assert out.returncode != 0 and "scan.bin" in out.stderr, out.stderr
         out = run_cli("scene", "add-cloud", "x", str(xyz), "--frame", "camera_link", *con)
         assert out.returncode == 1 and "add[0].frame" in out.stderr, out.stderr
         out = run_cli("scene", "add-cloud", "x", str(xyz), "--unknown", "occupied", *con)

@@ -184,7 +184,7 @@ def cloud_object(ns: argparse.Namespace) -> dict[str, Any]:
     from arduinobot.scene.cloud import encode_points
 
     try:
-        points = read_cloud_file(ns.cloud_file, field="FILE")
+        points = read_cloud_file(ns.cloud_file)
     except InvalidRequest as e:
         raise UsageError(str(e)) from None
     o: dict[str, Any] = {"id": ns.id, "shape": "points", "points": encode_points(points),
