@@ -177,3 +177,20 @@ def test_the_schema_takes_a_cloud_and_refuses_a_wrong_format():
         with pytest.raises(InvalidRequest) as e:
             decode_apply(orjson.dumps({"add": [obj]}))
         assert e.value.details["field"].startswith(field), e.value
+
+
+def test_a_task_in_the_kept_scene_goes_around_its_cloud(robot):
+    from dataclasses import replace
+
+    from arduinobot.planner.tasks import plan_task, task_from_mapping
+
+    _, mp, base, builder = robot
+    q0 = np.array([-0.8, 0.0, 0.0, 0.0])
+    pts, _ = _table_and_pillar(base, q0)
+    s = apply(SceneState(), {"add": [_cloud(pts)], "state": START}, builder)
+    task = task_from_mapping({"start": START, "seed": 5, "planning_time": 5.0,
+                              "steps": [{"move": {"joints": END}}]})
+    result = plan_task(mp, replace(task, clouds=s.snapshot.clouds))
+    qs = _dense(result.samples()[1])
+    assert np.allclose(qs[-1], [0.8, 0, 0, 0], atol=1e-3)
+    assert _hits(base, s.snapshot.clouds, qs) == 0
