@@ -369,16 +369,19 @@ class SceneReply:
 class SceneApplied:
     """A scene change applied everywhere (``<prefix>/scene/apply``): the new
     ``revision``, how many ``objects`` and ``attached`` objects the scene now holds, and
-    which state an attach or detach used (``request``, ``robot``, ``zero``)."""
+    which state an attach, a detach or a cloud used (``request``, ``robot``, ``zero``)."""
 
     revision: int
     objects: int | None = None
     attached: int | None = None
     state_source: Literal["request", "robot", "zero"] | None = None
+    #: each point cloud the apply added: ``{id: {points, kept, dropped, filtered_robot,
+    #: filtered_objects, cells, unknown, shadow_cells}}``
+    clouds: Mapping[str, Mapping[str, Any]] | None = None
 
     @classmethod
     def parse(cls, body: Any) -> SceneApplied:
         """Raises: MalformedReply naming the first field that breaks the schema."""
         b = _validated("scene_apply", body)
         return cls(int(b["revision"]), b.get("objects"), b.get("attached"),
-                   b.get("state_source"))
+                   b.get("state_source"), b.get("clouds"))

@@ -12,13 +12,15 @@ sharing its planner's kinematics and robot bodies.
 from __future__ import annotations
 
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from arduinobot.description import Description
 from arduinobot.planner.checks import joint_values
-from arduinobot.scene.obstacles import AttachedObject
+from arduinobot.scene.cloud import CloudObstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 
 class RobotFrames:
@@ -75,3 +77,20 @@ class RobotFrames:
                 if other in links:
                     out.append((a.id, other))
         return sorted(set(out))
+
+    def keep_cloud(self, data: dict[str, Any], q: np.ndarray, *, where: str,
+                   objects: Sequence[Obstacle], attached: Sequence[AttachedObject]
+                   ) -> tuple[tuple[CloudObstacle, ...], dict[str, Any]]:
+        """A ``points`` object kept at ``q`` (see :class:`arduinobot.scene.frames.Frames`)."""
+        from arduinobot.planner.collision.cloud_keep import keep_cloud
+        from arduinobot.planner.collision.world import CollisionWorld
+        from arduinobot.scene.cloud_spec import CloudSpec
+
+        spec = CloudSpec.from_mapping(data, link_names=tuple(self.description.robot.links),
+                                      where=where)
+        with self._lock:
+            world = CollisionWorld(self.description, attached=tuple(attached),
+                                   bodies=self._bodies)
+            self._bodies = world.bodies
+        kept = keep_cloud(world, spec, q, objects=tuple(objects))
+        return kept.bodies, kept.reply()

@@ -9,6 +9,7 @@ world, a floor up): :class:`arduinobot.planner.frames.RobotFrames` does in its p
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, Protocol
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description.model import rpy_of
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, resolve_attached
 
 
@@ -36,6 +38,18 @@ class Frames(Protocol):
     def link_contacts(self, a: AttachedObject, q: Any) -> list[tuple[str, str]]:
         """The pairs (``a.id``, link) of ``a`` at ``q`` with links not among its touch
         links, sorted."""
+        ...
+
+    def keep_cloud(self, data: dict[str, Any], q: Any, *, where: str,
+                   objects: Sequence[Obstacle], attached: Sequence[AttachedObject]
+                   ) -> tuple[tuple[CloudObstacle, ...], dict[str, Any]]:
+        """A ``points`` object (its wire form) kept at ``q``: its cell bodies and its
+        counts (:meth:`arduinobot.planner.collision.cloud_keep.KeptCloud.reply`), less
+        the robot's cells and the ``objects``' (world) and ``attached`` ones'.
+
+        Raises:
+            InvalidRequest: the cloud's refusals, naming the field under ``where``.
+        """
         ...
 
 

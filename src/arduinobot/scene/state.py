@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -23,6 +23,7 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description.model import rpy_of
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.frames import Frames, hold
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
 from arduinobot.scene.shapes import check_inline, shape_class
@@ -55,6 +56,18 @@ class SceneObject:
 
 
 @dataclass(frozen=True)
+class SceneCloud:
+    """One point cloud of the scene (``shape: "points"``): ``data`` its wire form with the
+    robot's ``state`` it was taken at, ``bodies`` its kept cells (and its shadow with
+    ``unknown: "occupied"``), ``counts`` what became of its points (the apply reply's)."""
+
+    id: str
+    data: Mapping[str, Any]
+    bodies: tuple[CloudObstacle, ...]
+    counts: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
 class SceneAttached:
     """One carried object: ``data`` its wire form (``{"object", "link", "touch_links",
     "mass", "com"}``, the object's xyz/rpy in the link's frame), ``attached`` what plans
@@ -75,6 +88,15 @@ class SceneSnapshot:
     attached: tuple[AttachedObject, ...] = ()
     #: the ids among ``attached`` that are objects fixed in a link's frame (not picked up)
     fixed: frozenset[str] = frozenset()
+    #: the point clouds' cell bodies (sent once per revision: a worker holds the scene)
+    clouds: tuple[CloudObstacle, ...] = ()
+    #: each point cloud's id and what its unknown space was taken as ("free", "occupied")
+    unknown: tuple[tuple[str, str], ...] = ()
+
+    def assumptions(self) -> dict[str, str]:
+        """``{cloud id: "free" | "occupied"}``: what a plan or check of this scene took
+        the space its clouds' cameras did not see to be (what its reply says)."""
+        return dict(self.unknown)
 
 
 @dataclass(frozen=True)
@@ -84,6 +106,7 @@ class SceneState:
     revision: int = 0
     objects: tuple[SceneObject, ...] = ()
     attached: tuple[SceneAttached, ...] = ()
+    clouds: tuple[SceneCloud, ...] = ()
     snapshot: SceneSnapshot = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -92,15 +115,19 @@ class SceneState:
             self.revision, tuple(o.obstacle for o in self.objects if o.fixed is None),
             tuple(a.attached for a in self.attached)
             + tuple(o.fixed for o in self.objects if o.fixed is not None),
-            frozenset(o.id for o in self.objects if o.fixed is not None)))
+            frozenset(o.id for o in self.objects if o.fixed is not None),
+            tuple(b for c in self.clouds for b in c.bodies),
+            tuple((c.id, str(c.data.get("unknown", "free"))) for c in self.clouds)))
 
     def to_json(self) -> dict[str, Any]:
         """The ``<prefix>/scene`` reply (and the scene file)."""
-        return {"revision": self.revision, "objects": [dict(o.data) for o in self.objects],
+        return {"revision": self.revision,
+                "objects": [dict(o.data) for o in self.objects]
+                + [dict(c.data) for c in self.clouds],
                 "attached": [dict(a.data) for a in self.attached]}
 
     def ids(self) -> tuple[str, ...]:
-        return tuple(o.id for o in self.objects)
+        return tuple(o.id for o in self.objects) + tuple(c.id for c in self.clouds)
 
     def attached_ids(self) -> tuple[str, ...]:
         return tuple(a.id for a in self.attached)
@@ -163,6 +190,31 @@ class SceneBuilder:
                            AttachedObject(obstacle, frame, touch, where=where))
 
 
+    def build_cloud(self, data: Mapping[str, Any], where: str, state: Any, *,
+                    objects: Iterable[SceneObject],
+                    carried: Iterable[SceneAttached]) -> SceneCloud:
+        """A point cloud (``shape: "points"``, see :mod:`arduinobot.scene.cloud_spec`)
+        kept at the robot's ``state`` (``{joint: value}``, None: all 0), less the robot's
+        cells there and those in the free ``objects`` and the ``carried`` ones (objects
+        in a link's frame are carried).
+
+        Raises:
+            InvalidRequest: no robot model; the cloud's own refusals, naming the field.
+        """
+        if self.robot is None:
+            raise InvalidRequest("this scene keeps no point cloud (no robot model to "
+                                 "filter it by)", field=f"{where}.shape")
+        q = self.robot.state(state, field="state")
+        free = [o for o in objects if o.fixed is None]
+        held = [a.attached for a in carried] + [o.fixed for o in objects
+                                                 if o.fixed is not None]
+        bodies, counts = self.robot.keep_cloud(dict(data), q, where=where,
+                                               objects=[o.obstacle for o in free],
+                                               attached=held)
+        return SceneCloud(str(data["id"]), {**data, "state": dict(state or {})},
+                          tuple(bodies), counts)
+
+
 def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *,
           max_objects: int = MAX_SCENE_OBJECTS) -> SceneState:
     """The scene after ``change`` (a schema-valid apply request), all or nothing: the
@@ -188,7 +240,11 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
     cleared = bool(change.get("clear"))
     objects = {} if cleared else {o.id: o for o in state.objects}
     carried = {} if cleared else {a.id: a for a in state.attached}
+    clouds = {} if cleared else {c.id: c for c in state.clouds}
     for i, oid in enumerate(change.get("remove") or ()):
+        if oid in clouds:
+            del clouds[oid]
+            continue
         if oid in carried:
             raise InvalidRequest(f"'{oid}' is carried by '{carried[oid].attached.link}': "
                                  "detach it first (in the same apply, if you like)",
@@ -198,9 +254,20 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
                                  + (" (cleared first)" if cleared else ""),
                                  field=f"remove[{i}]")
         del objects[oid]
+    taken: list[tuple[Mapping[str, Any], str]] = []
     for i, item in enumerate(change.get("add") or ()):
         where = f"add[{i}]"
         oid = item.get("id") if isinstance(item, Mapping) else None
+        if isinstance(item, Mapping) and item.get("shape") == "points":
+            if oid in objects or oid in carried:
+                raise InvalidRequest(f"'{oid}' is an object of the scene, not a cloud",
+                                     field=f"{where}.id")
+            clouds.pop(str(oid), None)  # a later cloud of the same id replaces it
+            taken.append((item, where))
+            continue
+        if oid in clouds:
+            raise InvalidRequest(f"'{oid}' is a point cloud of the scene (remove it in "
+                                 "the same apply to replace it)", field=f"{where}.id")
         if oid in objects or oid in carried:
             raise InvalidRequest(f"duplicate id '{oid}': the scene already holds it (remove "
                                  "it in the same apply to replace it)", field=f"{where}.id")
@@ -208,11 +275,18 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
         objects[obj.id] = obj
     if change.get("attach") or change.get("detach"):
         _carry(change, objects, carried, builder)
-    if len(objects) + len(carried) > max_objects:
-        raise InvalidRequest(f"the scene would hold {len(objects) + len(carried)} objects, "
+    for item, where in taken:  # after the carrying: what the robot holds is filtered too
+        c = builder.build_cloud({k: v for k, v in item.items() if k != "state"}, where,
+                                item.get("state", change.get("state")),
+                                objects=objects.values(), carried=carried.values())
+        clouds[c.id] = c
+    total = len(objects) + len(carried) + len(clouds)
+    if total > max_objects:
+        raise InvalidRequest(f"the scene would hold {total} objects, "
                              f"more than its cap of {max_objects}", field="add",
                              details={"limit": max_objects, "cap": "MAX_SCENE_OBJECTS"})
-    return SceneState(state.revision + 1, tuple(objects.values()), tuple(carried.values()))
+    return SceneState(state.revision + 1, tuple(objects.values()), tuple(carried.values()),
+                      tuple(clouds.values()))
 
 
 def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
@@ -324,11 +398,15 @@ def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
         raise InvalidRequest(f"{len(objects)} objects, more than a scene's cap of "
                              f"{MAX_SCENE_OBJECTS}", field="objects")
     free: dict[str, SceneObject] = {}
+    taken: list[tuple[Mapping[str, Any], str]] = []
     for i, item in enumerate(objects):
         where = f"objects[{i}]"
         oid = item.get("id") if isinstance(item, Mapping) else None
-        if oid in free:
+        if oid in free or any(t.get("id") == oid for t, _ in taken):
             raise InvalidRequest(f"duplicate id '{oid}'", field=f"{where}.id")
+        if isinstance(item, Mapping) and item.get("shape") == "points":
+            taken.append((item, where))
+            continue
         obj = builder.build(item, where)
         free[obj.id] = obj
     ids = set(free)
@@ -346,7 +424,11 @@ def restore(data: Mapping[str, Any], builder: SceneBuilder) -> SceneState:
     if len(free) + len(held) > MAX_SCENE_OBJECTS:
         raise InvalidRequest(f"{len(free) + len(held)} objects, more than a scene's cap of "
                              f"{MAX_SCENE_OBJECTS}", field="attached")
-    return SceneState(revision, tuple(free.values()), tuple(held))
+    # each cloud kept again at the state it was taken (the objects now filter it)
+    clouds = tuple(builder.build_cloud({k: v for k, v in item.items() if k != "state"},
+                                       where, item.get("state"), objects=free.values(),
+                                       carried=held) for item, where in taken)
+    return SceneState(revision, tuple(free.values()), tuple(held), clouds)
 
 
 def with_scene(snapshot: SceneSnapshot | None, data: Mapping[str, Any],
@@ -363,7 +445,8 @@ def with_scene(snapshot: SceneSnapshot | None, data: Mapping[str, Any],
     if pinned is not None and pinned != snap.revision:
         raise SceneConflict(f"the scene is at revision {snap.revision}, not {pinned}",
                             field="scene_revision", current_revision=snap.revision)
-    ids = {o.id for o in snap.obstacles} | {a.id for a in snap.attached}
+    ids = {o.id for o in snap.obstacles} | {a.id for a in snap.attached} \
+        | {c.id for c in snap.clouds}
     for i, o in enumerate(own):
         if o.id in ids:
             raise InvalidRequest(f"id '{o.id}' is also an object of the kept scene (revision "

@@ -34,6 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot scene add box:table:1,1,0.1@0,1,0.5\n"
         "  arduinobot scene add box:cam:0.05,0.05,0.05@0,0.2,0.3 --frame claw_support\n"
         "  arduinobot scene add-mesh bin bin.stl --pose 0.3,0.8,0.6 --scale 0.001\n"
+        "  arduinobot scene add-cloud camera scan.ply --resolution 0.01 --frame base_link\n"
         "  arduinobot scene attach cup --link claw_support --mass 0.2 --state 0.3,0.5\n"
         "  arduinobot scene detach cup --state -0.4,0.5\n"
         "  arduinobot scene show\n"
@@ -67,6 +68,31 @@ def register(sub: argparse._SubParsersAction) -> None:
     a.add_argument("--scale", type=numbers_scale, metavar="S",
                    help="mesh units -> m: one factor or SX,SY,SZ (e.g. 0.001 for mm)")
     _frame_args(a)
+    _if_revision(a)
+    a = action("add-cloud", "add a point cloud (.ply, .pcd, .xyz/.csv) as occupied cells: "
+               "less the robot's own at --state and the scene's objects; a cloud of the "
+               "same id is replaced")
+    a.add_argument("id", metavar="ID")
+    a.add_argument("cloud_file", metavar="FILE", help="a .ply, .pcd, .xyz, .csv or .txt "
+                   "file of x, y, z points [m]")
+    a.add_argument("--resolution", type=float, default=0.01, metavar="M",
+                   help="the cells' edge [m], 0.002 to 0.1 (default 0.01)")
+    a.add_argument("--frame", metavar="LINK", help="the points are in this link's frame "
+                   "(a camera on the arm), placed where it is at --state; default: the world")
+    a.add_argument("--pose", type=numbers_pose, metavar="POSE",
+                   help="the points' frame in --frame's: " + _POSE_HELP)
+    a.add_argument("--padding", type=float, metavar="M",
+                   help="cells this near the robot are its own [m] (default 0.01)")
+    a.add_argument("--unknown", choices=("free", "occupied"), default="free",
+                   help="what the space the camera did not see is: free (default), or "
+                   "occupied behind the measured surface (needs --camera)")
+    a.add_argument("--camera", type=_json_text, metavar="JSON",
+                   help='with --unknown occupied: {"link": L or "xyz"/"rpy", "hfov": rad, '
+                   '"vfov": rad, "range": m}')
+    a.add_argument("--state", type=joint_values, metavar="Q",
+                   help="the robot's state when the cloud was taken: J1,J2,... in the "
+                   "robot's joint order, or NAME=V,...; missing joints 0 (default: the "
+                   "executing robot's state if the service has one, else all joints 0)")
     _if_revision(a)
     a = action("remove", "remove objects by id")
     a.add_argument("ids", nargs="+", metavar="ID")
@@ -141,6 +167,43 @@ def _names(text: str) -> list[str]:
     return names
 
 
+def _json_text(text: str) -> dict[str, Any]:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise argparse.ArgumentTypeError(f"not JSON: {e}") from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError("must be a JSON object")
+    return value
+
+
+def cloud_object(ns: argparse.Namespace) -> dict[str, Any]:
+    """The scene object of ``add-cloud``'s file and options (its points as xyz32)."""
+    from arduinobot.client.cloud_files import read_cloud_file
+    from arduinobot.contract.errors import InvalidRequest
+    from arduinobot.scene.cloud import encode_points
+
+    try:
+        points = read_cloud_file(ns.cloud_file)
+    except InvalidRequest as e:
+        raise UsageError(str(e)) from None
+    o: dict[str, Any] = {"id": ns.id, "shape": "points", "points": encode_points(points),
+                         "resolution": ns.resolution, "unknown": ns.unknown}
+    if ns.frame:
+        o["frame"] = ns.frame
+    if ns.pose is not None:
+        o["xyz"] = ns.pose[:3]
+        if len(ns.pose) == 6:
+            o["rpy"] = ns.pose[3:]
+    if ns.padding is not None:
+        o["padding"] = ns.padding
+    if ns.camera is not None:
+        o["camera"] = ns.camera
+    elif ns.unknown == "occupied":
+        raise UsageError("--unknown occupied needs --camera (where it is and what it sees)")
+    return o
+
+
 def numbers_pose(text: str) -> list[float]:
     values = numbers(6)(text) if text.count(",") == 5 else numbers(3)(text)
     return values
@@ -177,6 +240,8 @@ def change_of(ns: argparse.Namespace) -> dict[str, Any]:
         change: dict[str, Any] = {"add": _framed(ns.spec, ns)}
     elif a == "add-mesh":
         change = {"add": _framed([mesh_object(ns.id, ns.mesh_file, ns.pose, ns.scale)], ns)}
+    elif a == "add-cloud":
+        change = {"add": [cloud_object(ns)]}
     elif a == "remove":
         change = {"remove": ns.ids}
     elif a == "clear":
@@ -241,6 +306,10 @@ def cmd_scene(ns: argparse.Namespace) -> int:
                   reply.get("state_source", ""), "")
     print(f"scene at revision {reply['revision']} ({reply.get('objects', '?')} objects"
           f"{carried})" + (f", {source}" if source else ""))
+    for cid, n in (reply.get("clouds") or {}).items():
+        print(f"  cloud {cid}: {n['kept']} of {n['points']} points kept in {n['cells']} "
+              f"cells ({n['dropped']} not finite, {n['filtered_robot']} on the robot, "
+              f"{n['filtered_objects']} in objects); unseen space {n['unknown']}")
     return EXIT_OK
 
 
@@ -258,6 +327,9 @@ def _print(scene: dict[str, Any]) -> None:
 
 
 def _line(o: dict[str, Any]) -> str:
-    dims = shape_class(o["shape"]).summary(o)
+    if o["shape"] == "points":  # a cloud: not a shape of the registry (its cells are)
+        dims = f"cells {o['resolution']:g} m, unseen space {o.get('unknown', 'free')}"
+    else:
+        dims = shape_class(o["shape"]).summary(o)
     xyz = ",".join(f"{v:g}" for v in o.get("xyz", (0, 0, 0)))
     return f"{o['id']:<20} {o['shape']:<8} {dims}  @ {xyz}"

@@ -47,6 +47,7 @@ from arduinobot.planner.timing.curve import Curve, build_curve
 from arduinobot.planner.timing.profiles import TimingProfile, build_profiles
 from arduinobot.planner.timing.trajectory import CurveTiming, JointTrajectory
 from arduinobot.planner.timing.verify import VerificationReport, Verifier, derate
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, resolve_attached
 
 log = logging.getLogger(__name__)
@@ -130,20 +131,24 @@ class PlanningContext:
 
     # -- caches -----------------------------------------------------------------------
     def world(self, obstacles: tuple[Obstacle, ...],
-              attached: tuple[AttachedObject, ...] = ()) -> CollisionWorld:
-        """The collision world for ``obstacles`` and the ``attached`` objects carried,
-        built once per distinct set of both."""
-        return self.scene(obstacles, attached)[0]
+              attached: tuple[AttachedObject, ...] = (),
+              clouds: tuple[CloudObstacle, ...] = ()) -> CollisionWorld:
+        """The collision world for ``obstacles``, the ``attached`` objects carried and
+        the ``clouds``' cells, built once per distinct set of the three."""
+        return self.scene(obstacles, attached, clouds)[0]
 
     def scene(self, obstacles: tuple[Obstacle, ...],
-              attached: tuple[AttachedObject, ...] = ()
+              attached: tuple[AttachedObject, ...] = (),
+              clouds: tuple[CloudObstacle, ...] = ()
               ) -> tuple[CollisionWorld, PathPlanner]:
-        """The collision world for ``obstacles`` and the ``attached`` objects carried, and
-        the path planner in it, built once per distinct set of both."""
-        key = (_obstacle_key(obstacles), _attached_key(attached))
+        """The collision world for ``obstacles``, the ``attached`` objects carried and
+        the ``clouds``' cells, and the path planner in it, built once per distinct set of
+        the three (a cloud by its cells' content)."""
+        key = (_obstacle_key(obstacles), _attached_key(attached),
+               tuple((c.id, c.key()) for c in clouds))
         found = self._worlds.pop(key, None)
         if found is None:
-            w = self._base_world().with_scene(obstacles, attached=attached)
+            w = self._base_world().with_scene(obstacles, attached=attached, clouds=clouds)
             found = (w, PathPlanner(w, self.description))
         self._worlds[key] = found  # most recently used last
         while len(self._worlds) > self.max_worlds:

@@ -24,6 +24,7 @@ from arduinobot.planner.planning.lines.line_path import LineReport
 from arduinobot.planner.planning.reached import Reached
 from arduinobot.planner.timing.trajectory import JointTrajectory
 from arduinobot.planner.timing.verify import VerificationReport
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 Profile = Literal["jerk_limited", "time_optimal"]
@@ -47,6 +48,8 @@ class MotionRequest:
     obstacles: tuple[Obstacle, ...] = ()
     # objects the robot carries for this request (each posed in its link's frame)
     attached: tuple[AttachedObject, ...] = ()
+    # point clouds' cells (the kept scene's), each one body: see arduinobot.scene.cloud
+    clouds: tuple[CloudObstacle, ...] = ()
     planner: str = "RRTConnect"
     planning_time: float = 1.0          # [s], (0, 60]
     velocity_scaling: float | None = None       # [0.01, 1]

@@ -38,7 +38,8 @@ from arduinobot.planner.planning.strategy import Strategy, moves_at_start
 from arduinobot.planner.timing.curve import Curve
 from arduinobot.planner.timing.trajectory import JointTrajectory
 from arduinobot.planner.timing.verify import VerificationReport
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.cloud import CloudObstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 __all__ = ["MotionPlanner", "MotionRequest", "MotionResult", "MAX_ATTEMPTS",
            "default_strategies"]
@@ -135,9 +136,12 @@ class MotionPlanner:
     def dynamics(self) -> InverseDynamics:
         return self.context.dynamics
 
-    def world(self, obstacles: tuple[Obstacle, ...]) -> CollisionWorld:
-        """The collision world for ``obstacles``, built once per distinct obstacle set."""
-        return self.context.world(obstacles)
+    def world(self, obstacles: tuple[Obstacle, ...],
+              attached: tuple[AttachedObject, ...] = (),
+              clouds: tuple[CloudObstacle, ...] = ()) -> CollisionWorld:
+        """The collision world for ``obstacles`` (with the ``attached`` objects carried
+        and the ``clouds``' cells), built once per distinct set."""
+        return self.context.world(obstacles, attached, clouds)
 
     def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits:
         """The joint limits scaled by the two factors, built once per pair."""

@@ -32,6 +32,7 @@ from arduinobot.planner.planning.goals import (
     line_from_mapping,
 )
 from arduinobot.planner.planning.pathfinding.search import check_seed
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import Obstacle
 
 StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
@@ -122,6 +123,8 @@ class Task:
     steps: tuple[Step, ...]
     start: Mapping[str, float] | None = None
     obstacles: tuple[Obstacle, ...] = ()
+    #: the kept scene's point clouds (cells), avoided by every motion step
+    clouds: tuple[CloudObstacle, ...] = ()
     velocity_scaling: float | None = None
     acceleration_scaling: float | None = None
     planning_time: float = 1.0

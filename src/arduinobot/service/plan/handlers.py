@@ -139,7 +139,8 @@ class Handlers:
         from arduinobot.service.plan.plan_io import attached
         carried = attached(self.description, data.get("attached"), scene=scene,
                            obstacles=obs)
-        world = self._scene(obs, float(data.get("padding", 0.0)))
+        clouds = scene.clouds if scene is not None else ()
+        world = self._scene(obs, float(data.get("padding", 0.0)), clouds)
         if carried:  # the scene's and the request's carried objects, contacts and poses
             world = world.with_scene(obs, attached=carried)
         res = world.check(q, clearance=True)
@@ -150,6 +151,8 @@ class Handlers:
                 "closest": list(res.closest) if res.closest else None,
                 "joints": dict(zip(self.kin.joint_names, map(float, q))),
                 "scene_revision": revision,
+                **({"clouds": scene.assumptions()} if scene is not None and scene.unknown
+                   else {}),
                 **({"carried": self._carried_poses(q, carried, scene)} if carried else {})}
 
     def _carried_poses(self, q: Any, carried: tuple[Any, ...], scene: SceneSnapshot | None
@@ -166,13 +169,16 @@ class Handlers:
                          **({"fixed": True} if a.id in fixed else {})}
         return out
 
-    def _scene(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
+    def _scene(self, obs: tuple[Any, ...], padding: float,
+               clouds: tuple[Any, ...] = ()) -> CollisionWorld:
         if padding == 0.0:
-            return self._motion_planner().world(obs)
-        return self._padded_scene(obs, padding)
+            return self._motion_planner().world(obs, (), clouds)
+        return self._padded_scene(obs, padding, clouds)
 
-    def _padded(self, obs: tuple[Any, ...], padding: float) -> CollisionWorld:
-        return self._motion_planner().world(()).with_scene(obs, padding=padding)
+    def _padded(self, obs: tuple[Any, ...], padding: float,
+                clouds: tuple[Any, ...] = ()) -> CollisionWorld:
+        return self._motion_planner().world(()).with_scene(obs, padding=padding,
+                                                           clouds=clouds)
 
     def plan(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
              ) -> dict[str, Any]:
@@ -180,15 +186,18 @@ class Handlers:
         from arduinobot.service.plan.plan_io import plan_response
         return {**plan_response(self.solve(data, scene=scene),
                                 trajectory_format=data.get("trajectory_format", "points")),
-                "scene_revision": scene.revision if scene is not None else 0}
+                "scene_revision": scene.revision if scene is not None else 0,
+                **({"clouds": scene.assumptions()} if scene is not None and scene.unknown
+                   else {})}
 
     def frames(self, data: Mapping[str, Any]) -> dict[str, Any]:
         """A ``frames`` job: a link's pose or a carried object's contacts for the kept
         scene's attach and detach (see :class:`arduinobot.service.scene.carry.PooledFrames`)."""
         from arduinobot.planner.frames import RobotFrames
         from arduinobot.service.scene.carry import answer_frames
-        if self._frames is None:
-            self._frames = RobotFrames(self.description)
+        if self._frames is None:  # the planner's robot geometry, not a second build
+            base = self._motion_planner().world(())
+            self._frames = RobotFrames(self.description, kin=base.kin, bodies=base.bodies)
         return answer_frames(self._frames, data)
 
     def task(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None) -> Any:

@@ -66,6 +66,7 @@ def plan_request(description: Description, data: Mapping[str, Any], *,
         start=data.get("start"),  # names and limits: checked by the planner, once
         obstacles=obs,
         attached=attached(description, data.get("attached"), scene=scene, obstacles=obs),
+        clouds=scene.clouds if scene is not None else (),
         max_samples=MAX_SAMPLES,  # refused before sampling, not after
         **opts)
 
@@ -96,7 +97,8 @@ def plan_response(result: Any, *, trajectory_format: TrajectoryFormat = "points"
 
 
 def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0,
-               trajectory_format: TrajectoryFormat = "points") -> bytes:
+               trajectory_format: TrajectoryFormat = "points",
+               clouds: Mapping[str, str] | None = None) -> bytes:
     """:func:`plan_response`'s body with ``request_id``, encoded: the same JSON (keys,
     order and numbers; orjson writes a float64 of an array as it writes the float), built
     from the sample arrays without a Python object per sample (what a worker sends).
@@ -111,6 +113,8 @@ def plan_reply(result: Any, request_id: str, *, scene_revision: int = 0,
         body = _body(result, orjson.Fragment(_points_json(traj)))
     body["path"] = np.ascontiguousarray(result.path, dtype=np.float64)
     body["scene_revision"] = scene_revision
+    if clouds:  # a plan that used a cloud says what it took unseen space to be
+        body["clouds"] = dict(clouds)
     body["request_id"] = request_id
     return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)
 

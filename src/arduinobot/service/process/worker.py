@@ -172,7 +172,8 @@ def _answer(conn: Connection, job: JobMsg, handlers: Handlers,
                 stamps.append(hoptrace.now())
             out = Success(plan_reply(
                 result, job.job_id, scene_revision=0 if job.scene is None else job.scene.revision,
-                trajectory_format=data.get("trajectory_format", "points")))
+                trajectory_format=data.get("trajectory_format", "points"),
+                clouds=None if job.scene is None else job.scene.assumptions()))
         else:
             body = handlers.handle(job.kind, data, scene=job.scene)
             if stamps is not None:

@@ -79,7 +79,7 @@ def _check_depth(value: Any) -> None:
 
 def with_robot_state(change: dict[str, Any], *, session: zenoh.Session, prefix: str,
                      robot: Frames | None) -> tuple[dict[str, Any], StateSource]:
-    """``change`` (an attach or detach) with the robot's ``state``, and where the state
+    """``change`` (an attach, a detach or a point cloud's add) with the robot's ``state``, and where the state
     came from: the request's own, else the executing robot's (``<prefix>/robot_state``),
     else all joints at 0 (no robot serves its state).
 

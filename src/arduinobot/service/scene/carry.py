@@ -7,8 +7,9 @@ answers with its :class:`arduinobot.planner.frames.RobotFrames` (:func:`answer_f
 
 from __future__ import annotations
 
+import base64
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -17,7 +18,8 @@ import orjson
 from arduinobot.contract.errors import PlanningError
 from arduinobot.description import Description
 from arduinobot.planner.checks import joint_values
-from arduinobot.scene.obstacles import AttachedObject
+from arduinobot.scene.cloud import Cells, CloudObstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 from arduinobot.service.messages import Failure, Submit, outcome_of
 
 if TYPE_CHECKING:  # a worker's; the serving process never imports it
@@ -46,6 +48,16 @@ class PooledFrames:
         pairs = self._ask({"op": "contacts", "joints": q, "attached": a})["pairs"]
         return [(x, y) for x, y in pairs]
 
+    def keep_cloud(self, data: dict[str, Any], q: Any, *, where: str,
+                   objects: Sequence[Obstacle], attached: Sequence[AttachedObject]
+                   ) -> tuple[tuple[CloudObstacle, ...], dict[str, Any]]:
+        out = self._ask({"op": "cloud", "joints": q, "data": data, "where": where,
+                         "objects": tuple(objects), "attached": tuple(attached)})
+        bodies = tuple(CloudObstacle(b["id"], Cells(np.frombuffer(
+            base64.b64decode(b["index"]), "<i8").reshape(-1, 3).copy(), b["resolution"]),
+            b["unknown"]) for b in out["bodies"])
+        return bodies, out["counts"]
+
     def _ask(self, data: Mapping[str, Any]) -> dict[str, Any]:
         out = outcome_of(self._submit, "frames", data)
         if isinstance(out, Failure):
@@ -65,4 +77,12 @@ def answer_frames(frames: RobotFrames, data: Mapping[str, Any]) -> dict[str, Any
     q = np.array([joints[n] for n in names], float)
     if data["op"] == "link_pose":
         return {"pose": frames.link_pose(q, data["link"]).tolist()}
+    if data["op"] == "cloud":  # the cells' indices as int64 bytes: 3 numbers a cell
+        bodies, counts = frames.keep_cloud(data["data"], q, where=data["where"],
+                                           objects=data["objects"],
+                                           attached=data["attached"])
+        return {"counts": counts, "bodies": [
+            {"id": b.id, "unknown": b.unknown, "resolution": b.cells.resolution,
+             "index": base64.b64encode(np.ascontiguousarray(b.cells.index, "<i8")
+                                       .tobytes()).decode("ascii")} for b in bodies]}
     return {"pairs": [list(p) for p in frames.link_contacts(data["attached"], q)]}

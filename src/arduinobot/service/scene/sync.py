@@ -240,8 +240,11 @@ class SceneService:
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
         source = None
-        if change.get("attach") or change.get("detach"):
-            # the state here, once: the leader and every follower replay this one
+        if change.get("attach") or change.get("detach") or any(
+                o.get("shape") == "points" and "state" not in o
+                for o in change.get("add") or ()):
+            # the state here, once: the leader and every follower replay this one (a
+            # cloud is self-filtered at the state it was taken)
             change, source = with_robot_state(change, session=self.session,
                                               prefix=self.prefix, robot=self.builder.robot)
             raw = orjson.dumps(change)
@@ -310,10 +313,14 @@ class SceneService:
                                           "detached": detached,
                                           "cleared": bool(change.get("clear"))}),
                             encoding=wire.JSON)
-        reply: dict[str, Any] = {"revision": new.revision, "objects": len(new.objects),
+        reply: dict[str, Any] = {"revision": new.revision,
+                                 "objects": len(new.objects) + len(new.clouds),
                                  "attached": len(new.attached)}
         if source is not None:
             reply["state_source"] = source
+        taken = {o.get("id") for o in change.get("add") or () if o.get("shape") == "points"}
+        if taken:  # what became of each cloud's points
+            reply["clouds"] = {c.id: dict(c.counts) for c in new.clouds if c.id in taken}
         query.reply(query.key_expr, orjson.dumps(reply), encoding=wire.JSON)
 
     def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> None:

@@ -237,7 +237,8 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
     task = task_from_mapping(data["task"], where=data["where"], name=data["name"],
                              files=bool(data.get("files", False)))
     obstacles, _ = with_scene(scene, {}, task.obstacles)
-    task = replace(task, obstacles=obstacles)
+    task = replace(task, obstacles=obstacles,
+                   clouds=scene.clouds if scene is not None else ())
     if data.get("start") is not None and task.start is None:
         task = _with_start(task, data["start"])
     result = plan_task(planner, task)
