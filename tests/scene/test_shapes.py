@@ -150,3 +150,12 @@ def test_a_shape_grows_and_shrinks_by_a_margin_on_every_side():
     assert (c.radius, c.length) == pytest.approx((0.06, 0.22))
     with pytest.raises(InvalidRequest, match="> 0"):
         Box((0.1, 0.2, 0.3)).grown(-0.06)  # shrunk to nothing is refused, not flipped
+
+
+def test_a_shape_says_which_points_lie_inside_it_grown_by_a_padding():
+    from arduinobot.scene.shapes import Box, Cylinder, Sphere
+    pts = np.array([[0.0, 0.0, 0.0], [0.06, 0.0, 0.0], [0.0, 0.0, 0.12], [0.2, 0.2, 0.2]])
+    assert Box((0.1, 0.1, 0.2)).contains(pts).tolist() == [True, False, False, False]
+    assert Box((0.1, 0.1, 0.2)).contains(pts, 0.02).tolist() == [True, True, True, False]
+    assert Sphere(0.05).contains(pts, 0.011).tolist() == [True, True, False, False]
+    assert Cylinder(0.05, 0.2).contains(pts).tolist() == [True, False, False, False]

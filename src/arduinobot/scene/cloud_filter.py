@@ -17,10 +17,9 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import cast
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import cKDTree
 
 from arduinobot.scene.cloud import Cells, voxelise
 from arduinobot.scene.obstacles import Obstacle
@@ -70,24 +69,6 @@ def near_surface(cells: Cells, surface: np.ndarray, padding: float) -> np.ndarra
     return np.asarray(d <= reach)
 
 
-def _inside_box(local: np.ndarray, half: np.ndarray) -> np.ndarray:
-    return np.asarray((np.abs(local) <= half).all(axis=1))
-
-
-def _inside_mesh_hull(local: np.ndarray, path: str, padding: float) -> np.ndarray:
-    import trimesh  # only a mesh object needs it
-
-    mesh = cast(trimesh.Trimesh, trimesh.load(path, force="mesh"))
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    try:
-        eq = ConvexHull(v).equations
-    except QhullError:  # a flat mesh: its box stands in
-        lo, hi = v.min(axis=0) - padding, v.max(axis=0) + padding
-        return np.asarray(((local >= lo) & (local <= hi)).all(axis=1))
-    # the hull grown by the padding (each facet pushed out): a superset of the mesh's
-    return np.asarray((local @ eq[:, :3].T + eq[:, 3] <= padding).all(axis=1))
-
-
 def inside_objects(cells: Cells, objects: Sequence[Obstacle], padding: float = 0.0
                    ) -> np.ndarray:
     """Which cells (shape (n,) bool) have their centre inside one of ``objects`` (world
@@ -99,19 +80,7 @@ def inside_objects(cells: Cells, objects: Sequence[Obstacle], padding: float = 0
     for o in objects:
         pose = o.pose()
         local = (centers - pose[:3, 3]) @ pose[:3, :3]
-        if o.shape == "box":
-            assert o.size is not None  # Obstacle checks every shape's dimensions
-            out |= _inside_box(local, np.asarray(o.size) / 2 + padding)
-        elif o.shape == "sphere":
-            assert o.radius is not None
-            out |= np.einsum("ij,ij->i", local, local) <= (o.radius + padding) ** 2
-        elif o.shape == "cylinder":
-            assert o.radius is not None and o.length is not None
-            radial = local[:, 0] ** 2 + local[:, 1] ** 2 <= (o.radius + padding) ** 2
-            out |= radial & (np.abs(local[:, 2]) <= o.length / 2 + padding)
-        else:
-            assert o.mesh_path is not None
-            out |= _inside_mesh_hull(local, o.mesh_path, padding)
+        out |= o.geometry.contains(local, padding)
     return out
 
 

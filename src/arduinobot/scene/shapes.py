@@ -217,6 +217,14 @@ class Shape(ABC):
         raise InvalidRequest(f"a {self.kind} cannot be grown or shrunk by a margin",
                              field="shape")
 
+    def contains(self, points: np.ndarray, padding: float = 0.0) -> np.ndarray:
+        """Which ``points`` (shape (n, 3) [m], in the shape's frame) lie inside it grown by
+        ``padding`` [m]: shape (n,) bool. A mesh counts as its convex hull (a superset)."""
+        hull = self.hull_points()
+        if hull is None:  # the hull of its triangles
+            return _inside_hull(points, np.asarray(self.triangles().vertices), padding)
+        return _inside_hull(points, hull[0], hull[1] + padding)
+
 
 _SHAPES: dict[str, type[Shape]] = {}
 _FIELD_NAMES: dict[type, tuple[str, ...]] = {}
@@ -312,6 +320,10 @@ class Box(Shape):
     def grown(self, margin: float) -> Box:
         return Box.from_json({"size": [x + 2 * margin for x in self.size]}, where="shape")
 
+    def contains(self, points: np.ndarray, padding: float = 0.0) -> np.ndarray:
+        half = np.asarray(self.size) / 2 + padding
+        return np.asarray((np.abs(points) <= half).all(axis=1))
+
     def triangles(self) -> trimesh.Trimesh:
         return _creation().box(extents=self.size)
 
@@ -355,6 +367,10 @@ class Sphere(Shape):
     def grown(self, margin: float) -> Sphere:
         return Sphere.from_json({"radius": self.radius + margin}, where="shape")
 
+    def contains(self, points: np.ndarray, padding: float = 0.0) -> np.ndarray:
+        return np.asarray(np.einsum("ij,ij->i", points, points)
+                          <= (self.radius + padding) ** 2)
+
     def triangles(self) -> trimesh.Trimesh:
         return _creation().icosphere(subdivisions=_SPHERE_SUBDIVISIONS, radius=self.radius)
 
@@ -395,6 +411,10 @@ class Cylinder(Shape):
     def grown(self, margin: float) -> Cylinder:
         return Cylinder.from_json({"radius": self.radius + margin,
                                    "length": self.length + 2 * margin}, where="shape")
+
+    def contains(self, points: np.ndarray, padding: float = 0.0) -> np.ndarray:
+        radial = points[:, 0] ** 2 + points[:, 1] ** 2 <= (self.radius + padding) ** 2
+        return np.asarray(radial & (np.abs(points[:, 2]) <= self.length / 2 + padding))
 
     def triangles(self) -> trimesh.Trimesh:
         return _creation().cylinder(radius=self.radius, height=self.length,
@@ -485,3 +505,17 @@ class Mesh(Shape):
 
     def collision_geometry(self) -> fcl.CollisionGeometry:
         return _bvh(self.triangles())
+
+
+def _inside_hull(points: np.ndarray, vertices: np.ndarray, margin: float) -> np.ndarray:
+    """Which ``points`` lie inside the convex hull of ``vertices`` grown by ``margin`` [m]
+    (each facet pushed out); a flat set of vertices: their box grown by ``margin``."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    v = np.asarray(vertices, dtype=np.float64)
+    try:
+        eq = ConvexHull(v).equations
+    except QhullError:
+        lo, hi = v.min(axis=0) - margin, v.max(axis=0) + margin
+        return np.asarray(((points >= lo) & (points <= hi)).all(axis=1))
+    return np.asarray((points @ eq[:, :3].T + eq[:, 3] <= margin).all(axis=1))
