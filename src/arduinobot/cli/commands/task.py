@@ -17,6 +17,7 @@ import yaml
 from arduinobot.cli.argtypes import UsageError
 from arduinobot.cli.commands.execute import add_driver_arg, add_driver_options, driver_options
 from arduinobot.cli.common import (
+    EXIT_CANCELLED,
     EXIT_FAIL,
     EXIT_OK,
     add_connection_args,
@@ -184,7 +185,7 @@ def cmd_task(ns: argparse.Namespace) -> int:
         code = EXIT_OK
         if robot is not None:
             out["execution"] = _run(ns, robot, desc, task, result)
-            code = EXIT_OK if out["execution"]["outcome"] == "completed" else EXIT_FAIL
+            code = _exit_code(out["execution"].get("outcome"))
     finally:
         if robot is not None:
             robot.close()
@@ -269,5 +270,12 @@ def _remote(ns: argparse.Namespace) -> int:
         if reply.report.get("objects"):  # the service's twin simulated them
             _print_objects(reply.report["objects"])
     _write_report(ns, out)
-    done = out.get("execution", {}).get("outcome") == "completed"
-    return EXIT_OK if done else EXIT_FAIL
+    return _exit_code(out.get("execution", {}).get("outcome"))
+
+
+def _exit_code(outcome: str | None) -> int:
+    """The exit code of an execution's outcome: 0 completed, 130 cancelled (Ctrl-C, as
+    ``execute``), 1 otherwise (nothing executed, or it failed)."""
+    if outcome == "completed":
+        return EXIT_OK
+    return EXIT_CANCELLED if outcome == "cancelled" else EXIT_FAIL
