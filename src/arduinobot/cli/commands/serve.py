@@ -119,6 +119,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
         raise UsageError("--ros2 publishes the robot's /joint_states: not with --no-robot")
     graph = None if ros is None else _Ros2Graph(ros)
     logging.getLogger("arduinobot.service").setLevel(min(logging.INFO, logging.getLogger().level))
+    if graph is not None:  # what --ros2 serves (the /task_server action, ...) is said
+        logging.getLogger("arduinobot.ros2").setLevel(min(logging.INFO, logging.getLogger().level))
     spec = DescriptionSpec(path=ns.file or ns.description_path,
                            **model_options(ns),
                            cache_dir="" if ns.no_cache else ns.cache_dir)
@@ -245,8 +247,28 @@ def _task_server(graph: _Ros2Graph, tasks_file: str | None) -> Callable[..., Any
         except BaseException:
             graph.release()
             raise
+        _say_tasks(server.server.name, tasks_file, host.description)
         return _Released(server, graph)
     return make
+
+
+def _say_tasks(action: str, tasks_file: str | None, description: Any) -> None:
+    """Log which task numbers ``action`` runs, or warn that it rejects every goal (no
+    tasks.yaml: neither ``--tasks`` nor the MoveIt config's)."""
+    from pathlib import Path
+
+    from arduinobot.description.moveit_config import read_tasks
+    path = Path(tasks_file) if tasks_file else description.config.tasks
+    if path is None:
+        logging.getLogger("arduinobot.ros2.task_server").warning(
+            "ROS 2: %s will reject every goal: robot '%s' has no tasks.yaml (give --tasks "
+            "FILE, or put config/tasks.yaml in its MoveIt config; docs/tasks.md)",
+            action, description.robot.name)
+        return
+    numbers = sorted(t.number for t in read_tasks(path).values() if t.number is not None)
+    logging.getLogger("arduinobot.ros2.task_server").info(
+        "ROS 2: %s runs task numbers %s from %s", action,
+        ", ".join(map(str, numbers)) or "(none: every goal rejected)", path)
 
 
 def _ros2_errors(ros: Ros2Settings | None) -> tuple[type[BaseException], ...]:
