@@ -178,7 +178,11 @@ def test_without_any_srdf_the_camera_and_adjacent_links_are_not_collisions(
             res = c.plan(goal={"joints": {"joint_1": 0.8, "joint_2": 0.3, "joint_3": 0.4}},
                          seed=4)
             assert res.duration > 0
-            assert c.description()["default_group"] == "all"
+            # no SRDF: the groups are derived, and the default is the arm without the
+            # gripper (issue 38, item 3: `ik` must not move the jaw)
+            desc = c.description()
+            assert desc["default_group"] == "arm"
+            assert "joint_4" not in desc["groups"]["arm"]
     finally:
         srv.stop()
 
