@@ -257,7 +257,8 @@ def test_minimal_and_full_execute_requests_pass_and_round_trip():
     for body in ({"plan": {"goal": {"named": "home"}}}, {"trajectory": traj},
                  {"trajectory": traj, "start_tolerance": 0.05, "move_to_start": True,
                   "client": "a1b2c3"},
-                 {"plan": {"goal": {"named": "home"}}, "blend": True, "start_tolerance": 1}):
+                 {"plan": {"goal": {"named": "home"}}, "blend": True, "start_tolerance": 1},
+                 {"plan": {"goal": {"named": "home"}}, "blend": True, "blend_lead": 2.5}):
         assert wire.decode("execute", wire.encode(body)) == body
         assert wire.decode("execute", json.dumps(body)) == body
 
@@ -269,6 +270,8 @@ def test_minimal_and_full_execute_requests_pass_and_round_trip():
     ('{"plan": {}, "start_tolerance": "0.1"}', "start_tolerance"),
     ('{"plan": {}, "move_to_start": 1}', "move_to_start"),
     ('{"plan": {}, "blend": "yes"}', "blend"),
+    ('{"plan": {}, "blend": true, "blend_lead": 0}', "blend_lead"),
+    ('{"plan": {}, "blend": true, "blend_lead": 31}', "blend_lead"),
     ('{"plan": {}, "client": "not/alnum"}', "client"),
     ('{"plan": {}, "client": ""}', "client"),
     ('{"plan": []}', "plan"),

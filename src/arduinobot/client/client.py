@@ -328,14 +328,20 @@ class PlannerClient:
             body["if_revision"] = if_revision
         return SceneApplied.parse(self.request("scene/apply", body))
 
-    def blend(self, plan: Mapping[str, Any]) -> dict[str, Any]:
-        """Blend the goal of ``plan`` into the motion in progress (planned from its state
-        0.8 s ahead): ``{"event": "blended", "execution", "tick", "duration"}``.
+    def blend(self, plan: Mapping[str, Any], *, lead: float | None = None
+              ) -> dict[str, Any]:
+        """Blend the goal of ``plan`` into the motion in progress, planned from its state
+        ``lead`` [s] ahead (the service's default, 0.8 s, when None; it must cover the
+        planning): ``{"event": "blended", "execution", "tick", "duration"}``.
 
         Raises:
-            TooLate: nothing moves, or it stops before the blend could start.
+            TooLate: nothing moves, it stops before the blend could start, or the planning
+                took longer than the lead.
         """
-        return self.request("execute", {"plan": dict(plan), "blend": True},
+        body: dict[str, Any] = {"plan": dict(plan), "blend": True}
+        if lead is not None:
+            body["blend_lead"] = lead  # the service refuses one outside its range
+        return self.request("execute", body,
                             timeout=self.timeout + planning_time(plan))
 
     def cancel_execution(self, execution: str | None = None) -> str | None:

@@ -17,7 +17,7 @@ from arduinobot.contract.errors import InvalidRequest
 __all__ = ["Range", "RANGES", "check_range"]
 
 RangeName = Literal["planning_time", "velocity_scaling", "acceleration_scaling",
-                    "sample_rate"]
+                    "sample_rate", "blend_lead"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,8 @@ RANGES: dict[str, Range] = {
     "velocity_scaling": Range(0.01, 1.0, ""),
     "acceleration_scaling": Range(0.01, 1.0, ""),
     "sample_rate": Range(1.0, 1000.0, "Hz"),
+    # a blend is planned while the arm moves on: the lead must cover the planning
+    "blend_lead": Range(0.05, 30.0, "s"),
 }
 
 

@@ -112,7 +112,11 @@ def _add_run_args(r: argparse._ArgumentGroup) -> None:
                    help="move to the trajectory's start first instead of refusing")
     r.add_argument("--blend", action="store_true",
                    help="with --remote and a goal: blend into the motion in progress "
-                   "(planned from its state 0.8 s ahead) instead of waiting for it")
+                   "(planned from its state --blend-lead ahead) instead of waiting for it")
+    r.add_argument("--blend-lead", type=float, default=None, metavar="S",
+                   help="with --blend: how far ahead of the moving arm the blend is "
+                   "planned from, in [0.05, 30] s (default 0.8 s); it must cover the "
+                   "planning, or the blend is TOO_LATE")
     r.add_argument("--no-publish", action="store_true",
                    help="do not publish <prefix>/joint_states")
     r.add_argument("--report", metavar="OUT.json", help="write the execution report")
@@ -242,6 +246,8 @@ def _plan_request(ns: argparse.Namespace) -> dict[str, Any] | None:
         raise UsageError("--fast is for --sim: hardware runs in real time")
     if ns.blend and not (ns.remote and (ns.named or ns.request)):
         raise UsageError("--blend needs --remote and a goal (--named/--request)")
+    if ns.blend_lead is not None and not ns.blend:
+        raise UsageError("--blend-lead needs --blend")
     if ns.group and not ns.named:
         raise UsageError("--group goes with --named (a request names its own group)")
     if not ns.ros2:
@@ -359,7 +365,7 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
     from arduinobot.execution.segments import read_json
     with client(ns) as c:
         if ns.blend:
-            msg = c.blend(req or {})
+            msg = c.blend(req or {}, lead=ns.blend_lead)
             print(f"blended into {msg['execution']} at tick {msg['tick']}: the new motion "
                   f"takes {msg['duration']:.3f} s")
             return EXIT_OK

@@ -11,7 +11,7 @@ NONE) ``{"event": "started", "execution", "duration"}``, ``{"event": "progress",
 every :data:`arduinobot.service.execute.run.PROGRESS_EVERY` ticks, then ``{"event": "finished", "execution", "report"}``;
 a plan without ``start`` starts from the robot's state; ``start_tolerance`` defaults to
 0.01 rad. A blend (``"blend": true`` with a ``plan`` while the arm moves) is planned from
-the setpoint :data:`BLEND_LEAD` ahead and gets one reply, ``{"event": "blended",
+the setpoint ``blend_lead`` (default 0.8 s) ahead and gets one reply, ``{"event": "blended",
 "execution", "tick", "duration"}`` (or ``TOO_LATE``); the running execution's stream goes
 on to its final report. Errors as everywhere: ``{"error": {code, message, details}}``;
 a driver that fails mid-motion (the port unplugged, a write that stalls) ends the stream
@@ -60,8 +60,6 @@ if TYPE_CHECKING:
     from arduinobot.scene.state import SceneSnapshot
 
 _log = logging.getLogger(__name__)
-
-BLEND_LEAD = 0.8  # [s] ahead of the arm a blend is planned for (planning must finish)
 
 
 class TickSink(Protocol):
@@ -257,7 +255,7 @@ class ExecuteService:
         self.submit_plan(wire.decode("plan", wire.encode(request)), respond)
 
     def _blend(self, query: zenoh.Query, req: ExecuteRequest) -> None:
-        """A new goal for the moving arm: plan from the setpoint ``BLEND_LEAD`` ahead
+        """A new goal for the moving arm: plan from the setpoint ``req.blend_lead`` ahead
         (a moving start) and switch to it at that tick, where a twin also takes the
         world the plan was made in (:meth:`TwinScene.at_switch`); one reply, ``blended``
         or an error (``TOO_LATE`` when the arm stops first or planning took too long)."""
@@ -266,7 +264,7 @@ class ExecuteService:
         ex, execution = self.running, self._current
         if ex is None:
             raise TooLate("nothing is moving: send the goal without blend")
-        k, q, qd, qdd = ex.lookahead(BLEND_LEAD)
+        k, q, qd, qdd = ex.lookahead(req.blend_lead)
         names = ex.robot.joint_names
         # the world the blend is planned in, for the twin at the switch tick
         snap = self.scene_source() if self.scene_source is not None else None

@@ -18,6 +18,7 @@ from arduinobot.execution.robots.base import RobotError
 #: the errors an execute key answers as themselves (logged: a refused motion is news)
 CODED: tuple[type[Exception], ...] = (PlanningError, RobotError)
 DEFAULT_START_TOLERANCE = 0.01  # [rad]
+DEFAULT_BLEND_LEAD = 0.8  # [s] ahead of the arm a blend is planned for (planning must finish)
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,7 @@ class ExecuteRequest:
     blend: bool
     client: str | None
     twin: Mapping[str, Any] | None = None  # a task's objects for a twin (the schema's)
+    blend_lead: float = DEFAULT_BLEND_LEAD  # [s] ahead of the moving arm
 
     @classmethod
     def decode(cls, payload: bytes) -> ExecuteRequest:
@@ -41,7 +43,8 @@ class ExecuteRequest:
         return cls(body.get("trajectory"), body.get("plan"),
                    float(body.get("start_tolerance", DEFAULT_START_TOLERANCE)),
                    bool(body.get("move_to_start", False)), bool(body.get("blend", False)),
-                   body.get("client"), body.get("twin"))
+                   body.get("client"), body.get("twin"),
+                   float(body.get("blend_lead", DEFAULT_BLEND_LEAD)))
 
 
 def payload_of(query: zenoh.Query) -> bytes:
