@@ -179,7 +179,8 @@ def test_bytes_on_the_tty_follow_the_plan_tick_by_tick(desc, planned):
     due_span = (sent_at[-1] - sent_at[0]) / 100
     assert span >= due_span - report.max_lateness, (span, due_span, report.max_lateness)
     assert abs(report.duration - planned.duration) <= 0.01 + 1e-9
-    assert report.outcome == "completed"
+    # the arm reports nothing back: every setpoint written, nobody saw it taken
+    assert report.outcome == "written"
     print(f"\n{len(msgs)} messages over {span:.3f} s (due {due_span:.3f} s), trajectory "
           f"{planned.duration:.3f} s; worst tick error {worst / DEG:.4f} deg; late ticks "
           f"{report.late_ticks}, max lateness {1000 * report.max_lateness:.1f} ms")
@@ -265,7 +266,7 @@ def test_execute_cli_streams_to_the_port(planned, tmp_path):
                        capture_output=True, text=True, timeout=120)
     msgs = messages(pty.close())
     assert r.returncode == 0, r.stderr
-    assert r.stdout.startswith("completed")
+    assert r.stdout.startswith("written") and "reports nothing back" in r.stdout
     assert msgs[-1][1] == angles(planned.positions[-1])
     assert len(msgs) > 50
     r = subprocess.run([sys.executable, "-m", "arduinobot.cli.main", "execute", str(f), "--serial",
@@ -368,6 +369,59 @@ def test_a_write_that_stalls_is_a_coded_failure(desc, planned):
     finally:
         for fd in (slave, master):
             os.close(fd)
+
+
+def test_an_arm_that_stops_reading_is_caught_within_three_messages(desc, planned):
+    """A USB device that stops reading mid-motion (its port queues what it does not take,
+    as CDC-ACM does): the driver stops at the third message that stays unsent (one
+    message of slack for a real port's timing), long before the port's buffer (4 KB:
+    two seconds of messages) would fill and a write would block."""
+    import serial
+
+    from tests.helpers.protocol_stalling import DEVICES, Device
+    if "tests.helpers" not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append("tests.helpers")
+    dev = DEVICES["arm"] = Device()
+    traj = _slow(SampledTrajectory.from_json({"trajectory": planned.to_dict()}))
+
+    class Stalling(SerialArduinobot):
+        def command(self, positions, velocities=None, accelerations=None, *, jerks=None):
+            if len(dev.received) == 30:  # mid-motion, the far end stops reading
+                dev.reading = False
+            super().command(positions, velocities, accelerations, jerks=jerks)
+
+    robot = Stalling.from_description(desc, "stalling://arm", rate=100.0)
+    ex = Executor.for_description(robot, desc, options=ExecuteOptions(rate=100.0))
+    with pytest.raises(PortError) as e:
+        ex.execute(traj)
+    d = e.value.details
+    assert e.value.code == "PORT_ERROR" and d["stalled"] is True
+    assert "the arm stopped reading" in e.value.message
+    assert dev.writes - len(dev.received) == 3  # three messages queued, then it stopped
+    assert d["unsent"] == 3 * len(b"b000,s000,e000,g000,")
+    assert d["tick"] < math.ceil(traj.duration * 100) and d["phase"] == "trajectory"
+    # the error names the last message written (queued, not taken), and the arm holds
+    # the last one it read, from before
+    def ints(m):
+        return [int(x) for x in MSG.fullmatch(m).groups()]
+    assert d["last_sent"] == ints(dev.written[-1]) != ints(dev.received[-1])
+    robot.close()
+
+
+def test_a_line_too_slow_for_the_rate_is_refused_not_left_to_lag(desc, planned):
+    """At 1200 baud a 20-byte message takes 167 ms: at 100 Hz the commands would fall
+    further behind every tick; the driver stops once one would arrive 2 ticks late."""
+    import serial
+
+    from tests.helpers.protocol_stalling import DEVICES, Device
+    if "tests.helpers" not in serial.protocol_handler_packages:
+        serial.protocol_handler_packages.append("tests.helpers")
+    DEVICES["slow"] = Device(reading=False)  # the bytes drain at the line's pace: never
+    robot = SerialArduinobot.from_description(desc, "stalling://slow", rate=100.0, baud=1200)
+    with pytest.raises(PortError, match="too slow for 100 Hz") as e:
+        robot.command([0.0, 0.0, 0.0, 0.0])
+    assert e.value.details["unsent"] == 20
+    robot.close()
 
 
 def test_a_port_that_never_opens_is_a_coded_failure(desc):

@@ -12,6 +12,7 @@ import zenoh
 from arduinobot.client.codec import decode_reply
 from arduinobot.client.errors import ServiceError
 from arduinobot.client.stream import STREAM_LIMIT, ExecutionEvent, follow
+from arduinobot.contract.outcomes import succeeded
 
 _log = logging.getLogger(__name__)
 
@@ -48,4 +49,4 @@ def run_named_task(session: zenoh.Session, prefix: str, number: int, *,
 
 
 def _completed(ev: ExecutionEvent) -> bool:
-    return (ev.report or {}).get("outcome") == "completed"
+    return succeeded((ev.report or {}).get("outcome"))

@@ -8,6 +8,7 @@ jsonschema), never the planner, the service or a client.
 - ``ranges``: the numeric ranges of request fields.
 - ``caps``: the size caps of a request and the cheap structural check.
 - ``wire``: strict JSON in and out, the schemas' validators.
+- ``outcomes``: how an execution ended (``completed``, ``written``, ``cancelled``).
 - ``packed``: a trajectory's samples packed (base64 of float64 arrays).
 - ``samples``: a trajectory's samples as CSV (``samples_csv``).
 - ``zconfig``: the Zenoh configuration of the service and its clients.

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from arduinobot.contract.codes import Code
+from arduinobot.contract.outcomes import Outcome
 from arduinobot.contract.ranges import RANGES
 from arduinobot.description import Description
 from arduinobot.execution.report import ExecutionReport, Phase, Recorder, Tick
@@ -272,7 +273,9 @@ class Executor:
             # interrupted mid-motion: the robot holds the last setpoint
             log.exception("execution aborted at tick %d", run.k)
             raise
-        return run.rec.report("cancelled" if cancelled_at is not None else "completed",
+        outcome: Outcome = "cancelled" if cancelled_at is not None else \
+            "completed" if self.robot.feedback else "written"
+        return run.rec.report(outcome,
                               names, run.traj.duration, cancelled_at, stop_time, lim, run.dt)
 
 

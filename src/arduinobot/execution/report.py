@@ -7,11 +7,11 @@ from typing import Any, Literal
 
 import numpy as np
 
+from arduinobot.contract.outcomes import Outcome
 from arduinobot.execution.robots.base import JointState
 from arduinobot.planner.kinematics.limits import JointLimits
 
 Phase = Literal["move_to_start", "trajectory", "stop", "settle"]
-Outcome = Literal["completed", "cancelled"]
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,8 @@ class ExecutionReport:
     """What an execution did.
 
     Attributes:
-        outcome: completed, or cancelled (then stopped at rest).
+        outcome: completed, written (played whole on a robot that reports nothing
+            back: :mod:`arduinobot.contract.outcomes`), or cancelled (stopped at rest).
         joint_names: the commanded joints (column order of the arrays).
         trajectory_duration: [s] of the trajectory asked for.
         duration: [s] from the first tick to the last.

@@ -25,6 +25,7 @@ from arduinobot.cli.common import (
     sigint_sets,
 )
 from arduinobot.cli.ros2_options import add_ros2_args, ros2_settings
+from arduinobot.contract.outcomes import succeeded
 
 if TYPE_CHECKING:  # the executor and the drivers load with the command, not with the CLI
     from arduinobot.client.stream import ExecutionEvent
@@ -339,6 +340,9 @@ def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
     pk = r["peak_ratio"]
     lines = [f"{r['outcome']}: {r['duration']:.3f} s, {r['ticks']} ticks ({r['late_ticks']} "
              f"late, max lateness {1000 * r['max_lateness']:.1f} ms)"]
+    if r["outcome"] == "written":
+        lines.append("every setpoint was written to the port; this arm reports nothing "
+                     "back, so nobody saw it take them (watch it)")
     if r.get("cancelled_at") is not None:
         lines.append(f"cancelled at {r['cancelled_at']:.3f} s of "
                      f"{r['trajectory_duration']:.3f} s; stopped in {r['stop_time']:.3f} s")
@@ -356,7 +360,7 @@ def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
     print("\n".join(lines))
     if ns.report:
         Path(ns.report).write_text(json.dumps(r, indent=1))
-    return EXIT_OK if r["outcome"] == "completed" else EXIT_CANCELLED
+    return EXIT_OK if succeeded(r["outcome"]) else EXIT_CANCELLED
 
 
 def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:

@@ -25,6 +25,7 @@ from arduinobot.cli.common import (
     client,
     load_from_args,
 )
+from arduinobot.contract.outcomes import succeeded
 
 if TYPE_CHECKING:
     from arduinobot.description import Description
@@ -274,8 +275,9 @@ def _remote(ns: argparse.Namespace) -> int:
 
 
 def _exit_code(outcome: str | None) -> int:
-    """The exit code of an execution's outcome: 0 completed, 130 cancelled (Ctrl-C, as
-    ``execute``), 1 otherwise (nothing executed, or it failed)."""
-    if outcome == "completed":
+    """The exit code of an execution's outcome: 0 completed or written (an arm that
+    reports nothing back), 130 cancelled (Ctrl-C, as ``execute``), 1 otherwise (nothing
+    executed, or it failed)."""
+    if succeeded(outcome):
         return EXIT_OK
     return EXIT_CANCELLED if outcome == "cancelled" else EXIT_FAIL

@@ -149,11 +149,15 @@ class Robot(abc.ABC):
         joint_names: the commanded (actuated) joints, the description's order.
         state_names: ``joint_names`` then the mimic joints.
         realtime_only: True for hardware: it must be paced by the wall clock.
+        feedback: True if :meth:`state` reads the positions back from the robot; False
+            if it is the last command (open loop): a whole execution then reports
+            ``written``, not ``completed``.
     """
 
     joint_names: tuple[str, ...]
     state_names: tuple[str, ...]
     realtime_only: bool = True
+    feedback: bool = False
 
     @abc.abstractmethod
     def command(self, positions: Sequence[float] | np.ndarray,

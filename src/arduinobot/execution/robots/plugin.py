@@ -154,6 +154,7 @@ class _Adapted(Robot):
         self.joint_names = tuple(driver.joint_names)
         self.state_names = tuple(driver.state_names)
         self.realtime_only = bool(driver.realtime_only)
+        self.feedback = bool(getattr(driver, "feedback", False))
 
     def command(self, positions: Sequence[float] | np.ndarray,
                 velocities: Sequence[float] | np.ndarray | None = None,

@@ -16,6 +16,16 @@ initial positions (``initial_positions.yaml`` of the MoveIt package, else 0).
 
 Safety: a command never moves a joint further than its velocity limit allows in one
 tick (``velocity * period``), and never outside its URDF position limits.
+
+A stalled arm: the port's driver buffers what the arm does not read (kilobytes: seconds
+of messages), so a write fails only once that is full. After each write the driver asks
+the port how many bytes are still unsent (``out_waiting``, where the port can tell) and
+stops with ``PORT_ERROR`` (``stalled``) when more is left than the line could not yet
+have sent, with one message of slack: the arm stopped reading, caught at the third
+message it did not take (30 ms at 100 Hz, not the seconds a full buffer takes); or the newest command
+would reach the arm more than :data:`MAX_LAG_TICKS` ticks late (a line too slow for the
+rate). The arm reports nothing back: an execution that ends is ``written``, not
+``completed`` (:mod:`arduinobot.contract.outcomes`).
 """
 
 from __future__ import annotations
@@ -45,6 +55,7 @@ log = logging.getLogger(__name__)
 
 DEFAULT_BAUD = 115200
 WRITE_TIMEOUT = 1.0  # [s] a write that takes longer means the arm stopped reading
+MAX_LAG_TICKS = 2  # a command may wait at most this many ticks of line time to go out
 
 
 def servo_angles(q: Sequence[float] | np.ndarray) -> tuple[int, int, int, int]:
@@ -128,8 +139,13 @@ class SerialArduinobot(Robot):
         self._last: tuple[int, int, int, int] | None = None
         self.limited = 0  # setpoints the step or position limits changed
         self.port = port
+        self.baud = baud
         self._serial = open_port(port, baud)
         self._opened = time.monotonic()
+        # (bytes unsent after the last write, when) for the stall check; None: the port
+        # cannot tell its unsent bytes
+        self._backlog: tuple[int, float] | None = (0, self._opened)
+        self._backlog = self._read_backlog()
         log.info("opened %s at %d baud (8N1)", port, baud)
         if boot_wait > 0:
             log.info("waiting %.1f s for the Arduino to boot", boot_wait)
@@ -198,8 +214,48 @@ class SerialArduinobot(Robot):
                              "last_sent": None if self._last is None else list(self._last)}
                 ) from e
             self._last = angles
+            self._check_backlog(len(encode(angles)))
         self._qd = (target - self._q) / self.period
         self._q = target
+
+    def _read_backlog(self) -> tuple[int, float] | None:
+        """(unsent bytes, now), or None if the port cannot say (a pty says 0: fine)."""
+        try:
+            return int(self._serial.out_waiting), time.monotonic()  # type: ignore[attr-defined]
+        except (AttributeError, NotImplementedError, OSError) as e:
+            log.info("%s cannot tell how many bytes are unsent (%s): a stalled arm is "
+                     "caught only when a write blocks for %g s", self.port, e, WRITE_TIMEOUT)
+            return None
+
+    def _check_backlog(self, message: int) -> None:
+        """After writing a ``message``-byte command: refuse to go on if the arm stopped
+        reading (more unsent than the line can have left since the last write) or the
+        line lags more than :data:`MAX_LAG_TICKS` ticks.
+
+        Raises:
+            PortError: ``stalled``, with the unsent bytes.
+        """
+        if self._backlog is None:
+            return
+        before, then = self._backlog
+        got = self._read_backlog()
+        if got is None:
+            self._backlog = None
+            return
+        unsent, now = got
+        line = self.baud / 10.0  # [bytes/s]: 8N1 is 10 bits a byte
+        # what the line cannot have sent yet of the earlier bytes, plus this message
+        could_be_left = max(0.0, before - (now - then) * line) + message
+        lag = unsent / line  # [s] until this command reaches the arm
+        self._backlog = got
+        if unsent > could_be_left + message or lag > MAX_LAG_TICKS * self.period:
+            why = ("the arm stopped reading" if unsent > could_be_left + message else
+                   f"the line at {self.baud} baud is too slow for {1 / self.period:g} Hz")
+            raise PortError(
+                f"writing to {self.port} stalled: {unsent} bytes unsent, {1000 * lag:.0f} ms "
+                f"of line time ({why})",
+                details={"port": self.port, "stalled": True, "unsent": unsent,
+                         "last_sent": None if self._last is None else list(self._last)})
 
     def advance(self, dt: float) -> None:
         """Hardware keeps its own time: the executor's clock paces the ticks."""

@@ -116,6 +116,7 @@ class SimArduinobot(Robot):
     _steps: int
 
     realtime_only = False
+    feedback = True  # the simulation's joint positions
     # the setpoint of the current tick [rad, rad/s, rad/s^2] and its jerk [rad/s^3]
     _q_ref: np.ndarray
     _qd_ref: np.ndarray | None

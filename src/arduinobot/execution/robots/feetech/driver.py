@@ -112,6 +112,7 @@ class FeetechArm(Robot):
     """
 
     realtime_only = True
+    feedback = True  # present positions read back from the servos
 
     def __init__(self, port: str, *, joints: Sequence[JointMap],
                  velocity: Sequence[float] | np.ndarray, rate: float = 100.0,
