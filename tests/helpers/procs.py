@@ -87,11 +87,12 @@ def launch_all(argvs: Sequence[Sequence[str]], *, ready: str, what: str,
         # passing ends the wait instead
         while not seen.wait(0.1):
             if proc.poll() is not None or time.monotonic() > deadline:
+                # said before the kill below sets every return code
+                why = (f"exited with {proc.returncode}" if proc.returncode is not None
+                       else f"not ready within {timeout:g} s")
                 for p, *_ in started:
                     p.kill()
                     p.wait(5)
-                why = (f"exited with {proc.returncode}" if proc.returncode is not None
-                       else f"not ready within {timeout:g} s")
                 raise LaunchError(f"{what} {why}:\n" + "\n".join(lines[-30:]))
         out.append(Launched(proc, argv, next(ln for ln in lines if ready in ln), lines))
     return out

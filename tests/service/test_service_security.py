@@ -318,3 +318,78 @@ def test_a_planner_or_viewer_cannot_publish_joint_states(secured):
         sub.undeclare()
         for s in (watcher, operator, *others.values()):
             s.close()
+
+
+def test_no_client_can_declare_an_instance_or_fake_a_scene_change(secured):
+    """Issue 39, item 7: the smallest live id on `arduinobot/alive/*` leads the kept
+    scene, and viewers once could declare one (every apply BUSY) and put fake
+    `scene/changes`. Ordering, not waits: each client's token and put is followed on the
+    same link by a query the router answers, so the router had dealt with them before
+    the operator's marker goes out; an allowed token (an executing operator's
+    `execute/client/*`) declared the same way is seen, as a control."""
+    import threading
+    tmp, pki, endpoint, _, srv = secured
+    op = client_config(tmp, pki, "operator")
+    watcher, operator = _session(op, endpoint), _session(op, endpoint)
+    others = {u: _session(client_config(tmp, pki, u), endpoint)
+              for u in ("planner", "viewer", "operator")}
+    seen: list[dict] = []
+    got = threading.Event()
+
+    def on_sample(s):
+        seen.append(json.loads(s.payload.to_bytes()))
+        got.set()
+    sub = watcher.declare_subscriber("arduinobot/scene/changes", on_sample)
+    tokens = []
+    try:
+        for user, s in others.items():
+            tokens.append(s.liveliness().declare_token(f"arduinobot/alive/0000{user}"))
+            s.put("arduinobot/scene/changes", json.dumps({"from": user}))
+            assert _replies(s, "arduinobot/health", b"") == ["ok arduinobot/health"]
+        control = operator.liveliness().declare_token("arduinobot/execute/client/c0ntrol")
+        assert _replies(operator, "arduinobot/health", b"") == ["ok arduinobot/health"]
+        # asked with the service's own rights (it sees every token), declaring none
+        observer = _session(client_config(tmp, pki, "service"), endpoint)
+        alive = [str(r.ok.key_expr) for r in
+                 observer.liveliness().get("arduinobot/alive/*", timeout=REPLY_WAIT)
+                 if r.ok is not None]
+        assert alive == [f"arduinobot/alive/{srv.instance}"]  # no client's token
+        ctl = [str(r.ok.key_expr) for r in
+               observer.liveliness().get("arduinobot/execute/client/*", timeout=REPLY_WAIT)
+               if r.ok is not None]
+        observer.close()
+        assert ctl == ["arduinobot/execute/client/c0ntrol"]  # an allowed token is seen
+        control.undeclare()
+        # a real change comes through to the same subscriber, and nothing before it did
+        with PlannerClient(endpoint, config_file=client_config(tmp, pki, "planner"),
+                           timeout=30) as c:
+            c.request("scene/apply", {"add": [{"id": "acl_box", "shape": "box",
+                                               "size": [0.05, 0.05, 0.05],
+                                               "xyz": [0.6, 0.6, 0.1]}]})
+        assert got.wait(30)
+        assert seen and all("from" not in m for m in seen), seen
+    finally:
+        sub.undeclare()
+        for t in tokens:
+            t.undeclare()
+        for s in (watcher, operator, *others.values()):
+            s.close()
+
+
+def test_only_an_operator_runs_a_task(secured):
+    """`arduinobot/task` executes on the arm: the operator's, as execute is (it was in
+    no rule: denied to everyone)."""
+    tmp, pki, endpoint, _, _ = secured
+    body = json.dumps({"number": 99}).encode()  # no such task: an error reply
+    for user in ("planner", "viewer"):
+        s = _session(client_config(tmp, pki, user), endpoint)
+        try:
+            assert _replies(s, "arduinobot/task", body) == [], user
+        finally:
+            s.close()
+    s = _session(client_config(tmp, pki, "operator"), endpoint)
+    try:
+        (reply,) = _replies(s, "arduinobot/task", body)
+        assert reply.startswith("err") and b"99" in reply.encode()
+    finally:
+        s.close()
