@@ -5,6 +5,7 @@
 - ``queries``: the one queryable guard (exact keys, own threads, coded errors,
   INTERNAL for the rest) and the one error replier.
 - ``extension``: what an extension is given (``Host``) and returns (``Running``).
+- ``peers``: refusing to start beside a peer instance of the prefix with no router.
 - ``keyguard``: whether a query names its key exactly (no wildcard).
 - ``messages``: the jobs, outcomes and failures the pool passes.
 - ``local``: the handlers in this process (``--local``), answering as the service.

@@ -33,6 +33,7 @@ from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service import hoptrace
 from arduinobot.service.extension import Extension, Host
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
+from arduinobot.service.peers import refuse_peer_instances
 from arduinobot.service.perceive.perceive_service import perceive_extension
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.process.job import SHUTTING_DOWN, Job
@@ -139,7 +140,6 @@ class PlannerService:
         self._static["schema"] = wire.encode({"version": VERSION, **wire.all_schemas(),
                                               "robot": desc.summary()})
         self._config = desc.config.to_json()
-        self.pool.start()
         self._memtrace = MemTrace.from_env(counts=self._held)
         try:
             cfg = zenoh_config(mode=o.mode, listen=o.listen, connect=o.connect,
@@ -149,6 +149,9 @@ class PlannerService:
             self.session = zenoh.open(cfg)
             self.instance = str(self.session.zid())
             p = o.prefix
+            # before the workers' seconds of warm-up, and before it answers anything
+            refuse_peer_instances(self.session, p)
+            self.pool.start()
             # the kept scene first: caught up with the other instances before any plan
             self.scene = SceneService(self.session, p, self.instance,
                                       tuple(desc.robot.links), scene_file=o.scene_file,

@@ -108,6 +108,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     from arduinobot.contract.zconfig import DEFAULT_ENDPOINT
     from arduinobot.execution.robots.base import RobotError
     from arduinobot.service.execute.execution import execute_extension
+    from arduinobot.service.peers import PeerInstances
     from arduinobot.service.process.pool import PoolStartError
     from arduinobot.service.process.worker import DescriptionSpec
     from arduinobot.service.server import PlannerService, ServeOptions
@@ -148,7 +149,8 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     svc = PlannerService(opts)
-    failures: tuple[type[BaseException], ...] = (PoolStartError, zenoh.ZError, RobotError,
+    failures: tuple[type[BaseException], ...] = (PoolStartError, PeerInstances, zenoh.ZError,
+                                                 RobotError,
                                                  *_ros2_errors(ros))
     try:
         svc.start()
