@@ -26,6 +26,7 @@ import zenoh
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.perception.errors import ImageInvalid
+from arduinobot.perception.intrinsics import Intrinsics
 from arduinobot.service.extension import Extension, Host
 from arduinobot.service.perceive.perceive_service import SceneApplyFailed
 
@@ -102,6 +103,26 @@ def cloud_topic_extension(lease: NodeLease, settings: CloudSettings) -> Extensio
     return make
 
 
+#: CameraInfo distortion models whose D OpenCV takes as they are
+_OPENCV_MODELS = ("plumb_bob", "rational_polynomial")
+
+
+def intrinsics_of(info: Any) -> Intrinsics | None:
+    """A CameraInfo message's pinhole (K, the image size, D when OpenCV's model), or None
+    for an uncalibrated camera (K all zeros: the request's or the model's then)."""
+    k = [float(x) for x in info.k]
+    if len(k) != 9 or k[0] <= 0 or k[4] <= 0:
+        return None
+    d = [float(x) for x in info.d]
+    if any(d) and str(info.distortion_model) not in _OPENCV_MODELS:
+        _log.warning("ROS 2: CameraInfo's distortion model %r is not one OpenCV takes as it "
+                     "is (%s): the image is measured as undistorted", info.distortion_model,
+                     ", ".join(_OPENCV_MODELS))
+        d = []
+    return Intrinsics(fx=k[0], fy=k[4], cx=k[2], cy=k[5], width=int(info.width),
+                      height=int(info.height), distortion=tuple(d) if any(d) else ())
+
+
 class TopicCamera:
     """A camera topic for ``<prefix>/perceive``: :meth:`extension` subscribes it on the
     service's node; calling the object gives the latest image (``ServeOptions.camera``)."""
@@ -131,13 +152,33 @@ class TopicCamera:
         Raises:
             ImageInvalid: not subscribed (yet, or any more), no image yet, or unreadable.
         """
+        from arduinobot.perception.raw_image import CapturedImage, gray_of_raw
+        from arduinobot.ros2 import Ros2Error
+        from arduinobot.ros2.camera_topic import IMAGE
+
         with self._lock:
             camera = self._camera
         if camera is None:
             raise ImageInvalid(f"the camera topic {self.topic} is not subscribed (the "
                                "service is starting or closing)")
-        image: CapturedImage = camera.latest()
-        return image
+        try:
+            got = camera.latest()
+        except Ros2Error as e:
+            raise ImageInvalid(f"the latest message on {camera.topic} is no {IMAGE}: "
+                               f"{e.message}") from e
+        if got is None:
+            raise ImageInvalid(f"no image has arrived on {camera.topic} yet (is the camera "
+                               f"publishing {IMAGE} there, on ROS domain {camera.domain_id}, "
+                               "behind the same Zenoh router?)")
+        msg, info = got
+        gray = gray_of_raw(bytes(msg.data), width=int(msg.width), height=int(msg.height),
+                           step=int(msg.step), encoding=str(msg.encoding),
+                           big_endian=bool(msg.is_bigendian))
+        stamp = msg.header.stamp
+        return CapturedImage(gray=gray, intrinsics=None if info is None else intrinsics_of(info),
+                             frame_id=str(msg.header.frame_id),
+                             stamp=int(stamp.sec) + int(stamp.nanosec) * 1e-9,
+                             topic=camera.topic, encoding=str(msg.encoding))
 
     def forget(self) -> None:
         with self._lock:
