@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import time
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
+import yaml
 import zenoh
 
 from arduinobot.client import errors as cerr
@@ -21,6 +23,7 @@ from arduinobot.client.client import PlannerClient
 from arduinobot.description import load_description
 from arduinobot.planner.planning.pipeline import MotionPlanner
 from arduinobot.scene.cloud import CloudObstacle, decode_points, posed, voxelise
+from tests.helpers.cli import run_cli
 from tests.helpers.fk import link_pose
 from tests.helpers.ros2_publish import DesignPublisher, T, cloud, header
 from tests.helpers.serve import start_server
@@ -248,6 +251,18 @@ def test_perceive_takes_the_camera_topics_latest_image(served, view, tmp_path):
         assert applied.revision == before + 1
         (box,) = [o for o in c.request("scene")["objects"] if o["id"] == "box"]
         np.testing.assert_allclose(box["xyz"], applied.detections[0].xyz)
+
+        # the command line's `scene see --topic`, as a user types it
+        objects = tmp_path / "objects.yaml"
+        objects.write_text(yaml.safe_dump({"markers": MAP}))
+        out = run_cli("scene", "see", "--topic", "--dry-run", "--markers", str(objects),
+                      "--connect", srv.endpoint, timeout=300)
+        assert out.returncode == 0, out.stderr
+        assert f"image from {IMAGES}: 800 x 600 bgr8, frame {CAMERA}" in out.stdout
+        where = re.search(r"marker 3 -> box at \(([-\d.]+), ([-\d.]+), ([-\d.]+)\) m", out.stdout)
+        assert where is not None, out.stdout
+        assert np.linalg.norm(np.array(where.groups(), float) - second[:3, 3]) < 0.006
+        assert "scene at revision" not in out.stdout  # --dry-run
 
         # an image that is not one: coded, the scene as it was
         scene = c.request("scene")
