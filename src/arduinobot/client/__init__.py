@@ -1,7 +1,8 @@
 """The Python client library of the arduinobot service; it imports only the contract
 (and zenoh, numpy, orjson, jsonschema-rs), never the planner, the service or the CLI.
 
-- ``client``: :class:`PlannerClient` (plan, fk, ik, check, execute, task, scene, apply).
+- ``client``: :class:`PlannerClient` (plan, fk, ik, check, execute, task, scene, apply,
+  perceive).
 - ``codec``: a request's payload and a reply's JSON (``encode_body``, ``decode_reply``).
 - ``replies``: the frozen reply dataclasses, each checked against its schema.
 - ``errors``: one class per wire code under ``ServiceError``.

@@ -13,7 +13,9 @@ request goes to the least loaded live instance (:mod:`arduinobot.client.balance`
 
 from __future__ import annotations
 
+import base64
 import logging
+import os
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -32,6 +34,7 @@ from arduinobot.client.replies import (
     CheckReply,
     FkReply,
     IkReply,
+    PerceiveReply,
     PlanReply,
     SceneApplied,
     SceneReply,
@@ -328,6 +331,53 @@ class PlannerClient:
             body["if_revision"] = if_revision
         return SceneApplied.parse(self.request("scene/apply", body))
 
+    # -- seeing (issue 41) ------------------------------------------------------------
+    def perceive(self, image: bytes | str | os.PathLike[str] | None = None, *,
+                 topic: bool = False, camera: str | None = None,
+                 intrinsics: Mapping[str, Any] | None = None,
+                 markers: Mapping[str, Any] | None = None,
+                 state: Mapping[str, float] | None = None, apply: bool = False,
+                 remove_unseen: bool = False) -> PerceiveReply:
+        """The objects a camera image shows through their markers, in the world frame
+        (``<prefix>/perceive``); with ``apply``, put into the kept scene.
+
+        Args:
+            image: a PNG or JPEG, as its bytes or its file's path; or None with ``topic``:
+                the latest image of the service's camera topic (``serve --ros2
+                --camera-topic``).
+            camera: the camera's link (default: the topic image's frame, else the model's
+                Gazebo camera sensor's link).
+            intrinsics: ``{fx, fy, cx, cy[, width, height, distortion]}`` [px] (default:
+                the topic's CameraInfo, else the model's Gazebo sensor's).
+            markers: ``{dictionary, size, objects}`` (default: the service's objects.yaml).
+            state: the robot's joints [rad] when the image was taken (default: the
+                model's initial positions).
+            apply: put the seen objects into the kept scene (one seen again moves);
+                remove_unseen: also take the map's objects not seen out of it.
+
+        Raises:
+            ImageInvalid (not an image, all one colour, no image on the topic yet),
+            NoMarker, UnknownMarker, MarkerRefused, InvalidRequest naming the field (an
+            unknown camera link, no camera topic), ServiceBusy, ServiceUnavailable.
+            FileNotFoundError: ``image`` names no file. TypeError: neither or both of
+            ``image`` and ``topic``.
+        """
+        if (image is None) == (not topic):
+            raise TypeError("give exactly one of image and topic=True")
+        body: dict[str, Any] = {"apply": apply}
+        if topic:
+            body["image"] = "topic"
+        else:
+            data, fmt = _image_bytes(image)
+            body["image"] = {"format": fmt, "data": base64.b64encode(data).decode("ascii")}
+        for key, value in (("camera", camera), ("intrinsics", intrinsics),
+                           ("markers", markers), ("state", state)):
+            if value is not None:
+                body[key] = dict(value) if isinstance(value, Mapping) else value
+        if remove_unseen:
+            body["remove_unseen"] = True
+        return PerceiveReply.parse(self.request("perceive", body))
+
     def blend(self, plan: Mapping[str, Any], *, lead: float | None = None
               ) -> dict[str, Any]:
         """Blend the goal of ``plan`` into the motion in progress, planned from its state
@@ -363,3 +413,11 @@ class PlannerClient:
 
     def schema(self) -> dict[str, Any]:
         return self.request("schema")
+
+
+def _image_bytes(image: bytes | str | os.PathLike[str] | None) -> tuple[bytes, str]:
+    """An image's bytes and its format: ``jpeg`` when its bytes start as a JPEG's, else
+    ``png`` (the service names what anything else is not)."""
+    data = bytes(image) if isinstance(image, (bytes, bytearray)) else \
+        Path(os.fspath(image or "")).read_bytes()
+    return data, "jpeg" if data.startswith(b"\xff\xd8\xff") else "png"

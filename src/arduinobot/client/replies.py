@@ -27,7 +27,7 @@ from arduinobot.contract.packed import PackedError, unpack
 from arduinobot.contract.samples import samples_csv
 from arduinobot.contract.wire import field_path, validator
 
-Reply = Literal["plan", "fk", "ik", "check", "task", "scene", "scene_apply"]
+Reply = Literal["plan", "fk", "ik", "check", "task", "scene", "scene_apply", "perceive"]
 
 
 def _validated(reply: Reply, body: Any) -> Mapping[str, Any]:
@@ -385,3 +385,52 @@ class SceneApplied:
         b = _validated("scene_apply", body)
         return cls(int(b["revision"]), b.get("objects"), b.get("attached"),
                    b.get("state_source"), b.get("clouds"))
+
+
+@dataclass(frozen=True)
+class Detection:
+    """An object seen through its marker (world frame): the object's pose ``xyz`` [m] /
+    ``rpy`` [rad], the marker's, the corners' RMS ``reprojection_error`` [px] and the
+    ``uncertainty`` [m] the object was padded by."""
+
+    marker: int
+    object: str
+    xyz: tuple[float, float, float]
+    rpy: tuple[float, float, float]
+    marker_xyz: tuple[float, float, float]
+    marker_rpy: tuple[float, float, float]
+    reprojection_error: float
+    uncertainty: float
+
+
+def _vec3(v: Sequence[float]) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+@dataclass(frozen=True)
+class PerceiveReply:
+    """What a camera image showed (``<prefix>/perceive``): the ``detections``, the
+    ``camera`` (its link, optical frame and pose in the world), the ``intrinsics`` used,
+    with ``apply`` the kept scene's new ``revision`` and the ids ``removed`` as unseen,
+    and for a topic's image where it came from (``image``: topic, frame_id, stamp, size,
+    encoding)."""
+
+    detections: tuple[Detection, ...]
+    camera: Mapping[str, Any]
+    intrinsics: Mapping[str, Any]
+    revision: int | None
+    removed: tuple[str, ...]
+    image: Mapping[str, Any] | None
+    raw: Mapping[str, Any]
+
+    @classmethod
+    def parse(cls, body: Any) -> PerceiveReply:
+        """Raises: MalformedReply naming the first field that breaks the schema."""
+        b = _validated("perceive", body)
+        dets = tuple(Detection(int(d["marker"]), str(d["object"]), _vec3(d["xyz"]),
+                               _vec3(d["rpy"]), _vec3(d["marker_xyz"]), _vec3(d["marker_rpy"]),
+                               float(d["reprojection_error"]), float(d["uncertainty"]))
+                     for d in b["detections"])
+        return cls(dets, b["camera"], b.get("intrinsics", {}),
+                   None if "revision" not in b else int(b["revision"]),
+                   tuple(b.get("removed", ())), b.get("image"), b)

@@ -11,6 +11,8 @@ that need them.
 - ``markers``: the map of marker ids to objects (objects.yaml, a request's ``markers``).
 - ``camera``: the camera's optical frame in the world, from the model's FK at a state.
 - ``image``: PNG/JPEG bytes decoded and checked.
+- ``raw_image``: uncompressed pixels (a ROS ``sensor_msgs/msg/Image``) to grey, and a
+  topic's latest image (``CapturedImage``).
 - ``detect``: markers found in an image and their poses in the optical frame.
 - ``locate``: markers to objects in the world, uncertainty and padding (``perceive``).
 - ``twin_view``: MuJoCo renders the camera's view with the markers as textures.

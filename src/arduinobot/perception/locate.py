@@ -154,12 +154,13 @@ def locate(gray: np.ndarray, *, markers: MarkerMap, intrinsics: Intrinsics,
     return tuple(out)
 
 
-def perceive(image: bytes, *, description: Description, markers: MarkerMap,
+def perceive(image: bytes | np.ndarray, *, description: Description, markers: MarkerMap,
              camera: str, intrinsics: Intrinsics,
              state: Mapping[str, float] | None = None,
              image_format: ImageFormat | None = None,
              min_side_px: float = MIN_SIDE_PX, max_angle: float = MAX_ANGLE) -> Perception:
-    """Decode ``image`` (PNG/JPEG bytes), find the map's markers and place their objects
+    """Decode ``image`` (PNG/JPEG bytes, or 8-bit grey already decoded, shape (height,
+    width): a topic's, :mod:`.raw_image`), find the map's markers and place their objects
     in the world, the camera ``link`` at the model's ``state`` (joint -> [rad]).
 
     Raises:
@@ -168,7 +169,8 @@ def perceive(image: bytes, *, description: Description, markers: MarkerMap,
             whose size is not the intrinsics'.
     """
     frame = camera_frame(description, camera, state)  # a bad link fails before decoding
-    gray = decode_gray(image, image_format=image_format)
+    gray = image if isinstance(image, np.ndarray) else \
+        decode_gray(image, image_format=image_format)
     h, w = gray.shape
     if intrinsics.width and (intrinsics.width, intrinsics.height) != (w, h):
         raise InvalidRequest(f"the image is {w} x {h} px but the intrinsics are for "

@@ -8,7 +8,9 @@ names, the graph's tokens and GIDs, topics, services, the node), ``attachment``,
 ``controllers``, ``control_msgs`` and ``trajectory_target`` (trajectories to
 ros2_control's joint_trajectory_controllers) and ``task_server`` (the course's
 /task_server action); ``pointcloud2`` (a sensor_msgs/msg/PointCloud2's points, any
-fields layout); ``errors``, one class per way the wire layer fails.
+fields layout), ``cloud_topic`` (a PointCloud2 topic into the kept scene, throttled) and
+``camera_topic`` (a camera's latest Image and CameraInfo, for perceive); ``errors``, one
+class per way the wire layer fails.
 Nothing here imports ``src/arduinobot/client/`` or ``src/arduinobot/service/``. Needs the ``ros2`` extra (rosbags, xxhash).
 """
 
@@ -30,6 +32,7 @@ from arduinobot.ros2.errors import (
     NoController,
     Ros2Error,
     ServiceFailed,
+    UnknownFrame,
     UnknownType,
 )
 from arduinobot.ros2.joint_states import JointStates, open_joint_states
@@ -44,6 +47,6 @@ __all__ = [
     "InvalidName", "InvalidOption", "InvalidTypeDefinition",
     "JointStates", "MalformedAttachment", "MalformedCdr", "MalformedToken", "MessageMismatch",
     "NoController", "Node", "QoS", "Ros2Error", "ServiceFailed", "TaskServer", "TypeStore",
-    "UnknownType",
+    "UnknownFrame", "UnknownType",
     "open_joint_states",
 ]

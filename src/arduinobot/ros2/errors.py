@@ -191,3 +191,18 @@ class ControllerFailed(Ros2Error):
                          + (f": {error_string}" if error_string else ""),
                          details={"controller": controller, "error_code": error_code,
                                   "error_name": error_name, "error_string": error_string})
+
+
+class UnknownFrame(Ros2Error):
+    """A message's ``header.frame_id`` that names no link of the model: its data cannot
+    be placed in the world (a point cloud, a camera image)."""
+
+    code = "ROS2_UNKNOWN_FRAME"
+
+    def __init__(self, topic: str, frame_id: str, *, robot: str, links: list[str]) -> None:
+        self.topic, self.frame_id = topic, frame_id
+        shown = ", ".join(links[:12]) + (", ..." if len(links) > 12 else "")
+        super().__init__(f"{topic}: frame_id {frame_id!r} is not a link of robot {robot!r} "
+                         f"(its links: {shown}); publish in the camera's link, or add the "
+                         "camera to the model on a fixed joint",
+                         details={"topic": topic, "frame_id": frame_id, "links": links})

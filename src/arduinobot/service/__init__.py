@@ -11,6 +11,8 @@
 - ``local``: the handlers in this process (``--local``), answering as the service.
 - ``hoptrace``: per-request timestamps of each hop (``ARDUINOBOT_HOPTRACE``).
 - ``router``: a Zenoh router for a cluster of instances.
+- ``ros2_inputs``: ``serve --ros2``'s topics in: a PointCloud2 into the kept scene, a
+  camera's latest image for perceive (the ``ros2`` extra, imported when they start).
 - wings: ``process/`` (the pool, workers, zygote), ``plan/`` (plan, fk, ik, check
   bodies), ``scene/`` (the kept scene), ``execute/`` (moving the robot), ``task/``
   (``<prefix>/task``), ``perceive/`` (``<prefix>/perceive``: objects seen by a camera).

@@ -34,7 +34,7 @@ from arduinobot.service import hoptrace
 from arduinobot.service.extension import Extension, Host
 from arduinobot.service.messages import Failure, JobKind, Outcome, Success
 from arduinobot.service.peers import refuse_peer_instances
-from arduinobot.service.perceive.perceive_service import perceive_extension
+from arduinobot.service.perceive.perceive_service import ImageSource, perceive_extension
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.process.job import SHUTTING_DOWN, Job
 from arduinobot.service.process.memtrace import MemTrace, count_live
@@ -94,6 +94,9 @@ class ServeOptions:
     scene_file: str | None = None
     #: the named tasks of <prefix>/task (None: the MoveIt config's tasks.yaml)
     tasks_file: str | None = None
+    #: the latest image of a camera topic, for <prefix>/perceive's image "topic" (``serve
+    #: --ros2 --camera-topic``: :class:`arduinobot.service.ros2_inputs.TopicCamera`)
+    camera: ImageSource | None = None
 
     def __post_init__(self) -> None:
         check_prefix(self.prefix)  # a wildcard prefix would answer every other prefix
@@ -171,7 +174,7 @@ class PlannerService:
             # through <prefix>/execute; <prefix>/perceive: objects seen in a camera image
             # (OpenCV imported on the first request)
             for make in (*o.extensions, task_extension(tasks_file=o.tasks_file),
-                         perceive_extension(spec=o.description)):
+                         perceive_extension(spec=o.description, camera=o.camera)):
                 self._extensions.append(make(host))
         except Exception:
             self.close()

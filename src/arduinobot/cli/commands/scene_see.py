@@ -1,11 +1,13 @@
-"""`arduinobot scene see IMAGE`: the objects a camera image shows, through their markers,
-put into the service's kept scene (``<prefix>/perceive``, issue 41)."""
+"""`arduinobot scene see IMAGE` (or `--topic`: the service's camera topic): the objects a
+camera image shows, through their markers, put into the service's kept scene
+(``<prefix>/perceive``, issue 41)."""
 
 from __future__ import annotations
 
 import argparse
 import base64
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +20,12 @@ _FORMATS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg"}
 
 
 def add_arguments(a: argparse.ArgumentParser) -> None:
-    a.add_argument("image", metavar="IMAGE", help="a PNG or JPEG from the camera")
+    a.add_argument("image", metavar="IMAGE", nargs="?",
+                   help="a PNG or JPEG from the camera (or --topic)")
+    a.add_argument("--topic", action="store_true",
+                   help="the latest image of the service's camera topic instead (`serve "
+                   "--ros2 --camera-topic TOPIC`; its camera the link its frame_id names, "
+                   "its intrinsics the CameraInfo beside it)")
     a.add_argument("--camera", metavar="LINK",
                    help="the camera's link (default: the model's Gazebo camera sensor's)")
     a.add_argument("--intrinsics", metavar="FILE",
@@ -38,15 +45,18 @@ def add_arguments(a: argparse.ArgumentParser) -> None:
 
 def request_of(ns: argparse.Namespace) -> dict[str, Any]:
     """The perceive request of ``scene see``'s arguments (files read here)."""
-    path = Path(ns.image)
-    fmt = _FORMATS.get(path.suffix.lower())
-    if fmt is None:
-        raise UsageError(f"{ns.image}: give a .png, .jpg or .jpeg image")
-    if not path.is_file():
-        raise UsageError(f"{ns.image}: no such file")
-    body: dict[str, Any] = {"image": {"format": fmt,
-                                      "data": base64.b64encode(path.read_bytes()).decode()},
-                            "apply": not ns.dry_run}
+    if (ns.image is None) == (not ns.topic):
+        raise UsageError("give an IMAGE file or --topic (the service's camera topic), "
+                         "one of them")
+    body: dict[str, Any] = {"image": "topic", "apply": not ns.dry_run}
+    if ns.image is not None:
+        path = Path(ns.image)
+        fmt = _FORMATS.get(path.suffix.lower())
+        if fmt is None:
+            raise UsageError(f"{ns.image}: give a .png, .jpg or .jpeg image")
+        if not path.is_file():
+            raise UsageError(f"{ns.image}: no such file")
+        body["image"] = {"format": fmt, "data": base64.b64encode(path.read_bytes()).decode()}
     if ns.remove_unseen:
         body["remove_unseen"] = True
     if ns.camera:
@@ -76,6 +86,11 @@ def run(ns: argparse.Namespace, c: Any) -> dict[str, Any]:
                                        flag="--state")
     reply: dict[str, Any] = c.request("perceive", body)
     cam = reply["camera"]
+    if "image" in reply:  # a topic's: which image, from when
+        img = reply["image"]
+        print(f"image from {img['topic']}: {img['width']} x {img['height']} {img['encoding']}, "
+              f"frame {img['frame_id']}, {time.time() - img['stamp']:.1f} s old"
+              + ("" if img["camera_info"] else " (no calibration on camera_info)"))
     print(f"camera {cam['link']} at ({', '.join(f'{x:.3f}' for x in cam['xyz'])}) m")
     for d in reply["detections"]:
         rpy = ", ".join(f"{math.degrees(x):.1f}" for x in d["rpy"])

@@ -87,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-cache", action="store_true",
                    help="keep nothing between starts (recompute at every start)")
     from arduinobot.cli.commands.execute import add_serve_args
-    from arduinobot.cli.ros2_options import add_ros2_args
+    from arduinobot.cli.ros2_options import add_ros2_args, add_ros2_input_args
     add_serve_args(p)
     ros = p.add_argument_group("ROS 2 (rmw_zenoh; see docs/ros2.md)")
     ros.add_argument("--ros2", action="store_true",
@@ -98,6 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                      "With a ROS 2 router on 7447: --listen tcp/127.0.0.1:7448 --connect "
                      "tcp/127.0.0.1:7447")
     add_ros2_args(ros)
+    add_ros2_input_args(ros)
     p.set_defaults(func=cmd_serve)
 
 
@@ -105,6 +106,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     import zenoh
 
     from arduinobot.cli.commands.execute import robot_spec, ros2_settings
+    from arduinobot.cli.ros2_options import ros2_inputs
     from arduinobot.contract.zconfig import DEFAULT_ENDPOINT
     from arduinobot.execution.robots.base import RobotError
     from arduinobot.service.execute.execution import execute_extension
@@ -119,6 +121,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     if ros is not None and ns.no_robot:
         raise UsageError("--ros2 publishes the robot's /joint_states: not with --no-robot")
     graph = None if ros is None else _Ros2Graph(ros)
+    inputs = ros2_inputs(ns, graph)  # --cloud-topic, --camera-topic
     logging.getLogger("arduinobot.service").setLevel(min(logging.INFO, logging.getLogger().level))
     if graph is not None:  # what --ros2 serves (the /task_server action, ...) is said
         logging.getLogger("arduinobot.ros2").setLevel(min(logging.INFO, logging.getLogger().level))
@@ -143,8 +146,9 @@ def cmd_serve(ns: argparse.Namespace) -> int:
                         extensions=(execute_extension(robot_spec(
                             ns, progress=logging.getLogger("arduinobot.service.execute.execution").info),
                             tick_sink=None if graph is None else _joint_states(graph)),
-                            *(() if graph is None else (_task_server(graph, ns.tasks),))),
-                        scene_file=ns.scene_file, tasks_file=ns.tasks)
+                            *(() if graph is None else (_task_server(graph, ns.tasks),)),
+                            *inputs.extensions),
+                        scene_file=ns.scene_file, tasks_file=ns.tasks, camera=inputs.camera)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

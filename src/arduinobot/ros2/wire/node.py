@@ -101,11 +101,12 @@ class Node:
 
     def create_subscription(self, topic: str, type_name: str,
                             callback: Callable[[Any, MessageInfo], None], *,
-                            qos: QoS = DEFAULT) -> Subscription:
-        """A subscription to ``topic``; ``callback(msg, info)`` per message."""
+                            qos: QoS = DEFAULT, raw: bool = False) -> Subscription:
+        """A subscription to ``topic``; ``callback(msg, info)`` per message (with
+        ``raw``, the undecoded CDR: see :class:`Subscription`)."""
         ep = self._endpoint("MS", topic, type_name, qos)
         return self._keep(Subscription(self.session, ep, self.types, type_name, callback,
-                                       attachment=self.attachment))
+                                       attachment=self.attachment, raw=raw))
 
     def create_service(self, name: str, type_name: str, handler: Callable[..., Any], *,
                        deferred: bool = False, qos: QoS = SERVICES_DEFAULT) -> ServiceServer:

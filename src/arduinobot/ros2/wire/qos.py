@@ -112,6 +112,10 @@ class QoS:
 DEFAULT = QoS()
 #: rmw_zenoh's own defaults (qos.cpp), the reference the encoding leaves out.
 RMW_ZENOH_DEFAULT = QoS(depth=42)
+#: rmw_qos_profile_sensor_data (rmw/qos_profiles.h): best effort, keep last 5, what camera
+#: drivers publish images and clouds with; a subscription with it matches reliable and
+#: best-effort publishers alike (a reliable one would not match a best-effort publisher)
+SENSOR_DATA = QoS(reliability="best_effort", depth=5)
 #: rmw_qos_profile_services_default (rmw/qos_profiles.h): what services and clients use.
 SERVICES_DEFAULT = QoS()
 #: rcl_action_qos_profile_status_default (rcl_action/default_qos.h): the action status topic.

@@ -115,17 +115,22 @@ class Subscription:
     or CDR is malformed is logged with its code and counted in ``rejected`` (rmw_zenoh
     drops those too); an exception from ``callback`` is logged and counted in
     ``callback_errors``, and the subscription keeps going.
+
+    With ``raw``, ``msg`` is the sample's payload as Zenoh gave it (``zenoh.ZBytes``:
+    the CDR, not copied, not decoded; :meth:`TypeStore.deserialize` of its
+    ``to_bytes()`` when wanted): for large messages of which only the latest matters
+    (camera images, point clouds), so no message is decoded that nobody reads.
     """
 
     def __init__(self, session: zenoh.Session, endpoint: EndpointInfo, types: TypeStore,
                  type_name: str, callback: Callable[[Any, MessageInfo], None], *,
-                 attachment: AttachmentLayout) -> None:
+                 attachment: AttachmentLayout, raw: bool = False) -> None:
         self.endpoint, self.type_name, self._types = endpoint, type_name, types
         self.key = topic_key(endpoint.node.domain_id, endpoint.name, endpoint.dds_type,
                              endpoint.type_hash)
         self.token_key = endpoint_token(endpoint)
         self.gid = gid_of(self.token_key)
-        self._layout, self._callback = attachment, callback
+        self._layout, self._callback, self._raw = attachment, callback, raw
         self.received = 0
         self.rejected = 0
         self.callback_errors = 0
@@ -149,7 +154,8 @@ class Subscription:
         try:
             att = Attachment.decode(None if raw_att is None else raw_att.to_bytes(),
                                     self._layout)
-            msg = self._types.deserialize(sample.payload.to_bytes(), self.type_name)
+            msg = (sample.payload if self._raw
+                   else self._types.deserialize(sample.payload.to_bytes(), self.type_name))
         except Ros2Error as e:
             self.rejected += 1
             self.last_error = e

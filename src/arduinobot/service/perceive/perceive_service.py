@@ -1,8 +1,11 @@
 """The ``<prefix>/perceive`` queryable (``perceive_request.json``, answered
 ``perceive_response.json``).
 
-The camera is the request's link, else the model's Gazebo camera sensor's; its
-intrinsics the request's, else that sensor's (an ideal pinhole); the marker map the
+The image is the request's PNG/JPEG, or with ``"image": "topic"`` the latest of the
+service's camera topic (``serve --ros2 --camera-topic``: an ``ImageSource``). The camera
+is the request's link, else (a topic's image) the link the image's frame_id names, else
+the model's Gazebo camera sensor's; its intrinsics the request's, else the topic's
+CameraInfo, else that sensor's (an ideal pinhole); the marker map the
 request's, else ``objects.yaml`` beside the robot's ``tasks.yaml``. With ``apply``, the
 seen objects (padded by their uncertainty) go into the kept scene through
 ``<prefix>/scene/apply`` like any client's change: one apply, at the revision read, that
@@ -18,7 +21,7 @@ import logging
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import orjson
 import zenoh
@@ -32,7 +35,13 @@ from arduinobot.service.extension import Host
 from arduinobot.service.process.worker import DescriptionSpec
 from arduinobot.service.queries import guarded
 
+if TYPE_CHECKING:
+    from arduinobot.perception.raw_image import CapturedImage
+
 _log = logging.getLogger(__name__)
+
+#: The latest image of a camera topic (raises ImageInvalid when there is none).
+ImageSource = Callable[[], "CapturedImage"]
 
 #: Largest perceive payload [bytes]: a full-resolution PNG of the course's camera
 #: (2304 x 1296) in base64, with room.
@@ -66,9 +75,10 @@ class PerceiveService:
     """``<prefix>/perceive``: see :mod:`arduinobot.service.perceive`."""
 
     def __init__(self, session: zenoh.Session, prefix: str, description: Description, *,
-                 spec: DescriptionSpec, scene: Callable[[], SceneSnapshot | None]) -> None:
+                 spec: DescriptionSpec, scene: Callable[[], SceneSnapshot | None],
+                 camera: ImageSource | None = None) -> None:
         self.session, self.prefix, self.description = session, prefix, description
-        self.spec, self.scene = spec, scene
+        self.spec, self.scene, self.camera = spec, scene, camera
         self._sensors: tuple[Any, ...] | None = None
         self._entities: list[zenoh.Queryable] = []
 
@@ -119,10 +129,19 @@ class PerceiveService:
         from arduinobot.perception.locate import perceive
 
         sensors = self.sensors()
-        camera = body.get("camera") or default_camera(self.description,
-                                                      tuple(s.link for s in sensors))
+        captured = self.captured() if body["image"] == "topic" else None
+        camera = body.get("camera")
+        if not camera and captured is not None:
+            if captured.frame_id not in self.description.robot.links:
+                raise InvalidRequest(f"the image from {captured.topic} is in frame "
+                                     f"{captured.frame_id!r}, which is not a link of the "
+                                     "model: name the camera's link", field="camera")
+            camera = captured.frame_id
+        camera = camera or default_camera(self.description, tuple(s.link for s in sensors))
         if "intrinsics" in body:
             intr = Intrinsics.from_mapping(body["intrinsics"])
+        elif captured is not None and captured.intrinsics is not None:
+            intr = captured.intrinsics
         else:
             found = [s for s in sensors if s.link == camera]
             if not found:
@@ -133,13 +152,17 @@ class PerceiveService:
                                      "give the camera's intrinsics", field="intrinsics")
             intr = found[0].intrinsics()
         markers = self.marker_map(body.get("markers"))
-        try:
-            data = base64.b64decode(body["image"]["data"], validate=True)
-        except (binascii.Error, ValueError):
-            raise ImageInvalid("is not base64", field="image.data") from None
-        seen = perceive(data, description=self.description, markers=markers, camera=camera,
-                        intrinsics=intr, state=body.get("state"),
-                        image_format=body["image"]["format"])
+        image: Any
+        if captured is not None:
+            image, image_format = captured.gray, None
+        else:
+            try:
+                image = base64.b64decode(body["image"]["data"], validate=True)
+            except (binascii.Error, ValueError):
+                raise ImageInvalid("is not base64", field="image.data") from None
+            image_format = body["image"]["format"]
+        seen = perceive(image, description=self.description, markers=markers, camera=camera,
+                        intrinsics=intr, state=body.get("state"), image_format=image_format)
         cam = seen.camera
         reply: dict[str, Any] = {
             "detections": [d.to_dict() for d in seen.detections],
@@ -147,6 +170,8 @@ class PerceiveService:
                        "xyz": [float(x) for x in cam.pose[:3, 3]],
                        "rpy": list(rpy_of_matrix(cam.pose[:3, :3]))},
             "intrinsics": intr.to_dict()}
+        if captured is not None:
+            reply["image"] = captured.describe()
         if body.get("apply"):
             unseen = ([o.id for o in markers.objects.values()
                        if o.id not in {d.marked.id for d in seen.detections}]
@@ -154,6 +179,19 @@ class PerceiveService:
             revision, removed = self.apply([d.obstacle() for d in seen.detections], unseen)
             reply["revision"], reply["removed"] = revision, removed
         return reply
+
+    def captured(self) -> CapturedImage:
+        """The camera topic's latest image.
+
+        Raises:
+            InvalidRequest: the service has no camera topic; ImageInvalid: no image yet,
+                or an unreadable one.
+        """
+        if self.camera is None:
+            raise InvalidRequest("this service has no camera topic: start it with `serve "
+                                 "--ros2 --camera-topic TOPIC`, or send the image",
+                                 field="image")
+        return self.camera()
 
     def marker_map(self, given: Any) -> Any:
         """The request's marker map, else ``objects.yaml`` beside the robot's tasks.yaml."""
@@ -203,12 +241,14 @@ class PerceiveService:
         raise failure
 
 
-def perceive_extension(*, spec: DescriptionSpec) -> Callable[[Host], PerceiveService]:
+def perceive_extension(*, spec: DescriptionSpec, camera: ImageSource | None = None
+                       ) -> Callable[[Host], PerceiveService]:
     """An extension (:mod:`arduinobot.service.extension`) serving ``<prefix>/perceive``
-    for the robot ``spec`` loads, applying what it sees to the host's kept scene."""
+    for the robot ``spec`` loads, applying what it sees to the host's kept scene;
+    ``camera``: the latest image of a camera topic (``"image": "topic"``)."""
     def make(host: Host) -> PerceiveService:
         svc = PerceiveService(host.session, host.prefix, host.description, spec=spec,
-                              scene=host.scene)
+                              scene=host.scene, camera=camera)
         svc.start()
         return svc
     return make
