@@ -2,8 +2,8 @@
 
 One floor below the planner (it imports the contract and the description only).
 
-- ``shapes``: one frozen class per shape (box, sphere, cylinder, mesh), a registry by
-  the JSON ``shape`` name; a new kind is one class here.
+- ``shapes/``: one frozen class per shape (box, sphere, cylinder, mesh), a registry by
+  the JSON ``shape`` name; a new kind is one module there.
 - ``obstacles``: obstacles (a shape placed in the world) and attached objects.
 - ``frames``: attach and detach, once, for the kept scene and tasks, behind a small
   frames protocol (link poses, contacts), with the one contact rule.
