@@ -9,6 +9,7 @@ jsonschema), never the planner, the service or a client.
 - ``caps``: the size caps of a request and the cheap structural check.
 - ``wire``: strict JSON in and out, the schemas' validators.
 - ``packed``: a trajectory's samples packed (base64 of float64 arrays).
+- ``inline``: bytes sent inline in a JSON field (base64), decoded within a size cap.
 - ``samples``: a trajectory's samples as CSV (``samples_csv``).
 - ``zconfig``: the Zenoh configuration of the service and its clients.
 - ``schema/``: the JSON Schemas, as published on ``<prefix>/schema``.
