@@ -141,6 +141,12 @@ class Shape(ABC):
         None: read its triangles for a tighter box tree."""
         return None
 
+    def reach(self) -> float:
+        """The farthest its surface reaches from its frame's origin [m] (a bounding
+        sphere's radius about it); a mesh: its farthest vertex."""
+        v = np.asarray(self.triangles().vertices, float)
+        return float(np.sqrt(np.einsum("ij,ij->i", v, v).max()))
+
     def hull_points(self) -> tuple[np.ndarray, float] | None:
         """Points shape (m, 3) [m] and a radius [m]: it is within the radius of their
         convex hull; None: the convex hull of its triangles (cached by the planner)."""

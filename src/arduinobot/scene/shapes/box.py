@@ -54,6 +54,9 @@ class Box(Shape):
     def half_extents(self) -> np.ndarray:
         return np.asarray(self.size, float) / 2
 
+    def reach(self) -> float:
+        return 0.5 * float(np.linalg.norm(self.size))
+
     def hull_points(self) -> tuple[np.ndarray, float]:
         corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
         return corners * self.half_extents(), 0.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -58,6 +59,9 @@ class Cylinder(Shape):
 
     def half_extents(self) -> np.ndarray:
         return np.array([self.radius, self.radius, self.length / 2])
+
+    def reach(self) -> float:
+        return math.hypot(float(self.radius), 0.5 * float(self.length))
 
     def hull_points(self) -> tuple[np.ndarray, float]:
         ang = 2 * np.pi * np.arange(_PRISM_SIDES) / _PRISM_SIDES

@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     import fcl
     import trimesh
 
-_SPHERE_SUBDIVISIONS = 3  # the icosphere drawn for a sphere (as description.meshes)
+_SPHERE_SUBDIVISIONS = 3  # the icosphere drawn for a sphere
 
 
 @register
@@ -51,6 +51,9 @@ class Sphere(Shape):
 
     def half_extents(self) -> np.ndarray:
         return np.full(3, self.radius)
+
+    def reach(self) -> float:
+        return float(self.radius)
 
     def hull_points(self) -> tuple[np.ndarray, float]:
         return np.zeros((1, 3)), float(self.radius)
