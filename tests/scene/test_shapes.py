@@ -126,15 +126,6 @@ def test_an_inline_field_belongs_to_its_shape_alone(tmp_path):
     assert e.value.field == "add[0].mesh"
 
 
-def test_a_urdf_primitive_is_its_shape():
-    from arduinobot.description.model import Geometry
-    from arduinobot.scene.shapes import of_geometry
-
-    assert of_geometry(Geometry("cylinder", radius=0.1, length=0.4)) == Cylinder(0.1, 0.4)
-    assert of_geometry(Geometry("box", size=(0.1, 0.2, 0.3))).mjcf() == ("box", "0.05 0.1 0.15")
-    assert of_geometry(Geometry("mesh", uri="package://x/a.stl")) is None
-
-
 def test_a_listing_reads_each_shape_s_dimensions_from_its_wire_form():
     assert Box.summary({"size": [1, 1, 0.1]}) == "size 1,1,0.1"
     assert Cylinder.summary({"radius": 0.1, "length": 2}) == "radius 0.1 length 2"

@@ -23,7 +23,6 @@ from arduinobot.scene.shapes.registry import (
     check_inline,
     dimension_fields,
     kinds,
-    of_geometry,
     register,
     shape_class,
 )
@@ -38,6 +37,6 @@ from arduinobot.scene.shapes.mesh import Mesh
 
 __all__ = [
     "Box", "Cylinder", "Mesh", "Shape", "Sphere", "box_unit_inertia", "check_inline",
-    "dimension_fields", "finite_vec", "kinds", "of_geometry", "positive", "register",
+    "dimension_fields", "finite_vec", "kinds", "positive", "register",
     "shape_class",
 ]

@@ -124,9 +124,15 @@ class Shape(ABC):
         """The file its triangles are read from; None: made from its dimensions."""
         return None
 
+    @property
+    def source_scale(self) -> tuple[float, float, float]:
+        """The per-axis scale [-] applied to :attr:`source`'s coordinates."""
+        return (1.0, 1.0, 1.0)
+
     @abstractmethod
     def triangles(self) -> trimesh.Trimesh:
-        """Its surface as triangles in its frame [m] (for display, hulls, trees)."""
+        """Its surface as triangles in its frame [m] (for display, hulls, trees): a new
+        mesh each call, the caller's to move."""
 
     def unit_inertia(self) -> tuple[np.ndarray, np.ndarray]:
         """Its centroid shape (3,) [m] and inertia per kg about it shape (3, 3) [m^2],

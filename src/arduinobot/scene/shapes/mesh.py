@@ -74,12 +74,17 @@ class Mesh(Shape):
         return cast(trimesh.Trimesh, trimesh.load(self.mesh_path, force="mesh"))  # one mesh
 
     def unit_inertia(self) -> tuple[np.ndarray, np.ndarray]:
-        mesh = self.triangles()
-        if mesh.is_watertight and mesh.volume > 0:
-            return (np.asarray(mesh.center_mass, float),
-                    np.asarray(mesh.moment_inertia, float) / float(mesh.mass))
-        lo, hi = mesh.bounds  # not closed: its bounding box's
-        return (lo + hi) / 2, box_unit_inertia(hi - lo)
+        return mesh_unit_inertia(self.triangles())
 
     def collision_geometry(self) -> fcl.CollisionGeometry:
         return bvh(self.triangles())
+
+
+def mesh_unit_inertia(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh's centroid shape (3,) [m] and inertia per kg about it shape (3, 3) [m^2] as
+    a uniform solid; a mesh that is not closed: its bounding box's."""
+    if mesh.is_watertight and mesh.volume > 0:
+        return (np.asarray(mesh.center_mass, float),
+                np.asarray(mesh.moment_inertia, float) / float(mesh.mass))
+    lo, hi = mesh.bounds  # not closed: its bounding box's
+    return (lo + hi) / 2, box_unit_inertia(hi - lo)

@@ -39,17 +39,6 @@ def dimension_fields() -> frozenset[str]:
     return _DIMENSIONS[0]
 
 
-def of_geometry(geometry: Any) -> Shape | None:
-    """A URDF geometry (:class:`arduinobot.description.model.Geometry`) as its shape when
-    its kind's dimension fields are the geometry's own (box, sphere, cylinder); None
-    otherwise (a mesh: a file and a scale, read as the link's)."""
-    cls = _SHAPES.get(geometry.kind)
-    if cls is None or not all(hasattr(geometry, f) for f in cls.field_names()):
-        return None
-    return cls.from_json({f: getattr(geometry, f) for f in cls.field_names()},
-                         where="geometry")
-
-
 def check_inline(cls: type[Shape], data: Mapping[str, Any], *, where: str) -> None:
     """Refuse an inline field (:attr:`Shape.inline`) that ``cls`` does not take."""
     for key in sorted({k for c in _SHAPES.values() for k in c.inline} - set(cls.inline)):
