@@ -1,4 +1,4 @@
-"""src/arduinobot/scene/shapes.py: each shape reads back what it writes, keys equal shapes
+"""src/arduinobot/scene/shapes/: each shape reads back what it writes, keys equal shapes
 alike, gives the closed-form inertia of its solid, and names the field that is wrong."""
 
 from __future__ import annotations
@@ -69,6 +69,17 @@ def test_a_closed_mesh_has_its_solid_s_inertia(stl):
     c, i = Mesh(stl).unit_inertia()
     assert np.allclose(c, 0, atol=1e-12)
     assert np.allclose(i, Box((0.2, 0.4, 0.6)).unit_inertia()[1])
+
+
+def test_reach_is_the_farthest_surface_point(stl):
+    assert Box((0.1, 0.2, 0.3)).reach() == pytest.approx(0.5 * np.sqrt(0.14))
+    assert Sphere(0.05).reach() == 0.05
+    assert Cylinder(0.04, 0.5).reach() == pytest.approx(np.hypot(0.04, 0.25))
+    assert Mesh(stl).reach() == pytest.approx(0.5 * np.sqrt(0.56))  # a corner of its box
+    for s in _shapes(stl):  # its triangles' farthest vertex is on it
+        d = np.linalg.norm(s.triangles().vertices, axis=1)
+        assert d.max() == pytest.approx(s.reach())
+    assert all(s.source_scale == (1.0, 1.0, 1.0) for s in _shapes(stl))
 
 
 def test_triangles_hold_the_shape(stl):
