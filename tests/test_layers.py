@@ -4,8 +4,8 @@ walker of the tests is here; a new rule is a new row.
 
 The floors, from the ground up (src/arduinobot/__init__.py draws them)::
 
-    contract < description < scene < planner < execution < ros2 < service < client
-    < viewer < cli
+    contract < scene < description < planner < execution < perception < ros2 < service
+    < client < viewer < cli
 
 A package imports only floors below it, with one narrowing: the client library imports
 the contract only (a client install does not carry the server). Every import counts:
@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 PKG = SRC / "arduinobot"
 
-FLOORS = ("contract", "description", "scene", "planner", "execution", "perception", "ros2",
+FLOORS = ("contract", "scene", "description", "planner", "execution", "perception", "ros2",
           "service",
           "client", "viewer", "cli")
 

@@ -11,8 +11,9 @@ arduinobot`` loads none of Zenoh, OMPL or FCL)::
 The packages, floor by floor (each imports only those below it; tests/test_layers.py):
 
 - ``contract``: codes, errors, ranges, caps, wire, schemas, the Zenoh config.
-- ``description``: URDF/xacro loading and checks, the shipped arduinobot package.
-- ``scene``: obstacles, attached objects, meshes sent inline.
+- ``scene``: shapes, poses, obstacles, attached objects, meshes sent inline.
+- ``description``: URDF/xacro loading and checks (a link's geometry: a scene shape),
+  the shipped arduinobot package.
 - ``planner``: kinematics, collision and its proof, OMPL search, timing, tasks.
 - ``execution``: the executor, the drivers, the MuJoCo twin.
 - ``perception``: camera images to scene objects through markers (the ``see`` extra).

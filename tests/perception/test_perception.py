@@ -28,6 +28,7 @@ from arduinobot.perception.intrinsics import from_camera_info, ideal  # noqa: E4
 from arduinobot.perception.locate import perceive  # noqa: E402
 from arduinobot.perception.markers import MarkerMap, load_marker_map  # noqa: E402
 from arduinobot.perception.twin_view import Light, render  # noqa: E402
+from arduinobot.scene.shapes import Cylinder  # noqa: E402
 
 BOX = 0.12
 
@@ -106,7 +107,8 @@ def test_an_objects_yaml_reads_as_a_marker_map() -> None:
     7: {id: can, shape: cylinder, radius: 0.03, length: 0.1,
         offset: {xyz: [0.03, 0, 0], rpy: [1.5707963, 0, 1.5707963]}}
 """)
-    assert m.size == 0.04 and m.objects[7].id == "can" and m.objects[7].shape == "cylinder"
+    assert m.size == 0.04 and m.objects[7].id == "can"
+    assert m.objects[7].geometry == Cylinder(0.03, 0.1)
     assert m.objects[7].extent() == pytest.approx(math.hypot(0.03, 0.05))
 
 
@@ -115,6 +117,10 @@ def test_an_objects_yaml_reads_as_a_marker_map() -> None:
     ({"size": 0}, "markers.size"),
     ({"objects": {"x": {"id": "a", "shape": "box", "size": [1, 1, 1]}}}, "markers.objects.x"),
     ({"objects": {"1": {"id": "a", "shape": "cone"}}}, "markers.objects.1.shape"),
+    # a shape of a file of the server's is no marked object (a marker map comes in requests)
+    ({"objects": {"1": {"id": "a", "shape": "mesh"}}}, "markers.objects.1.shape"),
+    ({"objects": {"1": {"id": "a", "shape": "box", "mesh_path": "/etc/hostname"}}},
+     "markers.objects.1"),
     ({"objects": {"1": {"id": "a", "shape": "box", "size": [1, -1, 1]}}},
      "markers.objects.1.size"),
     ({"objects": {"1": {"id": "a", "shape": "box", "size": [1, 1, 1]},

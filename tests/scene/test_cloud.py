@@ -72,10 +72,11 @@ def test_the_caps_are_refused_before_the_work(monkeypatch):
         decode_points(encode_points(np.zeros((11, 3))))
     assert e.value.details["limit"] == 10 and e.value.field == "points.data"
     assert len(decode_points(encode_points(np.zeros((10, 3)))).points) == 10
-    monkeypatch.setattr(cloud, "MAX_CLOUD_BASE64", 16)
+    monkeypatch.setattr(cloud, "MAX_CLOUD_BYTES", 16)  # 2 points are 24 bytes, 32 in base64
     with pytest.raises(InvalidRequest) as e:
         decode_points(encode_points(np.zeros((2, 3))))
-    assert e.value.details["limit"] == cloud.MAX_CLOUD_BYTES
+    # refused on the text's length, before decoding ("a cloud of 24 bytes" would be after)
+    assert e.value.details["limit"] == 16 and e.value.message.endswith("a cloud of more than 16 bytes")
 
 
 def test_the_real_caps():

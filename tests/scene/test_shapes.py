@@ -1,4 +1,4 @@
-"""src/arduinobot/scene/shapes.py: each shape reads back what it writes, keys equal shapes
+"""src/arduinobot/scene/shapes/: each shape reads back what it writes, keys equal shapes
 alike, gives the closed-form inertia of its solid, and names the field that is wrong."""
 
 from __future__ import annotations
@@ -71,6 +71,17 @@ def test_a_closed_mesh_has_its_solid_s_inertia(stl):
     assert np.allclose(i, Box((0.2, 0.4, 0.6)).unit_inertia()[1])
 
 
+def test_reach_is_the_farthest_surface_point(stl):
+    assert Box((0.1, 0.2, 0.3)).reach() == pytest.approx(0.5 * np.sqrt(0.14))
+    assert Sphere(0.05).reach() == 0.05
+    assert Cylinder(0.04, 0.5).reach() == pytest.approx(np.hypot(0.04, 0.25))
+    assert Mesh(stl).reach() == pytest.approx(0.5 * np.sqrt(0.56))  # a corner of its box
+    for s in _shapes(stl):  # its triangles' farthest vertex is on it
+        d = np.linalg.norm(s.triangles().vertices, axis=1)
+        assert d.max() == pytest.approx(s.reach())
+    assert all(s.source_scale == (1.0, 1.0, 1.0) for s in _shapes(stl))
+
+
 def test_triangles_hold_the_shape(stl):
     for s in _shapes(stl):
         m = s.triangles()
@@ -124,15 +135,6 @@ def test_an_inline_field_belongs_to_its_shape_alone(tmp_path):
     with pytest.raises(InvalidRequest) as e:
         Mesh.stored({}, where="add[0]", folder=tmp_path)
     assert e.value.field == "add[0].mesh"
-
-
-def test_a_urdf_primitive_is_its_shape():
-    from arduinobot.description.model import Geometry
-    from arduinobot.scene.shapes import of_geometry
-
-    assert of_geometry(Geometry("cylinder", radius=0.1, length=0.4)) == Cylinder(0.1, 0.4)
-    assert of_geometry(Geometry("box", size=(0.1, 0.2, 0.3))).mjcf() == ("box", "0.05 0.1 0.15")
-    assert of_geometry(Geometry("mesh", uri="package://x/a.stl")) is None
 
 
 def test_a_listing_reads_each_shape_s_dimensions_from_its_wire_form():

@@ -26,6 +26,7 @@ import numpy as np
 from arduinobot.cli.argtypes import UsageError
 from arduinobot.description import Description, read_model_text
 from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.shapes import kinds, shape_class
 
 log = logging.getLogger(__name__)
 
@@ -64,8 +65,7 @@ def see_on_twin(section: Any, desc: Description, *, model: str | None,
         if oid not in by_id:
             raise UsageError(f"see.twin.{oid}: not an object of see.markers")
         o = by_id[oid]
-        obst = Obstacle(id=oid, shape=o.shape, size=o.size, radius=o.radius, length=o.length,
-                        xyz=tuple(pose.get("xyz", (0, 0, 0))),
+        obst = Obstacle(oid, o.geometry, xyz=tuple(pose.get("xyz", (0, 0, 0))),
                         rpy=tuple(pose.get("rpy", (0, 0, 0))), where=f"see.twin.{oid}")
         truth[oid], poses[oid] = obst, obst.pose()
     sensors = camera_sensors(read_model_text(model, args=dict(args) or None,
@@ -78,9 +78,11 @@ def see_on_twin(section: Any, desc: Description, *, model: str | None,
     lights = {1: (Light(direction=(0.2, 0.1, -1.0), diffuse=0.8, ambient=0.25),),
               2: (Light(directional=False, position=(0.2, -0.8, 1.2),
                         direction=(0.5, 1.0, -1.0), diffuse=0.45, ambient=0.1),)}
+    # the twin's camera draws shapes given by their dimensions, not a file's (a mesh)
+    files = tuple(k for k in kinds() if not shape_class(k).portable)
     others = [Obstacle.from_mapping(o, where=f"obstacles[{i}]")
               for i, o in enumerate(obstacles or ()) if isinstance(o, Mapping)
-              and o.get("id") not in truth and o.get("shape") != "mesh"]
+              and o.get("id") not in truth and o.get("shape") not in files]
     rgb = render(markers, poses, camera_frame(desc, link), intr,
                  lights=lights[int(section.get("lights", 1))], obstacles=others)
     seen = perceive(encode(rgb), description=desc, markers=markers, camera=link,

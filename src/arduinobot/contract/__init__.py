@@ -10,6 +10,7 @@ jsonschema), never the planner, the service or a client.
 - ``wire``: strict JSON in and out, the schemas' validators.
 - ``outcomes``: how an execution ended (``completed``, ``written``, ``cancelled``).
 - ``packed``: a trajectory's samples packed (base64 of float64 arrays).
+- ``inline``: bytes sent inline in a JSON field (base64), decoded within a size cap.
 - ``samples``: a trajectory's samples as CSV (``samples_csv``).
 - ``zconfig``: the Zenoh configuration of the service and its clients.
 - ``schema/``: the JSON Schemas, as published on ``<prefix>/schema``.

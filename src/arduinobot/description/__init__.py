@@ -2,6 +2,7 @@
 
 - ``loader``: :func:`load_description`: URDF or xacro, its package's SRDF and config.
 - ``model``: the robot model (links, joints, their geometry), frozen dataclasses.
+- ``geometry``: a link's geometry: the scene's box, sphere, cylinder, or a ``MeshFile``.
 - ``urdf``: URDF text parsed into the model.
 - ``xacro_expand``: in-process xacro, ``$(find pkg)`` answered by ``packages``.
 - ``packages``: ROS packages found and resource URIs resolved without ROS.
@@ -27,6 +28,7 @@ from arduinobot.description.errors import (
     SrdfError,
     XacroError,
 )
+from arduinobot.description.geometry import Geometry, MeshFile
 from arduinobot.description.loader import (
     DEFAULT_MODEL,
     Description,
@@ -35,7 +37,6 @@ from arduinobot.description.loader import (
     read_model_text,
 )
 from arduinobot.description.model import (
-    Geometry,
     Inertial,
     Joint,
     Limit,
@@ -52,7 +53,8 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
     "DEFAULT_MODEL", "Description", "DescriptionError", "Geometry", "Inertial", "InvalidModel",
-    "Joint", "Limit", "Link", "MalformedXml", "MeshLoadError", "MeshNotFound", "Mimic",
+    "Joint", "Limit", "Link", "MalformedXml", "MeshFile", "MeshLoadError", "MeshNotFound",
+    "Mimic",
     "MissingXacroArgument", "Origin", "PackageIndex", "PackageNotFound", "Robot", "Shape",
     "Srdf", "SrdfError", "Tcp", "XacroError", "build_package_index", "load_description",
     "read_model_text",

@@ -15,6 +15,7 @@ from typing import Literal
 import numpy as np
 
 from arduinobot.description.errors import DescriptionError
+from arduinobot.description.geometry import MeshFile
 from arduinobot.description.loader import (
     _read_joint_limits,
     apply_position_limits,
@@ -252,7 +253,7 @@ def _check_meshes(robot: Robot) -> Iterator[Finding]:
         for tag, shapes in (("visual", link.visuals), ("collision", link.collisions)):
             for i, s in enumerate(shapes):
                 g = s.geometry
-                if g.kind != "mesh":
+                if not isinstance(g, MeshFile):  # the check of mesh files
                     continue
                 subj = f"{link.name} {tag}#{i + 1}"
                 subjects.append(subj)
@@ -279,9 +280,9 @@ def _check_meshes(robot: Robot) -> Iterator[Finding]:
                         f"robot whose joints span {span:.3g} m: likely in the wrong unit; try "
                         f"scale=\"{_fmt(tuple(x * factor for x in g.scale))}\" "
                         f"(x{factor:g})", {"extent": size, "factor": factor}))
-    folders = sorted({str(s.geometry.path.parent) for link in robot.links.values()
+    folders = sorted({str(src.parent) for link in robot.links.values()
                       for s in (*link.visuals, *link.collisions)
-                      if s.geometry.kind == "mesh" and s.geometry.path is not None})
+                      if (src := s.geometry.source) is not None})
     yield from _summarise("mesh", subjects, bad, "every mesh resolves and loads"
                           + (f", from {', '.join(folders)}" if folders else ""))
 

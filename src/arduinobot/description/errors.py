@@ -32,6 +32,14 @@ class DescriptionError(Exception):
         self.hint = hint
         super().__init__(self._render())
 
+    def at(self, element: str | None) -> DescriptionError:
+        """This error, naming ``element`` if it named none (a mesh's file knows its path;
+        the caller reading it knows which link element it is)."""
+        if element is not None and self.element is None:
+            self.element = element
+            self.args = (self._render(),)
+        return self
+
     def _render(self) -> str:
         where = []
         if self.file:

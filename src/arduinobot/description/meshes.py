@@ -10,12 +10,15 @@ import logging
 import threading
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
 
-from arduinobot.description.errors import MeshLoadError, MeshNotFound
-from arduinobot.description.model import Geometry, Shape
+from arduinobot.description.errors import DescriptionError, MeshLoadError, MeshNotFound
+
+if TYPE_CHECKING:
+    from arduinobot.description.model import Shape
 
 _log = logging.getLogger(__name__)
 _cache: dict[tuple[str, int, tuple[float, float, float]], trimesh.Trimesh] = {}
@@ -57,28 +60,18 @@ def load_mesh(path: Path, scale: tuple[float, float, float] = (1.0, 1.0, 1.0), *
     return mesh
 
 
-def primitive_mesh(geometry: Geometry) -> trimesh.Trimesh:
-    """A triangle mesh of a box, sphere or cylinder geometry (for display and mass)."""
-    if geometry.kind == "box":
-        return trimesh.creation.box(extents=geometry.size)
-    if geometry.kind == "sphere":
-        return trimesh.creation.icosphere(subdivisions=3, radius=geometry.radius or 0.0)
-    if geometry.kind == "cylinder":
-        return trimesh.creation.cylinder(radius=geometry.radius or 0.0,
-                                         height=geometry.length or 0.0, sections=48)
-    raise ValueError(f"not a primitive: {geometry.kind}")
-
-
 def shape_mesh(shape: Shape, *, element: str | None = None) -> trimesh.Trimesh:
-    """The shape's triangles in its link's frame [m] (origin and scale applied)."""
-    g = shape.geometry
-    if g.kind == "mesh":
-        if g.path is None:
-            raise MeshNotFound(f"mesh '{g.uri}' did not resolve", element=element)
-        base = load_mesh(g.path, g.scale, element=element)
-    else:
-        base = primitive_mesh(g)
-    return base.copy().apply_transform(shape.origin.matrix())
+    """The shape's triangles in its link's frame [m] (origin and scale applied).
+
+    Raises:
+        MeshNotFound, MeshLoadError: a mesh that did not resolve or does not load, the
+            error naming ``element``.
+    """
+    try:
+        base = shape.geometry.triangles()  # a new mesh: moved in place
+    except DescriptionError as e:
+        raise e.at(element)  # noqa: B904 -- the same error, its cause kept
+    return base.apply_transform(shape.origin.matrix())
 
 
 def concatenate(parts: Sequence[trimesh.Trimesh]) -> trimesh.Trimesh:

@@ -12,8 +12,8 @@ from pathlib import Path
 from lxml import etree
 
 from arduinobot.description.errors import DescriptionError, InvalidModel, MalformedXml
+from arduinobot.description.geometry import Geometry, MeshFile
 from arduinobot.description.model import (
-    Geometry,
     Inertial,
     Joint,
     Limit,
@@ -24,6 +24,7 @@ from arduinobot.description.model import (
     Shape,
 )
 from arduinobot.description.packages import PackageIndex, resolve_uri
+from arduinobot.scene.shapes import Box, Cylinder, Sphere
 
 _SHAPES = ("mesh", "box", "sphere", "cylinder")
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -114,14 +115,15 @@ def _geometry(ctx: _Ctx, el: etree._Element | None, where: str) -> Geometry | No
         except DescriptionError as e:
             ctx.problems.append(e)
         scale = ctx.vec3(g, "scale", (1.0, 1.0, 1.0), where)
-        return Geometry("mesh", uri=uri, path=path, scale=scale)
+        return MeshFile(uri=uri, path=path, scale=scale)
+    # the scene's shapes, built as written (unchecked: a zero size is check's to report)
     if tag == "box":
-        return Geometry("box", size=ctx.vec3(g, "size", (0.0, 0.0, 0.0), where))
+        return Box(size=ctx.vec3(g, "size", (0.0, 0.0, 0.0), where))
     if tag == "sphere":
-        return Geometry("sphere", radius=ctx.number(g, "radius", where, 0.0))
+        return Sphere(radius=ctx.number(g, "radius", where, 0.0) or 0.0)
     if tag == "cylinder":
-        return Geometry("cylinder", radius=ctx.number(g, "radius", where, 0.0),
-                        length=ctx.number(g, "length", where, 0.0))
+        return Cylinder(radius=ctx.number(g, "radius", where, 0.0) or 0.0,
+                        length=ctx.number(g, "length", where, 0.0) or 0.0)
     ctx.fail(f"unknown geometry <{tag}>", where, hint="use mesh, box, cylinder or sphere")
     return None
 

@@ -64,16 +64,8 @@ class Detection:
         """The scene object, ``uncertainty`` larger on every side if ``padded``."""
         o, pad = self.marked, (self.uncertainty if padded else 0.0)
         xyz, rpy = _xyz(self.pose), rpy_of_matrix(self.pose[:3, :3])
-        w = f"markers.objects.{self.marker}"
-        if o.shape == "box":
-            assert o.size is not None
-            size = (o.size[0] + 2 * pad, o.size[1] + 2 * pad, o.size[2] + 2 * pad)
-            return Obstacle(id=o.id, shape="box", size=size, xyz=xyz, rpy=rpy, where=w)
-        if o.shape == "sphere":
-            return Obstacle(id=o.id, shape="sphere", radius=float(o.radius or 0) + pad,
-                            xyz=xyz, rpy=rpy, where=w)
-        return Obstacle(id=o.id, shape="cylinder", radius=float(o.radius or 0) + pad,
-                        length=float(o.length or 0) + 2 * pad, xyz=xyz, rpy=rpy, where=w)
+        return Obstacle(o.id, o.geometry.grown(pad), xyz=xyz, rpy=rpy,
+                        where=f"markers.objects.{self.marker}")
 
     def to_dict(self) -> dict[str, object]:
         """The wire's detection: the object's and the marker's pose (world frame)."""

@@ -15,11 +15,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Literal, cast
 
-import numpy as np
 import yaml
 
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description.model import Origin
+from arduinobot.scene.shapes import Shape, kinds, shape_class
 
 Dictionary = Literal["4x4_50", "4x4_100", "4x4_250", "5x5_50", "5x5_100", "5x5_250",
                      "6x6_50", "6x6_250", "apriltag_16h5", "apriltag_25h9",
@@ -27,7 +27,13 @@ Dictionary = Literal["4x4_50", "4x4_100", "4x4_250", "5x5_50", "5x5_100", "5x5_2
 DICTIONARIES: tuple[str, ...] = ("4x4_50", "4x4_100", "4x4_250", "5x5_50", "5x5_100",
                                  "5x5_250", "6x6_50", "6x6_250", "apriltag_16h5",
                                  "apriltag_25h9", "apriltag_36h11")
-Shape = Literal["box", "sphere", "cylinder"]
+
+
+def _markable() -> dict[str, type[Shape]]:
+    """The shapes an object with a marker may have, by name: those given by their
+    dimensions (:attr:`~arduinobot.scene.shapes.Shape.portable`), not a file of the
+    server's (a marker map comes in a request too)."""
+    return {k: c for k in kinds() if (c := shape_class(k)).portable}
 
 
 def cv_dictionary_name(name: str) -> str:
@@ -54,25 +60,18 @@ class MarkedObject:
 
     Attributes:
         id: the scene object's id.
-        shape: box (``size`` (x, y, z) [m]), sphere (``radius``) or cylinder (``radius``,
-            ``length`` along z) [m], centred on the object's frame.
+        geometry: its shape (:mod:`arduinobot.scene.shapes`), centred on the object's
+            frame: one given by its dimensions (box, sphere, cylinder), not a file.
         offset: the marker's frame in the object's frame.
     """
 
     id: str
-    shape: Shape
-    size: tuple[float, float, float] | None = None
-    radius: float | None = None
-    length: float | None = None
+    geometry: Shape
     offset: Origin = field(default_factory=Origin)
 
     def extent(self) -> float:
         """The farthest the object's surface reaches from its centre [m]."""
-        if self.shape == "box":
-            assert self.size is not None  # checked when built
-            return 0.5 * float(np.linalg.norm(self.size))
-        r = float(self.radius or 0.0)
-        return r if self.shape == "sphere" else math.hypot(r, 0.5 * float(self.length or 0.0))
+        return self.geometry.reach()
 
 
 @dataclass(frozen=True)
@@ -129,24 +128,20 @@ class MarkerMap:
 def _object(o: object, w: str) -> MarkedObject:
     if not isinstance(o, Mapping):
         raise InvalidRequest("must be an object with id, shape and its size", field=w)
-    extra = sorted(set(o) - {"id", "shape", "size", "radius", "length", "offset"})
+    extra = sorted(set(o) - {"id", "shape", "offset"}
+                   - {f for c in _markable().values() for f in c.field_names()})
     if extra:
         raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=w)
     oid = o.get("id")
     if not isinstance(oid, str) or not oid:
         raise InvalidRequest("must be a non-empty string", field=f"{w}.id")
-    shape = o.get("shape")
-    size = radius = length = None
-    if shape == "box":
-        size = cast(tuple[float, float, float], _vec(o.get("size"), 3, f"{w}.size",
-                                                     positive=True))
-    elif shape in ("sphere", "cylinder"):
-        radius = _vec([o.get("radius")], 1, f"{w}.radius", positive=True)[0]
-        if shape == "cylinder":
-            length = _vec([o.get("length")], 1, f"{w}.length", positive=True)[0]
-    else:
-        raise InvalidRequest(f"{shape!r} is not one of box, sphere, cylinder",
+    markable, shape = _markable(), o.get("shape")
+    cls = markable.get(shape) if isinstance(shape, str) else None
+    if cls is None:
+        raise InvalidRequest(f"{shape!r} is not one of {', '.join(markable)}",
                              field=f"{w}.shape")
+    # each kind reads its own fields; another kind's (a box's radius) is let be, as ever
+    geometry = cls.from_json({k: o.get(k) for k in cls.field_names()}, where=w)
     off = o.get("offset", {})
     if not isinstance(off, Mapping) or sorted(set(off) - {"xyz", "rpy"}):
         raise InvalidRequest("must be {xyz, rpy}", field=f"{w}.offset")
@@ -154,8 +149,7 @@ def _object(o: object, w: str) -> MarkedObject:
                              _vec(off.get("xyz", [0, 0, 0]), 3, f"{w}.offset.xyz")),
                     rpy=cast(tuple[float, float, float],
                              _vec(off.get("rpy", [0, 0, 0]), 3, f"{w}.offset.rpy")))
-    return MarkedObject(id=oid, shape=cast(Shape, shape), size=size, radius=radius,
-                        length=length, offset=offset)
+    return MarkedObject(id=oid, geometry=geometry, offset=offset)
 
 
 def load_marker_map(text: str) -> MarkerMap:

@@ -23,8 +23,9 @@ import numpy as np
 
 from arduinobot.perception.camera import CameraFrame
 from arduinobot.perception.intrinsics import Intrinsics
-from arduinobot.perception.markers import MarkedObject, MarkerMap, cv_dictionary_name
+from arduinobot.perception.markers import MarkerMap, cv_dictionary_name
 from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.shapes import Shape
 
 log = logging.getLogger(__name__)
 
@@ -83,13 +84,11 @@ def _label_mesh(name: str, side: float) -> str:
             f'texcoord="{_f(np.array(uv))}" face="{" ".join(str(i) for f in faces for i in f)}"/>')
 
 
-def _geom_of(o: MarkedObject | Obstacle) -> str:
-    if o.shape == "box":
-        assert o.size is not None
-        return f'type="box" size="{_f(np.asarray(o.size) / 2)}"'
-    if o.shape == "sphere":
-        return f'type="sphere" size="{o.radius!r}"'
-    return f'type="cylinder" size="{o.radius!r} {float(o.length or 0) / 2!r}"'
+def _geom_of(shape: Shape) -> str | None:
+    """The MuJoCo geom's type and size of ``shape``; None: it has no MuJoCo primitive (a
+    mesh file)."""
+    geom = shape.mjcf()
+    return None if geom is None else f'type="{geom[0]}" size="{geom[1]}"'
 
 
 def _frame(pose: np.ndarray) -> str:
@@ -118,14 +117,16 @@ def scene_xml(markers: MarkerMap, poses: Mapping[str, np.ndarray], camera: Camer
                       _label_mesh(f"label{mid}", markers.size * (1 + 2 * QUIET_ZONE))]
         label = pose @ o.offset.matrix()
         label[:3, 3] += label[:3, 2] * PROUD
-        world += [f'<geom name="{o.id}" {_geom_of(o)} {_frame(pose)} rgba="0.55 0.35 0.2 1"/>',
+        world += [f'<geom name="{o.id}" {_geom_of(o.geometry)} {_frame(pose)} '
+                  'rgba="0.55 0.35 0.2 1"/>',
                   f'<geom name="label{mid}" type="mesh" mesh="label{mid}" material="m{mid}" '
                   f'{_frame(label)}/>']
     for i, ob in enumerate(obstacles):  # what else is there: it can hide a marker
-        if ob.shape == "mesh":
-            log.warning("twin camera: mesh obstacle %s is not drawn", ob.id)
+        geom = _geom_of(ob.geometry)
+        if geom is None:
+            log.warning("twin camera: %s obstacle %s is not drawn", ob.shape, ob.id)
             continue
-        world.append(f'<geom name="obstacle{i}" {_geom_of(ob)} {_frame(ob.pose())} '
+        world.append(f'<geom name="obstacle{i}" {geom} {_frame(ob.pose())} '
                      'rgba="0.7 0.7 0.65 1"/>')
     for i, li in enumerate(lights):
         where = (f'dir="{_f(li.direction)}" directional="true"' if li.directional

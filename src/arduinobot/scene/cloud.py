@@ -16,7 +16,6 @@ to the box holds for every point measured inside it. Each refusal is an
 from __future__ import annotations
 
 import base64
-import binascii
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -26,11 +25,12 @@ import numpy as np
 
 from arduinobot.contract.caps import MAX_CLOUD_BYTES, MAX_CLOUD_POINTS
 from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.inline import base64_cap, decode_inline
 
 CloudFormat = Literal["xyz32", "xyz64"]
 FORMATS: dict[str, np.dtype] = {"xyz32": np.dtype("<f4"), "xyz64": np.dtype("<f8")}
 #: Longest base64 text of a cloud [characters]: :data:`MAX_CLOUD_BYTES` encoded.
-MAX_CLOUD_BASE64 = 4 * math.ceil(MAX_CLOUD_BYTES / 3)
+MAX_CLOUD_BASE64 = base64_cap(MAX_CLOUD_BYTES)
 #: The cell edge [m] a cloud may ask for: finer costs memory, coarser hides the scene.
 RESOLUTION_RANGE = (0.002, 0.1)
 #: Most cells along one axis of a cloud's grid (its extent over its resolution): cell
@@ -68,16 +68,8 @@ def decode_points(spec: object, *, field: str = "points") -> DecodedPoints:
     if not isinstance(fmt, str) or fmt not in FORMATS:
         raise InvalidRequest(f"{fmt!r} is not one of {', '.join(FORMATS)}",
                              field=f"{field}.format")
-    text = spec.get("data")
-    if not isinstance(text, str) or not text:
-        raise InvalidRequest("must be the points' bytes in base64", field=f"{field}.data")
-    if len(text) > MAX_CLOUD_BASE64:  # before decoding it
-        raise InvalidRequest(f"a cloud of more than {MAX_CLOUD_BYTES} bytes",
-                             field=f"{field}.data", details={"limit": MAX_CLOUD_BYTES})
-    try:
-        raw = base64.b64decode(text, validate=True)
-    except (binascii.Error, ValueError):
-        raise InvalidRequest("is not valid base64", field=f"{field}.data") from None
+    raw = decode_inline(spec.get("data"), cap=MAX_CLOUD_BYTES, noun="cloud",
+                        contents="the points' bytes", field=f"{field}.data")
     return points_of_bytes(raw, FORMATS[fmt], field=field)
 
 

@@ -16,9 +16,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.description.model import rpy_of
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, resolve_attached
+from arduinobot.scene.pose import rpy_of
 
 
 class Frames(Protocol):

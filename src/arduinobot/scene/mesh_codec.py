@@ -16,8 +16,6 @@ and builds a new one for new geometry, whatever the object's id.
 
 from __future__ import annotations
 
-import base64
-import binascii
 import hashlib
 import io
 import logging
@@ -32,6 +30,7 @@ from typing import Any, Literal
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, StorageError
+from arduinobot.contract.inline import base64_cap, decode_inline
 
 _log = logging.getLogger(__name__)
 
@@ -40,7 +39,7 @@ FORMATS: tuple[MeshFormat, ...] = ("stl", "obj")
 #: Largest decoded mesh [bytes] (the base64 text is 4/3 of it).
 MAX_MESH_BYTES = 2 * 2**20
 #: Longest base64 text of a mesh [characters]: :data:`MAX_MESH_BYTES` encoded.
-MAX_MESH_BASE64 = 4 * math.ceil(MAX_MESH_BYTES / 3)
+MAX_MESH_BASE64 = base64_cap(MAX_MESH_BYTES)
 #: Most triangles in one mesh.
 MAX_MESH_TRIANGLES = 200_000
 #: Largest extent of a mesh along any axis, after scaling [m].
@@ -132,19 +131,8 @@ def decode_mesh(spec: Mapping[str, Any], *, scale: Sequence[float] = (1.0, 1.0, 
     if fmt not in FORMATS:
         raise InvalidRequest(f"{fmt!r} is not one of {', '.join(FORMATS)}",
                              field=f"{field}.format")
-    text = spec.get("data")
-    if not isinstance(text, str) or not text:
-        raise InvalidRequest("must be the mesh file's bytes in base64", field=f"{field}.data")
-    if len(text) > MAX_MESH_BASE64:  # before decoding it
-        raise InvalidRequest(f"a mesh of more than {MAX_MESH_BYTES} bytes",
-                             field=f"{field}.data", details={"limit": MAX_MESH_BYTES})
-    try:
-        raw = base64.b64decode(text, validate=True)
-    except (binascii.Error, ValueError):
-        raise InvalidRequest("is not valid base64", field=f"{field}.data") from None
-    if len(raw) > MAX_MESH_BYTES:
-        raise InvalidRequest(f"a mesh of {len(raw)} bytes, more than {MAX_MESH_BYTES}",
-                             field=f"{field}.data", details={"limit": MAX_MESH_BYTES})
+    raw = decode_inline(spec.get("data"), cap=MAX_MESH_BYTES, noun="mesh",
+                        contents="the mesh file's bytes", field=f"{field}.data")
     vertices, faces = _parse(raw, fmt, field)
     return _validated(vertices, faces, np.asarray(scale, float), field)
 

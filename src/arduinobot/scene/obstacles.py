@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.description.model import Origin
 from arduinobot.scene.payload import Payload
+from arduinobot.scene.pose import rpy_matrix
 from arduinobot.scene.shapes import Shape, dimension_fields, finite_vec, shape_class
 
 
@@ -82,7 +82,10 @@ class Obstacle:
 
     def pose(self) -> np.ndarray:
         """The obstacle's pose in the world frame, shape (4, 4)."""
-        return Origin(xyz=self.xyz, rpy=self.rpy).matrix()
+        t = np.eye(4)
+        t[:3, :3] = rpy_matrix(self.rpy)
+        t[:3, 3] = self.xyz
+        return t
 
     def key(self) -> tuple:
         """What it is and where (``where`` only names fields in errors)."""

@@ -22,10 +22,10 @@ from typing import Any, Literal
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
-from arduinobot.description.model import rpy_of
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.frames import Frames, hold
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
+from arduinobot.scene.pose import rpy_of
 from arduinobot.scene.shapes import check_inline, shape_class
 
 _log = logging.getLogger(__name__)

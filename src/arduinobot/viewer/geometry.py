@@ -82,7 +82,8 @@ def obstacle_mesh(obstacle: Obstacle) -> trimesh.Trimesh:
     """An obstacle's triangles in its own frame [m] (a file: loaded once, as a link's)."""
     source = obstacle.geometry.source
     if source is not None:
-        return load_mesh(source, element=f"obstacle '{obstacle.id}'")
+        return load_mesh(source, obstacle.geometry.source_scale,
+                         element=f"obstacle '{obstacle.id}'")
     return obstacle.geometry.triangles()
 
 

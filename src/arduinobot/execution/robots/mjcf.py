@@ -37,7 +37,6 @@ import numpy as np
 from arduinobot.description.model import Joint, Robot, Shape, rpy_matrix
 from arduinobot.planner.cache import ArtifactCache, content_key
 from arduinobot.scene.obstacles import Obstacle
-from arduinobot.scene.shapes import of_geometry
 
 #: told what is being built, for a user waiting on a first twin: ``progress(message)``
 Progress = Callable[[str], None]
@@ -143,15 +142,13 @@ def _geom(shape: Shape, name: str, assets: list[str], cache: ArtifactCache | Non
     g = shape.geometry
     pose = f'pos="{_f(shape.origin.xyz)}" quat="{_quat(rpy_matrix(shape.origin.rpy))}"'
     common = f'{pose} contype="1" conaffinity="1" group="3" rgba="0.5 0.5 0.5 0.4" mass="0"'
-    prim = of_geometry(g)
-    if prim is not None:  # a primitive
-        geom = prim.mjcf()
-        return None if geom is None else \
-            f'<geom type="{geom[0]}" size="{geom[1]}" name="{_esc(name)}" {common}/>'
-    if g.path is not None:
+    geom = g.mjcf()
+    if geom is not None:  # a primitive
+        return f'<geom type="{geom[0]}" size="{geom[1]}" name="{_esc(name)}" {common}/>'
+    if g.source is not None:  # a mesh file that resolved: its convex pieces
         out = []
-        for i, vs in enumerate(mesh_parts(g.path, g.scale, COLLISION_PARTS,
-                                               cache=cache, progress=progress)):
+        for i, vs in enumerate(mesh_parts(g.source, g.source_scale, COLLISION_PARTS,
+                                          cache=cache, progress=progress)):
             assets.append(f'<mesh name="{_esc(name)}/{i}" vertex="{_f(vs)}"/>')
             out.append(f'<geom type="mesh" mesh="{_esc(name)}/{i}" name="{_esc(name)}/{i}" '
                        f'{common}/>')
@@ -181,7 +178,7 @@ def obstacle_geoms(obstacles: Sequence[Mapping[str, Any] | Obstacle], *,
         if source is None or assets is None:
             raise ValueError(f"obstacle '{o.id}' ({o.shape}) needs assets and a file for "
                              "its convex pieces")
-        for j, vs in enumerate(mesh_parts(source, (1.0, 1.0, 1.0), COLLISION_PARTS,
+        for j, vs in enumerate(mesh_parts(source, o.geometry.source_scale, COLLISION_PARTS,
                                           cache=cache, progress=progress)):
             assets.append(f'<mesh name="{name}/{j}" vertex="{_f(vs)}"/>')
             out.append(f'<geom name="{name}/{j}" type="mesh" mesh="{name}/{j}" {common}/>')
