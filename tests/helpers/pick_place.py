@@ -2,10 +2,14 @@
 table with a box on it, a bin with walls beside it, and the task that moves the box into
 the bin (above, LIN down 5 cm, close, attach, LIN up, across, down, open, detach, up),
 in the task's JSON form (``<prefix>/task``'s ``task``). Shared by
-tests/planner/tasks/test_task.py, tests/service/test_task_pool.py and bench/task.py."""
+tests/planner/tasks/test_task.py, tests/service/test_task_pool.py and bench/task.py; and
+docs/tasks.md's pick as the page gives it (:func:`docs_pick`)."""
 
 from __future__ import annotations
 
+import json
+import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -68,7 +72,11 @@ def pick_and_place(box_xy: tuple[float, float] = BOX_XY,
         {"move": {"position": above_box}, "label": "above the box"},
         {**down, "label": "down"},
         {"gripper": "close", "label": "grip"},
-        *([{"attach": "box", "mass": mass, "label": "pick"}] if attach else []),
+        # the course workspace has no tool point between the fingers (its tcp is
+        # claw_support's origin), so a position goal over the box leaves the fingers
+        # 0.25 m from it: the twin welds the box all the same; reach says it is known
+        *([{"attach": "box", "mass": mass, "reach": 0.3, "label": "pick"}] if attach
+          else []),
         {**up, "label": "up"},
         {"move": {"position": above_bin}, "label": "above the bin"},
         {**down, "label": "down"},
@@ -88,4 +96,13 @@ def variants(n: int, *, seed: int = 7, attach: bool = True) -> list[dict[str, An
         out.append(pick_and_place((BOX_XY[0] + db[0], BOX_XY[1] + db[1]),
                                   (BIN_XY[0] + dc[0], BIN_XY[1] + dc[1]),
                                   attach=attach, seed=i + 1))
+    return out
+
+
+def docs_pick() -> dict[str, Any]:
+    """The first JSON block of docs/tasks.md: the pick it tells the user to save."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "tasks.md").read_text()
+    block = re.search(r"```json\n(.*?)```", text, re.S)
+    assert block is not None, "docs/tasks.md has no JSON block"
+    out: dict[str, Any] = json.loads(block.group(1))
     return out

@@ -7,13 +7,16 @@ massless ``gripper_frame_link`` on a fixed joint (with the stray ``<origin>`` in
 ``<link>`` the generator leaves). Each mesh is a box spanning the published mesh's
 bounding box (metres, in the mesh's own frame, measured from the published STLs), so
 sizes, reach and clearances are realistic while the fixture stays small and
-deterministic.
+deterministic. The fixed jaw (``wrist_roll_follower_so101_v1``) is two boxes, the
+gripper's body and its finger (:data:`MESH_PARTS`): one box spanning both would fill the
+space between the jaws where a cube is held.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import trimesh
 
 URDF_NAME = "so101_new_calib.urdf"
@@ -33,6 +36,14 @@ MESH_BOUNDS: dict[str, tuple[tuple[float, float, float], tuple[float, float, flo
     "waveshare_mounting_plate_so101_v2": ((-0.0255, -0.021, 0.0), (0.0255, 0.021, 0.0076)),
     "wrist_roll_follower_so101_v1": ((-0.0352, -0.0242, -0.0001), (0.03, 0.0278, 0.1054)),
     "wrist_roll_pitch_so101_v2": ((-0.0271, -0.02, -0.0378), (0.0352, 0.0157, 0.04)),
+}
+
+#: meshes drawn as several boxes (min corner, max corner) [m], measured from the
+#: published STL's sections: the fixed jaw's body (z < 0.045) and its finger, whose
+#: inner face is at x <= -0.0079 (the finger's tip; -0.0116 to -0.0133 along it)
+MESH_PARTS: dict[str, tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...]] = {
+    "wrist_roll_follower_so101_v1": (((-0.0352, -0.0242, -0.0001), (0.03, 0.0278, 0.045)),
+                                     ((-0.0352, -0.0122, 0.045), (-0.0079, 0.0122, 0.1054))),
 }
 
 # link -> (inertial xyz, mass, inertia ixx ixy ixz iyy iyz izz, [(mesh, xyz, rpy)])
@@ -158,11 +169,13 @@ def make_so101(root: Path, *, config: bool = False, name: str = "so101_new_calib
     the robot's name (another than the published one: an arm no shipped config knows)."""
     folder = root / "SO101"
     (folder / "assets").mkdir(parents=True, exist_ok=True)
-    for mesh, (lo, hi) in MESH_BOUNDS.items():
-        ext = [h - low for low, h in zip(lo, hi)]
-        box = trimesh.creation.box(extents=ext)
-        box.apply_translation([(low + h) / 2 for low, h in zip(lo, hi)])
-        box.export(folder / "assets" / f"{mesh}.stl")
+    for mesh, bounds in MESH_BOUNDS.items():
+        boxes = []
+        for lo, hi in MESH_PARTS.get(mesh, (bounds,)):
+            box = trimesh.creation.box(extents=[h - low for low, h in zip(lo, hi)])
+            box.apply_translation([(low + h) / 2 for low, h in zip(lo, hi)])
+            boxes.append(box)
+        trimesh.util.concatenate(boxes).export(folder / "assets" / f"{mesh}.stl")
     urdf = folder / URDF_NAME
     urdf.write_text(so101_urdf(name))
     if config:
@@ -185,3 +198,36 @@ OWNER_SRDF = """<?xml version="1.0"?>
                 parent_group="arm"/>
 </robot>
 """
+
+
+#: a LeRobot calibration file of an SO-101 follower (``lerobot-calibrate``'s JSON, as
+#: ``~/.cache/huggingface/lerobot/calibration/robots/so101_follower/ID.json`` holds
+#: it): servo ids 1-6, each arm joint's range spanning its URDF limits about the middle
+#: (4095 ticks a turn), the gripper's range its 0-100 scale
+CALIBRATION: dict[str, dict[str, int]] = {
+    "shoulder_pan": {"id": 1, "drive_mode": 0, "homing_offset": -1470, "range_min": 790,
+                     "range_max": 3306},
+    "shoulder_lift": {"id": 2, "drive_mode": 0, "homing_offset": 1012, "range_min": 900,
+                      "range_max": 3196},
+    "elbow_flex": {"id": 3, "drive_mode": 0, "homing_offset": -893, "range_min": 930,
+                   "range_max": 3166},
+    "wrist_flex": {"id": 4, "drive_mode": 0, "homing_offset": 1290, "range_min": 950,
+                   "range_max": 3146},
+    "wrist_roll": {"id": 5, "drive_mode": 0, "homing_offset": -517, "range_min": 180,
+                   "range_max": 3916},
+    "gripper": {"id": 6, "drive_mode": 0, "homing_offset": 1414, "range_min": 2030,
+                "range_max": 3460},
+}
+GRIPPER_LIMITS = (-0.174533, 1.74533)  # [rad] the URDF's gripper joint
+
+
+def calibration_ticks(joint: str, q: float) -> float:
+    """LeRobot's unnormalisation of ``q`` [rad] for :data:`CALIBRATION`, spelled out:
+    degrees about the range's middle for an arm joint, the 0-100 scale laid onto the
+    URDF's limits for the gripper."""
+    c = CALIBRATION[joint]
+    lo, hi = c["range_min"], c["range_max"]
+    if joint == GRIPPER_JOINT:
+        pct = 100 * (q - GRIPPER_LIMITS[0]) / (GRIPPER_LIMITS[1] - GRIPPER_LIMITS[0])
+        return pct / 100 * (hi - lo) + lo
+    return np.degrees(q) * 4095 / 360 + (lo + hi) / 2

@@ -28,7 +28,8 @@ def test_attach_then_detach_puts_the_object_back_where_it_was(robot):
     link = d.tcp.parent_link
     far = Obstacle("far", "box", size=(0.02, 0.03, 0.04), xyz=(0.3, -0.2, 2.5),
                    rpy=(0.1, 1.2, -0.3))
-    held = attach(frames, far, link, q, where="attach[0]")
+    # the frames' round trip, not a grasp: the object 2 m off, which a pick's reach refuses
+    held = attach(frames, far, link, q, where="attach[0]", reach=3.0)
     assert held.link == link and held.touch_links  # the gripper's by default
     back = detach(frames, held, q)
     assert np.allclose(back.pose(), far.pose(), atol=1e-12) and back.geometry == far.geometry

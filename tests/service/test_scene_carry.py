@@ -220,3 +220,28 @@ def test_fuzzed_attach_and_detach_are_coded_and_leave_the_scene_as_it_was(desc, 
             outcomes["applied"] = outcomes.get("applied", 0) + 1
         assert base.to_json() == before
     assert outcomes.get("applied", 0) > 30 and outcomes[Code.INVALID_REQUEST] > 100, outcomes
+
+
+def test_a_kept_scene_attach_far_from_the_gripper_is_taken_with_a_warning(desc, scene_builder,
+                                                                          caplog):
+    """Issue 38, item 9: the kept scene's attach of an object half a metre from the
+    gripper is not refused (its state may be a guess, all joints 0) but says so; one at
+    the tool says nothing."""
+    import logging
+    caplog.set_level(logging.WARNING, "arduinobot.scene.frames")
+    state = {"joint_1": 0.3, "joint_2": 0.2}
+    link, world = _at_tool(desc, state)
+    near = {**BOX, "id": "near", "xyz": world[:3, 3].tolist()}
+    far = {**BOX, "id": "far", "xyz": (world[:3, 3] + [0.0, 0.0, -0.5]).tolist()}
+    s1 = applied(SceneState(), {"add": [near, far]}, scene_builder)
+    s2 = applied(s1, {"attach": [{"object": "near", "link": link}], "state": state},
+                 scene_builder)
+    assert s2.attached_ids() == ("near",) and not caplog.records
+    s3 = applied(s2, {"attach": [{"object": "far", "link": link}], "state": state},
+                 scene_builder)
+    assert s3.attached_ids() == ("near", "far")
+    (rec,) = caplog.records
+    msg = rec.getMessage()
+    assert rec.levelno == logging.WARNING and msg.startswith("attach[0]: 'far' is attached")
+    distance = float(msg.split(" is attached ")[1].split(" m ")[0])
+    assert 0.4 < distance < 0.55, msg

@@ -78,6 +78,50 @@ class RobotFrames:
                     out.append((a.id, other))
         return sorted(set(out))
 
+    def grasp_distance(self, a: AttachedObject, q: np.ndarray) -> tuple[float, str]:
+        """How far [m] ``a`` (held by its link at ``q``) is from what would hold it, and
+        from which: the nearest of the tool point (when its link is ``a``'s link or a
+        touch link) and the collision geometry of ``a``'s link and its touch links
+        (FCL's distance, 0 on contact)."""
+        import fcl
+
+        from arduinobot.planner.collision.bodies import RobotBodies, bvh
+
+        kin = self.kinematics()
+        with self._lock:
+            if self._bodies is None:
+                self._bodies = RobotBodies.build(self.description, kin)
+            bodies = self._bodies
+        poses = kin.link_poses(q)
+        g = a.shape.geometry
+        geom = g.collision_geometry() if g.half_extents() is not None \
+            and g.hull_points() is not None else bvh(g.triangles())
+        pose = poses[kin.link_index[a.link]] @ a.shape.pose()
+        obj = fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3]))
+        holders = (a.link, *a.touch_links)
+        found: list[tuple[float, str]] = []
+        tcp = self.description.tcp
+        if tcp is not None and tcp.parent_link in holders:
+            point = poses[kin.link_index[tcp.parent_link]] @ np.array([*tcp.xyz, 1.0])
+            dot = fcl.CollisionObject(fcl.Sphere(1e-6), fcl.Transform(point[:3]))
+            found.append((self._distance(obj, dot), "the tool point"))
+        for name, frame, geo in zip(bodies.names, bodies.frames, bodies.geometries):
+            if name in holders:
+                t = poses[frame]
+                other = fcl.CollisionObject(geo, fcl.Transform(t[:3, :3], t[:3, 3]))
+                found.append((self._distance(obj, other), name))
+        if not found:  # nothing with geometry holds it: the link's origin
+            origin = poses[kin.link_index[a.link]][:3, 3]
+            dot = fcl.CollisionObject(fcl.Sphere(1e-6), fcl.Transform(origin))
+            found.append((self._distance(obj, dot), a.link))
+        return min(found)
+
+    @staticmethod
+    def _distance(x: Any, y: Any) -> float:
+        import fcl
+        d = fcl.distance(x, y, fcl.DistanceRequest(), fcl.DistanceResult())
+        return max(float(d), 0.0)  # FCL gives -1 for objects in contact
+
     def keep_cloud(self, data: dict[str, Any], q: np.ndarray, *, where: str,
                    objects: Sequence[Obstacle], attached: Sequence[AttachedObject]
                    ) -> tuple[tuple[CloudObstacle, ...], dict[str, Any]]:

@@ -9,6 +9,7 @@ world, a floor up): :class:`arduinobot.planner.frames.RobotFrames` does in its p
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, Protocol
@@ -19,6 +20,8 @@ from arduinobot.contract.errors import InvalidRequest
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, resolve_attached
 from arduinobot.scene.pose import rpy_of
+
+_log = logging.getLogger(__name__)
 
 
 class Frames(Protocol):
@@ -53,6 +56,22 @@ class Frames(Protocol):
         ...
 
 
+class Grasps(Frames, Protocol):
+    """Frames that also tell how far a carried object is from what holds it (a task's
+    attach: :class:`arduinobot.planner.frames.RobotFrames`)."""
+
+    def grasp_distance(self, a: AttachedObject, q: Any) -> tuple[float, str]:
+        """[m] from ``a`` at ``q`` to the nearest of its link, its touch links and the
+        tool point, and which that is."""
+        ...
+
+
+#: [m] the farthest a task's attach takes an object from its link, its touch links and
+#: the tool point: farther, the gripper closed on air (a pick's tool point a few cm off
+#: is a plan that missed the object, not a grasp)
+MAX_GRASP_DISTANCE = 0.03
+
+
 def pose_of(m: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """A pose (4, 4) as ``xyz`` [m] and URDF ``rpy`` [rad]."""
     x, y, z = (float(v) for v in m[:3, 3])
@@ -85,14 +104,30 @@ def hold(frames: Frames, shape: Obstacle, link: str, q: Any, *,
     return a
 
 
-def attach(frames: Frames, obstacle: Obstacle, link: str, q: Any, *,
+def attach(frames: Grasps, obstacle: Obstacle, link: str, q: Any, *,
            touch_links: tuple[str, ...] = (), mass: float = 0.0,
-           where: str = "attached") -> AttachedObject:
+           where: str = "attached", reach: float = MAX_GRASP_DISTANCE) -> AttachedObject:
     """``obstacle`` (posed in the world) taken into ``link``'s frame where it is at
-    ``q``, and held (:func:`hold`, contacts checked)."""
+    ``q``, and held (:func:`hold`, contacts checked), within ``reach`` [m] of what
+    holds it (a task's pick).
+
+    Raises:
+        InvalidRequest: :func:`hold`'s; the object farther than ``reach``
+            (``details``: object, distance [m], nearest, max_distance).
+    """
     xyz, rpy = pose_of(np.linalg.inv(frames.link_pose(q, link)) @ obstacle.pose())
-    return hold(frames, replace(obstacle, xyz=xyz, rpy=rpy, where=f"{where}.object"), link,
-                q, touch_links=touch_links, mass=mass, where=where)
+    a = hold(frames, replace(obstacle, xyz=xyz, rpy=rpy, where=f"{where}.object"), link,
+             q, touch_links=touch_links, mass=mass, where=where)
+    distance, nearest = frames.grasp_distance(a, q)
+    if distance > reach:
+        raise InvalidRequest(
+            f"'{a.id}' is {distance:.3f} m from {nearest}, the nearest of what would hold "
+            f"it ('{a.link}', its touch links, the tool point; at most {reach:.3f} m): "
+            "move the arm to the object before attaching it (or give the step a larger "
+            "'reach')", field=where,
+            details={"object": a.id, "distance": round(distance, 4), "nearest": nearest,
+                     "link": a.link, "max_distance": reach})
+    return a
 
 
 def detach(frames: Frames, carried: AttachedObject, q: Any, *,
@@ -100,3 +135,19 @@ def detach(frames: Frames, carried: AttachedObject, q: Any, *,
     """``carried`` put down in the world where its link holds it at ``q``."""
     xyz, rpy = pose_of(frames.link_pose(q, carried.link) @ carried.shape.pose())
     return replace(carried.shape, xyz=xyz, rpy=rpy, where=where)
+
+
+def warn_if_far(frames: Frames, a: AttachedObject, q: Any, *, where: str) -> None:
+    """A WARNING when the kept scene's attach takes ``a`` farther than
+    :data:`MAX_GRASP_DISTANCE` from what holds it. Not refused there, unlike a task's:
+    its state may be a guess (all joints 0 without a robot or a ``state``), and it
+    takes an object given in the link's frame where the owner put it (a tool beyond the
+    gripper)."""
+    grasp = getattr(frames, "grasp_distance", None)
+    if grasp is None:
+        return
+    distance, nearest = grasp(a, q)
+    if distance > MAX_GRASP_DISTANCE:
+        _log.warning("%s: '%s' is attached %.3f m from %s, the nearest of what holds it "
+                     "('%s', its touch links, the tool point): carried from there, though "
+                     "no gripper closes on it", where, a.id, distance, nearest, a.link)

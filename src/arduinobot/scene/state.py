@@ -23,7 +23,7 @@ import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.scene.cloud import CloudObstacle
-from arduinobot.scene.frames import Frames, hold
+from arduinobot.scene.frames import Frames, hold, warn_if_far
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, rigid_links
 from arduinobot.scene.pose import rpy_of
 from arduinobot.scene.shapes import check_inline, shape_class
@@ -345,6 +345,7 @@ def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],
             data = given if frame == link else _posed(
                 given, np.linalg.inv(link_pose) @ built.obstacle.pose())
         held = _held(data, item, builder, f"{where}.object", q=q)
+        warn_if_far(robot, held.attached, q, where=where)
         carried[held.id] = held
 
 

@@ -97,7 +97,9 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
                 link = step.link or holding_link(desc)
                 attached.append(attach(frames, obstacles[k], link, vec(q),
                                        touch_links=step.touch_links, mass=step.mass,
-                                       where=f"steps[{i}].attach"))
+                                       where=f"steps[{i}].attach",
+                                       **({} if step.reach is None else
+                                          {"reach": step.reach})))
                 obstacles.pop(k)
                 held = (step.object, link)
             elif isinstance(step, DetachStep):

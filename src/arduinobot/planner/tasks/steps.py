@@ -7,7 +7,7 @@ step's kind::
     {"move": GOAL}                 any plan goal (joints, named, position, line), "group"
     {"line": {"offset": [dx, dy, dz], "frame": "world" | "tcp"}}   a straight tcp move
     {"gripper": "open" | "close" | NAME | value | [value, mimic value]}
-    {"attach": OBJECT_ID, "link": LINK, "mass": kg, "touch_links": [...]}
+    {"attach": OBJECT_ID, "link": LINK, "mass": kg, "touch_links": [...], "reach": m}
     {"detach": OBJECT_ID}
     {"wait": seconds}
 
@@ -39,6 +39,9 @@ StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
 STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait")
 #: the longest wait step [s]: a task is a motion, not a timer
 MAX_WAIT = 60.0
+#: [m] the largest ``reach`` an attach step may give (a grip a metre from the object is
+#: no grip)
+MAX_REACH = 1.0
 #: the heaviest object an attach step may give [kg]: plan_request.json's attached mass
 #: (past it the inverse dynamics overflows: a NaN effort at 1e308 kg)
 MAX_MASS = 1000.0
@@ -84,13 +87,16 @@ class GripperStep:
 @dataclass(frozen=True)
 class AttachStep:
     """The obstacle ``object`` becomes part of the robot, held by ``link`` (None: the
-    end effector's parent link) where it is now, for every step after this one."""
+    end effector's parent link) where it is now, for every step after this one; refused
+    farther than ``reach`` [m] from what would hold it (None: 3 cm,
+    :data:`arduinobot.scene.frames.MAX_GRASP_DISTANCE`)."""
 
     object: str
     link: str | None = None
     mass: float = 0.0
     touch_links: tuple[str, ...] = ()
     label: str | None = None
+    reach: float | None = None
     kind: StepKind = field(default="attach", init=False)
 
 
@@ -154,7 +160,7 @@ def _number(value: object, where: str, *, low: float = -math.inf,
 _MOTION_KEYS = {"velocity_scaling", "acceleration_scaling", "planning_time"}
 _KEYS: dict[str, set[str]] = {
     "move": {"group", *_MOTION_KEYS}, "line": set(_MOTION_KEYS), "gripper": set(_MOTION_KEYS),
-    "attach": {"link", "mass", "touch_links"}, "detach": set(), "wait": set()}
+    "attach": {"link", "mass", "touch_links", "reach"}, "detach": set(), "wait": set()}
 
 
 def _options(data: Mapping[str, Any], where: str) -> MotionOptions:
@@ -216,7 +222,10 @@ def step_from_mapping(data: object, where: str) -> Step:
         return AttachStep(value, link=link,
                           mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0,
                                        high=MAX_MASS, unit="kg"),
-                          touch_links=tuple(touch), label=label)
+                          touch_links=tuple(touch), label=label,
+                          reach=None if "reach" not in data else _number(
+                              data["reach"], f"{where}.reach", low=0.0, high=MAX_REACH,
+                              unit="m"))
     return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT, unit="s"), label=label)
 
 

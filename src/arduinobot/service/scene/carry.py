@@ -48,6 +48,10 @@ class PooledFrames:
         pairs = self._ask({"op": "contacts", "joints": q, "attached": a})["pairs"]
         return [(x, y) for x, y in pairs]
 
+    def grasp_distance(self, a: AttachedObject, q: Any) -> tuple[float, str]:
+        out = self._ask({"op": "grasp", "joints": q, "attached": a})
+        return float(out["distance"]), str(out["nearest"])
+
     def keep_cloud(self, data: dict[str, Any], q: Any, *, where: str,
                    objects: Sequence[Obstacle], attached: Sequence[AttachedObject]
                    ) -> tuple[tuple[CloudObstacle, ...], dict[str, Any]]:
@@ -77,6 +81,9 @@ def answer_frames(frames: RobotFrames, data: Mapping[str, Any]) -> dict[str, Any
     q = np.array([joints[n] for n in names], float)
     if data["op"] == "link_pose":
         return {"pose": frames.link_pose(q, data["link"]).tolist()}
+    if data["op"] == "grasp":
+        distance, nearest = frames.grasp_distance(data["attached"], q)
+        return {"distance": distance, "nearest": nearest}
     if data["op"] == "cloud":  # the cells' indices as int64 bytes: 3 numbers a cell
         bodies, counts = frames.keep_cloud(data["data"], q, where=data["where"],
                                            objects=data["objects"],
