@@ -138,6 +138,30 @@ BAD = [
 ]
 
 
+def test_an_apply_sent_twice_is_applied_once(cluster):
+    """A retry of an apply (the same apply_id) through either instance is answered with
+    the revision the first made, already_applied, and the scene stays as it was; the
+    client's apply() gives each call its own id."""
+    endpoint, (a, b), _, _ = cluster
+    with PlannerClient(endpoint, timeout=60) as c:
+        _wait_instances(c, 2)
+        change = {"add": [TABLE | {"id": "once"}], "apply_id": "add-once-1"}
+        first = c.request("scene/apply", change, instance=a.instance)
+        assert "already_applied" not in first
+        for inst in (b.instance, a.instance):
+            again = c.request("scene/apply", change, instance=inst)
+            assert again == {**first, "already_applied": True}, inst
+            assert c.request("scene", instance=inst)["revision"] == first["revision"]
+        removed = c.apply(remove=["once"])
+        assert not removed.already_applied and removed.revision == first["revision"] + 1
+        with pytest.raises(errors.InvalidRequest) as e:  # a new id: a new change
+            c.apply(remove=["once"])
+        assert e.value.details["field"] == "remove[0]"
+        with pytest.raises(errors.InvalidRequest) as e:
+            c.request("scene/apply", {"clear": True, "apply_id": "not/an id"})
+        assert e.value.details["field"] == "apply_id"
+
+
 def test_every_bad_apply_is_coded_names_the_field_and_changes_nothing(cluster):
     endpoint, (a, b), _, _ = cluster
     with PlannerClient(endpoint, timeout=60) as c:
@@ -231,11 +255,18 @@ def test_a_late_instance_catches_up_the_leader_fails_over_and_kill_9_loses_nothi
             # ready means caught up: its first plan already uses the scene
             assert c.plan(GOAL, instance=late.instance).raw["scene_revision"] == rev
             assert c.request("scene", instance=late.instance)["objects"][0]["id"] == "table"
-            rev = c.request("scene/apply", {"remove": ["table"]})["revision"]
+            retry = {"remove": ["table"], "apply_id": "remove-table-7f3a"}
+            rev = c.request("scene/apply", retry)["revision"]
             # kill -9 the leader (the smallest id); the next one leads
             leader = min(servers)
             _kill_tree(servers.pop(leader))
             left = sorted(servers)
+            # the same apply again (as an instance re-sends one whose leader died having
+            # applied it): the new leader took it, says so, and changes nothing (it
+            # answered "remove[0]: no object 'table'" for a change that was made)
+            again = c.request("scene/apply", retry, instance=left[-1])
+            assert again["already_applied"] is True and again["revision"] == rev
+            assert c.request("scene", instance=left[0])["revision"] == rev
             after = c.request("scene/apply", {"add": [TABLE | {"id": "after"}],
                                               "if_revision": rev}, instance=left[-1])
             assert after["revision"] == rev + 1

@@ -17,6 +17,7 @@ import base64
 import logging
 import os
 import threading
+import uuid
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -306,13 +307,16 @@ class PlannerClient:
               add: Sequence[Mapping[str, Any]] = (), remove: Sequence[str] = (),
               attach: Sequence[Mapping[str, Any]] = (), detach: Sequence[str] = (),
               state: Mapping[str, float] | None = None, clear: bool = False,
-              if_revision: int | None = None) -> SceneApplied:
+              if_revision: int | None = None, apply_id: str | None = None
+              ) -> SceneApplied:
         """Change the kept scene, all or nothing, in one new revision: ``clear``, then
         ``remove`` (ids), ``add`` (objects, plan_request.json's obstacle form or meshes),
         ``detach`` (ids), ``attach`` (``{object, link, touch_links, mass, com}``), at the
         robot's ``state`` [rad] if given; with ``if_revision`` only if the scene is still
         at that revision. A whole apply request as ``change`` takes the keywords' place
-        (they are added to it).
+        (they are added to it). ``apply_id`` (default: a new random one, unless
+        ``change`` has one) makes a retry safe: the service answers an id it has taken
+        with the revision it made (``already_applied``) and changes nothing.
 
         Raises:
             SceneConflict (``details.current_revision``), InvalidRequest naming the
@@ -329,6 +333,9 @@ class PlannerClient:
             body["clear"] = True
         if if_revision is not None:
             body["if_revision"] = if_revision
+        if apply_id is not None:
+            body["apply_id"] = apply_id
+        body.setdefault("apply_id", uuid.uuid4().hex)
         return SceneApplied.parse(self.request("scene/apply", body))
 
     # -- seeing (issue 41) ------------------------------------------------------------

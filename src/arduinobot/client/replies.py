@@ -378,13 +378,15 @@ class SceneApplied:
     #: each point cloud the apply added: ``{id: {points, kept, dropped, filtered_robot,
     #: filtered_objects, cells, unknown, shadow_cells}}``
     clouds: Mapping[str, Mapping[str, Any]] | None = None
+    #: the apply's id had been applied before (``revision`` is the one it made then)
+    already_applied: bool = False
 
     @classmethod
     def parse(cls, body: Any) -> SceneApplied:
         """Raises: MalformedReply naming the first field that breaks the schema."""
         b = _validated("scene_apply", body)
         return cls(int(b["revision"]), b.get("objects"), b.get("attached"),
-                   b.get("state_source"), b.get("clouds"))
+                   b.get("state_source"), b.get("clouds"), bool(b.get("already_applied")))
 
 
 @dataclass(frozen=True)

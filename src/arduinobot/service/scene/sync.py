@@ -24,6 +24,14 @@ them uses it, and killing any instance loses nothing. An instance that missed ch
 (down, or late) fetches the whole scene from the sender; a new instance takes the newest
 scene among its file and the live instances' before it serves anything.
 
+Every change carries an ``apply_id`` (the client's, else one given by the instance that
+takes it): the leader and every member that took the change remember the last
+:data:`REMEMBERED_APPLIES` ids with the revision each made, so a retry (a lost reply, or
+the instance that took it re-sending to the next leader after the old one died having
+applied and replicated it) is answered ``already_applied`` with that revision and changes
+nothing, instead of "duplicate id" for a change that was made. An instance that fetched
+a whole scene knows only the ids it took itself.
+
 An attach or detach gets the robot's state from the instance that takes the apply, before
 the change goes to the leader (:mod:`arduinobot.service.scene.apply`; ``state_source`` in the reply
 says where it came from).
@@ -32,10 +40,12 @@ says where it came from).
 from __future__ import annotations
 
 import concurrent.futures
+import itertools
 import logging
 import os
 import threading
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -81,6 +91,8 @@ FORWARD_TIMEOUT = 30.0
 LEADER_WAIT = 10.0
 #: How long a starting instance waits for the live instances' scenes [s].
 CATCH_UP_TIMEOUT = 5.0
+#: How many applied ``apply_id`` s an instance remembers (oldest forgotten first).
+REMEMBERED_APPLIES = 4096
 
 
 class SceneService:
@@ -124,6 +136,9 @@ class SceneService:
         self._shared: list[Any] = []  # held until the session closes
         self._publisher: Any = None
         self.instances = Instances(session, prefix, instance)
+        # apply_id -> the revision it made (the leader's and every member's that took it)
+        self._applied: OrderedDict[str, int] = OrderedDict()
+        self._ids = itertools.count(1)
 
     @property
     def state(self) -> SceneState:
@@ -239,6 +254,9 @@ class SceneService:
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
+        if "apply_id" not in change:  # one id however often it is sent on
+            change = {**change, "apply_id": f"{self.instance[:12]}-{next(self._ids)}"}
+            raw = orjson.dumps(change)
         source = None
         if change.get("attach") or change.get("detach") or any(
                 o.get("shape") == "points" and "state" not in o
@@ -300,9 +318,28 @@ class SceneService:
             self._collect()
             return before, state
 
+    def _remember(self, apply_id: object, revision: int) -> None:
+        if isinstance(apply_id, str):
+            self._applied[apply_id] = revision
+            self._applied.move_to_end(apply_id)
+            while len(self._applied) > REMEMBERED_APPLIES:
+                self._applied.popitem(last=False)
+
     def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any],
                      source: StateSource | None = None) -> None:
+        done = self._applied.get(str(change.get("apply_id")))
+        if done is not None:
+            now = self._state
+            _log.info("scene: apply %s was applied at revision %d: answered again, "
+                      "nothing changed", change.get("apply_id"), done)
+            query.reply(query.key_expr, orjson.dumps({
+                "revision": done, "objects": len(now.objects) + len(now.clouds),
+                "attached": len(now.attached), "already_applied": True}),
+                encoding=wire.JSON)
+            return
         old, new = self._install(lambda: apply(self._state, change, self.builder))
+        if new is not old:
+            self._remember(change.get("apply_id"), new.revision)
         self._replicate(old.revision, new.revision, change)
         added = [o.id for o in new.objects if o.id not in set(old.ids())]
         removed = [i for i in old.ids() if i not in set(new.ids())]
@@ -351,7 +388,9 @@ class SceneService:
             def taken() -> SceneState:
                 state = self._state
                 if state.revision == msg["base"]:
-                    return apply(state, msg["change"], self.builder)
+                    took = apply(state, msg["change"], self.builder)
+                    self._remember(msg["change"].get("apply_id"), took.revision)
+                    return took
                 if state.revision < msg["revision"]:  # missed some: take it all
                     _log.info("scene: at revision %d, %s sent %d -> %d: fetching its scene",
                               state.revision, sender, msg["base"], msg["revision"])
