@@ -162,6 +162,54 @@ def test_an_apply_sent_twice_is_applied_once(cluster):
         assert e.value.details["field"] == "apply_id"
 
 
+def test_a_follower_paused_past_its_lease_catches_up_and_never_plans_on_the_old_scene(cluster):
+    """Issue 39, item 1: the follower stopped (SIGSTOP, as a VM pause) until the leader
+    no longer counts it; an apply is acknowledged without it. Back, it answered against
+    the old revision for good; now each of its answers is BUSY (catching up), no reply
+    (its session not back yet) or the new revision, and it gets there."""
+    endpoint, (a, b), _, _ = cluster
+    leader, follower = sorted((a, b), key=lambda s: s.instance)
+    with PlannerClient(endpoint, timeout=60) as c:
+        _wait_instances(c, 2)
+        before = c.request("scene")["revision"]
+        assert c.request("check", {"joints": {}},
+                         instance=follower.instance)["scene_revision"] == before
+        procs = process_tree(follower.proc.pid)
+        for pid in procs:
+            os.kill(pid, signal.SIGSTOP)
+        try:
+            for _ in range(600):  # until its lease ran out (a bound, not a timing)
+                if follower.instance not in c.instances(refresh=True):
+                    break
+                time.sleep(0.1)
+            assert follower.instance not in c.instances(refresh=True)
+            applied = c.apply(add=[TABLE | {"id": "while_away"}])
+            assert applied.revision == before + 1
+        finally:
+            for pid in procs:
+                os.kill(pid, signal.SIGCONT)
+        seen: list[object] = []
+        for _ in range(1200):
+            try:
+                rev = c.request("check", {"joints": {}},
+                                instance=follower.instance)["scene_revision"]
+                seen.append(rev)
+                if rev == applied.revision:
+                    break
+            except errors.ServiceBusy as e:
+                assert e.details.get("reason") == "catching_up", e
+                seen.append("busy")
+            except (errors.ServiceUnavailable, errors.RequestTimeout):
+                seen.append("away")
+            time.sleep(0.05)
+        print(f"\nthe follower's answers after its return: {seen[:3]} ... {seen[-3:]}")
+        assert seen[-1] == applied.revision, seen
+        assert before not in seen, seen  # never against the old scene
+        scene = c.request("scene", instance=follower.instance)
+        assert "while_away" in [o["id"] for o in scene["objects"]]
+        c.apply(remove=["while_away"])
+
+
 def test_every_bad_apply_is_coded_names_the_field_and_changes_nothing(cluster):
     endpoint, (a, b), _, _ = cluster
     with PlannerClient(endpoint, timeout=60) as c:

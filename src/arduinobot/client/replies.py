@@ -380,13 +380,16 @@ class SceneApplied:
     clouds: Mapping[str, Mapping[str, Any]] | None = None
     #: the apply's id had been applied before (``revision`` is the one it made then)
     already_applied: bool = False
+    #: live instances that did not take the change (they catch up before planning)
+    not_taken_by: tuple[str, ...] = ()
 
     @classmethod
     def parse(cls, body: Any) -> SceneApplied:
         """Raises: MalformedReply naming the first field that breaks the schema."""
         b = _validated("scene_apply", body)
         return cls(int(b["revision"]), b.get("objects"), b.get("attached"),
-                   b.get("state_source"), b.get("clouds"), bool(b.get("already_applied")))
+                   b.get("state_source"), b.get("clouds"), bool(b.get("already_applied")),
+                   tuple(b.get("not_taken_by") or ()))
 
 
 @dataclass(frozen=True)

@@ -49,6 +49,7 @@ _log = logging.getLogger(__name__)
 
 VERSION = "1"
 WORK_KINDS = ("plan", "fk", "ik", "check")
+SCENE_KINDS = ("plan", "check")  # the work kinds answered against the kept scene
 #: what the pool does: the work kinds, the tasks of <prefix>/task, and the link poses and
 #: contacts of the kept scene's attach and detach
 INFO_KINDS = ("description", "health", "schema")
@@ -268,6 +269,8 @@ class PlannerService:
             zb = query.payload
             if zb is not None and len(zb) > wire.MAX_PAYLOAD:  # refuse before copying it
                 wire.check_size(len(zb))
+            if kind in SCENE_KINDS and self.scene is not None:
+                self.scene.check_current()  # never against a scene it knows is stale
         except PlanningError as e:
             if pool is not None:  # counted as the pool counts the requests it refuses
                 pool.count("received")
@@ -312,10 +315,13 @@ class PlannerService:
 
         Raises:
             ShuttingDown: the pool is closed.
+            SceneUnavailable: (BUSY) the kept scene is catching up (a plan, check or task).
         """
         pool = self.pool
         if pool is None:  # closed: as _on_query answers a query that arrives then
             raise ShuttingDown(SHUTTING_DOWN)
+        if kind in (*SCENE_KINDS, "task") and self.scene is not None:
+            self.scene.check_current()
         pool.submit(Job(kind, data, f"{self.instance[:8]}-{next(self._ids)}",
                         time.monotonic() + self.options.timeout, respond,
                         scene=self._scene_now()))

@@ -15,8 +15,14 @@ class Instances:
     """The ids of the live instances and the scene's members under ``prefix``, kept by
     liveliness subscribers (:meth:`subscribe`) that live as long as their entities."""
 
-    def __init__(self, session: zenoh.Session, prefix: str, me: str) -> None:
+    def __init__(self, session: zenoh.Session, prefix: str, me: str, *,
+                 on_return: Callable[[str], None] | None = None) -> None:
+        """``on_return(id)`` is called (on Zenoh's callback thread: keep it short) when
+        another instance's member token appears again after it went: that instance, or
+        this one, was away (a pause or a partition past Zenoh's lease, a restart)."""
         self.session, self.prefix, self.me = session, prefix, me
+        self._on_return = on_return
+        self._gone: set[str] = set()  # members whose token went
         # kept by subscribers: a liveliness get per apply sometimes missed a token under
         # load, and an instance that misses the leader's leads too (two leaders lose
         # changes; measured with bench/scene.py)
@@ -31,17 +37,28 @@ class Instances:
         return [liveliness.declare_subscriber(f"{self.prefix}/alive/*",
                                               self._on_token(self._alive), history=True),
                 liveliness.declare_subscriber(f"{self.prefix}/scene/member/*",
-                                              self._on_token(self._members), history=True)]
+                                              self._on_token(self._members, self._gone),
+                                              history=True)]
 
-    def _on_token(self, ids: set[str]) -> Callable[[zenoh.Sample], None]:
-        """Keeps ``ids`` as the ids of the liveliness tokens a subscriber sees."""
+    def _on_token(self, ids: set[str], gone: set[str] | None = None
+                  ) -> Callable[[zenoh.Sample], None]:
+        """Keeps ``ids`` as the ids of the liveliness tokens a subscriber sees (and
+        ``gone``: those it saw go, told to ``on_return`` when they come back)."""
         def on_sample(sample: zenoh.Sample) -> None:
             inst = str(sample.key_expr).rsplit("/", 1)[-1]
+            back = False
             with self._lock:
                 if sample.kind == zenoh.SampleKind.PUT:
                     ids.add(inst)
+                    if gone is not None and inst in gone:
+                        gone.discard(inst)
+                        back = inst != self.me
                 else:
                     ids.discard(inst)
+                    if gone is not None:
+                        gone.add(inst)
+            if back and self._on_return is not None:
+                self._on_return(inst)
         return on_sample
 
     def members(self) -> set[str]:

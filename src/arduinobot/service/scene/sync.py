@@ -24,6 +24,14 @@ them uses it, and killing any instance loses nothing. An instance that missed ch
 (down, or late) fetches the whole scene from the sender; a new instance takes the newest
 scene among its file and the live instances' before it serves anything.
 
+An instance never plans on a scene it knows may be stale: when another member's token
+comes back after it went (that instance, or this one, back from a pause or a partition
+past Zenoh's lease, which the leader's acknowledgements did not wait for) or a change from the leader could
+not be kept (a full disk), it fetches the newest scene of the live instances, and until
+that succeeds its plans and checks are refused ``BUSY`` (``details.reason``
+``catching_up``; retry). An acknowledgement names the members that did not take the
+change (``not_taken_by``): they catch up the same way.
+
 Every change carries an ``apply_id`` (the client's, else one given by the instance that
 takes it): the leader and every member that took the change remember the last
 :data:`REMEMBERED_APPLIES` ids with the revision each made, so a retry (a lost reply, or
@@ -93,6 +101,8 @@ LEADER_WAIT = 10.0
 CATCH_UP_TIMEOUT = 5.0
 #: How many applied ``apply_id`` s an instance remembers (oldest forgotten first).
 REMEMBERED_APPLIES = 4096
+#: [s] between attempts to catch up that failed (no answer, a full disk)
+CATCH_UP_RETRY = 1.0
 
 
 class SceneService:
@@ -135,7 +145,13 @@ class SceneService:
         self._entities: list[Any] = []
         self._shared: list[Any] = []  # held until the session closes
         self._publisher: Any = None
-        self.instances = Instances(session, prefix, instance)
+        self.instances = Instances(session, prefix, instance, on_return=self._member_returned)
+        self._started = False
+        # why this instance's scene may be stale (None: current), and a count of the
+        # reasons given, so a catch-up clears only what was known when it began
+        self._behind: str | None = None
+        self._behind_count = 0
+        self._behind_lock = threading.Lock()
         # apply_id -> the revision it made (the leader's and every member's that took it)
         self._applied: OrderedDict[str, int] = OrderedDict()
         self._ids = itertools.count(1)
@@ -182,6 +198,54 @@ class SceneService:
         self._declare(f"{p}/scene/apply", apply_, shared=True, exact=True)
         self._declare(f"{me}/scene/apply", apply_, exact=True)
         self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead), exact=True)
+        self._started = True
+
+    # -- staying current -----------------------------------------------------------------
+    def check_current(self) -> None:
+        """Raises: SceneUnavailable (BUSY) while this instance catches up."""
+        why = self._behind
+        if why is not None:
+            raise SceneUnavailable(f"this instance's kept scene is catching up ({why}); "
+                                   "retry", details={"reason": "catching_up",
+                                                     "retry_after": CATCH_UP_RETRY})
+
+    def _fall_behind(self, why: str) -> None:
+        """Mark the scene possibly stale and fetch the newest (on the sync thread)."""
+        with self._behind_lock:
+            self._behind = why
+            self._behind_count += 1
+        _log.info("scene: %s: fetching the newest scene of the live instances", why)
+        try:
+            self._syncs.submit(self._catch_up_again)
+        except RuntimeError:  # shut down: this instance is closing
+            pass
+
+    def _member_returned(self, inst: str) -> None:
+        if self._started:  # at start, _catch_up does it
+            self._fall_behind(f"instance {inst[:8]} is back after its token went")
+
+    def _catch_up_again(self) -> None:
+        with self._behind_lock:
+            seen = self._behind_count
+        try:
+            self._catch_up()
+        except Exception as e:  # a full disk, a bad scene: say it, stay behind, retry
+            _log.error("scene: catching up failed (%s: %s): plans wait; retrying in %g s",
+                       type(e).__name__, e, CATCH_UP_RETRY)
+            timer = threading.Timer(CATCH_UP_RETRY, self._retry_catch_up)
+            timer.daemon = True
+            timer.start()
+            return
+        with self._behind_lock:
+            if self._behind_count == seen:  # nothing new fell behind meanwhile
+                self._behind = None
+        _log.info("scene: current at revision %d", self._state.revision)
+
+    def _retry_catch_up(self) -> None:
+        try:
+            self._syncs.submit(self._catch_up_again)
+        except RuntimeError:
+            pass  # closing
 
     def close(self) -> None:
         self._writes.shutdown(wait=True, cancel_futures=True)
@@ -340,7 +404,7 @@ class SceneService:
         old, new = self._install(lambda: apply(self._state, change, self.builder))
         if new is not old:
             self._remember(change.get("apply_id"), new.revision)
-        self._replicate(old.revision, new.revision, change)
+        missed = self._replicate(old.revision, new.revision, change)
         added = [o.id for o in new.objects if o.id not in set(old.ids())]
         removed = [i for i in old.ids() if i not in set(new.ids())]
         attached = [i for i in new.attached_ids() if i not in set(old.attached_ids())]
@@ -355,14 +419,16 @@ class SceneService:
                                  "attached": len(new.attached)}
         if source is not None:
             reply["state_source"] = source
+        if missed:
+            reply["not_taken_by"] = missed
         taken = {o.get("id") for o in change.get("add") or () if o.get("shape") == "points"}
         if taken:  # what became of each cloud's points
             reply["clouds"] = {c.id: dict(c.counts) for c in new.clouds if c.id in taken}
         query.reply(query.key_expr, orjson.dumps(reply), encoding=wire.JSON)
 
-    def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> None:
+    def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> list[str]:
         """Have every other live instance take the change (answered once it is on their
-        disk too), before the apply is acknowledged."""
+        disk too), before the apply is acknowledged; the members that did not."""
         payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
                                 "change": change})
         members = sorted(self.instances.members())
@@ -370,12 +436,15 @@ class SceneService:
         pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
                                         payload=payload, timeout=REPLICATE_TIMEOUT,
                                         encoding=wire.JSON)) for m in members]
+        missed = []
         for member, replies in pending:
             got = list(replies)
             if not got or got[0].err is not None:
                 why = got[0].err.payload.to_bytes()[:300] if got and got[0].err else "no reply"
-                _log.warning("scene: instance %s did not take revision %d (%s): it fetches "
-                             "the scene on the next change", member, revision, why)
+                _log.warning("scene: instance %s did not take revision %d (%s): it "
+                             "catches up before it plans again", member, revision, why)
+                missed.append(member)
+        return missed
 
     def _on_sync(self, query: zenoh.Query) -> None:
         raw = query.payload.to_bytes() if query.payload is not None else b""
@@ -398,7 +467,12 @@ class SceneService:
                 _log.warning("scene: at revision %d, %s sent %d -> %d: ignored",
                              state.revision, sender, msg["base"], msg["revision"])
                 return state
-            self._install(taken)
+            try:
+                self._install(taken)
+            except Exception as e:  # not kept (a full disk): the leader hears it too
+                self._fall_behind(f"revision {msg['revision']} could not be kept: "
+                                  f"{type(e).__name__}")
+                raise
         query.reply(query.key_expr, orjson.dumps({"revision": self._state.revision}),
                     encoding=wire.JSON)
 
