@@ -12,6 +12,7 @@ import sys
 from collections.abc import Iterable, Sequence
 from typing import Any, NoReturn, TypeVar, overload
 
+from arduinobot.cli.argtypes import FileProblem
 from arduinobot.cli.commands import execute as cmd_execute
 from arduinobot.cli.commands import model as cmd_model
 from arduinobot.cli.commands import plan as cmd_plan
@@ -81,6 +82,14 @@ class CommandParser(argparse.ArgumentParser):
                 if close:
                     hints.append(f"maybe you meant {close[0]} (not {flag})?")
         self.error("; ".join([f"unrecognized arguments: {' '.join(extras)}", *hints]))
+
+    def _get_value(self, action: argparse.Action, arg_string: str) -> Any:
+        # a file given as a typed value (--request REQ.json) that cannot be read: one
+        # line naming it, as run_guarded says a FileProblem, not the usage
+        try:
+            return super()._get_value(action, arg_string)
+        except FileProblem as e:
+            self.exit(2, f"{self.prog}: error: {e}\n")
 
     def _check_value(self, action: argparse.Action, value: Any) -> None:
         if _HAS_SUGGEST or action.choices is None or value in action.choices:

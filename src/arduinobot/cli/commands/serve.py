@@ -105,7 +105,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     import zenoh
 
     from arduinobot.cli.commands.execute import robot_spec, ros2_settings
-    from arduinobot.contract.zconfig import DEFAULT_ENDPOINT
+    from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, zenoh_message
     from arduinobot.execution.robots.base import RobotError
     from arduinobot.service.execute.execution import execute_extension
     from arduinobot.service.process.pool import PoolStartError
@@ -153,7 +153,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     try:
         svc.start()
     except failures as e:
-        print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
+        print(f"arduinobot: serve: {type(e).__name__}: {zenoh_message(e)}", file=sys.stderr)
         return EXIT_FAIL
     try:
         while not stop.wait(0.5):  # short waits keep the signal handler responsive

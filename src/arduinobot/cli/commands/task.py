@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from arduinobot.cli.argtypes import UsageError
+from arduinobot.cli.argtypes import UsageError, file_problem
 from arduinobot.cli.commands.execute import add_driver_arg, add_driver_options, driver_options
 from arduinobot.cli.common import (
     EXIT_CANCELLED,
@@ -91,7 +91,7 @@ def _read_body(path: Path) -> Any:
         text = path.read_text(encoding="utf-8")
         return json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (OSError, ValueError, yaml.YAMLError) as e:
-        raise UsageError(f"{path}: unreadable task file ({e})") from None
+        raise file_problem(path, e, "task file") from None
 
 
 def resolve_task(ns: argparse.Namespace, desc: Description) -> Task:

@@ -1,0 +1,80 @@
+"""What a new user reads when something is wrong (issue 38, item 9): a missing file in
+one line, a text file named ``.stl`` refused by name, no Rust source paths."""
+
+from __future__ import annotations
+
+import pytest
+
+from arduinobot.cli.main import main
+from tests.helpers.serve import free_port
+
+
+def _refused(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    """Run the command line; its exit code and stderr (argparse's own refusals exit)."""
+    try:
+        rc = main(argv)
+    except SystemExit as e:
+        rc = int(e.code or 0)
+    return rc, capsys.readouterr().err
+
+
+# -- a missing or unreadable file: one line naming it, not 15 lines of usage -----------------
+
+@pytest.mark.parametrize("argv", [
+    ["task", "{missing}"],
+    ["task", "{bad_yaml}"],
+    ["scene", "load", "{missing}"],
+    ["plan", "--request", "{missing}"],
+    ["plan", "--request", "{bad_json}"],
+    ["execute", "--request", "{missing}", "--sim"],
+    ["view", "--scene", "{missing}", "--png", "{out}"],
+    ["scene", "add-mesh", "bin", "{missing_stl}", "--pose", "0.3,0,0.1"],
+    ["scene", "see", "{missing_png}"],
+])
+def test_a_file_that_cannot_be_read_is_one_line_naming_it(argv, tmp_path, capsys):
+    files = {"missing": tmp_path / "nosuch.json", "missing_stl": tmp_path / "nosuch.stl",
+             "missing_png": tmp_path / "nosuch.png", "out": tmp_path / "out.png",
+             "bad_yaml": tmp_path / "task.yaml", "bad_json": tmp_path / "req.json"}
+    files["bad_yaml"].write_text("steps: [\n")
+    files["bad_json"].write_text("{bad")
+    typed = [a.format(**files) for a in argv]
+    rc, err = _refused(typed, capsys)
+    named = next(str(files[k]) for k in files if "{" + k + "}" in argv)
+    assert rc == 2, err
+    assert "usage:" not in err, err
+    assert err.startswith(f"arduinobot {argv[0]}")
+    assert named in err.splitlines()[0]
+    if "{missing" in " ".join(argv):
+        assert err.count("\n") == 1 and "No such file" in err
+
+
+# -- a text file named .stl -----------------------------------------------------------------
+
+@pytest.mark.parametrize("text", [
+    "this is not a mesh\n",  # shorter than a binary STL's header
+    "hello, this is a readme saved as .stl by mistake; long enough to hold a binary "
+    "STL's 80-byte header and a triangle count\n",  # whose 'count' would be 1.7e9
+])
+def test_a_text_file_named_stl_is_refused_naming_it(text, tmp_path, capsys):
+    f = tmp_path / "bin.stl"
+    f.write_text(text)
+    # refused before any service is asked (none listens on this port)
+    rc, err = _refused(["scene", "add-mesh", "bin", str(f), "--pose", "0.3,0,0.1",
+                        "--connect", f"tcp/127.0.0.1:{free_port()}"], capsys)
+    assert rc == 2
+    assert err.startswith(f"arduinobot scene add-mesh: error: {f}: not an STL mesh: neither "
+                          "text beginning with 'solid' nor a binary STL")
+    assert "triangles," not in err and "more than" not in err
+
+
+# -- Zenoh's messages without the Rust source paths of its build ----------------------------
+
+@pytest.mark.parametrize("connect", ["tcp/127.0.0.1:{port}", "foo"])
+def test_a_service_that_cannot_be_reached_is_said_without_rust_paths(connect, capsys):
+    rc, err = _refused(["fk", "--joints", "0,0,0", "--connect",
+                        connect.format(port=free_port())], capsys)
+    assert rc == 3
+    assert err.startswith("arduinobot: service unavailable (connect_failed): cannot reach ")
+    assert ".rs:" not in err and ".cargo" not in err, err
+    if connect == "foo":  # what Zenoh says is wrong is kept
+        assert "Endpoints must be of the form <protocol>/<address>" in err
