@@ -3,6 +3,8 @@ one line, a text file named ``.stl`` refused by name, no Rust source paths."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from arduinobot.cli.main import main
@@ -78,3 +80,45 @@ def test_a_service_that_cannot_be_reached_is_said_without_rust_paths(connect, ca
     assert ".rs:" not in err and ".cargo" not in err, err
     if connect == "foo":  # what Zenoh says is wrong is kept
         assert "Endpoints must be of the form <protocol>/<address>" in err
+
+
+# -- a mistyped key: the closest known one, in the refusal naming the field -----------------
+
+_START = {"joint_1": 0, "joint_2": 0, "joint_3": 0, "joint_4": 0}
+
+
+@pytest.mark.parametrize("task, field, said", [
+    ({"start": _START, "stpes": [{"gripper": "open"}]},
+     "task", "unknown field 'stpes' (did you mean 'steps'?) of a task"),
+    ({"start": _START, "steps": [{"gripper": "open", "lable": "x"}]},
+     "steps[0]", "unknown field 'lable' (did you mean 'label'?) of a gripper step"),
+    ({"start": _START, "steps": [{"move": {"jionts": {"joint_1": 0.3}}}]},
+     "steps[0].move", "unknown 'jionts' (did you mean 'joints'?)"),
+    ({"start": _START, "steps": [{"mvoe": {"named": "home"}}]},
+     "steps[0]", "unknown 'mvoe' (did you mean 'move'?)"),
+    ({"start": _START, "obstacles": [{"id": "t", "shape": "box", "szie": [1, 1, 0.1],
+                                      "xyz": [0, 1, 0.5]}], "steps": [{"gripper": "open"}]},
+     "obstacles[0]", "unknown field 'szie' (did you mean 'size'?) of an obstacle"),
+])
+def test_a_mistyped_key_in_a_task_file_names_the_closest(task, field, said, tmp_path, capsys):
+    f = tmp_path / "task.json"
+    f.write_text(json.dumps(task))
+    rc, err = _refused(["task", str(f)], capsys)
+    assert rc == 1
+    assert err.startswith(f"arduinobot: INVALID_REQUEST: {field}: "), err
+    assert said in err.splitlines()[0]
+
+
+@pytest.mark.parametrize("request_, said", [
+    ({"goal": {"named": "home"}, "stat": {"joint_1": 0.1}},
+     "stat: unknown field 'stat' (did you mean 'start'?)"),
+    ({"goal": {"jionts": {"joint_1": 0.1}}},
+     "goal: must be exactly one of: {joints}, {named}, {position}, {line}; unknown 'jionts' "
+     "(did you mean 'joints'?)"),
+])
+def test_a_mistyped_key_in_a_request_names_the_closest(request_, said, tmp_path, capsys):
+    f = tmp_path / "req.json"
+    f.write_text(json.dumps(request_))
+    rc, err = _refused(["plan", "--request", str(f), "--local"], capsys)
+    assert rc == 1
+    assert err.startswith(f"arduinobot: INVALID_REQUEST: {said}"), err
