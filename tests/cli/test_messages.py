@@ -122,3 +122,24 @@ def test_a_mistyped_key_in_a_request_names_the_closest(request_, said, tmp_path,
     rc, err = _refused(["plan", "--request", str(f), "--local"], capsys)
     assert rc == 1
     assert err.startswith(f"arduinobot: INVALID_REQUEST: {said}"), err
+
+
+# -- a partial --goal: all of the group's joints, or by name with a note --------------------
+
+def test_a_partial_goal_is_refused_positionally_and_said_by_name(capsys):
+    # one value for the arm's three joints: which one did the user mean? not joint_1
+    # silently, with joint_2 and joint_3 left where they start
+    rc, err = _refused(["plan", "--goal", "0.5", "--local"], capsys)
+    assert rc == 2
+    assert err.splitlines()[-1] == (
+        "arduinobot plan: error: --goal gives 1 value(s) for the 3 joints of group 'arm' "
+        "(joint_1, joint_2, joint_3): give all 3, or name=value for the joints to move (the "
+        "others then keep their start value)")
+    # by name, a partial goal is what the user asked for: planned, and the rest said
+    assert main(["plan", "--goal", "joint_1=0.5", "--start", "0,0.2,0.1,0", "--local",
+                 "--seed", "1", "--json", "-"]) == 0
+    out = capsys.readouterr()
+    assert ("note: --goal moves joint_1; joint_2, joint_3 of group 'arm' keep their start "
+            "value") in out.err
+    end = json.loads(out.out)["trajectory"]["points"][-1]["positions"]
+    assert end[:3] == pytest.approx([0.5, 0.2, 0.1], abs=1e-6)
