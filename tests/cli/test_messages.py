@@ -4,6 +4,7 @@ one line, a text file named ``.stl`` refused by name, no Rust source paths."""
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 
@@ -143,3 +144,20 @@ def test_a_partial_goal_is_refused_positionally_and_said_by_name(capsys):
             "value") in out.err
     end = json.loads(out.out)["trajectory"]["points"][-1]["positions"]
     assert end[:3] == pytest.approx([0.5, 0.2, 0.1], abs=1e-6)
+
+
+# -- the summary's table on an arm with longer joint names ----------------------------------
+
+def test_the_plan_summary_keeps_its_columns_for_the_so101s_joint_names(tmp_path, capsys):
+    from tests.helpers.so101 import make_so101
+    urdf = make_so101(tmp_path)
+    assert main(["plan", "--local", str(urdf), "--named", "ready", "--seed", "1"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("joint "))
+    rows = lines[head + 1:lines.index("limits applied (full figure from, x scaling):")]
+    assert [r.split()[0] for r in rows][:3] == ["shoulder_pan", "shoulder_lift", "elbow_flex"]
+    # each figure ends where its heading ends ('shoulder_lift' overran a 10-wide column)
+    ends = [m.end() for m in re.finditer(r"\S+", lines[head])
+            if m.group() in ("peak", "limit", "|effort|")]
+    for r in rows:
+        assert [m.end() for m in re.finditer(r"\S+", r)][1:] == ends, (lines[head], r)

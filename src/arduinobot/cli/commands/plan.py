@@ -197,7 +197,9 @@ def summary(res: PlanReply, limits: AppliedLimits) -> str:
     those came from, stage timings."""
     lines = [(f"trajectory: {len(res.times)} points, duration {res.duration:.3f} s, "
               f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}")]
-    lines.append(f"{'joint':<10}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
+    # the name column as wide as the longest name (SO-101: 'shoulder_pan', 'wrist_roll')
+    w = max([10, *(len(j) + 2 for j in res.joint_names)])
+    lines.append(f"{'joint':<{w}}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
                  f"{'|j| peak':>10}{'limit':>9}{'|effort|':>10}{'limit':>8}")
     n = len(res.joint_names)
     peaks = {k: np.abs(getattr(res, k)).max(axis=0) if len(res.times) else np.zeros(n)
@@ -212,7 +214,7 @@ def summary(res: PlanReply, limits: AppliedLimits) -> str:
         v = applied[kind][i]
         return f"{v:{width}.2f}" if np.isfinite(v) else f"{'-':>{width}}"
     for i, j in enumerate(res.joint_names):
-        lines.append(f"{j:<10}{peaks['velocities'][i]:10.3f}{lim('velocity', i)}"
+        lines.append(f"{j:<{w}}{peaks['velocities'][i]:10.3f}{lim('velocity', i)}"
                      f"{peaks['accelerations'][i]:10.3f}{lim('acceleration', i)}"
                      f"{peaks['jerk'][i]:10.2f}{lim('jerk', i, 9)}"
                      f"{peaks['efforts'][i]:10.3f}{lim('effort', i)}")
