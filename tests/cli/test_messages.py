@@ -9,6 +9,7 @@ import re
 import pytest
 
 from arduinobot.cli.main import main
+from tests.helpers.cli import run_cli
 from tests.helpers.serve import free_port
 
 
@@ -161,3 +162,62 @@ def test_the_plan_summary_keeps_its_columns_for_the_so101s_joint_names(tmp_path,
             if m.group() in ("peak", "limit", "|effort|")]
     for r in rows:
         assert [m.end() for m in re.finditer(r"\S+", r)][1:] == ends, (lines[head], r)
+
+
+# -- the model's warnings: once, not in every command and every worker ----------------------
+
+_XACRO = """<?xml version="1.0"?>
+<robot xmlns:xacro="http://www.ros.org/wiki/xacro" name="xw">
+  <xacro:property name="pi" value="3.14159"/>
+  <xacro:macro name="part" params="name size">
+    <link name="${name}">
+      <inertial><mass value="1"/>
+        <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+      <visual><geometry><box size="${size}"/></geometry></visual>
+      <collision><geometry><box size="${size}"/></geometry></collision>
+    </link>
+  </xacro:macro>
+  <xacro:part name="base" size="0.1 0.1 0.1"/>
+  <xacro:part name="arm" size="0.05 0.05 0.3"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.3"/><axis xyz="0 0 1"/>
+    <limit lower="${-pi/2}" upper="${pi/2}" effort="5" velocity="2"/></joint>
+</robot>
+"""
+
+
+def test_xacros_own_warnings_are_the_models_said_once(tmp_path, capsys):
+    """xacro printed 'redefining global symbol: pi' on stderr itself, in every command."""
+    xacro_file = tmp_path / "r.urdf.xacro"
+    xacro_file.write_text(_XACRO)
+    assert main(["fk", "--local", str(xacro_file), "--joints", "0.1"]) == 0
+    err = capsys.readouterr().err
+    assert "redefining" not in err and "WARNING" not in err, err
+    assert err.splitlines()[-1].startswith("arduinobot fk: the model has ")
+    assert "(`arduinobot check FILE` lists them; -v shows them here)" in err
+    # check lists it as one finding, and the log does not say it a second time
+    assert main(["check", str(xacro_file)]) == 0
+    cap = capsys.readouterr()
+    said = f"xacro: redefining global symbol: pi (in {xacro_file})"
+    assert f"WARN  xacro              r.urdf.xacro: {said}" in cap.out
+    assert said not in cap.err
+    # -v shows each once, at INFO (typed: the log goes where the command line puts it)
+    r = run_cli("-v", "fk", "--local", str(xacro_file), "--joints", "0.1", timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count(said) == 1 and f"INFO arduinobot.description.loader: {said}" \
+        in r.stderr, r.stderr
+
+
+@pytest.mark.slow
+def test_serve_logs_the_models_warnings_once_not_per_worker(course_ws, tmp_path):
+    from tests.helpers.serve import start_server
+    srv = start_server([str(course_ws.xacro), "--package-dir", str(course_ws.src),
+                        "--workers", "2", "--no-robot",
+                        "--cache-dir", str(tmp_path / "cache")], timeout=600)
+    try:
+        log = "\n".join(srv.stderr_lines)
+    finally:
+        srv.stop()
+    assert log.count("<material> inside <geometry> is ignored") == 1, log
+    for joint in ("joint_1", "joint_2", "joint_3", "joint_4"):
+        assert log.count(f"{joint}: the acceleration derived from effort and inertia") == 1

@@ -23,6 +23,7 @@ from arduinobot.cli.commands import state as cmd_state
 from arduinobot.cli.commands import task as cmd_task
 from arduinobot.cli.commands import view as cmd_view
 from arduinobot.cli.common import run_guarded
+from arduinobot.cli.model_log import LOGGED_BY, PRINTED_BY, ModelWarnings
 
 # Commands that run OMPL in this process (the second set with --local only), whose own log
 # follows -v (quiet by default); a remote plan must not import OMPL (~1 s).
@@ -139,11 +140,23 @@ def main(argv: list[str] | None = None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
+    held = None if ns.command in LOGGED_BY else ModelWarnings(show=ns.verbose > 0)
+    handlers = list(logging.getLogger().handlers) if held is not None else []
+    for handler in handlers:
+        handler.addFilter(held)
     if ns.command in _OMPL_ALWAYS or (ns.command in _OMPL_LOCAL and ns.local):
         from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     try:
-        rc = run_guarded(ns, ns.command_parser)
+        try:
+            rc = run_guarded(ns, ns.command_parser)
+        finally:
+            for handler in handlers:  # main() may run again in this process (tests)
+                handler.removeFilter(held)
+            said = held.summary(ns.command) if held is not None and \
+                ns.command not in PRINTED_BY else None
+            if said:
+                print(said, file=sys.stderr)
         sys.stdout.flush()  # here, not at exit, so a closed pipe is caught below
     except BrokenPipeError:
         # `arduinobot fk | head`: the reader is gone, which is no error of ours. Point
