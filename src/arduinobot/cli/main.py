@@ -141,9 +141,10 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
     held = None if ns.command in LOGGED_BY else ModelWarnings(show=ns.verbose > 0)
-    handlers = list(logging.getLogger().handlers) if held is not None else []
-    for handler in handlers:
-        handler.addFilter(held)
+    handlers = list(logging.getLogger().handlers)
+    if held is not None:
+        for handler in handlers:
+            handler.addFilter(held)
     if ns.command in _OMPL_ALWAYS or (ns.command in _OMPL_LOCAL and ns.local):
         from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
@@ -151,10 +152,11 @@ def main(argv: list[str] | None = None) -> int:
         try:
             rc = run_guarded(ns, ns.command_parser)
         finally:
-            for handler in handlers:  # main() may run again in this process (tests)
-                handler.removeFilter(held)
-            said = held.summary(ns.command) if held is not None and \
-                ns.command not in PRINTED_BY else None
+            said = None
+            if held is not None:
+                for handler in handlers:  # main() may run again in this process (tests)
+                    handler.removeFilter(held)
+                said = None if ns.command in PRINTED_BY else held.summary(ns.command)
             if said:
                 print(said, file=sys.stderr)
         sys.stdout.flush()  # here, not at exit, so a closed pipe is caught below
