@@ -188,7 +188,8 @@ def test_bad_values_are_usage_errors_naming_the_flag(capsys, tmp_path):
     with pytest.raises(SystemExit) as e:
         main(["plan", "--request", str(req)])
     assert e.value.code == 2
-    assert capsys.readouterr().err == f"arduinobot plan: error: {req} must hold a JSON object\n"
+    assert capsys.readouterr().err == \
+        f"arduinobot plan: error: argument --request: {req} must hold a JSON object\n"
     assert "argument --workers: must be >= 1, not 0" in _usage_error(
         ["serve", "--workers", "0"], capsys)
 

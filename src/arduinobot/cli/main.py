@@ -90,7 +90,8 @@ class CommandParser(argparse.ArgumentParser):
         try:
             return super()._get_value(action, arg_string)
         except FileProblem as e:
-            self.exit(2, f"{self.prog}: error: {e}\n")
+            name = argparse._get_action_name(action)  # as argparse names it: --request
+            self.exit(2, f"{self.prog}: error: argument {name}: {e}\n")
 
     def _check_value(self, action: argparse.Action, value: Any) -> None:
         if _HAS_SUGGEST or action.choices is None or value in action.choices:
