@@ -184,8 +184,12 @@ def test_bad_values_are_usage_errors_naming_the_flag(capsys, tmp_path):
         ["urdf", "--arg", "prefix"], capsys)
     req = tmp_path / "req.json"
     req.write_text("[1, 2]")
-    assert f"argument --request: {req} must hold a JSON object" in _usage_error(
-        ["plan", "--request", str(req)], capsys)
+    # a file's problem in one line, without the usage (issue 38, item 9)
+    with pytest.raises(SystemExit) as e:
+        main(["plan", "--request", str(req)])
+    assert e.value.code == 2
+    assert capsys.readouterr().err == \
+        f"arduinobot plan: error: argument --request: {req} must hold a JSON object\n"
     assert "argument --workers: must be >= 1, not 0" in _usage_error(
         ["serve", "--workers", "0"], capsys)
 

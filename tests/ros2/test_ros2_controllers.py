@@ -299,12 +299,21 @@ def test_cancel_stops_every_controller(session, controllers, plan) -> None:  # n
     names, times, cols = columns(plan)
     parts = split_trajectory(names, times, cols, COURSE)
     cancel = threading.Event()
-    threading.Timer(0.3, cancel.set).start()
+    moving: set[str] = set()
+
+    def on_feedback(f: Feedback) -> None:
+        # cancelled once every controller is executing its goal (the first feedback of
+        # each), not after a fixed 0.3 s of wall clock that a loaded machine may spend
+        # before the goals are even sent
+        moving.add(f.controller)
+        if moving == {c.name for c in COURSE}:
+            cancel.set()
     t = target(session)
     try:
-        outcomes = t.follow(parts, cancel=cancel)
+        outcomes = t.follow(parts, cancel=cancel, on_feedback=on_feedback)
     finally:
         t.close()
+    assert cancel.is_set()
     # cancelled, not run out: each controller's goal ended CANCELED, not SUCCEEDED (no
     # wall-clock bound: on a loaded machine the follow's own end lags the trajectory's)
     assert [o.outcome for o in outcomes] == ["cancelled", "cancelled"]

@@ -89,13 +89,19 @@ SLIVERS = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nf 1 2 3\nf 2 3 4\n"
 @pytest.mark.parametrize("spec, scale, field, words", [
     ({"format": "stl", "data": "not base64!"}, 1, "add[0].mesh.data", "base64"),
     ({"format": "stl", "data": b64(b"solid x\nfacet nonsense")}, 1, "add[0].mesh", ""),
+    # text that is no STL: not read as a binary header counting 1.7e9 triangles
+    ({"format": "stl", "data": b64(b"a readme saved as .stl, " * 5)}, 1, "add[0].mesh",
+     "not an STL mesh: neither text beginning with 'solid' nor a binary STL"),
+    ({"format": "stl", "data": b64(b"not a mesh\n")}, 1, "add[0].mesh", "not an STL mesh"),
     ({"format": "obj", "data": b64(FLAT)}, 1, "add[0].mesh", "flat"),
     ({"format": "obj", "data": b64(SLIVERS)}, 1, "add[0].mesh", "area"),
     ({"format": "obj", "data": b64("v 0 0 0\n")}, 1, "add[0].mesh", "no triangles"),
     ({"format": "stl", "data": b64(stl_box())}, 1000, "add[0].mesh", "more than 100 m"),
     ({"format": "stl", "data": b64(stl_box())}, 1e308, "add[0].mesh", "more than 100 m"),
+    # a header counting more triangles than the bytes hold (a whole binary STL over the
+    # triangle cap is over the byte cap too): refused before parsing, as no STL
     ({"format": "stl", "data": b64(_binary_stl(np.zeros((1, 3, 3)), MAX_MESH_TRIANGLES + 1))},
-     1, "add[0].mesh", "triangles"),
+     1, "add[0].mesh", "not an STL mesh"),
     ({"format": "stl", "data": b64(_binary_stl(np.array(
         [[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 0], [1, 0, 0], [0, 0, np.nan]],
          [[0, 0, 0], [0, 1, 0], [0, 0, 1]]], np.float32)))}, 1, "add[0].mesh", "non-finite"),

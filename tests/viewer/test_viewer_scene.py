@@ -401,3 +401,33 @@ def test_the_page_in_chromium_shows_the_cup_moving_with_the_claw(desc, tmp_path)
         if browser is not None:
             browser.close()
         page.close()
+
+
+def _tan(png: bytes) -> int:
+    """How many pixels show the kept scene's colour (SCENE_RGB, shaded: its hue)."""
+    from arduinobot.viewer.geometry import SCENE_RGB
+    img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(float)
+    total = img.sum(axis=2)
+    want = np.asarray(SCENE_RGB, float) / sum(SCENE_RGB)
+    return int(((np.abs(img / np.maximum(total, 1)[..., None] - want).max(axis=2) < 0.02)
+                & (total > 60)).sum())
+
+
+def test_view_png_shows_what_stands_on_a_table(tmp_path, capsys):
+    """A box on a table (issue 38, item 9): each body was its own collection, sorted by
+    its centre, so the table's was drawn over the box's."""
+    from arduinobot.cli.main import main
+    cell = tmp_path / "cell.json"
+    cell.write_text(json.dumps({"revision": 1, "objects": [
+        {"id": "box", "shape": "box", "size": [0.08, 0.08, 0.08], "xyz": [0.52, 0.8, 0.39]}]}))
+    table = json.dumps({"id": "table", "shape": "box", "size": [0.5, 0.5, 0.05],
+                        "xyz": [0.52, 0.8, 0.325]})
+    alone, on_table = tmp_path / "alone.png", tmp_path / "on_table.png"
+    assert main(["view", "--local", "--scene", str(cell), "--png", str(alone)]) == 0
+    assert main(["view", "--local", "--scene", str(cell), "--obstacle", table,
+                 "--png", str(on_table)]) == 0
+    capsys.readouterr()
+    seen_alone = _tan(alone.read_bytes())
+    assert seen_alone > 100  # the box as drawn with nothing under it
+    # on the table, its top and two sides still show (its bottom face is the table's)
+    assert _tan(on_table.read_bytes()) > 0.6 * seen_alone

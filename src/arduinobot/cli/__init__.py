@@ -5,6 +5,7 @@
 - ``commands/``: one module per group of subcommands.
 - ``argtypes``: the parsers of joint lists, obstacle specs, goals on the command line.
 - ``common``: loading the model from the options, printing summaries, running guarded.
+- ``model_log``: the model's warnings held to one line in the commands that only use it.
 - ``remote_model``: the service's model fetched and cached for commands that draw or
   simulate it.
 - ``see_task``: a task file's ``see`` section on the twin (render, detect, plan).

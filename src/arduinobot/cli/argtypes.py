@@ -1,7 +1,8 @@
 """The command line's values: argparse types (their errors: argparse's usage message,
 ``arduinobot <cmd>: error: argument --goal: ...``, exit 2), and :class:`UsageError` for
 checks across flags or against the robot, which :func:`arduinobot.cli.common.run_guarded` turns
-into the same message and exit code."""
+into the same message and exit code; :class:`FileProblem` for a file named on the command
+line, said in one line without the usage."""
 
 from __future__ import annotations
 
@@ -28,6 +29,20 @@ _OBSTACLE_FORMS = ", ".join(_FORMS[:-1]) + " or " + _FORMS[-1]
 class UsageError(Exception):
     """A command line that parses but does not make sense (flags that exclude each other,
     more joint values than joints); the message names the flag."""
+
+
+class FileProblem(UsageError):
+    """A file named on the command line is missing, unreadable or not what it should be:
+    said in one line naming the file (exit 2), without the command's usage, which would
+    bury it and has nothing to do with it."""
+
+
+def file_problem(path: str | Path, e: Exception, what: str = "") -> FileProblem:
+    """The :class:`FileProblem` of reading ``path`` (a ``what`` such as 'task file')
+    failing with ``e``: the OS's words for a missing or unreadable file, the parser's for
+    a bad one."""
+    reason = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
+    return FileProblem(f"cannot read {what + ' ' if what else ''}{path}: {reason}")
 
 
 def _floats(text: str, n: int | None = None, what: str = "") -> list[float]:
@@ -167,10 +182,10 @@ def json_object(path: str) -> dict[str, Any]:
     """The JSON object in the file ``path`` (a request: ``--request REQ.json``)."""
     try:
         data = json.loads(Path(path).read_text("utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
-        raise argparse.ArgumentTypeError(f"cannot read {path}: {e}") from None
+    except (OSError, ValueError) as e:
+        raise file_problem(path, e) from None
     if not isinstance(data, dict):
-        raise argparse.ArgumentTypeError(f"{path} must hold a JSON object")
+        raise FileProblem(f"{path} must hold a JSON object")
     return data
 
 

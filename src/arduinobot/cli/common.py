@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, TypedDict
 
 from arduinobot.cli.argtypes import (
+    FileProblem,
     JointValues,
     Mimic,
     UsageError,
@@ -206,11 +207,15 @@ def joints_by_name(robot: Mapping[str, Any], values: JointValues, *, group: str 
 
 def run_guarded(ns: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Run the command ``ns.func``; what the user can act on becomes one message on stderr
-    and the exit code: a usage error as argparse's (2, through ``parser``), no service (3),
-    a coded error of the service, the planner or a robot (1, with its details), a model
-    that does not load (1)."""
+    and the exit code: a usage error as argparse's (2, through ``parser``; a file that
+    cannot be read in one line, without the usage), no service (3), a coded error of the
+    service, the planner or a robot (1, with its details), a model that does not load
+    (1)."""
     try:
         return ns.func(ns)
+    except FileProblem as e:  # one line: the usage would bury it
+        print(f"{parser.prog}: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
     except UsageError as e:
         parser.error(str(e))  # exits 2
     except ServiceUnavailable as e:

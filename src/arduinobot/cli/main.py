@@ -12,6 +12,7 @@ import sys
 from collections.abc import Iterable, Sequence
 from typing import Any, NoReturn, TypeVar, overload
 
+from arduinobot.cli.argtypes import FileProblem
 from arduinobot.cli.commands import execute as cmd_execute
 from arduinobot.cli.commands import model as cmd_model
 from arduinobot.cli.commands import plan as cmd_plan
@@ -22,6 +23,7 @@ from arduinobot.cli.commands import state as cmd_state
 from arduinobot.cli.commands import task as cmd_task
 from arduinobot.cli.commands import view as cmd_view
 from arduinobot.cli.common import run_guarded
+from arduinobot.cli.model_log import LOGGED_BY, PRINTED_BY, ModelWarnings
 
 # Commands that run OMPL in this process (the second set with --local only), whose own log
 # follows -v (quiet by default); a remote plan must not import OMPL (~1 s).
@@ -82,6 +84,15 @@ class CommandParser(argparse.ArgumentParser):
                     hints.append(f"maybe you meant {close[0]} (not {flag})?")
         self.error("; ".join([f"unrecognized arguments: {' '.join(extras)}", *hints]))
 
+    def _get_value(self, action: argparse.Action, arg_string: str) -> Any:
+        # a file given as a typed value (--request REQ.json) that cannot be read: one
+        # line naming it, as run_guarded says a FileProblem, not the usage
+        try:
+            return super()._get_value(action, arg_string)
+        except FileProblem as e:
+            name = argparse._get_action_name(action)  # as argparse names it: --request
+            self.exit(2, f"{self.prog}: error: argument {name}: {e}\n")
+
     def _check_value(self, action: argparse.Action, value: Any) -> None:
         if _HAS_SUGGEST or action.choices is None or value in action.choices:
             return super()._check_value(action, value)
@@ -130,11 +141,25 @@ def main(argv: list[str] | None = None) -> int:
     level = [logging.WARNING, logging.INFO, logging.DEBUG][min(ns.verbose, 2)]
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
+    held = None if ns.command in LOGGED_BY else ModelWarnings(show=ns.verbose > 0)
+    handlers = list(logging.getLogger().handlers)
+    if held is not None:
+        for handler in handlers:
+            handler.addFilter(held)
     if ns.command in _OMPL_ALWAYS or (ns.command in _OMPL_LOCAL and ns.local):
         from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
         set_ompl_log_level(["none", "info", "debug"][min(ns.verbose, 2)])
     try:
-        rc = run_guarded(ns, ns.command_parser)
+        try:
+            rc = run_guarded(ns, ns.command_parser)
+        finally:
+            said = None
+            if held is not None:
+                for handler in handlers:  # main() may run again in this process (tests)
+                    handler.removeFilter(held)
+                said = None if ns.command in PRINTED_BY else held.summary(ns.command)
+            if said:
+                print(said, file=sys.stderr)
         sys.stdout.flush()  # here, not at exit, so a closed pipe is caught below
     except BrokenPipeError:
         # `arduinobot fk | head`: the reader is gone, which is no error of ours. Point

@@ -43,7 +43,12 @@ from arduinobot.client.replies import (
 )
 from arduinobot.client.stream import ExecutionEvent, cancel_execution, follow, stream
 from arduinobot.contract.wire import JSON
-from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, DEFAULT_PREFIX, zenoh_config
+from arduinobot.contract.zconfig import (
+    DEFAULT_ENDPOINT,
+    DEFAULT_PREFIX,
+    zenoh_config,
+    zenoh_message,
+)
 
 _log = logging.getLogger(__name__)
 
@@ -76,7 +81,7 @@ class PlannerClient:
                                                    listen=[], config_file=config_file))
         except zenoh.ZError as e:
             raise ServiceUnavailable(
-                f"cannot reach {', '.join(self.endpoints)}: {e}; {_HINT}",
+                f"cannot reach {', '.join(self.endpoints)}: {zenoh_message(e)}; {_HINT}",
                 reason="connect_failed", details={"endpoints": self.endpoints}) from None
         self.balancer = LoadBalancer(self.session, prefix)
 

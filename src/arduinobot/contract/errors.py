@@ -6,9 +6,10 @@ Each carries what a user needs to act: the field, the joints, the colliding pair
 
 from __future__ import annotations
 
+import difflib
 import errno
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 from arduinobot.contract.codes import Code
 
@@ -22,6 +23,26 @@ class PlanningError(Exception):
         self.message = message
         self.details = dict(details or {})
         super().__init__(message)
+
+
+def unknown_names(given: Iterable[str], known: Iterable[str]) -> str:
+    """``given`` names (those not in ``known``) as a refusal lists them, each with the
+    closest known name when one is close: ``'stpes' (did you mean 'steps'?), 'x'``."""
+    choices = sorted(known)
+    out = []
+    for name in given:
+        close = difflib.get_close_matches(name, choices, n=1, cutoff=0.6)
+        out.append(f"'{name}'" + (f" (did you mean '{close[0]}'?)" if close else ""))
+    return ", ".join(out)
+
+
+def unknown_fields(extra: Sequence[str], known: Iterable[str], *, of: str = "") -> str:
+    """The refusal of the unknown keys ``extra`` of a JSON object whose keys are
+    ``known``: ``unknown field 'lable' (did you mean 'label'?) of a gripper step; it takes
+    ...``."""
+    allowed = sorted(set(known))
+    return (f"unknown field{'s' if len(extra) > 1 else ''} {unknown_names(extra, allowed)}"
+            f"{f' of {of}' if of else ''}; it takes {', '.join(allowed)}")
 
 
 class InvalidRequest(PlanningError):

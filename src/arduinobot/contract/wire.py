@@ -29,7 +29,7 @@ from arduinobot.contract.caps import (
     check_structure,
     field_path,
 )
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, unknown_names
 
 __all__ = ["JSON", "MAX_EXECUTE_PAYLOAD", "MAX_PAYLOAD", "Kind", "SCHEMA_NAMES", "all_schemas", "check_finite", "check_size",
            "decode", "encode", "error_json", "field_path", "parse_json", "payload_cap",
@@ -254,13 +254,20 @@ def _refusal(err: jsonschema_rs.ValidationError, name: str) -> InvalidRequest:
         # a few names, cut short: a refusal must not echo a request's worth of keys
         details["unknown"] = [field_path([k]) for k in extra[:_ECHO]]
         details["allowed"] = allowed
-        return InvalidRequest(f"unknown field (allowed: {', '.join(allowed)})",
+        return InvalidRequest(f"unknown field {unknown_names(extra[:1], allowed)} (allowed: "
+                              f"{', '.join(allowed)})",
                               field=field_path([*path, extra[0]]), details=details)
     message = err.message
     if keyword in ("oneOf", "anyOf"):
         forms = _forms(name, list(err.schema_path))
         if forms:
             message = f"must be exactly one of: {', '.join(forms)}"
+            # a mistyped key ({"jionts": ...}) matches no alternative: name the closest
+            keys = _alternatives_keys(name, list(err.schema_path))
+            given = err.instance if isinstance(err.instance, Mapping) else {}
+            typos = [k for k in given if isinstance(k, str) and k not in keys]
+            if typos and keys:
+                message += f"; unknown {unknown_names(typos[:_ECHO], keys)}"
     if len(message) > 300:
         message = message[:300] + "..."
     return InvalidRequest(message, field=field_path(path) or "(root)", details=details)
@@ -272,6 +279,13 @@ def _forms(name: str, schema_path: list[Any]) -> list[str]:
     alts = node if isinstance(node, list) else []
     return ["{" + ", ".join(alt["required"]) + "}" for alt in alts
             if isinstance(alt, Mapping) and alt.get("required")]
+
+
+def _alternatives_keys(name: str, schema_path: list[Any]) -> set[str]:
+    """Every property name of the ``oneOf`` alternatives at ``schema_path``."""
+    node = _schema_at(name, schema_path)
+    return {k for alt in (node if isinstance(node, list) else [])
+            if isinstance(alt, Mapping) for k in alt.get("properties", {})}
 
 
 def _allowed(name: str, schema_path: list[Any]) -> list[str]:

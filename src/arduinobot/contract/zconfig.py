@@ -6,6 +6,7 @@ command line's ``--local`` path can read the defaults without it."""
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -23,6 +24,20 @@ DEFAULT_PREFIX = "arduinobot"
 #: What no chunk of a prefix may hold: Zenoh's wildcards (``*``, ``**``, ``$*``) and the
 #: characters it reserves (``#``, ``?``), whitespace.
 _NOT_LITERAL = frozenset("*$#? \t\r\n")
+
+
+#: where Zenoh's Rust build says an error came from (`` at /root/.cargo/git/checkouts/
+#: zenoh-.../orchestrator.rs:447.``): nothing a user can act on
+_RUST_SOURCE = re.compile(r"\s+at\s+\S+\.rs:\d+(?::\d+)?\.?")
+#: a config error's wrapping (``Json5Err(Message { msg: "...", location: ... })``)
+_JSON5_WRAP = re.compile(r'Json5Err\(Message \{ msg: "(.*?)", location: .*\}\)')
+
+
+def zenoh_message(error: BaseException) -> str:
+    """What Zenoh says went wrong, without the Rust source paths of its build and the
+    wrapping of its config parser: the text a user reads."""
+    text = _RUST_SOURCE.sub("", str(error))
+    return _JSON5_WRAP.sub(lambda m: m.group(1), text).strip()
 
 
 def check_prefix(prefix: str) -> str:

@@ -108,7 +108,8 @@ def check_model(
     except DescriptionError as e:
         return CheckReport(str(path or "shipped model"), (_fail_from(e, "load"),))
     findings = [Finding("WARN", "packages", p.name, w) for w in packages.warnings]
-    findings.extend(Finding("WARN", "xacro.args", p.name, w) for w in expansion_warnings)
+    findings.extend(Finding("WARN", "xacro.args" if w.startswith("--arg") else "xacro", p.name,
+                            w) for w in expansion_warnings)
     findings.extend(_fail_from(e, "parse") for e in report.problems)
     findings.extend(Finding("WARN", "parse", e.element or "model",
                             e.message + (f" (fix: {e.hint})" if e.hint else ""))

@@ -43,8 +43,9 @@ def is_xacro(path: Path, text: str | None = None) -> bool:
 @dataclass(frozen=True)
 class XacroExpansion:
     """A xacro file expanded: the URDF ``text``, the arguments the file and its includes
-    declare (``<xacro:arg name=...>``), and ``warnings`` (an argument given that none of
-    them declares: xacro ignores it without a word)."""
+    declare (``<xacro:arg name=...>``), and ``warnings``: xacro's own (which it would
+    print), then each argument given that none of them declares (xacro ignores it without
+    a word)."""
 
     text: str
     declared_args: tuple[str, ...]
@@ -96,10 +97,20 @@ def expand_xacro_report(
             raise
 
     mappings = {str(k): str(v) for k, v in (args or {}).items()}
+    said: list[str] = []
+
+    def warning(*parts: object, **_: object) -> None:
+        # xacro prints its warnings ('redefining global symbol: pi') to stderr itself, in
+        # every command and every worker: kept as the expansion's warnings instead, which
+        # the loader logs and check lists, naming the file being processed
+        where = xacro.filestack[-1] if xacro.filestack else path
+        said.append(f"xacro: {' '.join(map(str, parts))} (in {where})")
     with _lock:
         saved = substitution_args._eval_find, substitution_args._eval_dict.get("find")
         substitution_args._eval_find = find
         substitution_args._eval_dict["find"] = find
+        printing = xacro.warning, xacro.print_location
+        xacro.warning, xacro.print_location = warning, lambda: None
         xacro.all_includes.clear()  # xacro appends every file it includes here
         try:
             doc = xacro.process_file(str(path), mappings=mappings, verbosity=0)
@@ -117,13 +128,14 @@ def expand_xacro_report(
         finally:
             substitution_args._eval_find = saved[0]
             substitution_args._eval_dict["find"] = saved[1]
+            xacro.warning, xacro.print_location = printing
             xacro.init_stacks(None)
     text = doc.toprettyxml(indent="  ")
     _log.debug("expanded %s (%d bytes)", path, len(text))
     declared = declared_args(files)
     unknown = [n for n in mappings if n not in declared]
     listed = ", ".join(declared) if declared else "none"
-    warnings = tuple(
+    warnings = tuple(dict.fromkeys(said)) + tuple(
         f"--arg {n}: {path.name} declares no such xacro argument, so it is ignored "
         f"(declared: {listed})" for n in unknown)
     return XacroExpansion(text=text, declared_args=declared, warnings=warnings)

@@ -106,12 +106,13 @@ def simulate(description: Description, trajectory: SampledTrajectory, *,
 
 
 def summary(r: SimulationReport) -> str:
+    w = max([10, *(len(n) + 2 for n in r.joint_names)])  # long names keep the columns
     lines = [f"simulation (MuJoCo twin) of {r.model}: {r.duration:.3f} s, {r.steps} physics "
              "steps; contacts: " + (", ".join("/".join(p) for p in r.contacts) or "none"),
-             f"{'joint':<10}{'track err':>12}{'final err':>12}{'needs':>12}"
+             f"{'joint':<{w}}{'track err':>12}{'final err':>12}{'needs':>12}"
              f"{'|force| peak':>14}{'limit':>8}"]
     for i, n in enumerate(r.joint_names):
-        lines.append(f"{n:<10}{1000 * r.tracking_error[i]:>7.3f} mrad"
+        lines.append(f"{n:<{w}}{1000 * r.tracking_error[i]:>7.3f} mrad"
                      f"{1000 * r.final_error[i]:>7.3f} mrad{r.peak_need[i]:>8.2f} N m"
                      f"{r.peak_force[i]:>10.2f} N m{r.effort[i]:>8.1f}")
     lines.append(f"the trajectory needs {100 * r.need_ratio:.1f}% of the effort limit; the "

@@ -137,13 +137,29 @@ def decode_mesh(spec: Mapping[str, Any], *, scale: Sequence[float] = (1.0, 1.0, 
     return _validated(vertices, faces, np.asarray(scale, float), field)
 
 
+def stl_problem(raw: bytes) -> str | None:
+    """Why ``raw`` cannot be an STL file, or None if it may be one: a binary STL is
+    exactly 84 + 50 x (the count in its header) bytes; any other STL is text beginning
+    with ``solid``. (A text file named ``.stl`` would otherwise be read as a binary
+    header: 'hello ...' counts 1.7e9 triangles.)"""
+    if len(raw) >= 84 and len(raw) == 84 + 50 * int.from_bytes(raw[80:84], "little"):
+        return None  # binary (some exporters begin even a binary header with 'solid')
+    if raw.lstrip()[:5].lower() == b"solid":
+        return None  # text STL
+    return (f"not an STL mesh: neither text beginning with 'solid' nor a binary STL, whose "
+            f"size is 84 bytes + 50 per triangle its header counts ({len(raw)} bytes here)")
+
+
 def _parse(raw: bytes, fmt: MeshFormat, field: str) -> tuple[np.ndarray, np.ndarray]:
     import trimesh  # the collision world's mesh library; heavy, so only when a mesh comes
 
-    if fmt == "stl" and len(raw) >= 84 and not raw.lstrip()[:5].lower() == b"solid":
+    if fmt == "stl":
+        problem = stl_problem(raw)
+        if problem is not None:
+            raise InvalidRequest(problem, field=field)
         # binary STL: the triangle count is in the header, so the cap comes before parsing
-        n = int.from_bytes(raw[80:84], "little")
-        if n > MAX_MESH_TRIANGLES:
+        n = int.from_bytes(raw[80:84], "little") if len(raw) >= 84 else 0
+        if len(raw) == 84 + 50 * n and n > MAX_MESH_TRIANGLES:
             raise InvalidRequest(f"{n} triangles, more than {MAX_MESH_TRIANGLES}",
                                  field=field, details={"limit": MAX_MESH_TRIANGLES})
     try:

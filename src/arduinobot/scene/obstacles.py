@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, unknown_fields
 from arduinobot.scene.payload import Payload
 from arduinobot.scene.pose import rpy_matrix
 from arduinobot.scene.shapes import Shape, dimension_fields, finite_vec, shape_class
@@ -115,7 +115,8 @@ class Obstacle:
                 raise InvalidRequest("is required", field=f"{where}.{key}")
         extra = sorted(set(data) - _PLACED - dimension_fields())
         if extra:
-            raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+            raise InvalidRequest(unknown_fields(extra, _PLACED | dimension_fields(),
+                                                of="an obstacle"), field=where)
         if not files:
             refuse_files(data, where=where)
         return cls(where=where, **{k: v for k, v in data.items()})
@@ -225,9 +226,11 @@ class AttachedObject:
         the link's frame."""
         if not isinstance(data, Mapping):
             raise InvalidRequest("must be an object", field=where)
-        extra = sorted(set(data) - {"object", "link", "touch_links", "mass", "com"})
+        known = {"object", "link", "touch_links", "mass", "com"}
+        extra = sorted(set(data) - known)
         if extra:
-            raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+            raise InvalidRequest(unknown_fields(extra, known, of="an attached object"),
+                                 field=where)
         for key in ("object", "link"):
             if key not in data:
                 raise InvalidRequest("is required", field=f"{where}.{key}")

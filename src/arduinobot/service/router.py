@@ -20,7 +20,7 @@ import threading
 
 import zenoh
 
-from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, zenoh_config
+from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, zenoh_config, zenoh_message
 
 _log = logging.getLogger(__name__)
 
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         session = zenoh.open(cfg)
     except zenoh.ZError as e:
-        print(f"arduinobot.service.router: cannot start: {e}", file=sys.stderr)
+        print(f"arduinobot.service.router: cannot start: {zenoh_message(e)}", file=sys.stderr)
         return 1
     _log.info("router %s ready, listening on %s", session.zid(),
               ", ".join(listen or ["(the config's endpoints)"]))

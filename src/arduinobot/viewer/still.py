@@ -2,9 +2,11 @@
 the robot's links at one pose in their colours, the obstacles, the kept scene's objects
 and what the robot carries on its link, drawn by matplotlib (the view extra).
 
-Each body is drawn as its own shaded triangle collection; matplotlib sorts whole
-collections by depth, not triangles across bodies, which is enough to read a scene, not
-to judge a contact (the page's collision colours say that).
+All bodies are drawn as one shaded triangle collection, large triangles split first:
+matplotlib sorts the polygons of a collection by depth, but whole collections only by
+their centre, so a box standing on a table (one collection each) was hidden under it.
+Painter's sorting is enough to read a scene, not to judge a contact (the page's
+collision colours say that).
 """
 
 from __future__ import annotations
@@ -83,10 +85,15 @@ def still_png(bodies: Sequence[StillBody], *, title: str = "", size: tuple[int, 
     view = frame_box(np.stack([lo, hi]), aspect=size[0] / size[1], left=0.0)
     fig = Figure(figsize=(size[0] / dpi, size[1] / dpi), dpi=dpi)
     ax = fig.add_subplot(projection="3d")
-    for b in bodies:
-        ax.add_collection3d(art3d.Poly3DCollection(
-            b.triangles, facecolors=_shaded(b.triangles, b.color), edgecolors="none"))
     half = float(np.max(hi - lo)) / 2 or 0.5
+    if bodies:
+        # one collection, so triangles are sorted across bodies; none longer than 1/40
+        # of the view, so a table's two big top triangles do not sort as one far point
+        tris, colors = _split(np.concatenate([b.triangles for b in bodies]),
+                              np.concatenate([_shaded(b.triangles, b.color) for b in bodies]),
+                              longest=half / 20)
+        ax.add_collection3d(art3d.Poly3DCollection(tris, facecolors=colors,
+                                                   edgecolors="none"))
     centre = (lo + hi) / 2
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
@@ -103,6 +110,25 @@ def still_png(bodies: Sequence[StillBody], *, title: str = "", size: tuple[int, 
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
+
+
+def _split(triangles: np.ndarray, colors: np.ndarray, *, longest: float
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles (shape (m, 3, 3) [m]) with an edge over ``longest`` [m] split in four at
+    their edges' midpoints until none is (at most 8 rounds), each keeping its colour."""
+    for _ in range(8):
+        edges = np.linalg.norm(triangles - np.roll(triangles, 1, axis=1), axis=2).max(axis=1)
+        big = edges > longest
+        if not big.any():
+            break
+        t = triangles[big]
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        quads = np.stack([np.stack(x, axis=1) for x in
+                          ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))], axis=1)
+        triangles = np.concatenate([triangles[~big], quads.reshape(-1, 3, 3)])
+        colors = np.concatenate([colors[~big], np.repeat(colors[big], 4, axis=0)])
+    return triangles, colors
 
 
 def _shaded(triangles: np.ndarray, color: Rgb) -> np.ndarray:

@@ -12,12 +12,20 @@ from typing import Any
 
 import numpy as np
 
-from arduinobot.cli.argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
+from arduinobot.cli.argtypes import (
+    JointValues,
+    UsageError,
+    add_obstacle_arg,
+    joint_values,
+    json_object,
+    numbers,
+)
 from arduinobot.cli.commands.scene import add_scene_arg
 from arduinobot.cli.common import (
     EXIT_OK,
     add_service_args,
     connect,
+    joint_order,
     joints_by_name,
     planned_by,
     wrote,
@@ -40,10 +48,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "  arduinobot plan --position 0,1.0,1.2 --obstacle box:table:1,1,0.1@0,1,0.5\n"
         "  arduinobot plan --request req.json --local --plot traj.png")
     goal = p.add_mutually_exclusive_group()
-    goal.add_argument("--goal", metavar="Q", type=joint_values, help="joint goal: values of "
-                      "the group's joints in the model's order (`arduinobot info` lists "
-                      "them; a mimic's value may follow its leader's and must agree with "
-                      "it: --group gripper --goal -0.7,0.7), or name=value,...")
+    goal.add_argument("--goal", metavar="Q", type=joint_values, help="joint goal: a value "
+                      "for each of the group's joints in the model's order (`arduinobot "
+                      "info` lists them; a mimic's value may follow its leader's and must "
+                      "agree with it: --group gripper --goal -0.7,0.7), or name=value,... "
+                      "for some (the others keep their start value)")
     goal.add_argument("--named", metavar="NAME", help="a named SRDF state (home, ...)")
     goal.add_argument("--position", metavar="X,Y,Z", type=numbers(3),
                       help="a tcp position [m]")
@@ -92,7 +101,7 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
     req: dict[str, Any] = dict(ns.request or {})
     group = ns.group or req.get("group")
     if ns.goal is not None:
-        req["goal"] = {"joints": joints_by_name(robot, ns.goal, group=group, flag="--goal")}
+        req["goal"] = {"joints": goal_joints(robot, ns.goal, group=group)}
     elif ns.named:
         req["goal"] = {"named": ns.named}
     elif ns.position:
@@ -120,6 +129,35 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
         if v is not None:
             req[key] = v
     return req
+
+
+def goal_joints(robot: Mapping[str, Any], values: JointValues, *, group: str | None
+                ) -> dict[str, float]:
+    """``--goal``'s joints by name. Positional values must give every joint of the group
+    (a mimic's may be left out): fewer is a usage error, not a goal that silently keeps
+    the rest; by name, the joints not named keep their start value, which is said on
+    stderr (stdout may be the reply, ``--json -``).
+
+    Raises:
+        UsageError: fewer positional values than the group's joints, or what
+            :func:`joints_by_name` refuses.
+    """
+    name = group or robot["default_group"]
+    mimics = robot.get("mimic_joints", {})
+    moving = [j for j in joint_order(robot, group) if j not in mimics]
+    if not isinstance(values, dict) and len(values) < len(moving):
+        raise UsageError(
+            f"--goal gives {len(values)} value(s) for the {len(moving)} joints of group "
+            f"'{name}' ({', '.join(moving)}): give all {len(moving)}, or name=value for "
+            "the joints to move (the others then keep their start value)")
+    joints = joints_by_name(robot, values, group=group, flag="--goal")
+    led = {mimics[j]["leader"] for j in joints if j in mimics}  # the service's to refuse
+    kept = [j for j in moving if j not in joints and j not in led]
+    if kept:
+        one = len(kept) == 1
+        print(f"note: --goal moves {', '.join(joints)}; {', '.join(kept)} of group "
+              f"'{name}' keep{'s its' if one else ' their'} start value", file=sys.stderr)
+    return joints
 
 
 def cmd_plan(ns: argparse.Namespace) -> int:
@@ -159,7 +197,9 @@ def summary(res: PlanReply, limits: AppliedLimits) -> str:
     those came from, stage timings."""
     lines = [(f"trajectory: {len(res.times)} points, duration {res.duration:.3f} s, "
               f"{len(res.path)} waypoints, planner {res.planner}, request {res.request_id}")]
-    lines.append(f"{'joint':<10}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
+    # the name column as wide as the longest name (SO-101: 'shoulder_pan', 'wrist_roll')
+    w = max([10, *(len(j) + 2 for j in res.joint_names)])
+    lines.append(f"{'joint':<{w}}{'|v| peak':>10}{'limit':>8}{'|a| peak':>10}{'limit':>8}"
                  f"{'|j| peak':>10}{'limit':>9}{'|effort|':>10}{'limit':>8}")
     n = len(res.joint_names)
     peaks = {k: np.abs(getattr(res, k)).max(axis=0) if len(res.times) else np.zeros(n)
@@ -174,7 +214,7 @@ def summary(res: PlanReply, limits: AppliedLimits) -> str:
         v = applied[kind][i]
         return f"{v:{width}.2f}" if np.isfinite(v) else f"{'-':>{width}}"
     for i, j in enumerate(res.joint_names):
-        lines.append(f"{j:<10}{peaks['velocities'][i]:10.3f}{lim('velocity', i)}"
+        lines.append(f"{j:<{w}}{peaks['velocities'][i]:10.3f}{lim('velocity', i)}"
                      f"{peaks['accelerations'][i]:10.3f}{lim('acceleration', i)}"
                      f"{peaks['jerk'][i]:10.2f}{lim('jerk', i, 9)}"
                      f"{peaks['efforts'][i]:10.3f}{lim('effort', i)}")

@@ -9,9 +9,18 @@ import json
 from pathlib import Path
 from typing import Any
 
-from arduinobot.cli.argtypes import UsageError, joint_values, json_object, numbers, obstacle
+from arduinobot.cli.argtypes import (
+    FileProblem,
+    UsageError,
+    file_problem,
+    joint_values,
+    json_object,
+    numbers,
+    obstacle,
+)
 from arduinobot.cli.commands import scene_see
 from arduinobot.cli.common import EXIT_OK, add_connection_args, client, joints_by_name, wrote
+from arduinobot.scene.mesh_codec import stl_problem
 from arduinobot.scene.shapes import shape_class
 
 _POSE_HELP = ("X,Y,Z or X,Y,Z,ROLL,PITCH,YAW in the world frame (or --frame's) [m, rad] "
@@ -222,7 +231,10 @@ def mesh_object(oid: str, path: str, pose: list[float], scale: float | list[floa
     try:
         data = Path(path).read_bytes()
     except OSError as e:
-        raise UsageError(f"cannot read {path}: {e.strerror}") from None
+        raise file_problem(path, e) from None
+    problem = stl_problem(data) if fmt == "stl" else None
+    if problem is not None:  # here, naming the file: the service can only name the field
+        raise FileProblem(f"{path}: {problem}")
     o: dict[str, Any] = {"id": oid, "shape": "mesh",
                          "mesh": {"format": fmt, "data": base64.b64encode(data).decode()},
                          "xyz": pose[:3]}
@@ -280,11 +292,15 @@ def cmd_scene(ns: argparse.Namespace) -> int:
     if ns.local:
         raise UsageError("the scene is the service's; `plan --local --scene FILE.json` "
                          "plans against a saved one")
+    # the files the command names are read before the service is reached: a missing one
+    # is said as such, whether or not a service runs
+    body = scene_see.request_of(ns) if ns.action == "see" else None
+    change = None if ns.action in ("see", "show", "save") else change_of(ns)
     with client(ns) as c:
-        if ns.action == "see":
-            scene_see.run(ns, c)
+        if body is not None:
+            scene_see.run(ns, c, body)
             return EXIT_OK
-        if ns.action in ("show", "save"):
+        if change is None:  # show or save
             scene = c.request("scene")
             if ns.action == "save":
                 Path(ns.file).write_text(json.dumps(scene, indent=1) + "\n", "utf-8")
@@ -295,7 +311,6 @@ def cmd_scene(ns: argparse.Namespace) -> int:
             else:
                 _print(scene)
             return EXIT_OK
-        change = change_of(ns)
         if getattr(ns, "state", None):
             change["state"] = joints_by_name(c.request("description"), ns.state, group="all",
                                              flag="--state")

@@ -13,7 +13,7 @@ from typing import Any
 
 import yaml
 
-from arduinobot.cli.argtypes import UsageError
+from arduinobot.cli.argtypes import UsageError, file_problem
 from arduinobot.cli.common import joints_by_name
 
 _FORMATS = {".png": "png", ".jpg": "jpeg", ".jpeg": "jpeg"}
@@ -54,23 +54,21 @@ def request_of(ns: argparse.Namespace) -> dict[str, Any]:
         fmt = _FORMATS.get(path.suffix.lower())
         if fmt is None:
             raise UsageError(f"{ns.image}: give a .png, .jpg or .jpeg image")
-        if not path.is_file():
-            raise UsageError(f"{ns.image}: no such file")
-        body["image"] = {"format": fmt, "data": base64.b64encode(path.read_bytes()).decode()}
+        body["image"] = {"format": fmt, "data": base64.b64encode(_read(path)).decode()}
     if ns.remove_unseen:
         body["remove_unseen"] = True
     if ns.camera:
         body["camera"] = ns.camera
     if ns.intrinsics:
         from arduinobot.perception.intrinsics import from_camera_info
-        intr = from_camera_info(Path(ns.intrinsics).read_text("utf-8"))
+        intr = from_camera_info(_read(Path(ns.intrinsics)).decode("utf-8"))
         body["intrinsics"] = {"fx": intr.fx, "fy": intr.fy, "cx": intr.cx, "cy": intr.cy,
                               **({"width": intr.width, "height": intr.height}
                                  if intr.width else {}),
                               **({"distortion": list(intr.distortion)}
                                  if intr.distortion else {})}
     if ns.markers:
-        doc = yaml.safe_load(Path(ns.markers).read_text("utf-8"))
+        doc = yaml.safe_load(_read(Path(ns.markers)).decode("utf-8"))
         body["markers"] = doc["markers"] if isinstance(doc, dict) and "markers" in doc else doc
         objs = body["markers"].get("objects") if isinstance(body["markers"], dict) else None
         if isinstance(objs, dict):  # YAML's integer keys: JSON's are strings
@@ -78,9 +76,9 @@ def request_of(ns: argparse.Namespace) -> dict[str, Any]:
     return body
 
 
-def run(ns: argparse.Namespace, c: Any) -> dict[str, Any]:
-    """Send ``scene see``'s request through client ``c`` and print what was seen."""
-    body = request_of(ns)
+def run(ns: argparse.Namespace, c: Any, body: dict[str, Any]) -> dict[str, Any]:
+    """Send ``scene see``'s request ``body`` (:func:`request_of`) through client ``c`` and
+    print what was seen."""
     if ns.state:
         body["state"] = joints_by_name(c.request("description"), ns.state, group="all",
                                        flag="--state")
@@ -102,3 +100,11 @@ def run(ns: argparse.Namespace, c: Any) -> dict[str, Any]:
         gone = f", removed unseen {', '.join(reply['removed'])}" if reply.get("removed") else ""
         print(f"scene at revision {reply['revision']}{gone}")
     return reply
+
+
+def _read(path: Path) -> bytes:
+    """A file named on the command line, or a one-line refusal naming it."""
+    try:
+        return path.read_bytes()
+    except OSError as e:
+        raise file_problem(path, e) from None

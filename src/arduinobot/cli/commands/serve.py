@@ -107,7 +107,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
 
     from arduinobot.cli.commands.execute import robot_spec, ros2_settings
     from arduinobot.cli.ros2_options import ros2_inputs
-    from arduinobot.contract.zconfig import DEFAULT_ENDPOINT
+    from arduinobot.contract.zconfig import DEFAULT_ENDPOINT, zenoh_message
     from arduinobot.execution.robots.base import RobotError
     from arduinobot.service.execute.execution import execute_extension
     from arduinobot.service.peers import PeerInstances
@@ -159,7 +159,7 @@ def cmd_serve(ns: argparse.Namespace) -> int:
     try:
         svc.start()
     except failures as e:
-        print(f"arduinobot: serve: {type(e).__name__}: {e}", file=sys.stderr)
+        print(f"arduinobot: serve: {type(e).__name__}: {zenoh_message(e)}", file=sys.stderr)
         return EXIT_FAIL
     try:
         while not stop.wait(0.5):  # short waits keep the signal handler responsive

@@ -100,12 +100,13 @@ def cmd_fk(ns: argparse.Namespace) -> int:
     if ns.json:
         return EXIT_OK
     print(f"joints: {_values(res.joints)}")
+    w = max([20, *(len(n) + 1 for n in (*res.links, *res.carried))])  # long names
     for link, pose in res.links.items():
-        print(f"{link:<20} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad")
+        print(f"{link:<{w}} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad")
     if res.tcp is not None:
-        print(f"{'tcp':<20} xyz ({_xyz(res.tcp)}) m")
+        print(f"{'tcp':<{w}} xyz ({_xyz(res.tcp)}) m")
     for oid, pose in res.carried.items():  # the kept scene's carried objects
-        print(f"{oid:<20} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad  "
+        print(f"{oid:<{w}} xyz ({_xyz(pose.xyz)}) m  rpy ({_xyz(pose.rpy)}) rad  "
               f"{'fixed to' if pose.fixed else 'carried by'} {pose.link}")
     return EXIT_OK
 

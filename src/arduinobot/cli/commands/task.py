@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import yaml
 
-from arduinobot.cli.argtypes import UsageError
+from arduinobot.cli.argtypes import UsageError, file_problem
 from arduinobot.cli.commands.execute import add_driver_arg, add_driver_options, driver_options
 from arduinobot.cli.common import (
     EXIT_CANCELLED,
@@ -92,7 +92,7 @@ def _read_body(path: Path) -> Any:
         text = path.read_text(encoding="utf-8")
         return json.loads(text) if path.suffix.lower() == ".json" else yaml.safe_load(text)
     except (OSError, ValueError, yaml.YAMLError) as e:
-        raise UsageError(f"{path}: unreadable task file ({e})") from None
+        raise file_problem(path, e, "task file") from None
 
 
 def resolve_task(ns: argparse.Namespace, desc: Description) -> Task:
@@ -127,12 +127,13 @@ def _print_plan(body: dict[str, Any]) -> None:
     name = body.get("name") or "task"
     print(f"{name}: {len(body['steps'])} steps, {body['duration']:.3f} s, planned in "
           f"{1000 * body['planning_time']:.0f} ms")
+    w = max([16, *(len(s.get("label") or "") + 2 for s in body["steps"])])
     for s in body["steps"]:
         ok = "" if "certified" not in s else (
             "  certified, verified" if s["certified"] and s["verified"] else "  NOT VERIFIED")
         carried = f"  carrying {', '.join(s['carried'])}" if s["carried"] else ""
         label = f" {s['label']}" if s.get("label") else ""
-        print(f"  {s['index']:2d} {s['kind']:<8s}{label:<16s} at {s['start_time']:7.3f} s, "
+        print(f"  {s['index']:2d} {s['kind']:<8s}{label:<{w}s} at {s['start_time']:7.3f} s, "
               f"{s['duration']:6.3f} s{ok}{carried}")
 
 
@@ -144,9 +145,11 @@ def _list(ns: argparse.Namespace) -> int:
         print(f"no tasks.yaml for '{desc.robot.name}' (give --tasks FILE)")
         return EXIT_OK
     print(f"tasks of {tasks_file}:")
-    for t in read_tasks(tasks_file).values():
+    tasks = read_tasks(tasks_file).values()
+    w = max([16, *(len(t.name) + 1 for t in tasks)])
+    for t in tasks:
         num = f"{t.number:3d}" if t.number is not None else "  -"
-        print(f"  {num} {t.name:<16s} {t.description}")
+        print(f"  {num} {t.name:<{w}s} {t.description}")
     return EXIT_OK
 
 

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from arduinobot.cli.argtypes import UsageError, key_prefix
+from arduinobot.cli.argtypes import UsageError, file_problem, key_prefix
 from arduinobot.cli.common import EXIT_FAIL, EXIT_OK, add_model_args, load_from_args, wrote
 from arduinobot.client.errors import ServiceUnavailable
 from arduinobot.contract.errors import InvalidRequest
@@ -118,8 +118,8 @@ def read_obstacles(items: list[str], scene: str | None) -> tuple[Obstacle, ...]:
 def _scene_json(path: str) -> object:
     try:
         return json.loads(Path(path).read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise UsageError(f"--scene {path}: {e}") from None
+    except (OSError, ValueError) as e:
+        raise file_problem(path, e, "--scene") from None
 
 
 def is_kept_scene(data: object) -> bool:
@@ -158,7 +158,7 @@ def _read_task(path: str, d: Description) -> TaskPlayback:
     try:
         body = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError) as e:
-        raise UsageError(f"--task {path}: unreadable ({e})") from None
+        raise file_problem(path, e, "--task") from None
     return TaskPlayback.from_reply(body, Kinematics(d.robot))
 
 

@@ -21,7 +21,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, unknown_fields, unknown_names
 from arduinobot.planner.kinematics.rotations import quaternion_of_rpy, unit_quaternion
 
 Axis = Literal["x", "y", "z"]
@@ -196,6 +196,12 @@ def check_goal(goal: object) -> None:
         raise InvalidRequest(f"unknown goal type {type(goal).__name__}", field="goal")
 
 
+_FORMS = ("joints", "named", "position", "line")
+#: every key of a goal object (plan_request.json's goal), for a typo's "did you mean"
+_GOAL_KEYS = (*_FORMS, "tolerances", "tolerance", "orientation", "free_axes",
+              "orientation_tolerances")
+
+
 def goal_from_mapping(data: object, where: str = "goal") -> Goal:
     """A goal's JSON form (``src/arduinobot/contract/schema/plan_request.json``'s ``goal``, a
     task's move step): exactly one of ``joints``, ``named``, ``position`` (a pose with
@@ -203,9 +209,11 @@ def goal_from_mapping(data: object, where: str = "goal") -> Goal:
     if not isinstance(data, Mapping):
         raise InvalidRequest("must be a goal object (joints, named, position or line)",
                              field=where)
-    forms = [k for k in ("joints", "named", "position", "line") if k in data]
+    forms = [k for k in _FORMS if k in data]
     if len(forms) != 1:
-        raise InvalidRequest("give exactly one of joints, named, position, line", field=where)
+        guess = [k for k in data if isinstance(k, str) and k not in _GOAL_KEYS]
+        raise InvalidRequest("give exactly one of joints, named, position, line" + (
+            f"; unknown {unknown_names(guess, _GOAL_KEYS)}" if guess else ""), field=where)
     if "joints" in data:
         if not isinstance(data["joints"], Mapping):
             raise InvalidRequest("must map joint names to values [rad]", field=f"{where}.joints")
@@ -238,6 +246,7 @@ def line_from_mapping(data: object, where: str) -> LineGoal:
         raise InvalidRequest("must be {position} or {offset, frame}", field=where)
     extra = sorted(set(data) - {"position", "offset", "frame"})
     if extra:
-        raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where)
+        raise InvalidRequest(unknown_fields(extra, {"position", "offset", "frame"}),
+                             field=where)
     return LineGoal(position=data.get("position"), offset=data.get("offset"),
                     frame=data.get("frame", "world"))

@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, unknown_fields, unknown_names
 from arduinobot.planner.planning.goals import (
     Goal,
     LineGoal,
@@ -179,17 +179,16 @@ def step_from_mapping(data: object, where: str) -> Step:
                              field=where)
     kinds = [k for k in STEP_KINDS if k in data]
     if len(kinds) != 1:
-        guesses = [f"'{k}' (did you mean '{m[0]}'?)" for k in data if isinstance(k, str)
-                   for m in [difflib.get_close_matches(k, STEP_KINDS, n=1, cutoff=0.6)]
-                   if k not in STEP_KINDS and m]
+        guesses = [k for k in data if isinstance(k, str) and k not in STEP_KINDS
+                   and difflib.get_close_matches(k, STEP_KINDS, n=1, cutoff=0.6)]
         raise InvalidRequest(f"give exactly one of {', '.join(STEP_KINDS)}"
-                             + (f"; unknown {', '.join(guesses)}" if guesses else ""),
-                             field=where)
+                             + (f"; unknown {unknown_names(guesses, STEP_KINDS)}"
+                                if guesses else ""), field=where)
     kind = kinds[0]
     extra = sorted(set(data) - {kind, "label"} - _KEYS[kind])
     if extra:
-        raise InvalidRequest(f"unknown field(s) {', '.join(extra)} for a {kind} step",
-                             field=where)
+        raise InvalidRequest(unknown_fields(extra, {kind, "label", *_KEYS[kind]},
+                                            of=f"a {kind} step"), field=where)
     label = data.get("label")
     if label is not None and not isinstance(label, str):
         raise InvalidRequest("must be a string", field=f"{where}.label")
@@ -254,7 +253,7 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
              "planning_time", "seed", "name", "description"}
     extra = sorted(set(data) - known)
     if extra:
-        raise InvalidRequest(f"unknown field(s) {', '.join(extra)}", field=where or "task")
+        raise InvalidRequest(unknown_fields(extra, known, of="a task"), field=where or "task")
     steps = data.get("steps")
     if not isinstance(steps, Sequence) or isinstance(steps, str) or not steps:
         raise InvalidRequest("must be a non-empty list of steps", field=f"{pre}steps")

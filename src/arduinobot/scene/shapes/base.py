@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeVar
 
 import numpy as np
 
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, unknown_names
 
 if TYPE_CHECKING:  # both only for the methods that build geometry, not to parse a shape
     import fcl
@@ -62,8 +62,9 @@ class Shape(ABC):
         errors name ``<where>.<field>``."""
         extra = sorted(set(data) - set(cls.field_names()))
         if extra:
-            raise InvalidRequest(f"unknown field(s) {', '.join(extra)} for a {cls.kind} "
-                                 f"(it takes {', '.join(cls.field_names())})", field=where)
+            raise InvalidRequest(f"unknown field(s) {unknown_names(extra, cls.field_names())} "
+                                 f"for a {cls.kind} (it takes {', '.join(cls.field_names())})",
+                                 field=where)
         return cls(**{k: cls._checked(k, data.get(k), f"{where}.{k}")
                       for k in cls.field_names()})
 

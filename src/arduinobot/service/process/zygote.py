@@ -74,6 +74,20 @@ def describe_status(status: int) -> str:
 
 
 # -- the zygote process ---------------------------------------------------------------
+#: the loggers that warn about the model (its loading, the limits derived from it)
+_MODEL_LOGGERS = ("arduinobot.description", "arduinobot.planner.kinematics.limits")
+
+
+def _said_by_the_server(record: logging.LogRecord) -> bool:
+    """The model's warnings at DEBUG here: the serving process loaded the same model and
+    logged each of them once (they were said again by the zygote, twice for the derived
+    limits, on every start)."""
+    if record.levelno == logging.WARNING and record.name.startswith(_MODEL_LOGGERS):
+        record.levelno, record.levelname = logging.DEBUG, "DEBUG"
+        return logging.getLogger().isEnabledFor(logging.DEBUG)
+    return True
+
+
 def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None:
     """The zygote process: build the handlers, then fork workers and report their exits
     until :class:`~arduinobot.service.messages.Stop` or EOF (the messages: :mod:`arduinobot.service.messages`)."""
@@ -82,6 +96,8 @@ def zygote_main(conn: Connection, spec: DescriptionSpec, log_level: int) -> None
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     logging.basicConfig(level=log_level,
                         format="%(asctime)s %(levelname)s %(name)s[%(process)d]: %(message)s")
+    for handler in logging.getLogger().handlers:
+        handler.addFilter(_said_by_the_server)
     from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     # as the command line sets it for -v / -vv (the serving process leaves it to us)
     set_ompl_log_level("debug" if log_level <= logging.DEBUG else
