@@ -5,6 +5,7 @@ One floor below the planner (it imports the contract and the description only).
 - ``shapes``: one frozen class per shape (box, sphere, cylinder, mesh), a registry by
   the JSON ``shape`` name; a new kind is one class here.
 - ``obstacles``: obstacles (a shape placed in the world) and attached objects.
+- ``ground``: the plane the base stands on, an obstacle by default.
 - ``frames``: attach and detach, once, for the kept scene and tasks, behind a small
   frames protocol (link poses, contacts), with the one contact rule.
 - ``state``: the kept scene's model: its state at a revision, apply, restore.

@@ -71,6 +71,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--profile", choices=("jerk_limited", "time_optimal"))
     p.add_argument("--sample-rate", type=float, metavar="HZ")
     p.add_argument("--seed", type=int)
+    p.add_argument("--no-ground", dest="ground", action="store_false", help="the plane the "
+                   "base stands on (z = 0 of the robot's root frame) is no obstacle")
     out = p.add_argument_group("output")
     out.add_argument("--json", metavar="OUT", help="write the whole response as JSON "
                      "('-' for stdout)")
@@ -114,6 +116,8 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
         req["start"] = joints_by_name(robot, ns.start, group="all", flag="--start")
     if ns.obstacle:
         req["obstacles"] = [*req.get("obstacles", []), *ns.obstacle]
+    if not ns.ground:
+        req["ground"] = False
     for key in ("group", "planner", "planning_time", "velocity_scaling",
                 "acceleration_scaling", "profile", "sample_rate", "seed"):
         v = getattr(ns, key)
