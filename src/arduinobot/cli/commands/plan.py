@@ -12,7 +12,14 @@ from typing import Any
 
 import numpy as np
 
-from arduinobot.cli.argtypes import UsageError, add_obstacle_arg, joint_values, json_object, numbers
+from arduinobot.cli.argtypes import (
+    UsageError,
+    add_ground_arg,
+    add_obstacle_arg,
+    joint_values,
+    json_object,
+    numbers,
+)
 from arduinobot.cli.commands.scene import add_scene_arg
 from arduinobot.cli.common import (
     EXIT_OK,
@@ -71,8 +78,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--profile", choices=("jerk_limited", "time_optimal"))
     p.add_argument("--sample-rate", type=float, metavar="HZ")
     p.add_argument("--seed", type=int)
-    p.add_argument("--no-ground", dest="ground", action="store_false", help="the plane the "
-                   "base stands on (z = 0 of the robot's root frame) is no obstacle")
+    add_ground_arg(p)
     out = p.add_argument_group("output")
     out.add_argument("--json", metavar="OUT", help="write the whole response as JSON "
                      "('-' for stdout)")

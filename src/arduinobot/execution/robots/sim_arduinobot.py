@@ -195,16 +195,21 @@ class SimArduinobot(Robot):
             m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
 
     def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = (),
-                  loose: Sequence[Any] = (), *, moving: bool = False) -> None:
+                  loose: Sequence[Any] = (), *, moving: bool = False,
+                  ground: bool | None = None) -> None:
         """Put ``obstacles`` in the world and weld ``attached`` to their links instead of
         what was there (the kept scene at a new revision, or a plan's own obstacles), the
         arm at rest where it is now; the servo gains and figures stay. ``moving``: the
         arm keeps its motion instead (positions, velocities, setpoint and clock: a blend
         changes the world between two ticks); ``loose`` objects start afresh either way.
+        ``ground``: a floor at z = 0 from now on, as the plan had its ground (None: as
+        before).
 
         Raises:
             SimulationError: MuJoCo refused the model.
         """
+        if ground is not None:
+            self._ground = ground
         q = np.asarray(self.state().positions[:len(self.joint_names)], float)
         d = self.data
         motion = (d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy(), float(d.time),
