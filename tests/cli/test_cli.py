@@ -232,3 +232,21 @@ def test_dev_help_lists_its_commands_and_nothing_else():
     assert r.returncode == 0
     assert r.stdout.splitlines()[-1].strip().startswith("./dev setup")
     assert "set -euo pipefail" not in r.stdout and "./dev test" in r.stdout
+
+
+def test_check_state_names_the_ground_and_no_ground_turns_it_off(capsys):
+    """The plane the base stands on is an obstacle (issue 38, item 5): a state whose claw
+    reaches under it collides with 'ground'; --no-ground (its help says when) checks
+    without it."""
+    q = "-0.4,-1.2,0.4,-0.2"  # the claw 10 cm clear of everything but the plane
+    assert main(["check-state", "--joints", q, "--local"]) == 1
+    out = capsys.readouterr().out
+    assert "IN COLLISION" in out and "claw_support / ground" in out, out
+    assert main(["check-state", "--joints", q, "--no-ground", "--local"]) == 0
+    assert "VALID" in capsys.readouterr().out
+    for cmd in ("plan", "check-state"):
+        with pytest.raises(SystemExit):
+            main([cmd, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "--no-ground" in text and "z = 0 of the model's root frame" in text
+        assert "an arm on a wall" in text, text

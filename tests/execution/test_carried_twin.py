@@ -145,7 +145,7 @@ def test_a_blend_gives_the_twin_its_world_at_the_switch_and_the_arm_moves_on(cas
     assert carried.index(True) == k and all(carried[k:])  # from the switch tick on
     m = sim.model
     assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "obstacle:post") >= 0
-    assert twin.held == (2, wire.encode([post]), False)
+    assert twin.held == (2, wire.encode([post]), False, True)  # no task's, the ground
     twin.give(sim, kept, [post])  # the next execution in the same world: not rebuilt
     assert sim.model is m
     # the arm moved on through the switch: its measured velocity changes no more in that

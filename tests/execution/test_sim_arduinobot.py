@@ -46,8 +46,10 @@ def test_the_model_is_the_description(desc):
         assert m.body_mass[bid] == pytest.approx(link.inertial.mass)
         assert sorted(m.body_inertia[bid]) == pytest.approx(
             sorted(np.linalg.eigvalsh(link.inertial.tensor())))
-    # every collision mesh, as convex pieces on its own link
-    assert int(np.sum(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)) == m.ngeom
+    # every collision mesh, as convex pieces on its own link; besides, the ground's plane
+    floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "obstacle:ground")
+    assert floor >= 0 and m.geom_type[floor] == mujoco.mjtGeom.mjGEOM_PLANE
+    assert int(np.sum(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)) == m.ngeom - 1
     for name, link in robot.links.items():
         if link.collisions:
             bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)

@@ -6,7 +6,9 @@ the vertical plane x = -0.02 (the upper arm's offset). :data:`SPLIT` is a thin w
 that plane with a window round the shoulder (|y| < 0.62 m, z < 1.12 m) too small for the
 0.8 m upper arm in any of its poses, and the base fits through it. Start and goal lean
 away from the wall (nothing touches it), yet every state with joint_1 = 0 collides: a
-real NO_PATH_FOUND, not a start or goal in collision.
+real NO_PATH_FOUND, not a start or goal in collision. Leaning away, the gripper reaches
+under the plane the base stands on: plan these with the ground off (``ground=False``,
+``"ground": false``; :mod:`arduinobot.scene.ground`), as a wall-mounted arm would.
 """
 
 from __future__ import annotations

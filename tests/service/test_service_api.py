@@ -114,7 +114,8 @@ def _box(id_="box", size=(1, 1, 1), xyz=(0, 0.5, 1.5)):
      "GOAL_IN_COLLISION", None),
     (b'{"goal": {"position": [0, 5, 0]}}', "GOAL_OUT_OF_REACH", None),
     (json.dumps({"goal": {"joints": SPLIT_GOAL}, "start": SPLIT_START,  # free, unreachable
-                 "obstacles": split_dicts(), "planning_time": 0.2, "seed": 1}).encode(),
+                 "obstacles": split_dicts(), "planning_time": 0.2, "seed": 1,
+                 "ground": False}).encode(),
      "NO_PATH_FOUND", None),
     (b'{"goal": {"named": "home"}, "planner": "' + b"x" * (300 * 1024) + b'"}',
      "INVALID_REQUEST", None),
@@ -148,7 +149,7 @@ def test_client_raises_one_class_per_code(client):
         client.plan(goal={"position": [0, 5, 0]})
     with pytest.raises(errors.NoPathFound) as e:
         client.plan(goal={"joints": SPLIT_GOAL}, start=SPLIT_START, obstacles=split_dicts(),
-                    planning_time=0.2, seed=1)
+                    planning_time=0.2, seed=1, ground=False)
     assert e.value.code == "NO_PATH_FOUND" and "found no path" in e.value.message
     with pytest.raises(errors.InvalidRequest):
         client.plan(goal={"named": "home"}, velocity_scaling=0)

@@ -231,5 +231,11 @@ def test_one_worker_answers_each_job_against_the_scene_of_its_arrival():
             assert not c.check_state({}).valid  # the held snapshot
             c.request("scene/apply", {"remove": ["ball"]})
             assert c.check_state({}).valid
+            # the claw under the plane the base stands on: the kept scene's world has the
+            # ground, and the client turns it off (issue 38, item 5)
+            under = {"joint_1": -0.4, "joint_2": -1.2, "joint_3": 0.4, "joint_4": -0.2}
+            hit = c.check_state(under)
+            assert any("ground" in p for p in hit.pairs) and not hit.valid, hit.pairs
+            assert c.check_state(under, ground=False).valid
     finally:
         assert srv.stop(signal.SIGINT) == 0

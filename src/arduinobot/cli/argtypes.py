@@ -195,6 +195,17 @@ def add_obstacle_arg(p: argparse.ArgumentParser) -> None:
                    help=f"{_OBSTACLE_FORMS}; repeatable")
 
 
+def add_ground_arg(p: argparse.ArgumentParser) -> None:
+    """--no-ground (``ns.ground`` False), as plan and check-state take it."""
+    p.add_argument("--no-ground", dest="ground", action="store_false",
+                   help="no ground: by default the plane the base stands on (z = 0 of the "
+                   "model's root frame) is an obstacle 'ground' that no moving link or "
+                   "carried object may touch (a goal or line under it is refused naming "
+                   "it), and the twin's floor. Use this for an arm on a wall, a post or "
+                   "the edge of a table that reaches below its base. An --obstacle with "
+                   "the id 'ground' replaces ours instead")
+
+
 def xacro_arg(text: str) -> tuple[str, str]:
     """``NAME=VALUE`` or ``NAME:=VALUE`` (``--arg``; the second is how ROS users type it)."""
     name, sep, value = text.partition("=")

@@ -25,8 +25,9 @@ def simulate_command(ns: argparse.Namespace, res: PlanReply, req: Mapping[str, A
         TrajectoryMismatch: the plan does not fit the model it is replayed on.
     """
     desc = load_from_args(ns) if ns.local else model_of_service(robot)
-    r = simulate(desc, SampledTrajectory.of(res), obstacles=req.get("obstacles", ()), cache=disk_cache(),
-                 progress=progress_printer())
+    r = simulate(desc, SampledTrajectory.of(res), obstacles=req.get("obstacles", ()),
+                 cache=disk_cache(), progress=progress_printer(),
+                 ground=bool(req.get("ground", True)))
     print(summary(r))
     if ns.plot:
         plot(r, ns.plot)

@@ -211,13 +211,16 @@ class PlannerClient:
 
     def check_state(self, joints: Mapping[str, float] | None = None, *,
                     obstacles: Sequence[Mapping[str, Any]] = (),
-                    padding: float = 0.0) -> CheckReply:
-        """Whether a state is collision-free among ``obstacles``, with clearance [m]."""
+                    padding: float = 0.0, ground: bool = True) -> CheckReply:
+        """Whether a state is collision-free among ``obstacles`` (and the ground, the
+        plane the base stands on, unless ``ground`` is false), with clearance [m]."""
         req: dict[str, Any] = {"joints": dict(joints or {})}
         if obstacles:
             req["obstacles"] = list(obstacles)
         if padding:
             req["padding"] = padding
+        if not ground:
+            req["ground"] = False
         return CheckReply.parse(self.request("check", req))
 
     # -- moving the service's robot (see arduinobot.client.stream) -----------------------

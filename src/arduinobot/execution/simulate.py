@@ -72,10 +72,11 @@ def simulate(description: Description, trajectory: SampledTrajectory, *,
              obstacles: Sequence[Mapping[str, Any]] = (), rate: float = 100.0,
              settle: float = 0.5, twin: SimArduinobot | None = None,
              cache: ArtifactCache | None = None,
-             progress: Progress | None = None) -> SimulationReport:
+             progress: Progress | None = None, ground: bool = True) -> SimulationReport:
     """Replay ``trajectory`` on a fresh twin (or ``twin``, a :class:`SimArduinobot` to
-    reuse: it is reset to the trajectory's start) and measure it; ``cache`` and
-    ``progress`` go to a fresh twin (see :class:`SimArduinobot`).
+    reuse: it is reset to the trajectory's start) and measure it; ``cache``,
+    ``progress`` and ``ground`` (its floor, as the plan had the ground) go to a fresh
+    twin (see :class:`SimArduinobot`).
 
     Raises:
         TrajectoryMismatch: the trajectory's joints or limits do not fit ``description``.
@@ -86,7 +87,7 @@ def simulate(description: Description, trajectory: SampledTrajectory, *,
     positions = trajectory.for_joints(names, np.zeros(len(names))).positions
     if twin is None:
         twin = SimArduinobot(description, obstacles=obstacles, initial=positions[0],
-                             cache=cache, progress=progress)
+                             cache=cache, progress=progress, ground=ground)
     else:
         twin.reset(positions[0])
     ex = Executor.for_description(twin, description, options=ExecuteOptions(

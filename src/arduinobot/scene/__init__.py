@@ -7,6 +7,7 @@ shape model; the scene knows the robot only through the frames protocol.
 - ``shapes/``: one frozen class per shape (box, sphere, cylinder, mesh), a registry by
   the JSON ``shape`` name; a new kind is one module there.
 - ``obstacles``: obstacles (a shape placed in the world) and attached objects.
+- ``ground``: the plane the base stands on, an obstacle by default.
 - ``frames``: attach and detach, once, for the kept scene and tasks, behind a small
   frames protocol (link poses, contacts), with the one contact rule.
 - ``state``: the kept scene's model: its state at a revision, apply, restore.

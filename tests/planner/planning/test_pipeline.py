@@ -116,7 +116,8 @@ def test_a_free_goal_behind_a_wall_is_no_path_found(mp, moving):
     # moving start too (the brake stays clear of the wall, the plan from rest does not)
     req = MotionRequest(goal=JointGoal(SPLIT_GOAL), start=SPLIT_START, obstacles=SPLIT,
                         planning_time=0.2, seed=1,
-                        start_velocity={"joint_2": 0.2} if moving else None)
+                        start_velocity={"joint_2": 0.2} if moving else None,
+                        ground=False)  # the start reaches under the base's plane
     with pytest.raises(NoPathFound):
         mp.solve(req)
 

@@ -15,6 +15,7 @@ import numpy as np
 from arduinobot.cli.argtypes import (
     JointValues,
     UsageError,
+    add_ground_arg,
     add_obstacle_arg,
     joint_values,
     json_object,
@@ -80,6 +81,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--profile", choices=("jerk_limited", "time_optimal"))
     p.add_argument("--sample-rate", type=float, metavar="HZ")
     p.add_argument("--seed", type=int)
+    add_ground_arg(p)
     out = p.add_argument_group("output")
     out.add_argument("--json", metavar="OUT", help="write the whole response as JSON "
                      "('-' for stdout)")
@@ -123,6 +125,8 @@ def build_request(ns: argparse.Namespace, robot: Mapping[str, Any]) -> dict[str,
         req["start"] = joints_by_name(robot, ns.start, group="all", flag="--start")
     if ns.obstacle:
         req["obstacles"] = [*req.get("obstacles", []), *ns.obstacle]
+    if not ns.ground:
+        req["ground"] = False
     for key in ("group", "planner", "planning_time", "velocity_scaling",
                 "acceleration_scaling", "profile", "sample_rate", "seed"):
         v = getattr(ns, key)

@@ -8,7 +8,7 @@ import json
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from arduinobot.cli.argtypes import add_obstacle_arg, joint_values, numbers
+from arduinobot.cli.argtypes import add_ground_arg, add_obstacle_arg, joint_values, numbers
 from arduinobot.cli.commands.scene import add_scene_arg
 from arduinobot.cli.common import (
     EXIT_FAIL,
@@ -57,6 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "box:table:1,1,0.1@0,1,0.5")
     p.add_argument("--joints", metavar="Q", type=joint_values, help=_JOINTS_HELP)
     add_obstacle_arg(p)
+    add_ground_arg(p)
     p.add_argument("--padding", type=float, metavar="M", help="safety margin [m]")
     _add_common(p, cmd_check_state)
     add_scene_arg(p)
@@ -125,6 +126,8 @@ def cmd_check_state(ns: argparse.Namespace) -> int:
         req["obstacles"] = ns.obstacle
     if ns.padding is not None:
         req["padding"] = ns.padding
+    if not ns.ground:
+        req["ground"] = False
     res = CheckReply.parse(_ask(ns, "check", req))
     if not ns.json:
         print(f"{'VALID (collision-free)' if res.valid else 'IN COLLISION'}: "

@@ -216,7 +216,8 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, resu
             from dataclasses import replace
             objects = tuple(replace(a, shape=seen.truth[a.id]) if a.id in seen.truth else a
                             for a in objects)
-        robot.set_scene(without(result.start_obstacles, objects), loose=objects)
+        robot.set_scene(without(result.start_obstacles, objects), loose=objects,
+                        ground=task.ground)
         on_tick = grasp_schedule(robot, result)
     ex = Executor.for_description(robot, desc, options=opts, on_tick=on_tick)
     ex.check_start(traj)

@@ -12,7 +12,9 @@ planner trusts never to touch), are excluded; every other pair is live, and so a
 obstacles (box, sphere, cylinder, or a mesh file as convex pieces, in the world frame) and
 carried objects: each a body welded inside its link's (``carried:<id>``, its mass and
 inertia as :meth:`arduinobot.scene.obstacles.AttachedObject.payload` gives them), its contacts with its
-link and touch links excluded, as the planner excludes them.
+link and touch links excluded, as the planner excludes them. The ground
+(:mod:`arduinobot.scene.ground`) is a plane at z = 0, ``obstacle:ground``, unless opted
+out: what is let go lands on it (the links welded to the world never collide with it).
 
 The physics is MuJoCo's semi-implicit Euler: unlike ``implicitfast``, the actuator force
 it reports is the force it applies (the implicit integrators fold part of the damping
@@ -36,6 +38,7 @@ import numpy as np
 
 from arduinobot.description.model import Joint, Robot, Shape, rpy_matrix
 from arduinobot.planner.cache import ArtifactCache, content_key
+from arduinobot.scene.ground import GROUND_ID
 from arduinobot.scene.obstacles import Obstacle
 
 #: told what is being built, for a user waiting on a first twin: ``progress(message)``
@@ -266,7 +269,8 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             excluded: Sequence[tuple[str, str]] = (),
             obstacles: Sequence[Mapping[str, Any] | Obstacle] = (),
             attached: Sequence[Any] = (), loose: Sequence[Any] = (),
-            cache: ArtifactCache | None = None, progress: Progress | None = None) -> str:
+            cache: ArtifactCache | None = None, progress: Progress | None = None,
+            ground: bool = True) -> str:
     """The MJCF text of ``robot`` (see the module doc).
 
     Args:
@@ -279,6 +283,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
             with an inactive weld ``grasp:<id>`` to its link for the twin to switch on
             while it is carried; what holds it never collides with it (as in the planner).
         cache, progress: the meshes' convex pieces (:func:`mesh_parts`).
+        ground: a floor at z = 0 (the planner's ground), unless ``obstacles`` has one.
     """
     assets: list[str] = []
     held: dict[str, list[Any]] = {}
@@ -328,6 +333,11 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     act = [f"    {e}" for e in _actuators(robot, gains)]
     world = obstacle_geoms(obstacles, assets=assets, cache=cache,
                            progress=progress)
+    if ground and not any(obstacle_form(o).id == GROUND_ID for o in obstacles):
+        # an infinite plane (size 0 0: unbounded): the planner's box is 20 m wide only
+        # because FCL wants a finite shape
+        world.insert(0, f'<geom name="obstacle:{GROUND_ID}" type="plane" size="0 0 1" '
+                     'pos="0 0 0" contype="1" conaffinity="1" rgba="0.5 0.5 0.5 0.3"/>')
     free = [line for a in loose for line in loose_body(a, assets, cache, progress)]
     parts = [f'<mujoco model="{_esc(robot.name)}">',
              '  <compiler angle="radian" inertiafromgeom="false" balanceinertia="false" '

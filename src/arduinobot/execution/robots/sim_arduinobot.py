@@ -127,12 +127,13 @@ class SimArduinobot(Robot):
                  attached: Sequence[Any] = (), loose: Sequence[Any] = (),
                  controllers: Path | None = None, initial: Sequence[float] | None = None,
                  bandwidth: float = DEFAULT_BANDWIDTH, cache: ArtifactCache | None = None,
-                 progress: Progress | None = None) -> None:
+                 progress: Progress | None = None, ground: bool = True) -> None:
         import mujoco  # optional dependency (the `sim` extra)
 
         self._mj = mujoco
         self._description = description
         self._cache, self._progress = cache, progress
+        self._ground = ground  # a floor at z = 0 (arduinobot.scene.ground), kept on rebuilds
         robot = description.robot
         attached = _resolved(description, attached)
         loose = _resolved(description, loose)
@@ -149,7 +150,8 @@ class SimArduinobot(Robot):
             else check_setpoint(initial, self.joint_names, "initial positions")
         for _ in range(2):
             self.xml = to_mjcf(robot, gains=placeholder, excluded=excluded, obstacles=obstacles,
-                               attached=attached, loose=loose, cache=cache, progress=progress)
+                               attached=attached, loose=loose, cache=cache, progress=progress,
+                               ground=ground)
             self._build(robot.name)
             self._set_positions(q0)
             # MuJoCo collides meshes as convex hulls: hulls of concave links (fingers, an
@@ -194,16 +196,21 @@ class SimArduinobot(Robot):
             m.actuator_biasprm[a, :3] = (0.0, -g.kp, -g.kv)
 
     def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = (),
-                  loose: Sequence[Any] = (), *, moving: bool = False) -> None:
+                  loose: Sequence[Any] = (), *, moving: bool = False,
+                  ground: bool | None = None) -> None:
         """Put ``obstacles`` in the world and weld ``attached`` to their links instead of
         what was there (the kept scene at a new revision, or a plan's own obstacles), the
         arm at rest where it is now; the servo gains and figures stay. ``moving``: the
         arm keeps its motion instead (positions, velocities, setpoint and clock: a blend
         changes the world between two ticks); ``loose`` objects start afresh either way.
+        ``ground``: a floor at z = 0 from now on, as the plan had its ground (None: as
+        before).
 
         Raises:
             SimulationError: MuJoCo refused the model.
         """
+        if ground is not None:
+            self._ground = ground
         q = np.asarray(self.state().positions[:len(self.joint_names)], float)
         d = self.data
         motion = (d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy(), float(d.time),
@@ -212,7 +219,8 @@ class SimArduinobot(Robot):
         gains = {n: g for n, g in zip(self.joint_names, self.gains)}
         self.xml = to_mjcf(robot, gains=gains, excluded=self._excluded, obstacles=obstacles,
                            attached=_resolved(self._description, attached),
-                           loose=_resolved(self._description, loose), cache=self._cache, progress=self._progress)
+                           loose=_resolved(self._description, loose), cache=self._cache,
+                           progress=self._progress, ground=self._ground)
         stats = (self._peak, self._peak_ff, self._saturated, self._contacts,
                  self._contact_steps, self._steps)
         self._build(robot.name)

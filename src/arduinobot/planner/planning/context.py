@@ -48,6 +48,7 @@ from arduinobot.planner.timing.profiles import TimingProfile, build_profiles
 from arduinobot.planner.timing.trajectory import CurveTiming, JointTrajectory
 from arduinobot.planner.timing.verify import VerificationReport, Verifier, derate
 from arduinobot.scene.cloud import CloudObstacle
+from arduinobot.scene.ground import GROUND_ID, with_ground
 from arduinobot.scene.obstacles import AttachedObject, Obstacle, resolve_attached
 
 log = logging.getLogger(__name__)
@@ -132,18 +133,23 @@ class PlanningContext:
     # -- caches -----------------------------------------------------------------------
     def world(self, obstacles: tuple[Obstacle, ...],
               attached: tuple[AttachedObject, ...] = (),
-              clouds: tuple[CloudObstacle, ...] = ()) -> CollisionWorld:
+              clouds: tuple[CloudObstacle, ...] = (), *,
+              ground: bool = True) -> CollisionWorld:
         """The collision world for ``obstacles``, the ``attached`` objects carried and
-        the ``clouds``' cells, built once per distinct set of the three."""
-        return self.scene(obstacles, attached, clouds)[0]
+        the ``clouds``' cells (and the ground unless ``ground`` is false), built once per
+        distinct set of the four."""
+        return self.scene(obstacles, attached, clouds, ground=ground)[0]
 
     def scene(self, obstacles: tuple[Obstacle, ...],
               attached: tuple[AttachedObject, ...] = (),
-              clouds: tuple[CloudObstacle, ...] = ()
+              clouds: tuple[CloudObstacle, ...] = (), *, ground: bool = True
               ) -> tuple[CollisionWorld, PathPlanner]:
         """The collision world for ``obstacles``, the ``attached`` objects carried and
         the ``clouds``' cells, and the path planner in it, built once per distinct set of
-        the three (a cloud by its cells' content)."""
+        the three (a cloud by its cells' content). ``ground``: the plane the base stands
+        on (:mod:`arduinobot.scene.ground`) is an obstacle too, unless ``obstacles`` has
+        one of its id already (a user's own ground replaces ours)."""
+        obstacles = with_ground(obstacles, ground)
         key = (_obstacle_key(obstacles), _attached_key(attached),
                tuple((c.id, c.key()) for c in clouds))
         found = self._worlds.pop(key, None)
@@ -188,6 +194,11 @@ class PlanningContext:
                                            margin=self.padding + 1e-3)
                 world = world.with_scene((), acm=world.acm.with_pairs(
                     never, reason="Never-proven"))
+            # the base stands on the ground: links that never move may touch it (a
+            # static pair in contact would make every state collide)
+            on_ground = [(GROUND_ID, n) for n, still in
+                         zip(world.bodies.names, world.bodies.statics) if still]
+            world = world.with_scene((), acm=world.acm.with_pairs(on_ground, reason="Ground"))
             self._robot_world = world
         return self._robot_world
 

@@ -63,6 +63,8 @@ class MotionRequest:
     # a moving start [rad/s], [rad/s^2] by joint: see arduinobot.planner.planning.moving_start
     start_velocity: Mapping[str, float] | None = None
     start_acceleration: Mapping[str, float] | None = None
+    # the plane the base stands on is an obstacle (arduinobot.scene.ground) unless False
+    ground: bool = True
 
     def __post_init__(self) -> None:
         check_goal(self.goal)

@@ -109,7 +109,9 @@ def _effort_safe_brake(context: PlanningContext, q0: np.ndarray, v0: np.ndarray,
     """The brake with the largest acceleration and jerk scale (never below the
     acceleration the arm already has) whose torques fit the effort limits
     (:func:`arduinobot.planner.timing.braking.effort_safe`), with what the arm carries."""
-    dynamics = context.payload(context.world(request.obstacles, request.attached, request.clouds).attached)[0]
+    world = context.world(request.obstacles, request.attached, request.clouds,
+                          ground=request.ground)
+    dynamics = context.payload(world.attached)[0]
     tr, ratio = effort_safe(
         lambda f: brake_to_rest(q0, v0, a0, velocity=lim.velocity,
                                 acceleration=np.maximum(f * lim.acceleration, np.abs(a0)),
@@ -169,7 +171,8 @@ def _blend(context: PlanningContext, request: MotionRequest, brake: _Brake,
     """The brake and ``plan`` (from rest at ``brake.rest``) superposed at the earliest
     shift of :data:`SHIFTS` whose trajectory passes the verifier."""
     new = plan.trajectory.timing
-    world = context.world(request.obstacles, request.attached, request.clouds)
+    world = context.world(request.obstacles, request.attached, request.clouds,
+                          ground=request.ground)
     dynamics, profiles = context.payload(world.attached)  # with what it carries
     verifier = Verifier(brake.limits, dynamics, world,
                         clearance_states=context.clearance_states)

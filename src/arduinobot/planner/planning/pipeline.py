@@ -138,10 +138,12 @@ class MotionPlanner:
 
     def world(self, obstacles: tuple[Obstacle, ...],
               attached: tuple[AttachedObject, ...] = (),
-              clouds: tuple[CloudObstacle, ...] = ()) -> CollisionWorld:
-        """The collision world for ``obstacles`` (with the ``attached`` objects carried
-        and the ``clouds``' cells), built once per distinct set."""
-        return self.context.world(obstacles, attached, clouds)
+              clouds: tuple[CloudObstacle, ...] = (), *,
+              ground: bool = True) -> CollisionWorld:
+        """The collision world for ``obstacles`` (with the ``attached`` objects carried,
+        the ``clouds``' cells and the ground unless ``ground`` is false), built once per
+        distinct set."""
+        return self.context.world(obstacles, attached, clouds, ground=ground)
 
     def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits:
         """The joint limits scaled by the two factors, built once per pair."""

@@ -130,7 +130,7 @@ def _request(task: Task, options: MotionOptions, goal: Goal, group: str | None,
              attached: list[AttachedObject], index: int) -> MotionRequest:
     return MotionRequest(
         goal=goal, start=dict(start), group=group, obstacles=tuple(obstacles),
-        attached=tuple(attached), clouds=task.clouds,
+        attached=tuple(attached), clouds=task.clouds, ground=task.ground,
         planning_time=options.planning_time or task.planning_time,
         velocity_scaling=options.velocity_scaling or task.velocity_scaling,
         acceleration_scaling=options.acceleration_scaling or task.acceleration_scaling,

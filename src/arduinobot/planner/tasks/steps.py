@@ -1,8 +1,9 @@
 """What a task is: a start state, obstacles and an ordered list of steps.
 
 A task's JSON form (the service's ``<prefix>/task`` request, a ``tasks.yaml`` entry) is
-``{"start": {joint: rad}, "obstacles": [...], "steps": [...]}`` with one key naming each
-step's kind::
+``{"start": {joint: rad}, "obstacles": [...], "steps": [...]}`` (and ``"ground": false``
+for an arm whose base plane is no obstacle, :mod:`arduinobot.scene.ground`) with one key
+naming each step's kind::
 
     {"move": GOAL}                 any plan goal (joints, named, position, line), "group"
     {"line": {"offset": [dx, dy, dz], "frame": "world" | "tcp"}}   a straight tcp move
@@ -136,6 +137,9 @@ class Task:
     planning_time: float = 1.0
     seed: int | None = None
     name: str | None = None
+    #: the plane the base stands on is an obstacle of every motion step
+    #: (:mod:`arduinobot.scene.ground`) unless False
+    ground: bool = True
 
     def __post_init__(self) -> None:
         if not self.steps:
@@ -250,7 +254,7 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
     if not isinstance(data, Mapping):
         raise InvalidRequest("must be an object with steps", field=where or "task")
     known = {"steps", "start", "obstacles", "velocity_scaling", "acceleration_scaling",
-             "planning_time", "seed", "name", "description"}
+             "planning_time", "seed", "name", "description", "ground"}
     extra = sorted(set(data) - known)
     if extra:
         raise InvalidRequest(unknown_fields(extra, known, of="a task"), field=where or "task")
@@ -265,6 +269,10 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
         raise InvalidRequest("must be a list of obstacles", field=f"{pre}obstacles")
     seed = data.get("seed")
     check_seed(seed, f"{pre}seed")
+    ground = data.get("ground", True)
+    if not isinstance(ground, bool):
+        raise InvalidRequest(f"{ground!r} must be true or false (false: the plane the base "
+                             "stands on is no obstacle)", field=f"{pre}ground")
     vs, acc = data.get("velocity_scaling"), data.get("acceleration_scaling")
     return Task(
         steps=tuple(step_from_mapping(s, f"{pre}steps[{i}]") for i, s in enumerate(steps)),
@@ -279,4 +287,4 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
             acc, f"{pre}acceleration_scaling", low=0.01, high=1.0),
         planning_time=_number(data.get("planning_time", 1.0), f"{pre}planning_time",
                               low=1e-3, high=60.0),
-        seed=seed, name=name if name is not None else data.get("name"))
+        seed=seed, name=name if name is not None else data.get("name"), ground=ground)

@@ -229,7 +229,9 @@ class ExecuteService:
             self._current = execution
             self.cancel.clear()
             run = Run(self, query, execution, req)
-            self._scene_to_twin(robot, (req.plan or {}).get("obstacles") or (), req.twin)
+            plan_req = req.plan or {}
+            self._scene_to_twin(robot, plan_req.get("obstacles") or (), req.twin,
+                                ground=bool(plan_req.get("ground", True)))
             if req.trajectory is not None:
                 run.start_with(SampledTrajectory.from_json(req.trajectory))
                 return
@@ -242,11 +244,12 @@ class ExecuteService:
             raise
 
     def _scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
-                       twin: Mapping[str, Any] | None = None) -> None:
-        """Give a twin the kept scene now with the plan's ``own`` obstacles, or a task's
-        ``twin`` objects (:meth:`TwinScene.give`)."""
+                       twin: Mapping[str, Any] | None = None, *, ground: bool = True
+                       ) -> None:
+        """Give a twin the kept scene now with the plan's ``own`` obstacles and its
+        ``ground``, or a task's ``twin`` objects (:meth:`TwinScene.give`)."""
         snap = self.scene_source() if self.scene_source is not None else None
-        self.twin_scene.give(robot, snap, own, twin)
+        self.twin_scene.give(robot, snap, own, twin, ground=ground)
 
     def _plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
         """Hand the plan ``request`` to the pool (checked first); ``respond`` gets its outcome."""
@@ -269,6 +272,7 @@ class ExecuteService:
         # the world the blend is planned in, for the twin at the switch tick
         snap = self.scene_source() if self.scene_source is not None else None
         own = req.plan.get("obstacles") or ()
+        ground = bool(req.plan.get("ground", True))  # the twin's floor, as the plan's
         plan = {**req.plan, "start": dict(zip(names, q.tolist())),
                 "start_velocity": dict(zip(names, qd.tolist())),
                 "start_acceleration": dict(zip(names, qdd.tolist()))}
@@ -281,8 +285,8 @@ class ExecuteService:
                     reply_failure(query, outcome)
                 else:
                     traj = SampledTrajectory.from_json(orjson.loads(outcome.body))
-                    ex.switch(traj, k, on_switch=self.twin_scene.at_switch(ex.robot, snap,
-                                                                            own))
+                    ex.switch(traj, k, on_switch=self.twin_scene.at_switch(
+                        ex.robot, snap, own, ground=ground))
                     query.reply(key, wire.encode({"event": "blended", "execution": execution,
                                                   "tick": k, "duration": traj.duration}),
                                 encoding=wire.JSON)

@@ -26,6 +26,7 @@ from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik import position_ik
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.tcp_goals import tcp_joints
+from arduinobot.scene.ground import with_ground
 from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.plan.requests import obstacles
 
@@ -140,9 +141,10 @@ class Handlers:
         carried = attached(self.description, data.get("attached"), scene=scene,
                            obstacles=obs)
         clouds = scene.clouds if scene is not None else ()
-        world = self._scene(obs, float(data.get("padding", 0.0)), clouds)
+        world = self._scene(obs, float(data.get("padding", 0.0)), clouds,
+                            ground=bool(data.get("ground", True)))
         if carried:  # the scene's and the request's carried objects, contacts and poses
-            world = world.with_scene(obs, attached=carried)
+            world = world.with_scene(world.obstacles, attached=carried)  # the ground's too
         res = world.check(q, clearance=True)
         clearance = res.clearance if res.clearance is not None and math.isfinite(
             res.clearance) else None
@@ -170,15 +172,15 @@ class Handlers:
         return out
 
     def _scene(self, obs: tuple[Any, ...], padding: float,
-               clouds: tuple[Any, ...] = ()) -> CollisionWorld:
+               clouds: tuple[Any, ...] = (), *, ground: bool = True) -> CollisionWorld:
         if padding == 0.0:
-            return self._motion_planner().world(obs, (), clouds)
-        return self._padded_scene(obs, padding, clouds)
+            return self._motion_planner().world(obs, (), clouds, ground=ground)
+        return self._padded_scene(obs, padding, clouds, ground)
 
     def _padded(self, obs: tuple[Any, ...], padding: float,
-                clouds: tuple[Any, ...] = ()) -> CollisionWorld:
-        return self._motion_planner().world(()).with_scene(obs, padding=padding,
-                                                           clouds=clouds)
+                clouds: tuple[Any, ...] = (), ground: bool = True) -> CollisionWorld:
+        return self._motion_planner().world(()).with_scene(
+            with_ground(obs, ground), padding=padding, clouds=clouds)
 
     def plan(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
              ) -> dict[str, Any]:

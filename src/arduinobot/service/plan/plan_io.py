@@ -32,7 +32,7 @@ TrajectoryFormat = Literal["points", "packed"]
 _OPTIONS: dict[str, Callable[[Any], Any]] = {
     "group": str, "planner": str, "planning_time": float, "velocity_scaling": float,
     "acceleration_scaling": float, "profile": str, "sample_rate": float, "seed": int,
-    "start_velocity": dict, "start_acceleration": dict}
+    "start_velocity": dict, "start_acceleration": dict, "ground": bool}
 
 
 def goal(description: Description, data: Mapping[str, Any]) -> Goal:

@@ -92,7 +92,8 @@ def twin_body(task: Task, result: TaskResult) -> dict[str, Any]:
             "objects": [{"object": obstacle_json(a.shape), "link": a.link,
                          "touch_links": list(a.touch_links), "mass": a.mass}
                         for a in objects],
-            "grasps": [{"time": t, "object": o, "hold": h} for t, o, h in task_grasps(result)]}
+            "grasps": [{"time": t, "object": o, "hold": h} for t, o, h in task_grasps(result)],
+            **({} if task.ground else {"ground": False})}
 
 
 class TaskService:

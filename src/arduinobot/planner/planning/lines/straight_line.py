@@ -128,7 +128,8 @@ class StraightLine:
         t0 = time.perf_counter()
         d = context.description
         start = context.validate(request)
-        world, paths = context.scene(request.obstacles, request.attached, request.clouds)
+        world, paths = context.scene(request.obstacles, request.attached, request.clouds,
+                                     ground=request.ground)
         chk = world.check(start)
         if not chk.valid:
             raise StartInCollision("the start state collides", pairs=chk.pairs,
