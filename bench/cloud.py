@@ -171,12 +171,14 @@ def run_mplib_cloud(pts: np.ndarray, args: argparse.Namespace) -> dict[str, obje
            "mplib_update_ms": statistics.median(out["update_s"]) * 1e3,
            "mplib_start_valid": out["start_valid"],
            "mplib_solved": f"{len(ok)}/{len(out['status'])}",
+           "mplib_statuses": sorted(set(out["status"])),
            "mplib_plan_ms": statistics.median(ok) * 1e3 if ok else None}
     plan = f"{fig['mplib_plan_ms']:.1f} ms" if ok else "none solved"
     print(f"MPlib 0.2.1: update_point_cloud of {len(finite)} points "
           f"{fig['mplib_update_ms']:.0f} ms (median of {args.repeats}); start "
           f"{'free' if out['start_valid'] else 'IN COLLISION'}; plans {fig['mplib_solved']} "
-          f"solved, {plan} median (RRTConnect only: no timing, no proof)")
+          f"solved ({', '.join(fig['mplib_statuses'])}), {plan} median (RRTConnect "
+          "only: no timing, no proof)")
     return fig
 
 

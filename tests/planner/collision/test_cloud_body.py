@@ -10,6 +10,7 @@ import pytest
 
 from arduinobot.description import load_description
 from arduinobot.planner.collision.cloud_body import (
+    TREE_LEAF_CELLS,
     cell_boxes,
     cell_tree,
     exposed_faces,
@@ -84,12 +85,17 @@ def test_the_cells_joined_into_boxes_are_exactly_their_union(blob):
             if i in (0, 4) or j in (0, 4)]
     lo, size = cell_boxes(Cells(np.array(sorted(ring)), 0.01))
     assert len(lo) <= 4 and size.prod(axis=1).sum() == len(ring)
+    # at most `longest` cells along any axis, still exactly the union
+    lo, size = cell_boxes(Cells(np.array(sorted(ring)), 0.01), longest=3)
+    assert size.max() <= 3 and size.prod(axis=1).sum() == len(ring)
+    assert set(_cells_of_boxes(lo, lo + size)) == set(ring)
 
 
 def test_the_tree_leaves_are_the_joined_boxes(blob):
     t = cell_tree(blob)
     leaves = t.left < 0
-    corner, size = cell_boxes(blob)
+    corner, size = cell_boxes(blob, longest=TREE_LEAF_CELLS)
+    assert size.max() <= TREE_LEAF_CELLS
     assert leaves.sum() == len(corner) and len(t.center) == 2 * len(corner) - 1
     lo = np.round((t.center[leaves] - t.half[leaves]) / blob.resolution).astype(int)
     hi = np.round((t.center[leaves] + t.half[leaves]) / blob.resolution).astype(int)

@@ -46,6 +46,10 @@ _FACES = np.array([
     [[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
     [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
 ], float)
+# cells along each axis of a tree leaf at most: joined cells make fewer leaves (a faster
+# build), but long leaves (a pillar's side in one 3 m box) make loose nodes above them:
+# plans took 2.7x as long with unbounded ones (bench/cloud.py)
+TREE_LEAF_CELLS = 2
 # [m] grown into every cell box of the tree against rounding (as box_tree's)
 _SLACK = 1e-9
 
@@ -158,9 +162,11 @@ def _build(lo: np.ndarray, hi: np.ndarray, center: np.ndarray, half: np.ndarray,
     return count
 
 
-def _merged(lo: np.ndarray, size: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
-    # boxes (lower corners and sizes in cells, (n, 3) int) joined with their neighbours
-    # along ``axis`` where both have the same extent on the other two axes and touch
+def _merged(lo: np.ndarray, size: np.ndarray, axis: int, longest: int
+            ) -> tuple[np.ndarray, np.ndarray]:
+    # boxes (lower corners and sizes in cells, (n, 3) int; one cell along ``axis``)
+    # joined with their neighbours along ``axis`` where both have the same extent on the
+    # other two axes and touch, at most ``longest`` cells in one box
     a, b = (axis + 1) % 3, (axis + 2) % 3
     order = np.lexsort((lo[:, axis], size[:, b], size[:, a], lo[:, b], lo[:, a]))
     lo, size = lo[order], size[order]
@@ -168,28 +174,31 @@ def _merged(lo: np.ndarray, size: np.ndarray, axis: int) -> tuple[np.ndarray, np
     new[1:] = (lo[1:, a] != lo[:-1, a]) | (lo[1:, b] != lo[:-1, b]) | \
         (size[1:, a] != size[:-1, a]) | (size[1:, b] != size[:-1, b]) | \
         (lo[1:, axis] != lo[:-1, axis] + size[:-1, axis])
+    run = np.cumsum(new) - 1
+    rank = np.arange(len(lo)) - np.flatnonzero(new)[run]
+    new |= rank % longest == 0
     starts = np.flatnonzero(new)
     out_lo, out_size = lo[starts], size[starts].copy()
     out_size[:, axis] = np.add.reduceat(size[:, axis], starts)
     return out_lo, out_size
 
 
-def cell_boxes(cells: Cells) -> tuple[np.ndarray, np.ndarray]:
+def cell_boxes(cells: Cells, *, longest: int = 2**21) -> tuple[np.ndarray, np.ndarray]:
     """The cells joined into fewer boxes, exactly their union (each cell in one box):
-    runs along z, then along y of runs with the same section, then along x. Lower
-    corners and sizes in cells, shape (b, 3) int64 each (times ``cells.resolution``:
-    metres). A measured table's two ragged layers of 1 cm cells: ~1/3 the boxes; a
-    pillar's sides: ~1/100."""
+    runs along z, then along y of runs with the same section, then along x, each at
+    most ``longest`` cells. Lower corners and sizes in cells, shape (b, 3) int64 each
+    (times ``cells.resolution``: metres). A measured table's two ragged layers of 1 cm
+    cells: ~1/3 the boxes; a pillar's sides: ~1/100."""
     lo, size = cells.index, np.ones_like(cells.index)
     for axis in (2, 1, 0):
-        lo, size = _merged(lo, size, axis)
+        lo, size = _merged(lo, size, axis, longest)
     return lo, size
 
 
 def cell_tree(cells: Cells) -> ObbTree:
     """An OBB tree (world axes) whose leaves are the cells joined into boxes
     (:func:`cell_boxes`): the same union in fewer leaves, so built and walked faster."""
-    corner, size = cell_boxes(cells)
+    corner, size = cell_boxes(cells, longest=TREE_LEAF_CELLS)
     lo = np.ascontiguousarray(corner * cells.resolution, float)
     hi = lo + size * cells.resolution
     cap = 2 * len(lo)
