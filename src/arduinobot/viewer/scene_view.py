@@ -143,8 +143,8 @@ class ViewerScene:
     def changes(self, before: ViewerScene) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """What drawing this scene over ``before`` changes: (ids to draw anew: added or
         changed, ids to take away: removed or changed)."""
-        old = {i.id: i.key for i in (*before.items, *before.clouds)}
-        new = {i.id: i.key for i in (*self.items, *self.clouds)}
+        old = {i.id: i.key for i in before.items} | {c.id: c.key for c in before.clouds}
+        new = {i.id: i.key for i in self.items} | {c.id: c.key for c in self.clouds}
         fresh = tuple(i for i, k in new.items() if old.get(i) != k)
         gone = tuple(i for i, k in old.items() if new.get(i) != k)
         return fresh, gone
