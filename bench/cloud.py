@@ -5,22 +5,31 @@ In process, on the shipped arm: a table (2.4 m square, under the arm) and a pill
 its way, measured with 3 mm of noise and 1% NaN holes at 1 cm cells.
 
 - apply: decode (base64 xyz32 -> points), keep (pose, voxelise, self-filter at the
-  state), world (the cells' tree, faces and hull; a world with them): median of R
-  clouds, each new content (no geometry cache hit).
+  state), world (the cells joined into boxes and their tree, the boundary's tiles, the
+  hull; a world with them): median of R clouds, each new content (no geometry cache
+  hit). The tiles' FCL BVHs are built by the first queries near them: the first plan
+  and proof in each new cloud's world is timed apart (``first_plan_ms``), with the
+  tiles it built.
 - plans: the same seeded requests (a base swing around the pillar) in the cloud's world
-  and in the world of the table and pillar as two boxes: median plan and proof [ms].
+  and in the world of the table and pillar as two boxes, each run once untimed first
+  (the tiles they come near built): median plan and proof [ms].
+- MPlib 0.2.1 in the same run (its own venv, bench/_lib/mplib_cloud.py): its
+  ``update_point_cloud`` (an FCL OcTree) on the same finite points at the same
+  resolution, and its RRTConnect plans (no timing, no proof) for the same start and
+  goal. ``--no-mplib`` skips it.
 
-MPlib's ``update_point_cloud`` on the same points is not in this run yet (see
-bench/_lib/peer_mplib.py for how MPlib runs in its own venv).
-
-    ./dev bench cloud [--repeats 3] [--plans 10]
+    ./dev bench cloud [--repeats 3] [--plans 10] [--no-mplib]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
+import subprocess
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -33,7 +42,12 @@ from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathReque
 from arduinobot.scene.cloud import encode_points
 from arduinobot.scene.cloud_spec import CloudSpec
 from arduinobot.scene.obstacles import Obstacle
+from bench._lib.mplib_venv import mplib_python
+from bench._lib.peer_models import shipped_model
+from bench._lib.peer_mplib import move_group_link, mplib_start
 from bench._lib.report import emit
+
+MPLIB_CLOUD = Path(__file__).with_name("_lib") / "mplib_cloud.py"
 
 START = np.array([1.2, -0.6, -0.6, 0.0])
 GOAL = JointGoal({"joint_1": -1.2, "joint_2": -0.6, "joint_3": -0.6})
@@ -60,14 +74,17 @@ def main() -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--plans", type=int, default=10)
+    ap.add_argument("--no-mplib", action="store_true", help="skip MPlib's column")
     args = ap.parse_args()
     d = load_description()
     base = CollisionWorld(d)
     rng = np.random.default_rng(0)
-    decode, keep, build, cells = [], [], [], 0
+    decode, keep, build, first, cells, built = [], [], [], [], 0, []
     world = base
+    pts = measured(rng)
     for _ in range(args.repeats + 1):  # the first warms numba and the surface samples
-        wire = {"id": "camera", "shape": "points", "points": encode_points(measured(rng)),
+        pts = measured(rng)
+        wire = {"id": "camera", "shape": "points", "points": encode_points(pts),
                 "resolution": 0.01}
         t0 = time.perf_counter()
         spec = CloudSpec.from_mapping(wire, link_names=base.kin.link_names)
@@ -76,23 +93,35 @@ def main() -> None:
         t2 = time.perf_counter()
         world = base.with_scene(clouds=kept.bodies)
         t3 = time.perf_counter()
+        r = PathPlanner(world, d).solve(PathRequest(start=START, goal=GOAL, seed=0))
+        Certifier(world).path(r.path)
+        t4 = time.perf_counter()
         decode.append(t1 - t0)
         keep.append(t2 - t1)
         build.append(t3 - t2)
+        first.append(t4 - t3)
         cells = kept.counts.cells
-    decode, keep, build = decode[1:], keep[1:], build[1:]
+        tiles = next(iter(world._tiled.values()))
+        built.append((tiles.built, len(tiles)))
+    decode, keep, build, first = decode[1:], keep[1:], build[1:], first[1:]
     ms = 1e3
     print(f"apply of 300,000 points -> {cells} cells: decode {statistics.median(decode) * ms:.0f}"
           f" ms, keep {statistics.median(keep) * ms:.0f} ms, world "
-          f"{statistics.median(build) * ms:.0f} ms (median of {args.repeats})")
+          f"{statistics.median(build) * ms:.0f} ms (median of {args.repeats}); the first "
+          f"plan and proof {statistics.median(first) * ms:.0f} ms, building "
+          f"{built[-1][0]} of {built[-1][1]} tiles")
     boxes = base.with_scene([TABLE, PILLAR])
     figures = {"points": 300_000, "cells": cells,
                "decode_ms": statistics.median(decode) * ms,
                "keep_ms": statistics.median(keep) * ms,
-               "world_ms": statistics.median(build) * ms}
+               "world_ms": statistics.median(build) * ms,
+               "first_plan_ms": statistics.median(first) * ms,
+               "tiles": built[-1][1], "tiles_built": built[-1][0]}
+    figures["apply_ms"] = figures["decode_ms"] + figures["keep_ms"] + figures["world_ms"]
     for name, w in (("boxes", boxes), ("cloud", world)):
         pp, cert = PathPlanner(w, d), Certifier(w)
-        pp.solve(PathRequest(start=START, goal=GOAL, seed=0))  # warm
+        for seed in range(args.plans + 1):  # warm: the tiles these plans come near built
+            cert.path(pp.solve(PathRequest(start=START, goal=GOAL, seed=seed)).path)
         plan, proof = [], []
         for seed in range(1, args.plans + 1):
             t0 = time.perf_counter()
@@ -109,7 +138,48 @@ def main() -> None:
         print(f"{name}: plan {figures[f'{name}_plan_ms']:.1f} ms, proof "
               f"{figures[f'{name}_proof_ms']:.1f} ms (median of {args.plans})")
     figures["plan_ratio"] = figures["cloud_plan_ms"] / figures["boxes_plan_ms"]
+    if not args.no_mplib:
+        figures.update(run_mplib_cloud(pts, args))
     emit("cloud", figures)
+
+
+def run_mplib_cloud(pts: np.ndarray, args: argparse.Namespace) -> dict[str, object]:
+    """MPlib's ``update_point_cloud`` and plans on ``pts`` (the last cloud measured)."""
+    py = mplib_python()
+    with tempfile.TemporaryDirectory() as tmp:
+        model = shipped_model(Path(tmp))
+        names = tuple(model.description.robot.joints)
+        finite = pts[np.isfinite(pts).all(axis=1)]
+        np.save(Path(tmp) / "points.npy", finite)
+        joints = ("joint_1", "joint_2", "joint_3", "joint_4")
+        spec = {"urdf": str(model.urdf), "srdf": str(model.srdf),
+                "move_group": move_group_link(model, "arm"),
+                "points": str(Path(tmp) / "points.npy"), "resolution": 0.01,
+                "repeats": args.repeats, "plans": args.plans, "planning_time": 1.0,
+                "start": mplib_start(model, names, np.array(
+                    [dict(zip(joints, START)).get(n, 0.0) for n in names])),
+                "goal": {**dict(zip(joints, map(float, START))), **GOAL.values},
+                "output": str(Path(tmp) / "out.json")}
+        done = subprocess.run([str(py), str(MPLIB_CLOUD)], input=json.dumps(spec),
+                              text=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        if done.returncode:
+            raise RuntimeError(f"mplib_cloud failed ({done.returncode}):\n"
+                               f"{done.stderr[-3000:]}")
+        out = json.loads((Path(tmp) / "out.json").read_text())
+    ok = [t for t, st in zip(out["plan_s"], out["status"]) if st == "Exact solution"]
+    fig = {"mplib_points": len(finite),
+           "mplib_update_ms": statistics.median(out["update_s"]) * 1e3,
+           "mplib_start_valid": out["start_valid"],
+           "mplib_solved": f"{len(ok)}/{len(out['status'])}",
+           "mplib_statuses": sorted(set(out["status"])),
+           "mplib_plan_ms": statistics.median(ok) * 1e3 if ok else None}
+    plan = f"{fig['mplib_plan_ms']:.1f} ms" if ok else "none solved"
+    print(f"MPlib 0.2.1: update_point_cloud of {len(finite)} points "
+          f"{fig['mplib_update_ms']:.0f} ms (median of {args.repeats}); start "
+          f"{'free' if out['start_valid'] else 'IN COLLISION'}; plans {fig['mplib_solved']} "
+          f"solved ({', '.join(fig['mplib_statuses'])}), {plan} median (RRTConnect "
+          "only: no timing, no proof)")
+    return fig
 
 
 if __name__ == "__main__":

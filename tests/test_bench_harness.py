@@ -16,7 +16,7 @@ BENCH = REPO / "bench"
 ENTRY = sorted(f for f in BENCH.glob("*.py") if not f.name.startswith("_"))
 LIB = sorted((BENCH / "_lib").glob("*.py"))
 #: run by MPlib's own venv as a script (it cannot import the project: numpy 1.x)
-OTHER_VENV_SCRIPTS = {"mplib_runner.py"}
+OTHER_VENV_SCRIPTS = {"mplib_runner.py", "mplib_cloud.py"}
 
 
 def _tree(f: Path) -> ast.Module:

@@ -431,3 +431,64 @@ def test_view_png_shows_what_stands_on_a_table(tmp_path, capsys):
     assert seen_alone > 100  # the box as drawn with nothing under it
     # on the table, its top and two sides still show (its bottom face is the table's)
     assert _tan(on_table.read_bytes()) > 0.6 * seen_alone
+
+
+def _cloud_object(cid="camera", at=(0.55, -0.05, 0.25)):
+    # a measured 10 x 10 x 50 cm pillar centred at `at`, 4 cm cells: its points as xyz32
+    from arduinobot.scene.cloud import encode_points
+    rng = np.random.default_rng(8)
+    pts = np.asarray(at) + rng.uniform([-0.05, -0.05, -0.25], [0.05, 0.05, 0.25], (4000, 3))
+    return {"id": cid, "shape": "points", "resolution": 0.04, "points": encode_points(pts),
+            "state": {n: 0.0 for n in JOINTS}}
+
+
+def test_a_cloud_is_drawn_as_its_cells_coloured_by_height(desc, tmp_path):
+    from arduinobot.viewer.geometry import height_colors
+
+    s = ViewerScene.from_json(_scene(objects=(TABLE, _cloud_object()), attached=()), desc,
+                              mesh_dir=tmp_path)
+    [cloud] = s.clouds
+    assert cloud.id == "camera" and cloud.size == 0.04
+    [body] = s.cloud_bodies
+    np.testing.assert_allclose(cloud.points, body.cells.centers, atol=1e-6)
+    # every centre on the 4 cm grid, inside the measured pillar's extent
+    assert ((cloud.points >= [0.48, -0.12, -0.02]) & (cloud.points <= [0.62, 0.02, 0.52])).all()
+    z = cloud.points[:, 2]
+    low, high = cloud.colors[np.argmin(z)], cloud.colors[np.argmax(z)]
+    assert low[2] > low[0] and high[0] > high[2]  # blue at the bottom, red at the top
+    assert tuple(height_colors(np.array([1.0, 1.0]))[0]) == tuple(height_colors(np.zeros(1))[0])
+    assert "clouds: camera (" in s.summary()
+    again = ViewerScene.from_json(_scene(4, (TABLE, _cloud_object()), ()), desc,
+                                  mesh_dir=tmp_path)
+    assert again.changes(s) == ((), ())  # the same cells: nothing drawn anew
+    gone = ViewerScene.from_json(_scene(5, (TABLE,), ()), desc, mesh_dir=tmp_path)
+    assert gone.changes(s) == ((), ("camera",))
+
+
+def test_the_page_draws_a_cloud_and_checks_against_it(desc, tmp_path):
+    from arduinobot.viewer.app import RobotViewer
+
+    scene = ViewerScene.from_json(_scene(objects=(TABLE,), attached=()), desc,
+                                  mesh_dir=tmp_path)
+    page = RobotViewer(desc, scene=scene, port=free_port())
+    try:
+        # the pillar where the claw is at joint_1 = 0 (the tests' own FK walk)
+        reach = {"joint_1": 0.0, "joint_2": 0.9, "joint_3": 0.6, "joint_4": 0.0}
+        claw = _world(desc, "claw_support", reach)[:3, 3]
+        with_cloud = ViewerScene.from_json(_scene(4, (TABLE, _cloud_object(at=claw)), ()),
+                                           desc, mesh_dir=tmp_path)
+        assert page.set_scene(with_cloud) == (("camera",), ())
+        h = page._scene_handles["camera"]
+        np.testing.assert_allclose(h.points, with_cloud.clouds[0].points, atol=1e-6)
+        np.testing.assert_array_equal(h.colors, with_cloud.clouds[0].colors)
+        assert h.point_size == pytest.approx(0.04)
+        # the page's collision check has the cloud: swung into the pillar, the arm is red
+        hits = []
+        for a in (0.0, np.pi / 2):
+            page.set_joints({**reach, "joint_1": a})
+            hits.append(any("camera" in pair for pair in page.check.pairs))
+        assert hits == [True, False]
+        page.set_scene(ViewerScene.from_json(_scene(5, (TABLE,), ()), desc, mesh_dir=tmp_path))
+        assert set(page._scene_handles) == {"table"}
+    finally:
+        page.close()

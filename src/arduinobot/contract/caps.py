@@ -50,6 +50,11 @@ MAX_SAMPLES = 20_000
 MAX_CLOUD_POINTS = 2_000_000
 #: Largest decoded point cloud [bytes] (its base64 text is 4/3 of it).
 MAX_CLOUD_BYTES = 32 * 2**20
+#: Largest scene apply payload [bytes]: the biggest cloud a request may carry, in base64
+#: (4/3 of :data:`MAX_CLOUD_BYTES`: 44,739,244), plus 16 MiB for the rest (a few meshes of
+#: at most 2 MiB each, other objects): ~58.7 MiB. Below the cloud's own cap, an apply of
+#: the biggest allowed cloud would be refused by its size before the cloud's cap said why.
+MAX_APPLY_PAYLOAD = 4 * -(-MAX_CLOUD_BYTES // 3) + 16 * 2**20
 
 
 def check_structure(value: Any, *, counts: bool = True) -> None:

@@ -15,7 +15,7 @@ cells held (:class:`CloudCounts`), for the apply reply.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,9 +64,16 @@ def near_surface(cells: Cells, surface: np.ndarray, padding: float) -> np.ndarra
     if len(cells) == 0 or len(surface) == 0:
         return np.zeros(len(cells), bool)
     reach = padding + cells.resolution * math.sqrt(3) / 2
-    tree = cKDTree(surface)
-    d, _ = tree.query(cells.centers, k=1, distance_upper_bound=reach)
-    return np.asarray(d <= reach)
+    centers = cells.centers
+    # only the centres within reach of the surface's box can be within reach of it: a
+    # table of 100k cells under a small arm asks the tree about a few thousand
+    near = np.flatnonzero(((centers >= surface.min(axis=0) - reach)
+                           & (centers <= surface.max(axis=0) + reach)).all(axis=1))
+    out = np.zeros(len(cells), bool)
+    if len(near):
+        d, _ = cKDTree(surface).query(centers[near], k=1, distance_upper_bound=reach)
+        out[near] = d <= reach
+    return out
 
 
 def inside_objects(cells: Cells, objects: Sequence[Obstacle], padding: float = 0.0
@@ -92,14 +99,22 @@ def points_in(mask: np.ndarray, inverse: np.ndarray) -> int:
 def kept_cells(points: np.ndarray, resolution: float, *, dropped: int = 0,
                surface: np.ndarray | None = None, surface_spacing: float = 0.0,
                objects: Sequence[Obstacle] = (), padding: float = DEFAULT_PADDING,
-               field: str = "points") -> tuple[Cells, CloudCounts]:
+               field: str = "points",
+               near: Callable[[Cells, float], np.ndarray] | None = None
+               ) -> tuple[Cells, CloudCounts]:
     """The cells of world points ``points`` (shape (n, 3) [m], finite) less the robot's
     (within ``padding`` [m] of ``surface``, points no farther than ``surface_spacing``
     [m] from every point of the robot's surface) and the ``objects``' (grown by
-    ``padding``), and how many points each step took."""
+    ``padding``), and how many points each step took. ``near(cells, reach)``, if given,
+    finds the robot's cells instead of ``surface`` (the same cells as
+    :func:`near_surface` on it, found without the surface in the world's frame)."""
     cells, inverse = voxelise(points, resolution, field=field)
-    robot = near_surface(cells, surface, padding + surface_spacing) \
-        if surface is not None else np.zeros(len(cells), bool)
+    if near is not None:
+        robot = near(cells, padding + surface_spacing)
+    elif surface is not None:
+        robot = near_surface(cells, surface, padding + surface_spacing)
+    else:
+        robot = np.zeros(len(cells), bool)
     inside = inside_objects(cells, objects, padding) & ~robot
     kept = ~(robot | inside)
     counts = CloudCounts(points=len(points) + dropped, kept=points_in(kept, inverse),

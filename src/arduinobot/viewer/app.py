@@ -33,7 +33,7 @@ from arduinobot.viewer.geometry import (
     obstacle_mesh,
     world_bounds,
 )
-from arduinobot.viewer.scene_view import SceneItem, ViewerScene, world_points
+from arduinobot.viewer.scene_view import CloudItem, SceneItem, ViewerScene, world_points
 
 if TYPE_CHECKING:
     import viser  # optional (the view extra): imported at run time through require()
@@ -127,6 +127,15 @@ class RobotViewer:
         self._scene_items: dict[str, SceneItem] = {}
         for item in self.scene.items:
             self._draw_item(item, poses)
+        for cloud in self.scene.clouds:
+            self._draw_cloud(cloud)
+
+    def _draw_cloud(self, cloud: CloudItem) -> None:
+        """Add a kept cloud's cells to the page: a point per cell, a cell wide,
+        coloured by height."""
+        self._scene_handles[cloud.id] = self.server.scene.add_point_cloud(
+            f"/scene/{cloud.id}", cloud.points, cloud.colors, point_size=cloud.size,
+            point_shape="square", precision="float32")
 
     def _draw_item(self, item: SceneItem, poses: np.ndarray) -> None:
         """Add one kept-scene object to the page at its pose for link ``poses``."""
@@ -156,7 +165,8 @@ class RobotViewer:
         current: CollisionWorld | None = getattr(self, "world", None)  # None: the first
         bodies = current.bodies if current is not None else None
         return CollisionWorld(self.description, obstacles=self.obstacles + scene.obstacles,
-                              attached=scene.attached, bodies=bodies)
+                              attached=scene.attached, bodies=bodies,
+                              clouds=scene.cloud_bodies)
 
     def _build_joint_panel(self) -> dict[str, viser.GuiSliderHandle[float]]:
         gui = self.server.gui
@@ -239,8 +249,8 @@ class RobotViewer:
                     want = COLLISION_RGB if name in red else self._colors[name]
                     if force or tuple(h.color) != want:
                         h.color = want
-                for name, h in self._scene_handles.items():
-                    item = self._scene_items[name]
+                for name, item in self._scene_items.items():  # a cloud keeps its heights
+                    h = self._scene_handles[name]
                     want = COLLISION_RGB if name in red else \
                         CARRIED_RGB if item.carried else SCENE_RGB
                     if force or tuple(h.color) != want:
@@ -289,10 +299,14 @@ class RobotViewer:
             with self.server.atomic():
                 for oid in gone:
                     self._scene_handles.pop(oid).remove()
-                    del self._scene_items[oid]
+                    self._scene_items.pop(oid, None)  # a cloud is no item
                 items = {i.id: i for i in scene.items}
+                clouds = {c.id: c for c in scene.clouds}
                 for oid in fresh:
-                    self._draw_item(items[oid], self._poses)
+                    if oid in clouds:
+                        self._draw_cloud(clouds[oid])
+                    else:
+                        self._draw_item(items[oid], self._poses)
             self.scene, self.world = scene, world
             self.set_q(self._q, force=True)
             self._scene_md.content = scene.summary()

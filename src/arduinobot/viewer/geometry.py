@@ -137,3 +137,23 @@ def matrix_to_wxyz(rot: np.ndarray) -> tuple[float, float, float, float]:
     t[:3, :3] = rot
     q = trimesh.transformations.quaternion_from_matrix(t, isprecise=True)
     return float(q[0]), float(q[1]), float(q[2]), float(q[3])
+
+
+# blue (low) through teal and yellow to red (high): a height reads at a glance
+_HEIGHT_STOPS = np.array([[40, 60, 200], [30, 170, 170], [240, 210, 40], [210, 50, 40]],
+                         float)
+
+
+def height_colors(z: np.ndarray) -> np.ndarray:
+    """Colours for heights ``z`` (shape (n,) [m]): the lowest blue, the highest red,
+    shape (n, 3) uint8 (all one colour where every height is the same)."""
+    z = np.asarray(z, float)
+    if len(z) == 0:
+        return np.empty((0, 3), np.uint8)
+    span = float(z.max() - z.min())
+    t = (z - z.min()) / span if span > 0 else np.zeros(len(z))
+    x = t * (len(_HEIGHT_STOPS) - 1)
+    i = np.minimum(x.astype(int), len(_HEIGHT_STOPS) - 2)
+    f = (x - i)[:, None]
+    return np.round(_HEIGHT_STOPS[i] * (1 - f) + _HEIGHT_STOPS[i + 1] * f).astype(np.uint8)
+

@@ -19,8 +19,9 @@ import numpy as np
 import orjson
 
 from arduinobot.description import Description
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle
-from arduinobot.viewer.geometry import obstacle_mesh
+from arduinobot.viewer.geometry import height_colors, obstacle_mesh
 
 #: ``revision`` of a scene that is no kept scene (nothing read from a service or a file)
 NO_REVISION = -1
@@ -63,6 +64,31 @@ class SceneItem:
         return link_pose @ self.offset
 
 
+@dataclass(frozen=True, eq=False)
+class CloudItem:
+    """A kept cloud drawn: its kept cells' centres coloured by height.
+
+    Attributes:
+        id: the cloud body's id (``<id>.unknown`` for the shadow of unseen space).
+        points: the cells' centres in the world, shape (n, 3) [m], float32.
+        colors: shape (n, 3) uint8, by height (:func:`.geometry.height_colors`).
+        size: the cell edge [m] (each point drawn that wide).
+        key: a digest of its cells: equal keys draw the same thing.
+    """
+
+    id: str
+    points: np.ndarray
+    colors: np.ndarray
+    size: float
+    key: str
+
+    @classmethod
+    def of(cls, body: CloudObstacle) -> CloudItem:
+        centers = body.cells.centers
+        return cls(body.id, centers.astype(np.float32), height_colors(centers[:, 2]),
+                   body.cells.resolution, hashlib.sha256(repr(body.key()).encode()).hexdigest())
+
+
 @dataclass(frozen=True)
 class ViewerScene:
     """A kept scene ready to draw and to check against.
@@ -73,6 +99,8 @@ class ViewerScene:
         obstacles: the free objects, for the collision check.
         attached: the carried objects and those fixed to a link, for the collision check.
         source: where it came from (``<prefix>/scene``, a file name), for the page.
+        clouds: the point clouds' kept cells, drawn as points coloured by height.
+        cloud_bodies: the same cells, for the collision check.
     """
 
     revision: int = NO_REVISION
@@ -80,6 +108,8 @@ class ViewerScene:
     obstacles: tuple[Obstacle, ...] = ()
     attached: tuple[AttachedObject, ...] = ()
     source: str = ""
+    clouds: tuple[CloudItem, ...] = ()
+    cloud_bodies: tuple[CloudObstacle, ...] = ()
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any], description: Description, *,
@@ -105,14 +135,16 @@ class ViewerScene:
                  for o in state.objects]
         items += [_item(a.attached.shape, a.attached.link, a.data) for a in state.attached]
         # the snapshot's carried objects hold those fixed to a link too (massless)
+        bodies = state.snapshot.clouds
         return cls(state.revision, tuple(items), state.snapshot.obstacles,
-                   state.snapshot.attached, source)
+                   state.snapshot.attached, source, tuple(CloudItem.of(b) for b in bodies),
+                   bodies)
 
     def changes(self, before: ViewerScene) -> tuple[tuple[str, ...], tuple[str, ...]]:
         """What drawing this scene over ``before`` changes: (ids to draw anew: added or
         changed, ids to take away: removed or changed)."""
-        old = {i.id: i.key for i in before.items}
-        new = {i.id: i.key for i in self.items}
+        old = {i.id: i.key for i in before.items} | {c.id: c.key for c in before.clouds}
+        new = {i.id: i.key for i in self.items} | {c.id: c.key for c in self.clouds}
         fresh = tuple(i for i, k in new.items() if old.get(i) != k)
         gone = tuple(i for i, k in old.items() if new.get(i) != k)
         return fresh, gone
@@ -125,6 +157,9 @@ class ViewerScene:
         fixed = [f"{i.id} on {i.link}" for i in self.items if i.fixed]
         carried = [f"{i.id} by {i.link}" for i in self.items if i.carried and not i.fixed]
         text = f"revision {self.revision}: {free} object(s)"
+        if self.clouds:
+            text += ", clouds: " + ", ".join(f"{c.id} ({len(c.points)} cells)"
+                                             for c in self.clouds)
         if fixed:
             text += ", fixed to links: " + ", ".join(fixed)
         if carried:

@@ -10,19 +10,22 @@ import pytest
 
 from arduinobot.description import load_description
 from arduinobot.planner.collision.cloud_body import (
-    cell_geometry,
+    TREE_LEAF_CELLS,
+    cell_boxes,
     cell_tree,
     exposed_faces,
+    near_robot,
     robot_surface,
     surface_spacing,
 )
+from arduinobot.planner.collision.cloud_tiles import cell_geometry
 from arduinobot.planner.collision.proof.certify import Certifier
 from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
 from arduinobot.scene.cloud import Cells, CloudObstacle, finite_points
-from arduinobot.scene.cloud_filter import kept_cells
+from arduinobot.scene.cloud_filter import kept_cells, near_surface
 
 
 def _box_distance(points: np.ndarray, cells: Cells) -> np.ndarray:
@@ -62,13 +65,42 @@ def test_the_exposed_faces_measure_the_union_of_the_boxes(blob):
     assert len(f) < 12 * len(blob)
 
 
-def test_the_tree_leaves_are_the_cell_boxes(blob):
+def _cells_of_boxes(lo: np.ndarray, hi: np.ndarray) -> list[tuple[int, int, int]]:
+    # every cell (integer corner) inside boxes lo-hi (integer corners), with repeats
+    out = []
+    for a, b in zip(lo, hi):
+        g = np.mgrid[a[0]:b[0], a[1]:b[1], a[2]:b[2]].reshape(3, -1).T
+        out.extend(map(tuple, g.tolist()))
+    return out
+
+
+def test_the_cells_joined_into_boxes_are_exactly_their_union(blob):
+    lo, size = cell_boxes(blob)
+    assert len(lo) < len(blob) and (size >= 1).all()
+    cells = _cells_of_boxes(lo, lo + size)
+    assert len(cells) == len(blob)  # no cell in two boxes
+    assert set(cells) == {tuple(r) for r in blob.index.tolist()}
+    # a pillar's hollow sides (runs along z) join into a few boxes
+    ring = [(i, j, k) for i in range(5) for j in range(5) for k in range(40)
+            if i in (0, 4) or j in (0, 4)]
+    lo, size = cell_boxes(Cells(np.array(sorted(ring)), 0.01))
+    assert len(lo) <= 4 and size.prod(axis=1).sum() == len(ring)
+    # at most `longest` cells along any axis, still exactly the union
+    lo, size = cell_boxes(Cells(np.array(sorted(ring)), 0.01), longest=3)
+    assert size.max() <= 3 and size.prod(axis=1).sum() == len(ring)
+    assert set(_cells_of_boxes(lo, lo + size)) == set(ring)
+
+
+def test_the_tree_leaves_are_the_joined_boxes(blob):
     t = cell_tree(blob)
     leaves = t.left < 0
-    assert leaves.sum() == len(blob) and len(t.center) == 2 * len(blob) - 1
+    corner, size = cell_boxes(blob, longest=TREE_LEAF_CELLS)
+    assert size.max() <= TREE_LEAF_CELLS
+    assert leaves.sum() == len(corner) and len(t.center) == 2 * len(corner) - 1
     lo = np.round((t.center[leaves] - t.half[leaves]) / blob.resolution).astype(int)
-    assert {tuple(r) for r in lo.tolist()} == {tuple(r) for r in blob.index.tolist()}
-    np.testing.assert_allclose(t.half[leaves], blob.resolution / 2, atol=1e-8)
+    hi = np.round((t.center[leaves] + t.half[leaves]) / blob.resolution).astype(int)
+    cells = _cells_of_boxes(lo, hi)
+    assert sorted(cells) == sorted(map(tuple, blob.index.tolist()))
     # every node's box holds its children's
     for n in np.flatnonzero(~leaves):
         for c in (t.left[n], t.right[n]):
@@ -161,3 +193,17 @@ def test_plans_go_around_the_measured_pillar(scene):
     cert = Certifier(world).path(r.path)
     assert cert.free and cert.certified_clearance > 0
     assert _fcl_contacts(world, cells, interpolate(r.path, 0.002)) == 0
+
+
+def test_near_robot_finds_the_cells_near_surface_finds(scene):
+    # the link-frame search against the world-frame one on the robot's moved samples
+    _, world, _, _, _ = scene
+    rng = np.random.default_rng(9)
+    q = np.array([0.4, -0.3, 0.5, 0.2])
+    idx = np.unique(rng.integers(-30, 30, (20_000, 3)), axis=0)
+    cells = Cells(idx, 0.01)
+    spacing = surface_spacing(0.01)
+    expect = near_surface(cells, robot_surface(world, q, spacing=spacing), 0.02)
+    got = near_robot(world, q, cells, 0.02, spacing=spacing)
+    assert 100 < expect.sum() < len(cells) - 100  # some cells each way: it could fail
+    np.testing.assert_array_equal(got, expect)

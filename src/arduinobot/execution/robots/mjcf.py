@@ -37,7 +37,9 @@ from typing import Any, cast
 import numpy as np
 
 from arduinobot.description.model import Joint, Robot, Shape, rpy_matrix
+from arduinobot.execution.robots.twin_clouds import cloud_geoms
 from arduinobot.planner.cache import ArtifactCache, content_key
+from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.ground import GROUND_ID
 from arduinobot.scene.obstacles import Obstacle
 
@@ -276,7 +278,8 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     Args:
         gains: per actuated joint.
         excluded: link pairs whose contacts are ignored (besides parent/child pairs).
-        obstacles: world obstacles, as in a plan request, or :class:`Obstacle` objects.
+        obstacles: world obstacles, as in a plan request, or :class:`Obstacle` objects;
+            a kept cloud (:class:`CloudObstacle`) as static boxes (:mod:`.twin_clouds`).
         attached: carried objects (:class:`arduinobot.scene.obstacles.AttachedObject`, touch links
             resolved), each welded inside its link.
         loose: objects free in the world (:func:`loose_body`, touch links resolved), each
@@ -331,9 +334,11 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
                for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
     eq = [f"    {e}" for e in _mimic_equalities(robot)]
     act = [f"    {e}" for e in _actuators(robot, gains)]
-    world = obstacle_geoms(obstacles, assets=assets, cache=cache,
-                           progress=progress)
-    if ground and not any(obstacle_form(o).id == GROUND_ID for o in obstacles):
+    world = obstacle_geoms([o for o in obstacles if not isinstance(o, CloudObstacle)],
+                           assets=assets, cache=cache, progress=progress)
+    world += cloud_geoms([o for o in obstacles if isinstance(o, CloudObstacle)])
+    if ground and not any(not isinstance(o, CloudObstacle) and obstacle_form(o).id == GROUND_ID
+                          for o in obstacles):
         # an infinite plane (size 0 0: unbounded): the planner's box is 20 m wide only
         # because FCL wants a finite shape
         world.insert(0, f'<geom name="obstacle:{GROUND_ID}" type="plane" size="0 0 1" '

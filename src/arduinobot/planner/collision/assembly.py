@@ -19,7 +19,7 @@ from arduinobot.planner.collision.bodies import RobotBodies, ShapeCache, bvh
 from arduinobot.planner.collision.bounds.hulls import Hull, mesh_hull, primitive_hull
 from arduinobot.planner.collision.bounds.obbtree import ObbTree, box_tree, build_tree
 from arduinobot.planner.collision.bounds.parts import Parts
-from arduinobot.planner.collision.cloud_body import cell_geometry
+from arduinobot.planner.collision.cloud_tiles import CloudSurface, cell_geometry
 from arduinobot.planner.collision.table import BodyKind, checked_kinds
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import AttachedObject, Obstacle
@@ -72,7 +72,9 @@ class SceneBodies:
         links: the link index that moves each (a carried object's: its holder's), -1
             for an obstacle.
         trees: OBB trees (body frame).
-        objects: FCL objects (an obstacle's placed, a link's moved per state).
+        objects: FCL objects (an obstacle's placed, a link's moved per state); None for
+            a cloud, measured by its tiles (``clouds``).
+        clouds: a cloud's boundary in tiles (:mod:`.cloud_tiles`), by body index.
         surfaces: a box obstacle's surface as 12 triangles, by body index, for distances
             at free states only (FCL's mesh-box distance is 2.5x slower than mesh-mesh on
             CAD links, measured).
@@ -90,8 +92,9 @@ class SceneBodies:
     kinds: tuple[BodyKind, ...]
     links: tuple[int, ...]
     trees: tuple[ObbTree, ...]
-    objects: tuple[fcl.CollisionObject, ...]
+    objects: tuple[fcl.CollisionObject | None, ...]
     surfaces: dict[int, fcl.CollisionObject]
+    clouds: dict[int, CloudSurface]
     statics: tuple[bool, ...]
     points: tuple[tuple[str | None, np.ndarray], ...]
     hulls: tuple[Hull, ...]
@@ -113,8 +116,10 @@ class SceneBodies:
         hulls = list(robot.hulls)
         parts: list[Callable[[], Parts]] = [partial(robot.parts_of, i)
                                             for i in range(len(robot.names))]
-        objs = [fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
+        objs: list[fcl.CollisionObject | None] = [
+            fcl.CollisionObject(g, fcl.Transform()) for g in robot.geometries]
         surfaces: dict[int, fcl.CollisionObject] = {}
+        tiled: dict[int, CloudSurface] = {}
         poses = np.tile(np.eye(4), (len(names) + len(attached) + len(obstacles) + len(clouds),
                                     1, 1))
         static_link = dict(zip(robot.names, robot.statics))
@@ -154,18 +159,19 @@ class SceneBodies:
             hulls.append(hull)
             parts.append(partial(Parts.of_hull, hull))
         for c in clouds:  # world-frame cells: the identity pose
-            geom, tree, hull = robot.shapes.get(c.key(), partial(cell_geometry, c.cells))
+            surface, tree, hull = robot.shapes.get(c.key(), partial(cell_geometry, c.cells))
+            tiled[len(names)] = surface
             names.append(c.id)
             links.append(-1)
             kinds.append(BodyKind.OBSTACLE)
             trees.append(tree)
-            objs.append(fcl.CollisionObject(geom, fcl.Transform()))
+            objs.append(None)
             statics.append(True)
             points.append((None, np.zeros((1, 3))))
             hulls.append(hull)
             parts.append(partial(Parts.of_hull, hull))
         return cls(tuple(names), tuple(kinds), tuple(links), tuple(trees), tuple(objs),
-                   surfaces, tuple(statics), tuple(points), tuple(hulls), tuple(parts), poses)
+                   surfaces, tiled, tuple(statics), tuple(points), tuple(hulls), tuple(parts), poses)
 
     def checked_pairs(self, acm: AllowedCollisionMatrix,
                       touch: Sequence[tuple[str, str]] = ()

@@ -19,9 +19,9 @@ import numpy as np
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description.model import Origin
 from arduinobot.description.model import rpy_of as rpy_of_matrix
-from arduinobot.planner.collision.cloud_body import robot_surface, surface_spacing
+from arduinobot.planner.collision.cloud_body import near_robot, surface_spacing
 from arduinobot.scene.cloud import CloudObstacle, UnknownSpace, posed
-from arduinobot.scene.cloud_filter import CloudCounts, inside_objects, kept_cells, near_surface
+from arduinobot.scene.cloud_filter import CloudCounts, inside_objects, kept_cells
 from arduinobot.scene.cloud_spec import CloudSpec, Placement
 from arduinobot.scene.cloud_unknown import Camera, shadow_cells
 from arduinobot.scene.obstacles import Obstacle
@@ -104,13 +104,16 @@ def keep_cloud(world: object, spec: CloudSpec, state: np.ndarray, *,
     kin = world.kin  # type: ignore[attr-defined]
     link_poses = kin.link_poses(np.asarray(state, float))
     index = dict(kin.link_index)
-    pts = posed(spec.points.points, _pose(spec.at, link_poses, index))
+    pose = _pose(spec.at, link_poses, index)
+    # a cloud in the world's frame as sent (the usual case) is not copied
+    pts = spec.points.points if np.array_equal(pose, np.eye(4)) \
+        else posed(spec.points.points, pose)
     spacing = surface_spacing(spec.resolution)
-    surface = robot_surface(world, state, spacing=spacing)
     known = [*objects, *_carried_in_world(world, link_poses)]
-    cells, counts = kept_cells(pts, spec.resolution, dropped=spec.points.dropped,
-                               surface=surface, surface_spacing=spacing, objects=known,
-                               padding=spec.padding, field=f"{spec.where}.points")
+    cells, counts = kept_cells(
+        pts, spec.resolution, dropped=spec.points.dropped, surface_spacing=spacing,
+        objects=known, padding=spec.padding, field=f"{spec.where}.points",
+        near=lambda c, reach: near_robot(world, state, c, reach, spacing=spacing))
     bodies = [CloudObstacle(spec.id, cells, spec.unknown)] if len(cells) else []
     shadow = 0
     if spec.unknown == "occupied":
@@ -118,10 +121,9 @@ def keep_cloud(world: object, spec: CloudSpec, state: np.ndarray, *,
         camera = Camera.from_mapping(spec.camera, _pose(spec.camera_at, link_poses, index),
                                      where=f"{spec.where}.camera")
         dark = shadow_cells(pts, camera, spec.resolution, where=f"{spec.where}.camera")
-        reach = spec.padding + surface_spacing(dark.resolution)
-        gone = near_surface(dark, robot_surface(world, state,
-                                                spacing=surface_spacing(dark.resolution)),
-                            reach)
+        dark_spacing = surface_spacing(dark.resolution)
+        gone = near_robot(world, state, dark, spec.padding + dark_spacing,
+                          spacing=dark_spacing)
         gone |= _inside_link_hulls(world, dark.centers, link_poses, spec.padding)
         gone |= inside_objects(dark, known, spec.padding)
         dark = dark.keep(~gone)

@@ -140,6 +140,7 @@ class CollisionWorld:
         names = scene.names
         self._objs = scene.objects
         self._surfaces = scene.surfaces
+        self._tiled = scene.clouds
         #: every body's OBB tree, for the kernels
         self.forest = Forest.of(list(scene.trees))
         self._hull_bounds = HullBounds(list(scene.hulls), scene.poses)
@@ -225,12 +226,14 @@ class CollisionWorld:
                               clouds=self.clouds if clouds is None else clouds)
 
     def _place(self, poses: np.ndarray, b: int) -> None:
-        # move body b's FCL object once per state (stamped), never for obstacles
-        if self._link_of[b] < 0 or self._placed[b] == self._stamp:
+        # move body b's FCL object once per state (stamped), never for obstacles (a
+        # cloud, which has none, is one)
+        obj = self._objs[b]
+        if self._link_of[b] < 0 or self._placed[b] == self._stamp or obj is None:
             return
         t = self.body_pose(poses, b)
-        self._objs[b].setRotation(t[:3, :3])
-        self._objs[b].setTranslation(t[:3, 3])
+        obj.setRotation(t[:3, :3])
+        obj.setTranslation(t[:3, 3])
         self._placed[b] = self._stamp
 
     def body_pose(self, poses: np.ndarray, b: int) -> np.ndarray:
@@ -246,15 +249,31 @@ class CollisionWorld:
             return True  # the trees could not prove the pair apart: conservatively a hit
         self._place(poses, a)
         self._place(poses, b)
+        if b in self._tiled and self.padding > 0:
+            return self._tiled[b].within(self._objs[a], *self._world_box(poses, a),
+                                         self.padding)
         if self.padding > 0:
-            return self._distance(a, b) < self.padding
+            return self._distance(poses, a, b) < self.padding
+        if b in self._tiled:
+            return self._tiled[b].collide(self._objs[a], *self._world_box(poses, a))
         return fcl.collide(self._objs[a], self._objs[b], self._creq, fcl.CollisionResult()) > 0
 
-    def _distance(self, a: int, b: int, *, surface: bool = False) -> float:
-        # surface: a box obstacle b by its 12 triangles (only where b holds no body)
+    def _distance(self, poses: np.ndarray, a: int, b: int, *, surface: bool = False) -> float:
+        # surface: a box obstacle b by its 12 triangles (only where b holds no body); a
+        # cloud (always the later body: clouds come last) by its tiles near a's box
+        if b in self._tiled:
+            return self._tiled[b].distance(self._objs[a], *self._world_box(poses, a))
         other = self._surfaces.get(b, self._objs[b]) if surface else self._objs[b]
         d = fcl.distance(self._objs[a], other, self._dreq, fcl.DistanceResult())
         return max(float(d), 0.0)
+
+    def _world_box(self, poses: np.ndarray, b: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        # body b's box in the world: its tree's root box (centre [m], axes as columns,
+        # half extents [m]), posed
+        t, f = self.body_pose(poses, b), self.forest
+        r = f.root[b]
+        return t[:3, :3] @ f.center[r] + t[:3, 3], t[:3, :3] @ f.axes[r], f.half[r]
 
     def _candidates(self, poses: np.ndarray, out: np.ndarray) -> int:
         return pair_candidates(poses, self.table.bodies, self.table.pairs.index, self.forest,
@@ -331,7 +350,7 @@ class CollisionWorld:
         self._stamp += 1
         self._place(poses, a)
         self._place(poses, b)
-        return self._distance(a, b, surface=True)
+        return self._distance(poses, a, b, surface=True)
 
     def lower_bound(self, q: ArrayLike) -> float:
         """A lower bound [m] on the distance between the moving checked pairs at ``q``
@@ -387,7 +406,7 @@ class CollisionWorld:
             a, b = int(allp[k][0]), int(allp[k][1])
             self._place(poses, a)
             self._place(poses, b)
-            d = self._distance(a, b)
+            d = self._distance(poses, a, b)
             if d < best:
                 best, closest = d, (self.body_names[a], self.body_names[b])
         return float(best), closest

@@ -48,7 +48,9 @@ class TwinScene:
         # a task's objects start where its scene has them: rebuilt for every task
         if key == self.held and twin is None:
             return
-        obstacles = snap.obstacles if snap is not None else ()
+        # a kept cloud's cells go in as static boxes (execution/robots/twin_clouds.py)
+        obstacles: tuple[Any, ...] = (*snap.obstacles, *snap.clouds) if snap is not None \
+            else ()
         attached = snap.attached if snap is not None else ()
         if twin is None:
             set_scene([*obstacles, *own], attached, ground=ground)
@@ -81,7 +83,8 @@ class TwinScene:
             _log.info("twin: the blend keeps the running task's objects; the scene at "
                       "revision %d is not put in", key[0])
             return None
-        obstacles = snap.obstacles if snap is not None else ()
+        obstacles: tuple[Any, ...] = (*snap.obstacles, *snap.clouds) if snap is not None \
+            else ()
         attached = snap.attached if snap is not None else ()
 
         def switch() -> None:

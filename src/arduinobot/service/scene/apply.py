@@ -18,6 +18,7 @@ import orjson
 import zenoh
 
 from arduinobot.contract import wire
+from arduinobot.contract.caps import MAX_APPLY_PAYLOAD
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.scene.frames import Frames
@@ -25,8 +26,6 @@ from arduinobot.scene.state import StateSource
 
 _log = logging.getLogger(__name__)
 
-#: Largest scene apply payload [bytes]: a few meshes of at most 2 MiB each, in base64.
-MAX_APPLY_PAYLOAD = 16 * 2**20
 #: Deepest nesting of a scene apply (``add[i].scale[j]`` is 4 deep).
 MAX_APPLY_DEPTH = 8
 #: How long an attach or detach without a state waits for the executing robot's [s] (a
