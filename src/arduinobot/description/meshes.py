@@ -10,15 +10,24 @@ import logging
 import threading
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 import trimesh
 
 from arduinobot.description.errors import DescriptionError, MeshLoadError, MeshNotFound
 
-if TYPE_CHECKING:
-    from arduinobot.description.model import Shape
+
+class Placed(Protocol):
+    """A geometry placed in its link (:class:`arduinobot.description.model.Shape`),
+    as :func:`shape_mesh` reads it (a protocol: the model imports the geometry, whose
+    mesh files this module loads)."""
+
+    @property
+    def geometry(self) -> Any: ...
+
+    @property
+    def origin(self) -> Any: ...
 
 _log = logging.getLogger(__name__)
 _cache: dict[tuple[str, int, tuple[float, float, float]], trimesh.Trimesh] = {}
@@ -60,7 +69,7 @@ def load_mesh(path: Path, scale: tuple[float, float, float] = (1.0, 1.0, 1.0), *
     return mesh
 
 
-def shape_mesh(shape: Shape, *, element: str | None = None) -> trimesh.Trimesh:
+def shape_mesh(shape: Placed, *, element: str | None = None) -> trimesh.Trimesh:
     """The shape's triangles in its link's frame [m] (origin and scale applied).
 
     Raises:
