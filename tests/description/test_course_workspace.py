@@ -277,3 +277,18 @@ def test_command_line_writes_a_workspace_and_prints_its_paths(tmp_path):
     printed = dict(line.split(": ", 1) for line in r.stdout.splitlines())
     assert Path(printed["xacro"]).is_file()
     assert printed["src"] == str(tmp_path / "out" / "src")
+
+
+def test_the_course_workspace_gets_the_course_tasks(ws, loaded):
+    """Issue 38, item 7: `task 1 X.xacro` said "no tasks.yaml" (the course's task_server
+    holds its three tasks in C++): the workspace gets them, shipped, and says so; and
+    `task X.xacro` lists them (it took the model file for a task's name)."""
+    from arduinobot.description.moveit_config import COURSE_TASKS, read_tasks
+    assert loaded.config.tasks == COURSE_TASKS
+    assert "the course's task_server tasks" in loaded.config.found_by
+    assert {t.number: t.name for t in read_tasks(loaded.config.tasks).values()} == \
+        {0: "wake", 1: "pick", 2: "sleep"}
+    from tests.helpers.cli import run_cli
+    r = run_cli("task", str(ws.xacro), "--package-dir", str(ws.src))  # lists them
+    assert r.returncode == 0, r.stderr
+    assert "pick" in r.stdout and "sleep" in r.stdout and "wake" in r.stdout, r.stdout

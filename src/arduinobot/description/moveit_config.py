@@ -201,6 +201,12 @@ SHIPPED_CONFIG_ORIGINS = {
 }
 
 
+#: The course's own task_server tasks (0 wake, 1 pick, 2 sleep), shipped with the
+#: arduinobot package: a course workspace named ``arduinobot`` without a tasks.yaml of its
+#: own gets them, said in ``found_by``.
+COURSE_TASKS = Path(__file__).resolve().parent / "arduinobot_description" / "config" / TASKS_FILE
+
+
 def shipped_config(robot_name: str) -> Path | None:
     """The config folder shipped for ``robot_name``, if any."""
     d = SHIPPED_CONFIGS_DIR / robot_name
@@ -275,6 +281,11 @@ def resolve_config(
         cartesian_limits=first(CARTESIAN_LIMITS_FILE),
         tasks=first(TASKS_FILE),
         moveit_package=pkg, found_by=how)
+    if files.tasks is None and robot_name == "arduinobot" and COURSE_TASKS.is_file():
+        # the course's task_server has these three in C++: its workspace has no file
+        files = replace(files, tasks=COURSE_TASKS, found_by=(
+            f"{files.found_by}; " if files.found_by else "") + "tasks: the course's "
+            "task_server tasks (0 wake, 1 pick, 2 sleep), shipped; --tasks FILE for yours")
     for label, override in (("srdf", srdf), ("joint_limits", joint_limits)):
         if override is None:
             continue

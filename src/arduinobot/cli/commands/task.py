@@ -153,7 +153,12 @@ def _list(ns: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+_MODEL_SUFFIXES = (".urdf", ".xacro")
+
+
 def cmd_task(ns: argparse.Namespace) -> int:
+    if ns.task is not None and ns.file is None and ns.task.lower().endswith(_MODEL_SUFFIXES):
+        ns.file, ns.task = ns.task, None  # `task X.xacro`: the model's tasks, listed
     if ns.task is None:
         if ns.sim or ns.serial is not None or ns.remote or ns.driver:
             raise UsageError("give the task to run: NAME, NUMBER or FILE (without one, "
