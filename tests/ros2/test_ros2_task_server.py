@@ -212,3 +212,35 @@ def test_cancel_mid_task_stops_the_arm(served, client: DesignClient) -> None:
     gid2, accepted = client.send_goal(2)
     assert accepted
     assert client.get_result(gid2, timeout=120) == (STATUS_SUCCEEDED, True)
+
+
+@pytest.mark.slow
+def test_the_course_workspace_runs_its_task_1_through_the_task_server(course_ws) -> None:
+    """Issue 38 (must show): `serve --ros2` on the course's own workspace (its xacro, its
+    MoveIt package, no tasks.yaml) takes task 1, as the course's Alexa skill sends it,
+    and runs it on the twin to the end (it rejected every goal: no tasks.yaml)."""
+    port = free_port()
+    srv = start_server(["--workers", "1", "--ros2", "--ros-domain-id", str(DOMAIN + 1),
+                        str(course_ws.xacro), "--package-dir", str(course_ws.src)],
+                       port=port)
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(conf)
+    try:
+        c = DesignClient(session, DOMAIN + 1, "/task_server")
+        time.sleep(0.3)  # the feedback subscriber reaches the service
+        gid, accepted = c.send_goal(1)
+        assert accepted, "\n".join(srv.stderr_lines[-20:])
+        assert c.get_result(gid, timeout=300) == (STATUS_SUCCEEDED, True)
+        c.close()
+        # the arm is where the course's task 1 (pick) puts it
+        st = _state(session)
+        at = dict(zip(st["name"], st["position"]))
+        assert [at[j] for j in ("joint_1", "joint_2", "joint_3")] == \
+            pytest.approx([-1.14, -0.6, -0.07], abs=0.01)
+        assert any("tasks of" in ln or "task_server" in ln for ln in srv.stderr_lines)
+    finally:
+        session.close()
+        srv.stop()
