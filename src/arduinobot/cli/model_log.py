@@ -41,7 +41,7 @@ class ModelWarnings(logging.Filter):
         first = message not in self.held
         self.held[message] = None
         if self.show and first:
-            record.levelno, record.levelname = logging.INFO, "INFO"
+            record.levelno, record.levelname = logging.INFO, logging.getLevelName(logging.INFO)
             return True
         return False
 

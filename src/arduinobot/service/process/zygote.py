@@ -83,7 +83,7 @@ def _said_by_the_server(record: logging.LogRecord) -> bool:
     logged each of them once (they were said again by the zygote, twice for the derived
     limits, on every start)."""
     if record.levelno == logging.WARNING and record.name.startswith(_MODEL_LOGGERS):
-        record.levelno, record.levelname = logging.DEBUG, "DEBUG"
+        record.levelno, record.levelname = logging.DEBUG, logging.getLevelName(logging.DEBUG)
         return logging.getLogger().isEnabledFor(logging.DEBUG)
     return True
 
