@@ -141,8 +141,15 @@ def test_default_scaling_applies_and_a_request_scaling_replaces_it(published):
 @pytest.mark.slow
 def test_random_arm_goals_are_free_or_really_in_collision(published, local):
     _, c = published
-    # the independent check: the same meshes, only joint-connected and SRDF pairs allowed
-    world = CollisionWorld(local)
+    # the independent check: the same meshes, only joint-connected and SRDF pairs allowed,
+    # and the ground every plan has (issue 38, item 5)
+    # (links that never move stand on it)
+    from arduinobot.scene.ground import GROUND_ID, ground_obstacle
+    bare = CollisionWorld(local)
+    on_ground = [(GROUND_ID, n) for n, still in zip(bare.bodies.names, bare.bodies.statics)
+                 if still]
+    world = bare.with_scene((ground_obstacle(),),
+                            acm=bare.acm.with_pairs(on_ground, reason="Ground"))
     lim = local.robot.position_limits(ARM)
     rng = np.random.default_rng(7)
     planned = refused = 0
