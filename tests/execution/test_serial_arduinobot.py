@@ -371,11 +371,11 @@ def test_a_write_that_stalls_is_a_coded_failure(desc, planned):
             os.close(fd)
 
 
-def test_an_arm_that_stops_reading_is_caught_within_three_messages(desc, planned):
+def test_an_arm_that_stops_reading_is_caught_within_a_few_messages(desc, planned):
     """A USB device that stops reading mid-motion (its port queues what it does not take,
-    as CDC-ACM does): the driver stops at the third message that stays unsent (one
-    message of slack for a real port's timing), long before the port's buffer (4 KB:
-    two seconds of messages) would fill and a write would block."""
+    as CDC-ACM does): the driver stops once the backlog has not drained for 30 ms (a few
+    ticks; a port flushing late on a busy machine is not a stall), long before the
+    port's buffer (4 KB: two hundred messages) would fill and a write would block."""
     import serial
 
     from tests.helpers.protocol_stalling import DEVICES, Device
@@ -397,8 +397,9 @@ def test_an_arm_that_stops_reading_is_caught_within_three_messages(desc, planned
     d = e.value.details
     assert e.value.code == "PORT_ERROR" and d["stalled"] is True
     assert "the arm stopped reading" in e.value.message
-    assert dev.writes - len(dev.received) == 3  # three messages queued, then it stopped
-    assert d["unsent"] == 3 * len(b"b000,s000,e000,g000,")
+    queued = dev.writes - len(dev.received)
+    assert 3 <= queued <= 12, queued  # a few ticks' messages, not the buffer's 200
+    assert d["unsent"] == queued * len(b"b000,s000,e000,g000,")
     assert d["tick"] < math.ceil(traj.duration * 100) and d["phase"] == "trajectory"
     # the error names the last message written (queued, not taken), and the arm holds
     # the last one it read, from before
@@ -419,8 +420,10 @@ def test_a_line_too_slow_for_the_rate_is_refused_not_left_to_lag(desc, planned):
     DEVICES["slow"] = Device(reading=False)  # the bytes drain at the line's pace: never
     robot = SerialArduinobot.from_description(desc, "stalling://slow", rate=100.0, baud=1200)
     with pytest.raises(PortError, match="too slow for 100 Hz") as e:
-        robot.command([0.0, 0.0, 0.0, 0.0])
-    assert e.value.details["unsent"] == 20
+        for i in range(200):  # ticks, paced as the executor paces them
+            robot.command([0.02 * i, 0.0, 0.0, 0.0])
+            time.sleep(0.01)
+    assert e.value.details["unsent"] >= 20 and i >= 1  # once the lag lasted 30 ms
     robot.close()
 
 

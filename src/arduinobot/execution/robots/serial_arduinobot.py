@@ -20,12 +20,13 @@ tick (``velocity * period``), and never outside its URDF position limits.
 A stalled arm: the port's driver buffers what the arm does not read (kilobytes: seconds
 of messages), so a write fails only once that is full. After each write the driver asks
 the port how many bytes are still unsent (``out_waiting``, where the port can tell) and
-stops with ``PORT_ERROR`` (``stalled``) when more is left than the line could not yet
-have sent, with one message of slack: the arm stopped reading, caught at the third
-message it did not take (30 ms at 100 Hz, not the seconds a full buffer takes); or the newest command
-would reach the arm more than :data:`MAX_LAG_TICKS` ticks late (a line too slow for the
-rate). The arm reports nothing back: an execution that ends is ``written``, not
-``completed`` (:mod:`arduinobot.contract.outcomes`).
+stops with ``PORT_ERROR`` (``stalled``) when, for :data:`STALL_TIME` on end, more is left
+than the line could not yet have sent plus one message (the arm stopped reading: caught
+in a few ticks, not the seconds a full buffer takes), or the newest command would reach
+the arm more than :data:`MAX_LAG_TICKS` ticks late (a line too slow for the rate). A
+backlog that drains within that time (a port flushing late on a busy machine, commands
+written back to back) is not a stall. The arm reports nothing back: an execution that
+ends is ``written``, not ``completed`` (:mod:`arduinobot.contract.outcomes`).
 """
 
 from __future__ import annotations
@@ -56,6 +57,7 @@ log = logging.getLogger(__name__)
 DEFAULT_BAUD = 115200
 WRITE_TIMEOUT = 1.0  # [s] a write that takes longer means the arm stopped reading
 MAX_LAG_TICKS = 2  # a command may wait at most this many ticks of line time to go out
+STALL_TIME = 0.03  # [s] a backlog must last this long to be a stall (3 ticks at 100 Hz)
 
 
 def servo_angles(q: Sequence[float] | np.ndarray) -> tuple[int, int, int, int]:
@@ -146,6 +148,7 @@ class SerialArduinobot(Robot):
         # cannot tell its unsent bytes
         self._backlog: tuple[int, float] | None = (0, self._opened)
         self._backlog = self._read_backlog()
+        self._stalling_since: float | None = None  # when the backlog stopped draining
         log.info("opened %s at %d baud (8N1)", port, baud)
         if boot_wait > 0:
             log.info("waiting %.1f s for the Arduino to boot", boot_wait)
@@ -248,8 +251,14 @@ class SerialArduinobot(Robot):
         could_be_left = max(0.0, before - (now - then) * line) + message
         lag = unsent / line  # [s] until this command reaches the arm
         self._backlog = got
-        if unsent > could_be_left + message or lag > MAX_LAG_TICKS * self.period:
-            why = ("the arm stopped reading" if unsent > could_be_left + message else
+        stuck = unsent > could_be_left + message
+        if not (stuck or lag > MAX_LAG_TICKS * self.period):
+            self._stalling_since = None
+            return
+        if self._stalling_since is None:
+            self._stalling_since = now
+        if now - self._stalling_since >= STALL_TIME:
+            why = ("the arm stopped reading" if stuck else
                    f"the line at {self.baud} baud is too slow for {1 / self.period:g} Hz")
             raise PortError(
                 f"writing to {self.port} stalled: {unsent} bytes unsent, {1000 * lag:.0f} ms "
