@@ -310,9 +310,9 @@ def cmd_execute(ns: argparse.Namespace) -> int:
         ex = Executor.for_description(robot, desc, options=opts, on_tick=publish)
         ex.check_start(traj)
         where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
-        print(f"executing {traj.duration:.3f} s on {where} of '{desc.robot.name}' at "
-              f"{ns.rate:g} Hz (Ctrl-C stops smoothly)", file=sys.stderr)
-        with sigint_sets(cancel):
+        with sigint_sets(cancel):  # ours before the line that says Ctrl-C stops it
+            print(f"executing {traj.duration:.3f} s on {where} of '{desc.robot.name}' at "
+                  f"{ns.rate:g} Hz (Ctrl-C stops smoothly)", file=sys.stderr)
             report = ex.execute(traj, cancel=cancel)
         summary = report.to_dict()
         if isinstance(robot, SimArduinobot):

@@ -227,10 +227,12 @@ def _run(ns: argparse.Namespace, robot: Any, desc: Description, task: Task, resu
     ex = Executor.for_description(robot, desc, options=opts, on_tick=on_tick)
     ex.check_start(traj)
     where = "the MuJoCo twin" if ns.sim else getattr(robot, "port", "the arm")
-    print(f"executing {traj.duration:.3f} s on {where} (Ctrl-C stops smoothly)",
-          file=sys.stderr)
     cancel = threading.Event()
+    # Ctrl-C is ours before the line that says so: one pressed right after it was lost
+    # (exit 0, the whole motion run) on a loaded machine
     with sigint_sets(cancel):
+        print(f"executing {traj.duration:.3f} s on {where} (Ctrl-C stops smoothly)",
+              file=sys.stderr)
         report = ex.execute(traj, cancel=cancel).to_dict()
     print(f"{report['outcome']}: {report['duration']:.3f} s")
     if getattr(ns, "seen", None) is not None:
