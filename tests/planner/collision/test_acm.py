@@ -104,8 +104,14 @@ def test_proof_is_cached_by_content(tmp_path):
 def test_planner_without_srdf_skips_only_adjacent_and_proven_pairs():
     from arduinobot.planner.planning.pipeline import MotionPlanner
     mp = MotionPlanner(_no_srdf(load_description()))
-    reasons = {e.reason for e in mp.world(()).acm}
-    assert reasons == {"Adjacent", "Never-proven"}
+    world = mp.world(())
+    reasons = {e.reason for e in world.acm}
+    assert reasons == {"Adjacent", "Never-proven", "Ground"}
+    # the ground's allowance is only the links that never move standing on it
+    on_ground = {(e.link1, e.link2) for e in world.acm if e.reason == "Ground"}
+    statics = {n for n, still in zip(world.bodies.names, world.bodies.statics) if still}
+    assert on_ground and all("ground" in p and set(p) - {"ground"} <= statics
+                             for p in on_ground), on_ground
 
 
 def test_sampled_pairs_are_written_but_never_skipped():

@@ -17,7 +17,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from arduinobot.planner.collision.cloud_body import cell_boxes
 from arduinobot.scene.cloud import CloudObstacle
 
 _log = logging.getLogger(__name__)
@@ -31,6 +30,10 @@ def cloud_boxes(clouds: Sequence[CloudObstacle], *, cap: int = MAX_TWIN_BOXES
     """Each cloud's boxes as (cloud id, centres shape (b, 3) [m], half sizes (b, 3) [m]),
     world frame, the nearest to the root first, at most ``cap`` boxes in all (the
     nearest kept; a warning says what was left out)."""
+    # imported here: mjcf imports this module in the serving process, which must never
+    # load the planner's collision kernels (FCL, numba)
+    from arduinobot.planner.collision.cloud_body import cell_boxes
+
     found = []
     for c in clouds:
         lo, size = cell_boxes(c.cells)
