@@ -283,9 +283,8 @@ def resolve_config(
         moveit_package=pkg, found_by=how)
     if files.tasks is None and robot_name == "arduinobot" and COURSE_TASKS.is_file():
         # the course's task_server has these three in C++: its workspace has no file
-        files = replace(files, tasks=COURSE_TASKS, found_by=(
-            f"{files.found_by}; " if files.found_by else "") + "tasks: the course's "
-            "task_server tasks (0 wake, 1 pick, 2 sleep), shipped; --tasks FILE for yours")
+        # (``task`` and ``serve`` say whose they are)
+        files = replace(files, tasks=COURSE_TASKS)
     for label, override in (("srdf", srdf), ("joint_limits", joint_limits)):
         if override is None:
             continue

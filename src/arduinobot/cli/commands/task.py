@@ -144,7 +144,10 @@ def _list(ns: argparse.Namespace) -> int:
     if tasks_file is None:
         print(f"no tasks.yaml for '{desc.robot.name}' (give --tasks FILE)")
         return EXIT_OK
-    print(f"tasks of {tasks_file}:")
+    from arduinobot.description.moveit_config import COURSE_TASKS
+    whose = (" (the course's task_server tasks, shipped; --tasks FILE for your own)"
+             if tasks_file == COURSE_TASKS and desc.config.moveit_package is not None else "")
+    print(f"tasks of {tasks_file}{whose}:")
     tasks = read_tasks(tasks_file).values()
     w = max([16, *(len(t.name) + 1 for t in tasks)])
     for t in tasks:
