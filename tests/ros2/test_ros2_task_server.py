@@ -134,16 +134,21 @@ class DesignClient:
         self._sub.undeclare()
 
 
+def _client(port: int) -> zenoh.Session:
+    """A plain Zenoh client of the service on ``port`` (no scouting)."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
 @pytest.fixture(scope="module")
 def served() -> Iterator[tuple[Any, zenoh.Session]]:
     port = free_port()
     srv = start_server(["--workers", "1", "--ros2", "--ros-domain-id", str(DOMAIN),
                         "--ros-namespace", NAMESPACE], port=port)
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(conf)
+    session = _client(port)
     try:
         yield srv, session
     finally:
@@ -223,11 +228,7 @@ def test_the_course_workspace_runs_its_task_1_through_the_task_server(course_ws)
     srv = start_server(["--workers", "1", "--ros2", "--ros-domain-id", str(DOMAIN + 1),
                         str(course_ws.xacro), "--package-dir", str(course_ws.src)],
                        port=port)
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", json.dumps([f"tcp/127.0.0.1:{port}"]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    session = zenoh.open(conf)
+    session = _client(port)
     try:
         c = DesignClient(session, DOMAIN + 1, "/task_server")
         time.sleep(0.3)  # the feedback subscriber reaches the service

@@ -146,8 +146,7 @@ class SerialArduinobot(Robot):
         self._opened = time.monotonic()
         # (bytes unsent after the last write, when) for the stall check; None: the port
         # cannot tell its unsent bytes
-        self._backlog: tuple[int, float] | None = (0, self._opened)
-        self._backlog = self._read_backlog()
+        self._backlog: tuple[int, float] | None = self._read_backlog()
         self._stalling_since: float | None = None  # when the backlog stopped draining
         log.info("opened %s at %d baud (8N1)", port, baud)
         if boot_wait > 0:
