@@ -215,10 +215,7 @@ class SceneService:
             self._behind = why
             self._behind_count += 1
         _log.info("scene: %s: fetching the newest scene of the live instances", why)
-        try:
-            self._syncs.submit(self._catch_up_again)
-        except RuntimeError:  # shut down: this instance is closing
-            pass
+        self._schedule_catch_up()
 
     def _member_returned(self, inst: str) -> None:
         if self._started:  # at start, _catch_up does it
@@ -232,7 +229,7 @@ class SceneService:
         except Exception as e:  # a full disk, a bad scene: say it, stay behind, retry
             _log.error("scene: catching up failed (%s: %s): plans wait; retrying in %g s",
                        type(e).__name__, e, CATCH_UP_RETRY)
-            timer = threading.Timer(CATCH_UP_RETRY, self._retry_catch_up)
+            timer = threading.Timer(CATCH_UP_RETRY, self._schedule_catch_up)
             timer.daemon = True
             timer.start()
             return
@@ -241,11 +238,12 @@ class SceneService:
                 self._behind = None
         _log.info("scene: current at revision %d", self._state.revision)
 
-    def _retry_catch_up(self) -> None:
+    def _schedule_catch_up(self) -> None:
+        """A catch-up on the sync thread (none once this instance is closing)."""
         try:
             self._syncs.submit(self._catch_up_again)
         except RuntimeError:
-            pass  # closing
+            pass  # shut down: this instance is closing
 
     def close(self) -> None:
         self._writes.shutdown(wait=True, cancel_futures=True)
