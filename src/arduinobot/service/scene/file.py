@@ -55,6 +55,14 @@ class SceneFile:
             raise InvalidRequest(f"scene file {self.path} is not a scene object")
         return data
 
+    def set_aside(self) -> Path:
+        """Rename the file to ``<name>.unreadable-<UTC time>`` beside it (kept for its
+        owner to read, never loaded again); its new path."""
+        aside = self.path.with_name(
+            f"{self.path.name}.unreadable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}")
+        os.replace(self.path, aside)
+        return aside
+
     def clean(self, *, older_than: float = STALE_TMP_AGE) -> int:
         """Remove the temporary files of this scene file that a killed writer left
         (``.<name>-*.tmp``, last written over ``older_than`` [s] ago: a live writer's is
@@ -212,3 +220,22 @@ def collect_meshes(folder: Path, keep: Iterable[SceneState]) -> int:
     if removed:
         _log.info("scene: %d mesh file(s) no revision uses removed from %s", removed, folder)
     return removed
+
+
+def object_named(data: Mapping[str, Any], field: str | None) -> str | None:
+    """The object a scene's ``field`` (``objects[1].radius``, ``attached[0].link``) lies
+    in, as a user finds it in the file: ``"object 'ball' (objects[1])"``; None when the
+    field is not inside one."""
+    if not field:
+        return None
+    for key in ("objects", "attached"):
+        if field.startswith(f"{key}["):
+            try:
+                i = int(field[len(key) + 1:field.index("]")])
+                item = data[key][i]
+            except (ValueError, LookupError, TypeError):
+                return None
+            oid = item.get("id") if isinstance(item, Mapping) else None
+            what = "carried object" if key == "attached" else "object"
+            return f"{what} '{oid}' ({key}[{i}])" if oid is not None else f"{key}[{i}]"
+    return None

@@ -55,6 +55,7 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any
 
 import orjson
@@ -62,6 +63,7 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
 from arduinobot.scene.frames import Frames
 from arduinobot.scene.state import (
@@ -84,6 +86,7 @@ from arduinobot.service.scene.file import (
     default_scene_file,
     foreign_owner,
     mesh_dir_for,
+    object_named,
     scene_owner,
 )
 from arduinobot.service.scene.members import Instances
@@ -165,8 +168,14 @@ class SceneService:
     def start(self) -> None:
         """Load the file, take changes, catch up with the live instances, serve the keys."""
         self.file.clean()  # what a kill -9 mid-write left
-        data = self.file.load()
-        if data is None and self._legacy is not None and self._legacy.is_file():
+        unreadable: InvalidRequest | None = None
+        data: dict[str, Any] | None = None
+        try:
+            data = self.file.load()
+        except InvalidRequest as e:
+            unreadable = e
+        if data is None and unreadable is None and self._legacy is not None \
+                and self._legacy.is_file():
             _log.info("scene: none kept yet for this robot in %s; %s holds a scene kept "
                       "before scenes were per robot (`arduinobot scene load %s` takes it)",
                       self.file.path, self._legacy, self._legacy)
@@ -177,9 +186,12 @@ class SceneService:
                 _log.warning("scene: %s holds another robot's kept scene: %s; its objects "
                              "are loaded as they are (give --scene-file to keep this "
                              "robot's scene elsewhere)", self.file.path, foreign)
-            self._state = self._previous = restore(data, self.builder)
-            _log.info("scene: revision %d, %d objects from %s", self._state.revision,
-                      len(self._state.objects), self.file.path)
+            try:
+                self._state = self._previous = restore(data, self.builder)
+                _log.info("scene: revision %d, %d objects from %s", self._state.revision,
+                          len(self._state.objects), self.file.path)
+            except InvalidRequest as e:
+                unreadable = e
         self._collect()  # what a killed instance left: meshes of refused or old scenes
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
         liveliness = self.session.liveliness()
@@ -188,7 +200,11 @@ class SceneService:
         # for the scene: no change falls between the two
         self._declare(f"{me}/scene/sync", self._on_sync, complete=False, exact=True)
         self._entities.append(liveliness.declare_token(f"{p}/scene/member/{self.instance}"))
-        self._catch_up()
+        # an unreadable file is set aside before a catch-up writes the live scene over it
+        aside = self.file.set_aside() if unreadable is not None else None
+        answered = self._catch_up()
+        if unreadable is not None and aside is not None:
+            self._start_without_the_file(unreadable, data, answered, aside)
         self._publisher = self.session.declare_publisher(f"{p}/scene/changes")
         self._declare(f"{p}/scene", self._on_get, shared=True)
         self._declare(f"{me}/scene", self._on_get)
@@ -199,6 +215,33 @@ class SceneService:
         self._declare(f"{me}/scene/apply", apply_, exact=True)
         self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead), exact=True)
         self._started = True
+
+    def _start_without_the_file(self, error: InvalidRequest, data: Mapping[str, Any] | None,
+                                answered: int, aside: Path) -> None:
+        """The kept file cannot be read (not JSON, an object no longer valid) and was set
+        aside (as ``aside``): start from the live instances' scene, or, alone, put the file
+        back and stop naming the file, the object and the field (a scene silently emptied
+        would lose its objects).
+
+        Raises:
+            InvalidRequest: no live instance answered (``details``: ``file``, ``field``,
+                ``object``).
+        """
+        where = object_named(data or {}, error.field)
+        what = f"{where}: {error}" if where else str(error)
+        if not answered:
+            os.replace(aside, self.file.path)
+            raise InvalidRequest(
+                f"the kept scene file {self.file.path} cannot be read: {what}; no live "
+                f"instance of '{self.prefix}' answered to start from. Fix or remove that "
+                "in the file, move the file aside (an empty scene), or give --scene-file",
+                details={"field": error.field, "file": str(self.file.path),
+                         "object": where})
+        with self._lock:
+            self.file.save(self._state)
+        _log.warning("scene: the kept scene file could not be read (%s); started from the "
+                     "live instances' scene, revision %d, and set the file aside as %s",
+                     what, self._state.revision, aside)
 
     # -- staying current -----------------------------------------------------------------
     def check_current(self) -> None:
@@ -482,11 +525,11 @@ class SceneService:
                 return restore(orjson.loads(reply.ok.payload.to_bytes()), self.builder)
         return None
 
-    def _catch_up(self) -> None:
-        """Take the newest scene among the live instances' if it is newer than the file's.
-        Every instance with a liveliness token is asked until it answers (its queryables
-        may reach this new session a moment after the session opens), for at most
-        :data:`CATCH_UP_TIMEOUT`."""
+    def _catch_up(self) -> int:
+        """Take the newest scene among the live instances' if it is newer than the file's;
+        how many instances answered. Every instance with a liveliness token is asked until
+        it answers (its queryables may reach this new session a moment after the session
+        opens), for at most :data:`CATCH_UP_TIMEOUT`."""
         deadline = time.monotonic() + CATCH_UP_TIMEOUT
         scenes = self._scenes("*")
         missing = self.instances.live() - set(scenes) - {self.instance}
@@ -505,6 +548,7 @@ class SceneService:
                                 if best.get("revision", -1) > self._state.revision
                                 else self._state)
             _log.info("scene: caught up to revision %d from the live instances", new.revision)
+        return len(scenes)
 
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
         """The scenes of the instances ``instance`` matches (``*``: all), by id."""
