@@ -41,6 +41,7 @@ from arduinobot.client.replies import (
     SceneReply,
     TaskReply,
 )
+from arduinobot.client.scene_update import update_scene
 from arduinobot.client.stream import ExecutionEvent, cancel_execution, follow, stream
 from arduinobot.contract.wire import JSON
 from arduinobot.contract.zconfig import (
@@ -315,8 +316,8 @@ class PlannerClient:
               add: Sequence[Mapping[str, Any]] = (), remove: Sequence[str] = (),
               attach: Sequence[Mapping[str, Any]] = (), detach: Sequence[str] = (),
               state: Mapping[str, float] | None = None, clear: bool = False,
-              if_revision: int | None = None, apply_id: str | None = None
-              ) -> SceneApplied:
+              if_revision: int | None = None, apply_id: str | None = None,
+              turn: str | None = None) -> SceneApplied:
         """Change the kept scene, all or nothing, in one new revision: ``clear``, then
         ``remove`` (ids), ``add`` (objects, plan_request.json's obstacle form or meshes),
         ``detach`` (ids), ``attach`` (``{object, link, touch_links, mass, com}``), at the
@@ -324,7 +325,9 @@ class PlannerClient:
         at that revision. A whole apply request as ``change`` takes the keywords' place
         (they are added to it). ``apply_id`` (default: a new random one, unless
         ``change`` has one) makes a retry safe: the service answers an id it has taken
-        with the revision it made (``already_applied``) and changes nothing.
+        with the revision it made (``already_applied``) and changes nothing. ``turn``: the
+        token a lost ``if_revision`` race handed this writer (``SceneConflict.details
+        ["turn"]``); :meth:`update` does the read-modify-write loop with it.
 
         Raises:
             SceneConflict (``details.current_revision``), InvalidRequest naming the
@@ -343,8 +346,17 @@ class PlannerClient:
             body["if_revision"] = if_revision
         if apply_id is not None:
             body["apply_id"] = apply_id
+        if turn is not None:
+            body["turn"] = turn
         body.setdefault("apply_id", uuid.uuid4().hex)
         return SceneApplied.parse(self.request("scene/apply", body))
+
+    def update(self, make_change: Callable[[SceneReply], Mapping[str, Any] | None], *,
+               attempts: int = 50) -> SceneApplied | None:
+        """Read the scene, apply ``make_change(scene)`` at that revision, again after each
+        lost race with the turn the service hands the loser
+        (:func:`arduinobot.client.scene_update.update_scene`)."""
+        return update_scene(self, make_change, attempts=attempts)
 
     # -- seeing (issue 41) ------------------------------------------------------------
     def perceive(self, image: bytes | str | os.PathLike[str] | None = None, *,

@@ -8,4 +8,5 @@ The scene's model (state, apply, attach/detach) is :mod:`arduinobot.scene.state`
 - ``file``: the scene file.
 - ``members``: the instances sharing one scene.
 - ``sync``: the leader and its followers.
+- ``turns``: fair ``if_revision`` races (the loser goes next).
 """

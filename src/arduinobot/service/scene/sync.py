@@ -63,7 +63,7 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
-from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description import Description
 from arduinobot.scene.frames import Frames
 from arduinobot.scene.state import (
@@ -90,6 +90,7 @@ from arduinobot.service.scene.file import (
     scene_owner,
 )
 from arduinobot.service.scene.members import Instances
+from arduinobot.service.scene.turns import TURN_TIME, Turns
 
 _log = logging.getLogger(__name__)
 
@@ -158,6 +159,7 @@ class SceneService:
         # apply_id -> the revision it made (the leader's and every member's that took it)
         self._applied: OrderedDict[str, int] = OrderedDict()
         self._ids = itertools.count(1)
+        self._turns = Turns()  # the leader's: who lost the last if_revision race
 
     @property
     def state(self) -> SceneState:
@@ -442,7 +444,7 @@ class SceneService:
                 "attached": len(now.attached), "already_applied": True}),
                 encoding=wire.JSON)
             return
-        old, new = self._install(lambda: apply(self._state, change, self.builder))
+        old, new = self._install_fairly(change)
         if new is not old:
             self._remember(change.get("apply_id"), new.revision)
         missed = self._replicate(old.revision, new.revision, change)
@@ -466,6 +468,45 @@ class SceneService:
         if taken:  # what became of each cloud's points
             reply["clouds"] = {c.id: dict(c.counts) for c in new.clouds if c.id in taken}
         query.reply(query.key_expr, orjson.dumps(reply), encoding=wire.JSON)
+
+    def _install_fairly(self, change: Mapping[str, Any]) -> tuple[SceneState, SceneState]:
+        """:meth:`_install` of ``change``, the writer that lost the last ``if_revision``
+        race first (:mod:`arduinobot.service.scene.turns`).
+
+        Raises:
+            SceneConflict: a stale ``if_revision`` (``details.turn`` and
+                ``retry_within`` when this writer gets the next turn, else
+                ``retry_after``), or another writer's turn (``reason: turn_held``).
+        """
+        now = self._state.revision
+        wait = self._turns.blocks(change, now)
+        if wait is not None:
+            raise SceneConflict(f"another writer holds the turn at revision {now} (it lost "
+                                f"the last race); retry in {wait:.2f} s",
+                                field="if_revision", current_revision=now,
+                                details={"reason": "turn_held", "retry_after": round(wait, 3)})
+        try:
+            return self._install(lambda: apply(self._state, change, self.builder))
+        except SceneConflict as e:
+            if e.field != "if_revision":
+                raise
+            turn = self._turns.lost(e.current_revision)
+            if turn is None:
+                held = self._turns.held(e.current_revision)
+                left = 0.0 if held is None else max(held.until - time.monotonic(), 0.0)
+                raise SceneConflict(
+                    f"the scene is at revision {e.current_revision}, not "
+                    f"{change['if_revision']}, and another writer holds the next turn: read "
+                    f"it and apply again in {left:.2f} s", field="if_revision",
+                    current_revision=e.current_revision,
+                    details={"reason": "stale", "retry_after": round(left, 3)}) from None
+            raise SceneConflict(
+                f"the scene is at revision {e.current_revision}, not {change['if_revision']}: "
+                f"read it and apply again with turn '{turn.token}' within {TURN_TIME:g} s "
+                "(the next conditional apply at that revision is yours)", field="if_revision",
+                current_revision=e.current_revision,
+                details={"reason": "stale", "turn": turn.token,
+                         "retry_within": TURN_TIME}) from None
 
     def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> list[str]:
         """Have every other live instance take the change (answered once it is on their
