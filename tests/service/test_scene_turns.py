@@ -45,7 +45,7 @@ def test_the_loser_of_a_race_goes_next(served):
     assert _apply(scene, {"add": [_box("a0")]})["revision"] == 1
     # both read revision 1; B wins
     assert _apply(scene, {"add": [_box("b1")], "if_revision": 1})["revision"] == 2
-    lost = _apply(scene, {"add": [_box("a1")], "if_revision": 1})["error"]
+    lost = _apply(scene, {"add": [_box("a1")], "if_revision": 1, "turn": "ask"})["error"]
     assert lost["code"] == "SCENE_CONFLICT" and lost["details"]["current_revision"] == 2
     turn = lost["details"]["turn"]
     assert lost["details"]["retry_within"] == TURN_TIME and turn in lost["message"]
@@ -66,7 +66,8 @@ def test_the_loser_of_a_race_goes_next(served):
 def test_the_holder_goes_through_with_its_turn(served):
     scene, _ = served
     _apply(scene, {"add": [_box("x")], "if_revision": 0})
-    turn = _apply(scene, {"add": [_box("y")], "if_revision": 0})["error"]["details"]["turn"]
+    turn = _apply(scene, {"add": [_box("y")], "if_revision": 0, "turn": "ask"})["error"][
+        "details"]["turn"]
     assert _apply(scene, {"add": [_box("z")], "if_revision": 1})["error"]["details"][
         "reason"] == "turn_held"
     assert _apply(scene, {"add": [_box("y")], "if_revision": 1, "turn": turn})["revision"] == 2
@@ -76,13 +77,23 @@ def test_the_holder_goes_through_with_its_turn(served):
 def test_a_turn_lapses_when_its_time_is_up():
     now = [100.0]
     turns = Turns(clock=lambda: now[0])
-    t = turns.lost(7)
-    assert t is not None and turns.lost(7) is None  # one at a time
+    asks = {"if_revision": 6, "turn": "ask"}
+    assert turns.lost({"if_revision": 6}, 7) is None  # did not ask
+    t = turns.lost(asks, 7)
+    assert t is not None and turns.lost(asks, 7) is None  # one at a time
     assert turns.blocks({"if_revision": 7}, 7) == pytest.approx(TURN_TIME)
     assert turns.blocks({"add": []}, 7) is None  # no if_revision: never held up
     now[0] += TURN_TIME
     assert turns.blocks({"if_revision": 7}, 7) is None and turns.held(7) is None
-    assert turns.lost(7) is not None  # the next loser's
+    assert turns.lost(asks, 7) is not None  # the next loser's
+
+
+def test_a_writer_that_does_not_ask_gets_no_turn_and_holds_nobody_up(served):
+    scene, _ = served
+    _apply(scene, {"add": [_box("x")], "if_revision": 0})
+    lost = _apply(scene, {"add": [_box("y")], "if_revision": 0})["error"]
+    assert lost["code"] == "SCENE_CONFLICT" and "turn" not in lost["details"]
+    assert _apply(scene, {"add": [_box("z")], "if_revision": 1})["revision"] == 2
 
 
 def test_two_clients_updating_in_a_loop_both_get_through(served):

@@ -39,21 +39,19 @@ def update_scene(client: PlannerClient,
     """
     if attempts < 1:
         raise ValueError(f"attempts must be >= 1, not {attempts}")
-    turn: str | None = None
+    turn = "ask"  # handed the next turn if this writer loses a race
     for attempt in range(attempts):
         scene = client.scene()
         change = make_change(scene)
         if change is None:
             return None
-        body = {**change, "if_revision": scene.revision}
-        if turn is not None:
-            body["turn"] = turn
+        body = {**change, "if_revision": scene.revision, "turn": turn}
         try:
             return client.apply(body)
         except SceneConflict as e:
             if attempt == attempts - 1:
                 raise
-            turn = e.details.get("turn") or turn
+            turn = e.details.get("turn") or "ask"
             wait = float(e.details.get("retry_after", 0.0))
             _log.debug("scene update: lost a race at revision %s (turn %s), retry in %.3f s",
                        e.details.get("current_revision"), turn, wait)

@@ -475,8 +475,9 @@ class SceneService:
 
         Raises:
             SceneConflict: a stale ``if_revision`` (``details.turn`` and
-                ``retry_within`` when this writer gets the next turn, else
-                ``retry_after``), or another writer's turn (``reason: turn_held``).
+                ``retry_within`` when this writer asked for turns and gets the next,
+                ``retry_after`` while another holds it), or another writer's turn
+                (``reason: turn_held``).
         """
         now = self._state.revision
         wait = self._turns.blocks(change, now)
@@ -490,10 +491,12 @@ class SceneService:
         except SceneConflict as e:
             if e.field != "if_revision":
                 raise
-            turn = self._turns.lost(e.current_revision)
+            turn = self._turns.lost(change, e.current_revision)
             if turn is None:
                 held = self._turns.held(e.current_revision)
-                left = 0.0 if held is None else max(held.until - time.monotonic(), 0.0)
+                if held is None:
+                    raise
+                left = max(held.until - time.monotonic(), 0.0)
                 raise SceneConflict(
                     f"the scene is at revision {e.current_revision}, not "
                     f"{change['if_revision']}, and another writer holds the next turn: read "

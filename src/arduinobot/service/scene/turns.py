@@ -2,8 +2,10 @@
 
 Two writers that each read the scene and apply with ``if_revision`` race; without help
 the faster loop wins every time (a review saw one writer lose 400 races in a row). The
-leader therefore hands the loser of a race a *turn*: a token, good for
-:data:`TURN_TIME` seconds while the scene stays at the revision the loser must read.
+leader therefore hands the loser of a race that asked for turns (its apply's
+``"turn": "ask"``) a *turn*: a token, good for :data:`TURN_TIME` seconds while the scene
+stays at the revision the loser must read. A writer that does not ask is never handed
+one, so writers that know nothing of turns never wait for a turn nobody will use.
 While a turn is held, another conditional apply at that revision is refused
 (``SCENE_CONFLICT``, ``details.reason`` ``turn_held``, ``retry_after`` [s]) and the
 holder's apply with its ``turn`` goes through. An apply without ``if_revision`` is never
@@ -65,10 +67,11 @@ class Turns:
             return None
         return max(t.until - self._clock(), 0.0)
 
-    def lost(self, revision: int) -> Turn | None:
-        """A conditional apply lost a race to a scene now at ``revision``: its turn, or
-        None while another writer holds one."""
-        if self.held(revision) is not None:
+    def lost(self, change: Mapping[str, Any], revision: int) -> Turn | None:
+        """A conditional apply, ``change``, lost a race to a scene now at ``revision``: its
+        turn, or None if it did not ask for turns (a ``turn`` of "ask" or a token) or
+        another writer holds one."""
+        if "turn" not in change or self.held(revision) is not None:
             return None
         self._held = Turn(secrets.token_hex(8), revision, self._clock() + TURN_TIME)
         return self._held
