@@ -259,7 +259,7 @@ class PlannerClient:
 
     def task(self, task: str | int | Mapping[str, Any], *, execute: bool = False,
              start_tolerance: float = 0.01, move_to_start: bool = False,
-             trajectories: bool = True,
+             trajectories: bool = True, scene_revision: int | None = None,
              on_planned: Callable[[Mapping[str, Any]], None] | None = None,
              on_event: Callable[[ExecutionEvent], None] | None = None,
              cancel: threading.Event | None = None) -> TaskReply:
@@ -273,6 +273,9 @@ class PlannerClient:
             start_tolerance: [rad] largest distance of each joint from the task's start;
                 move_to_start: move there first (execute).
             trajectories: include each step's plan in :attr:`TaskReply.steps`.
+            scene_revision: plan only in this revision of the kept scene (else
+                SceneConflict, ``details.current_revision``); the reply's
+                :attr:`TaskReply.scene_revision` names the one used either way.
             on_planned: called with the planned reply, before the robot moves.
             on_event: called with each execution event (started, progress, finished).
             cancel: set it (from any thread) to stop the arm smoothly (set while the
@@ -296,6 +299,8 @@ class PlannerClient:
             body["task"] = dict(task)
         if execute:
             body.update(start_tolerance=start_tolerance, move_to_start=move_to_start)
+        if scene_revision is not None:
+            body["scene_revision"] = scene_revision
         steps = body.get("task", {}).get("steps")
         silence = self.timeout + planning_time(body.get("task")) * max(
             1, len(steps) if isinstance(steps, Sequence) else 1)
