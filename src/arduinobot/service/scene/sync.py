@@ -89,6 +89,7 @@ from arduinobot.service.scene.file import (
     object_named,
     scene_owner,
 )
+from arduinobot.service.scene.identity import EncodedScenes
 from arduinobot.service.scene.members import Instances
 from arduinobot.service.scene.turns import TURN_TIME, Turns
 
@@ -141,7 +142,7 @@ class SceneService:
         self._state = SceneState()
         # the scene before this one: a plan that took it may still read its mesh files
         self._previous = self._state
-        self._encoded: tuple[int, bytes] = (-1, b"")
+        self._encoded = EncodedScenes()  # each scene's reply and digest, encoded once
         # one thread applies (and forwards), another takes changes from the leader: a
         # follower forwarding an apply can still take the leader's sync of it
         self._writes = concurrent.futures.ThreadPoolExecutor(1, "scene-apply")
@@ -343,13 +344,8 @@ class SceneService:
 
     # -- reading -----------------------------------------------------------------------
     def encoded(self) -> bytes:
-        """The scene's JSON, encoded once per revision (meshes make it large)."""
-        state = self._state
-        rev, body = self._encoded
-        if rev != state.revision:
-            body = orjson.dumps(state.to_json())
-            self._encoded = (state.revision, body)
-        return body
+        """The scene's JSON with its digest (:mod:`.identity`), encoded once."""
+        return self._encoded.of(self._state)[0]
 
     def _on_get(self, query: zenoh.Query) -> None:
         query.reply(query.key_expr, self.encoded(), encoding=wire.JSON)
@@ -447,7 +443,7 @@ class SceneService:
         old, new = self._install_fairly(change)
         if new is not old:
             self._remember(change.get("apply_id"), new.revision)
-        missed = self._replicate(old.revision, new.revision, change)
+        missed = self._replicate(old, new.revision, change)
         added = [o.id for o in new.objects if o.id not in set(old.ids())]
         removed = [i for i in old.ids() if i not in set(new.ids())]
         attached = [i for i in new.attached_ids() if i not in set(old.attached_ids())]
@@ -511,11 +507,14 @@ class SceneService:
                 details={"reason": "stale", "turn": turn.token,
                          "retry_within": TURN_TIME}) from None
 
-    def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> list[str]:
-        """Have every other live instance take the change (answered once it is on their
-        disk too), before the apply is acknowledged; the members that did not."""
-        payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
-                                "change": change})
+    def _replicate(self, base: SceneState, revision: int, change: Mapping[str, Any]
+                   ) -> list[str]:
+        """Have every other live instance take the change to ``base`` (answered once it
+        is on their disk too), before the apply is acknowledged; the members that did
+        not."""
+        payload = orjson.dumps({"from": self.instance, "base": base.revision,
+                                "base_digest": self._encoded.digest(base),
+                                "revision": revision, "change": change})
         members = sorted(self.instances.members())
         # one exact query per member, all sent before any answer is awaited
         pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
@@ -541,6 +540,13 @@ class SceneService:
         if sender != self.instance:
             def taken() -> SceneState:
                 state = self._state
+                theirs = msg.get("base_digest")
+                if state.revision == msg["base"] and theirs is not None \
+                        and theirs != self._encoded.digest(state):
+                    _log.warning("scene: revision %d here is not %s's revision %d (another "
+                                 "scene made apart: a partition or a pause): taking its "
+                                 "scene", state.revision, sender, msg["base"])
+                    return self._fetch(sender) or state
                 if state.revision == msg["base"]:
                     took = apply(state, msg["change"], self.builder)
                     self._remember(msg["change"].get("apply_id"), took.revision)
@@ -585,13 +591,23 @@ class SceneService:
         if missing:
             _log.warning("scene: instances %s did not answer; starting from the newest "
                          "scene of the others and the file", ", ".join(sorted(missing)))
+        mine = self._state
         best = max(scenes.values(), key=lambda d: d.get("revision", -1), default=None)
-        if best is not None and best.get("revision", -1) > self._state.revision:
-            # restored under the lock: its mesh files are written where a sync collects
-            _, new = self._install(lambda: restore(best, self.builder)
-                                if best.get("revision", -1) > self._state.revision
-                                else self._state)
-            _log.info("scene: caught up to revision %d from the live instances", new.revision)
+        lead = scenes.get(self.leader()) if self.leader() != self.instance else None
+        if lead is not None and lead.get("revision") == mine.revision \
+                and lead.get("digest") not in (None, self._encoded.digest(mine)):
+            # the same number, another scene (made apart): the leader's is the scene
+            _log.warning("scene: revision %d here is not the leader's revision %d (another "
+                         "scene made apart: a partition or a pause): taking the leader's",
+                         mine.revision, mine.revision)
+            best = lead
+        elif best is None or best.get("revision", -1) <= mine.revision:
+            return len(scenes)
+        # restored under the lock (its mesh files are written where a sync collects),
+        # unless a change came in meanwhile
+        _, new = self._install(lambda: restore(best, self.builder)
+                               if self._state is mine else self._state)
+        _log.info("scene: caught up to revision %d from the live instances", new.revision)
         return len(scenes)
 
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
