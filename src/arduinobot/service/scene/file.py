@@ -77,13 +77,14 @@ class SceneFile:
             return 0
         for f in stale:
             try:
-                if now - f.stat().st_mtime > older_than:
-                    f.unlink()
-                    removed += 1
+                old = now - f.stat().st_mtime > older_than
             except FileNotFoundError:
-                pass
+                continue
             except OSError as e:
-                _log.warning("scene: cannot remove the stale temporary file %s: %s", f, e)
+                _log.warning("scene: cannot read the temporary file %s: %s", f, e)
+                continue
+            if old and _remove(f, "stale temporary file"):
+                removed += 1
         if removed:
             _log.info("scene: %d temporary file(s) of a killed writer removed beside %s",
                       removed, self.path)
@@ -208,18 +209,24 @@ def collect_meshes(folder: Path, keep: Iterable[SceneState]) -> int:
     for f in entries:
         stale = (f.suffix == ".stl" and f.resolve() not in used) or \
             (f.name.startswith(".mesh-") and f.suffix == ".tmp")
-        if not stale or not f.is_file():
-            continue
-        try:
-            f.unlink()
+        if stale and f.is_file() and _remove(f, "unused mesh file"):
             removed += 1
-        except FileNotFoundError:
-            pass
-        except OSError as e:
-            _log.warning("scene: cannot remove the unused mesh file %s: %s", f, e)
     if removed:
         _log.info("scene: %d mesh file(s) no revision uses removed from %s", removed, folder)
     return removed
+
+
+def _remove(f: Path, what: str) -> bool:
+    """Remove ``f``; whether it was removed (gone already: not by us; refused: said in the
+    log, never in the way of the scene change it follows)."""
+    try:
+        f.unlink()
+        return True
+    except FileNotFoundError:
+        return False
+    except OSError as e:
+        _log.warning("scene: cannot remove the %s %s: %s", what, f, e)
+        return False
 
 
 def object_named(data: Mapping[str, Any], field: str | None) -> str | None:
