@@ -105,17 +105,17 @@ class RssSampler:
 def requests(seed: int) -> list[tuple[str, object, set[str] | None]]:
     """A seeded mix: (kind, body, allowed error codes; None: must succeed)."""
     from arduinobot.description import load_description
-    from arduinobot.planner.collision.world import CollisionWorld
-    from arduinobot.scene.ground import with_ground
+    from arduinobot.planner.planning.pipeline import MotionPlanner
     desc = load_description()
     rng = np.random.default_rng(seed)
     mix: list[tuple[str, object, set[str] | None]] = []
     names = desc.robot.actuated_joints
     arm = desc.summary()["groups"][desc.default_group()]
+    planner = MotionPlanner(desc)
     for obs in SCENES.values():
-        # the service plans with the ground under the base (scene/ground.py): the ends
-        # drawn are valid there too
-        w = CollisionWorld(desc, obstacles=list(with_ground(tuple(obs))))
+        # the service's world: with the ground under the base (scene/ground.py), so the
+        # ends drawn are valid where it plans
+        w = planner.world(tuple(obs))
         for a, b, _ in problems(w, 12, rng):
             mix.append(("plan", {"start": dict(zip(names, map(float, a))),
                                  # the arm's joints (the gripper is not in the group)

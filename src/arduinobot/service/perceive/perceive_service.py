@@ -239,7 +239,7 @@ class PerceiveService:
                 failure = SceneApplyFailed(Code.BUSY, "the kept scene did not answer", {})
             if failure.code != Code.SCENE_CONFLICT:
                 break
-            turn = failure.details.get("turn") or "ask"
+            turn = str(failure.details.get("turn") or "ask")
             time.sleep(0.2)  # this instance's copy of the scene catches up
         raise failure
 
