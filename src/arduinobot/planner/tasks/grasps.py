@@ -30,6 +30,8 @@ CLEARANCE = 0.005
 #: [m] the fingers open this much wider than the object on each side (if they can)
 OPEN_MARGIN = 0.02
 APPROACHES = ("fingers", "above")
+#: [m] the highest candidate grasps this far below the object's top
+TOP_MARGIN = 0.005
 
 
 @dataclass(frozen=True)
@@ -78,7 +80,8 @@ def extent(points: np.ndarray, axis: np.ndarray) -> float:
 
 class Reach:
     """Where the arm puts a point fixed in the claw's link: the arm joints solved by
-    bounded least squares from the given seed and a fixed grid of seeds."""
+    bounded least squares from the given state, else from a fixed grid of seeds (the
+    first that reaches wins; none: the closest miss)."""
 
     def __init__(self, kin: object, link: str, arm: Sequence[int], lower: np.ndarray,
                  upper: np.ndarray) -> None:
@@ -104,13 +107,10 @@ class Reach:
             r = least_squares(miss, seed, bounds=(self.lower, self.upper), xtol=1e-10,
                               ftol=1e-12, gtol=1e-12, max_nfev=200)
             err = float(np.linalg.norm(miss(r.x)))
-            moved = float(np.linalg.norm(r.x - q0[self.arm]))
-            # the nearest solution to the seed among those that reach
-            score = (0.0 if err <= REACH_TOLERANCE else err, moved)
-            if best is None or score < best[:2]:
-                best = (*score, r.x)
-            if err <= REACH_TOLERANCE and moved < 1e-9:
-                break
+            if best is None or err < best[0]:
+                best = (err, 0.0, r.x)
+            if err <= REACH_TOLERANCE:
+                break  # from the given state first: the solution nearest to it
         assert best is not None
         q = q0.copy()
         q[self.arm] = best[2]
@@ -128,8 +128,10 @@ def enumerate_grasps(claw: Claw, reach: Reach, obstacle: Obstacle, q0: np.ndarra
     pts = vertices(obstacle)
     centre = (pts.min(0) + pts.max(0)) / 2
     height = float(pts[:, 2].max() - pts[:, 2].min())
+    # the centre, higher up, and just under the top (a short object: the fingertips
+    # would reach the support below a lower grasp)
     heights = ([float(hints["height"])] if "height" in hints  # type: ignore[arg-type]
-               else [0.0, height / 4])
+               else [0.0, height / 4, max(height / 2 - TOP_MARGIN, height / 4)])
     ways = [str(hints["approach"])] if "approach" in hints else list(APPROACHES)
     found: list[Grasp] = []
     closest: tuple[float, str] | None = None

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from arduinobot.contract.errors import (
+    GoalInCollision,
     InvalidRequest,
     NoReachableGrasp,
     ObjectTooWide,
@@ -116,10 +117,20 @@ def plan_pick(progress: Progress, step: PickStep, index: int) -> None:
     allowed = tuple((obj.id, s) for s in supports)
     arm = reach.arm
     failed: list[tuple[str, PlanningError]] = []
+    world = planner.world(tuple(p.obstacles), tuple(p.attached), p.task.clouds,
+                          ground=p.task.ground)
     for k, g in enumerate(fits):
         name = step.label or f"pick {obj.id}"
         q_in = g.q_grasp.copy()
         q_in[leader] = g.open
+        # a candidate whose claw, open, is in something where it would close is not
+        # planned at all (milliseconds, not a planned approach refused at its end)
+        chk = world.check(q_in)
+        if not chk.valid:
+            failed.append((g.name, GoalInCollision(
+                "the claw, open at the grasp, collides",
+                pairs=chk.pairs, q=dict(zip(planner.joint_names, map(float, q_in))))))
+            continue
         parts: list[Part] = [
             (GripperStep(g.open, options=step.options, label=f"{name}: open"), ()),
             (MoveStep(arm_goal(planner, g.q_pre, arm, f"{where}.pick"),
