@@ -35,6 +35,9 @@ class StepResult:
     link: str | None = None
     # the task's pick or place step this one was generated for (None: the task's own)
     part_of: int | None = None
+    # attach: what the object is held with, its touch links, and its mass [kg]
+    touch_links: tuple[str, ...] = ()
+    mass: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -168,6 +168,8 @@ def run_step(progress: Progress, step: Step, index: int, *,
                                  group, part_of=part_of))
         return
     held: tuple[str | None, str | None] = (None, None)
+    touch: tuple[str, ...] = ()
+    mass = 0.0
     if isinstance(step, AttachStep):
         k = next((j for j, o in enumerate(p.obstacles) if o.id == step.object), None)
         if k is None:
@@ -181,6 +183,7 @@ def run_step(progress: Progress, step: Step, index: int, *,
                                  **({} if step.reach is None else {"reach": step.reach})))
         p.obstacles.pop(k)
         held = (step.object, link)
+        touch, mass = step.touch_links, step.mass  # as given (the twin resolves them)
     elif isinstance(step, DetachStep):
         k = next((j for j, a in enumerate(p.attached) if a.id == step.object), None)
         if k is None:
@@ -193,7 +196,7 @@ def run_step(progress: Progress, step: Step, index: int, *,
     p.done.append(StepResult(at, step.kind, step.label, start, dict(p.q),
                              step.seconds if isinstance(step, WaitStep) else 0.0,
                              None, tuple(a.id for a in p.attached), object=held[0],
-                             link=held[1], part_of=part_of))
+                             link=held[1], part_of=part_of, touch_links=touch, mass=mass))
 
 
 def _request(task: Task, options: MotionOptions, goal: Goal, group: str | None,
