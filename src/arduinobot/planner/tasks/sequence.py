@@ -8,6 +8,9 @@ the gripper's (the SRDF end effector's group), each through the one door,
 :meth:`~arduinobot.planner.planning.pipeline.MotionPlanner.solve`, so every step's trajectory is
 certified and verified as any single plan is. The first step that fails stops the
 task: :class:`TaskStepFailed` carries that step's own error (its code too) and its index.
+An object attached where it rests on something (touching it: no gap) may touch it
+until a motion ends with it clear (a lift): that pair is allowed for each motion step
+until then (:attr:`Progress.resting`), and no longer.
 A pick or a place step is expanded into these primitive steps by
 :mod:`arduinobot.planner.tasks.pick` and :mod:`arduinobot.planner.tasks.place`, which
 try their candidates through :class:`Progress` until one plans whole.
@@ -29,6 +32,7 @@ from arduinobot.planner.planning.goals import Goal
 from arduinobot.planner.planning.motion import MotionRequest
 from arduinobot.planner.planning.pathfinding.search import MAX_SEED
 from arduinobot.planner.tasks.gripper import gripper_goal, gripper_group, holding_link
+from arduinobot.planner.tasks.places import touching
 from arduinobot.planner.tasks.precheck import check_task
 from arduinobot.planner.tasks.results import StepResult, TaskResult, TaskStepFailed
 from arduinobot.planner.tasks.steps import (
@@ -85,18 +89,37 @@ class Progress:
     attached: list[AttachedObject] = field(default_factory=list)
     done: list[StepResult] = field(default_factory=list)
     choices: list[Choice] = field(default_factory=list)
+    #: (carried object, obstacle) pairs touching since the attach, not yet cleared
+    resting: set[tuple[str, str]] = field(default_factory=set)
 
     def vec(self, state: Mapping[str, float] | None = None) -> np.ndarray:
         s = self.q if state is None else state
         return np.array([s[n] for n in self.planner.joint_names], float)
 
     def snapshot(self) -> tuple:
-        return (dict(self.q), list(self.obstacles), list(self.attached), len(self.done))
+        return (dict(self.q), list(self.obstacles), list(self.attached), len(self.done),
+                set(self.resting))
 
     def restore(self, snap: tuple) -> None:
-        q, obstacles, attached, n = snap
+        q, obstacles, attached, n, resting = snap
         self.q, self.obstacles, self.attached = dict(q), list(obstacles), list(attached)
         del self.done[n:]
+        self.resting = set(resting)
+
+    def still_resting(self) -> None:
+        """Drop the resting pairs whose object has come clear of its support (further
+        than :data:`arduinobot.planner.tasks.places.TOUCHING`): from the next motion on
+        the pair is checked again."""
+        if not self.resting:
+            return
+        q = self.vec()
+        for a in self.attached:
+            pairs = {r for r in self.resting if r[0] == a.id}
+            if not pairs:
+                continue
+            here = detach(self.frames, a, q)
+            touched = set(touching(here, self.obstacles, ground=self.task.ground))
+            self.resting -= {r for r in pairs if r[1] not in touched}
 
     def run(self, parts: Sequence[Part], index: int) -> None:
         """Plan ``parts`` in order (primitive steps of the task's step ``index``); the
@@ -158,14 +181,16 @@ def run_step(progress: Progress, step: Step, index: int, *,
                                 where=f"{where}.gripper")
         else:
             group, goal = step.group, step.goal
+        pairs = tuple(sorted(set(allowed) | p.resting))
         req = _request(task, step.options, goal, group, start, p.obstacles, p.attached,
-                       at, allowed=allowed)
+                       at, allowed=pairs)
         res = p.planner.solve(req)
         tr = res.trajectory
         p.q = {n: float(v) for n, v in zip(tr.joint_names, tr.positions[-1])}
         p.done.append(StepResult(at, step.kind, step.label, start, dict(p.q),
                                  float(tr.duration), res, tuple(a.id for a in p.attached),
                                  group, part_of=part_of))
+        p.still_resting()
         return
     held: tuple[str | None, str | None] = (None, None)
     touch: tuple[str, ...] = ()
@@ -177,6 +202,10 @@ def run_step(progress: Progress, step: Step, index: int, *,
                 f"no obstacle '{step.object}' in the scene to attach (obstacles: "
                 f"{', '.join(o.id for o in p.obstacles) or 'none'})", field=f"{where}.attach")
         link = step.link or holding_link(desc)
+        # what it rests on may touch it until a motion takes it clear (a lift)
+        p.resting |= {(step.object, s) for s in touching(
+            p.obstacles[k], [o for o in p.obstacles if o.id != step.object],
+            ground=task.ground)}
         p.attached.append(attach(p.frames, p.obstacles[k], link, p.vec(),
                                  touch_links=step.touch_links, mass=step.mass,
                                  where=f"{where}.attach",
@@ -191,6 +220,7 @@ def run_step(progress: Progress, step: Step, index: int, *,
                 f"the robot carries no '{step.object}' (carried: "
                 f"{', '.join(a.id for a in p.attached) or 'nothing'})", field=f"{where}.detach")
         carried = p.attached.pop(k)
+        p.resting = {r for r in p.resting if r[0] != step.object}
         p.obstacles.append(detach(p.frames, carried, p.vec(), where=f"{where}.detach"))
         held = (step.object, carried.link)
     p.done.append(StepResult(at, step.kind, step.label, start, dict(p.q),
