@@ -138,7 +138,7 @@ class PickStep:
     approach: float = APPROACH
     lift: float = LIFT
     mass: float = 0.0
-    grasp: Mapping[str, object] = field(default_factory=dict)
+    grasp: Mapping[str, Any] = field(default_factory=dict)
     options: MotionOptions = MotionOptions()
     label: str | None = None
     kind: StepKind = field(default="pick", init=False)
