@@ -135,12 +135,12 @@ def plan_pick(progress: Progress, step: PickStep, index: int) -> None:
             (GripperStep(g.open, options=step.options, label=f"{name}: open"), ()),
             (MoveStep(arm_goal(planner, g.q_pre, arm, f"{where}.pick"),
                       options=step.options, label=f"{name}: approach"), ()),
-            (_line(planner, {"position": tcp_at(planner, q_in)}, step, f"{name}: in",
+            (line_step({"position": tcp_at(planner, q_in)}, step, f"{name}: in",
                    where), ()),
             (AttachStep(obj.id, link=c.link, mass=step.mass, touch_links=c.fingers,
                         label=f"{name}: attach"), ()),
             (GripperStep(g.close, options=step.options, label=f"{name}: grip"), allowed),
-            (_line(planner, {"offset": [0.0, 0.0, step.lift]}, step, f"{name}: lift",
+            (line_step({"offset": [0.0, 0.0, step.lift]}, step, f"{name}: lift",
                    where), allowed),
         ]
         snap = p.snapshot()
@@ -157,15 +157,16 @@ def plan_pick(progress: Progress, step: PickStep, index: int) -> None:
             "failed": [{"candidate": n, "code": str(e.code), "message": e.message}
                        for n, e in failed]}))
         return
-    raise _all_failed(obj.id, "pick", failed)
+    raise all_failed(obj.id, "pick", failed)
 
 
-def _line(planner: Any, data: dict[str, Any], step: Any, label: str, where: str) -> Step:
+def line_step(data: dict[str, Any], step: Any, label: str, where: str) -> Step:
+    """A straight tcp move (``position`` or ``offset``) with ``step``'s options."""
     return MoveStep(line_from_mapping(data, f"{where}.{step.kind}"), options=step.options,
                     label=label)
 
 
-def _all_failed(obj: str, kind: str, failed: list[tuple[str, PlanningError]]
+def all_failed(obj: str, kind: str, failed: list[tuple[str, PlanningError]]
                 ) -> PlanningError:
     """Every candidate failed: the first one's error (its code), each one's listed."""
     first = failed[0][1]

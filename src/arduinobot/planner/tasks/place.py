@@ -23,7 +23,7 @@ from arduinobot.contract.errors import (
     PlanningError,
 )
 from arduinobot.planner.tasks.grasps import OPEN_MARGIN, REACH_TOLERANCE
-from arduinobot.planner.tasks.pick import _all_failed, _line, arm_goal, claw, reach_of, tcp_at
+from arduinobot.planner.tasks.pick import all_failed, arm_goal, claw, line_step, reach_of, tcp_at
 from arduinobot.planner.tasks.places import blocking, moved, resolve, spots, top
 from arduinobot.planner.tasks.steps import DetachStep, GripperStep, MoveStep, PlaceStep
 
@@ -120,11 +120,11 @@ def plan_place(progress: Progress, step: PlaceStep, index: int) -> None:
         parts: list[Part] = [
             (MoveStep(arm_goal(planner, q_above, arm, f"{where}.place"), options=step.options,
                       label=f"{name}: above"), ()),
-            (_line(planner, {"position": tcp_at(planner, q)}, step, f"{name}: down", where),
+            (line_step({"position": tcp_at(planner, q)}, step, f"{name}: down", where),
              allowed),
             (GripperStep(opened, options=step.options, label=f"{name}: release"), allowed),
             (DetachStep(held.id, label=f"{name}: detach"), ()),
-            (_line(planner, {"offset": [0.0, 0.0, step.approach]}, step, f"{name}: up",
+            (line_step({"offset": [0.0, 0.0, step.approach]}, step, f"{name}: up",
                    where), ()),
         ]
         snap = p.snapshot()
@@ -142,4 +142,4 @@ def plan_place(progress: Progress, step: PlaceStep, index: int) -> None:
             "failed": [{"candidate": n, "code": str(e.code), "message": e.message}
                        for n, e in failed]}))
         return
-    raise _all_failed(held.id, "place", failed)
+    raise all_failed(held.id, "place", failed)
