@@ -130,10 +130,14 @@ def test_the_box_s_mass_is_in_the_carried_steps_efforts(course):
     assert efforts[2.0] > efforts[0.0] + 1e-3
 
 
-@pytest.mark.parametrize("shape", ["cylinder", "mesh"])
-def test_grasps_for_a_cylinder_and_a_mesh_object(course, tmp_path, shape):
-    if shape == "cylinder":
-        obj: dict[str, Any] = {"id": "can", "shape": "cylinder", "radius": 0.035,
+@pytest.mark.parametrize("shape", ["cylinder", "sphere", "mesh"])
+def test_grasps_for_a_cylinder_a_sphere_and_a_mesh_object(course, tmp_path, shape):
+    if shape == "sphere":  # a ball on the table: its diameter wide whichever way
+        obj: dict[str, Any] = {"id": "ball", "shape": "sphere", "radius": 0.04,
+                               "xyz": [*BOX_XY, TABLE_TOP + 0.04]}
+        width: float | None = 0.08
+    elif shape == "cylinder":
+        obj = {"id": "can", "shape": "cylinder", "radius": 0.035,
                                "length": 0.1, "xyz": [*BOX_XY, TABLE_TOP + 0.05]}
         width = 0.07
     else:  # a wedge: a triangle's prism, 6 cm tall, standing on the table
@@ -152,7 +156,9 @@ def test_grasps_for_a_cylinder_and_a_mesh_object(course, tmp_path, shape):
     for s in r.steps:
         if s.result is not None:
             assert s.result.verification.ok and s.result.verification.certified
-    if width is not None:  # an upright cylinder's extent along the claw's axis there
+    if shape == "sphere":  # its mesh's extent: the diameter, a polygon's a hair less
+        assert choice.details["width"] == pytest.approx(width, abs=2e-3)
+    elif width is not None:  # an upright cylinder's extent along the claw's axis there
         from arduinobot.planner.tasks.pick import claw
         c = claw(course)
         grip = next(s for s in r.steps if s.label and s.label.endswith("grip"))
