@@ -233,6 +233,14 @@ def test_a_place_with_no_free_spot_names_what_blocks_it(course):
     assert e.value.error.details["blocking"] == "slab"
 
 
+def test_the_task_request_schema_takes_pick_place_and_places():
+    import orjson
+
+    from arduinobot.contract import wire
+    body = {"task": pick_and_place_by_name(), "execute": False}
+    assert wire.decode("task", wire.encode(body)) == orjson.loads(wire.encode(body))
+
+
 def test_names_a_pick_or_place_lacks_are_refused_before_planning():
     from arduinobot.contract.errors import InvalidRequest
     with pytest.raises(InvalidRequest) as e:
