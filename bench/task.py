@@ -1,10 +1,13 @@
 """Task planning time: a pick and place on the course's workspace (its CAD meshes; a
 table, a bin with walls and a box on the table: tests/helpers/pick_place.py), planned
-as one task (above, LIN down 5 cm, close, attach, LIN up, across, down, open, detach,
-up) in-process, over N seeded variants of the box's and the bin's positions (each moved
-up to 4 cm). Prints each variant's planning time, then one JSON line: the median and
-largest planning time [s] (a first, unmeasured task builds the caches), the variants
-refused (their step and code) and the task's median duration [s].
+as one task in-process, over N seeded variants of the box's and the bin's positions
+(each moved up to 4 cm), in two forms: the eleven hand-written steps (above, LIN down
+5 cm, close, attach, LIN up, across, down, open, detach, up; the box 2 mm above the
+table) and the two steps by name (pick box, place box at bin; the box resting on the
+table: grasps generated, candidates tried until one plans whole). Prints each variant's
+planning time, then one JSON line per form: the median and largest planning time [s] (a
+first, unmeasured task builds the caches), the variants refused (their step and code),
+the task's median duration [s] and, by name, the candidates tried (median, most).
 
 Usage: ./dev bench task [N]   (default 20 variants)
 """
@@ -23,7 +26,7 @@ from arduinobot.planner.tasks import TaskStepFailed, plan_task, task_from_mappin
 from bench._lib.args import problems_per_scene
 from bench._lib.report import emit
 from tests.helpers.course_workspace import make_course_workspace
-from tests.helpers.pick_place import pick_and_place, variants
+from tests.helpers.pick_place import pick_and_place, pick_and_place_by_name, variants
 
 
 def main() -> None:
@@ -34,29 +37,44 @@ def main() -> None:
                                 moveit_config=ws.moveit_pkg)
         planner = MotionPlanner(desc)
         plan_task(planner, task_from_mapping(pick_and_place()))  # the caches, unmeasured
-        times: list[float] = []
-        durations: list[float] = []
-        failed: list[dict[str, Any]] = []
-        for i, body in enumerate(variants(n)):
-            t0 = time.perf_counter()
-            try:
-                r = plan_task(planner, task_from_mapping(body))
-            except TaskStepFailed as e:
-                failed.append({"variant": i, "step": e.index, "code": str(e.code)})
-                print(f"variant {i:2d}: step {e.index} failed: {e.message}")
-                continue
-            dt = time.perf_counter() - t0
-            times.append(dt)
-            durations.append(r.duration)
-            print(f"variant {i:2d}: planned in {dt * 1e3:7.1f} ms, task {r.duration:.2f} s, "
-                  f"{len(r.steps)} steps")
-        med = statistics.median(times) if times else None
-        if med is not None:
-            print(f"median planning time {med * 1e3:.1f} ms over {len(times)} variants")
-        emit("task", {"variants": n, "planned": len(times), "failed": failed,
-                      "median_planning_s": med, "max_planning_s": max(times, default=None),
-                      "median_task_duration_s": statistics.median(durations)
-                      if durations else None})
+        plan_task(planner, task_from_mapping(pick_and_place_by_name()))  # the claw's too
+        for by_name in (False, True):
+            run(planner, n, by_name=by_name)
+
+
+def run(planner: MotionPlanner, n: int, *, by_name: bool) -> None:
+    """Plan the ``n`` variants of one form and print its figures."""
+    form = "two steps by name" if by_name else "eleven steps"
+    print(f"-- {form}")
+    times: list[float] = []
+    durations: list[float] = []
+    tried: list[int] = []
+    failed: list[dict[str, Any]] = []
+    for i, body in enumerate(variants(n, by_name=by_name)):
+        t0 = time.perf_counter()
+        try:
+            r = plan_task(planner, task_from_mapping(body))
+        except TaskStepFailed as e:
+            failed.append({"variant": i, "step": e.index, "code": str(e.code)})
+            print(f"variant {i:2d}: step {e.index} failed: {e.message}")
+            continue
+        dt = time.perf_counter() - t0
+        times.append(dt)
+        durations.append(r.duration)
+        tried.extend(c.tried for c in r.choices if c.kind == "pick")
+        chose = "".join(f", {c.kind} {c.name} ({c.tried} of {c.candidates})"
+                        for c in r.choices)
+        print(f"variant {i:2d}: planned in {dt * 1e3:7.1f} ms, task {r.duration:.2f} s, "
+              f"{len(r.steps)} steps{chose}")
+    med = statistics.median(times) if times else None
+    if med is not None:
+        print(f"median planning time {med * 1e3:.1f} ms over {len(times)} variants")
+    emit("task_by_name" if by_name else "task", {
+        "variants": n, "planned": len(times), "failed": failed,
+        "median_planning_s": med, "max_planning_s": max(times, default=None),
+        "median_task_duration_s": statistics.median(durations) if durations else None,
+        **({"median_picks_tried": statistics.median(tried) if tried else None,
+            "most_picks_tried": max(tried, default=None)} if by_name else {})})
 
 
 if __name__ == "__main__":

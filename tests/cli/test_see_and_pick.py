@@ -27,7 +27,7 @@ BOX = pp.BOX
 MARKER = 0.065  # [m]: its label (10 % white around it) fits the box's 8 cm face
 # on the circle of pick_place's box (as far from joint_1), turned towards the camera
 R, BEARING = math.hypot(*pp.BOX_XY), math.radians(30.0)
-TRUTH = (R * math.cos(BEARING), R * math.sin(BEARING), TABLE_TOP + pp.GAP + BOX / 2)
+TRUTH = (R * math.cos(BEARING), R * math.sin(BEARING), TABLE_TOP + pp.HOVER + BOX / 2)
 BIN = pp.BIN_XY
 TABLE_SHIFT = 0.2  # [m] the table's centre beyond the box's, away from the camera
 

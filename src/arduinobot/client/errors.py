@@ -132,6 +132,24 @@ class MarkerRefused(ServiceError):
     """perceive: a marker is seen too small or at a grazing angle (``details.reason``)."""
     code: str = Code.MARKER_REFUSED
 
+
+class ObjectTooWide(ServiceError):
+    """task: a pick's object is wider between the fingers (``details.width`` [m]) than
+    the claw opens (``details.opening`` [m])."""
+    code: str = Code.OBJECT_TOO_WIDE
+
+
+class NoReachableGrasp(ServiceError):
+    """task: no grasp candidate of a pick is within the arm's reach
+    (``details.closest_residual`` [m]: the closest one's miss)."""
+    code: str = Code.NO_REACHABLE_GRASP
+
+
+class NoFreePlace(ServiceError):
+    """task: every spot of a place is taken (``details.blocking``: the object in the
+    way of the first)."""
+    code: str = Code.NO_FREE_PLACE
+
 class MalformedReply(ServiceError):
     """A reply this client cannot read: a field its schema requires is missing or of the
     wrong type (``details.field``, ``details.reply``: plan, fk, ik or check). The service

@@ -46,6 +46,10 @@ class Code(str, Enum):
     NO_MARKER = "NO_MARKER"
     UNKNOWN_MARKER = "UNKNOWN_MARKER"
     MARKER_REFUSED = "MARKER_REFUSED"
+    # a task's pick and place (src/arduinobot/planner/tasks/): refusals with their numbers
+    OBJECT_TOO_WIDE = "OBJECT_TOO_WIDE"
+    NO_REACHABLE_GRASP = "NO_REACHABLE_GRASP"
+    NO_FREE_PLACE = "NO_FREE_PLACE"
     # the client's own, never sent: no reply at all, or a code it does not know
     UNAVAILABLE = "UNAVAILABLE"
     UNKNOWN = "UNKNOWN"
@@ -78,7 +82,7 @@ PLAN_SERVICE_CODES: tuple[Code, ...] = (
     Code.LINE_INTERRUPTED, Code.ORIENTATION_NOT_CONTROLLABLE,
     Code.TIMEOUT, Code.BUSY, Code.RESOURCE_LIMIT, Code.SHUTTING_DOWN, Code.INTERNAL,
     Code.SCENE_CONFLICT, Code.STORAGE, Code.IMAGE_INVALID, Code.NO_MARKER, Code.UNKNOWN_MARKER,
-    Code.MARKER_REFUSED)
+    Code.MARKER_REFUSED, Code.OBJECT_TOO_WIDE, Code.NO_REACHABLE_GRASP, Code.NO_FREE_PLACE)
 
 #: The execute service's and the drivers' codes, in docs/service.md's second table's order.
 EXECUTION_CODES: tuple[Code, ...] = (

@@ -110,6 +110,27 @@ class TrajectoryError(PlanningError):
     code: Code = Code.TRAJECTORY_FAILED
 
 
+class ObjectTooWide(PlanningError):
+    """A pick's object is wider between the fingers than the claw opens, in every
+    reachable grasp (``details``: object, width [m], opening [m])."""
+
+    code: Code = Code.OBJECT_TOO_WIDE
+
+
+class NoReachableGrasp(PlanningError):
+    """No grasp candidate of a pick (or no spot of a place) is within the arm's reach
+    (``details``: object, candidates, closest_residual [m], closest)."""
+
+    code: Code = Code.NO_REACHABLE_GRASP
+
+
+class NoFreePlace(PlanningError):
+    """Every spot a place tried would put the object into another one (``details``:
+    object, blocking: the object in the way of the first spot, spots)."""
+
+    code: Code = Code.NO_FREE_PLACE
+
+
 class LineInterrupted(PlanningError):
     """A straight-line move cannot go the whole way: the line leaves the workspace,
     crosses a joint limit or a collision. The line is never bent round it.

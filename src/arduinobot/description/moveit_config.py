@@ -311,7 +311,10 @@ class NamedTask:
 
 def read_tasks(path: Path) -> dict[str, NamedTask]:
     """The named tasks of a ``tasks.yaml``: ``tasks: {NAME: {number, description,
-    steps, ...}}`` (a list of steps alone is a task too), by name, in file order.
+    steps, ...}}`` (a list of steps alone is a task too), by name, in file order. The
+    file's ``places: {NAME: {position: [x, y, z]} | {on: OBSTACLE} | OBSTACLE}`` are
+    every task's (a task's own ``places`` add to them, and win), so ``place: box, at:
+    bin`` reads as the user says it.
 
     Raises:
         DescriptionError: unreadable YAML, no ``tasks`` mapping, an entry that is not a
@@ -325,6 +328,10 @@ def read_tasks(path: Path) -> dict[str, NamedTask]:
     if not isinstance(block, dict):
         raise DescriptionError("expected a mapping 'tasks:' of task names to their steps",
                                file=Path(path))
+    places = data.get("places", {})
+    if not isinstance(places, dict):
+        raise DescriptionError("places: expected a mapping of place names to {position: "
+                               "[x, y, z]}, {on: OBSTACLE} or an obstacle id", file=Path(path))
     out: dict[str, NamedTask] = {}
     numbers: dict[int, str] = {}
     for name, entry in block.items():
@@ -334,6 +341,9 @@ def read_tasks(path: Path) -> dict[str, NamedTask]:
             raise DescriptionError(f"tasks.{name}: expected a mapping with steps",
                                    file=Path(path))
         body = dict(entry)
+        if places:
+            own = body.get("places", {})
+            body["places"] = {**places, **own} if isinstance(own, dict) else own
         number = body.pop("number", None)
         if number is not None and (isinstance(number, bool) or not isinstance(number, int)
                                    or number < 0):

@@ -135,6 +135,9 @@ def _print_plan(body: dict[str, Any]) -> None:
         label = f" {s['label']}" if s.get("label") else ""
         print(f"  {s['index']:2d} {s['kind']:<8s}{label:<{w}s} at {s['start_time']:7.3f} s, "
               f"{s['duration']:6.3f} s{ok}{carried}")
+    for c in body.get("choices", ()):
+        print(f"  step {c['step']} {c['kind']} {c['object']}: chose {c['candidate']} "
+              f"(tried {c['tried']} of {c['candidates']})")
 
 
 def _list(ns: argparse.Namespace) -> int:

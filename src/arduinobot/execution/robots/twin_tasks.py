@@ -23,17 +23,15 @@ class Grips(Protocol):
 def task_objects(task: Any, result: Any) -> tuple[Any, ...]:
     """The objects a planned task (:class:`arduinobot.planner.tasks.Task` and its
     :class:`arduinobot.planner.tasks.TaskResult`) picks up, as the twin's ``loose`` objects: each
-    where the task's scene has it, held by the attach step's link with its mass."""
-    from arduinobot.planner.tasks.steps import AttachStep
+    where the task's scene has it, held by the attach step's link with its touch links
+    and mass (an attach step's own, or one a pick step generated)."""
     from arduinobot.scene.obstacles import AttachedObject
     scene = {o.id: o for o in result.start_obstacles}
     out: dict[str, Any] = {}
     for s in result.steps:
-        step = task.steps[s.index]
-        if s.kind == "attach" and isinstance(step, AttachStep) and s.object in scene \
-                and s.object not in out:
+        if s.kind == "attach" and s.object in scene and s.object not in out:
             out[s.object] = AttachedObject(shape=scene[s.object], link=s.link,
-                                           touch_links=step.touch_links, mass=step.mass)
+                                           touch_links=s.touch_links, mass=s.mass)
     return tuple(out.values())
 
 

@@ -134,27 +134,34 @@ class PlanningContext:
     def world(self, obstacles: tuple[Obstacle, ...],
               attached: tuple[AttachedObject, ...] = (),
               clouds: tuple[CloudObstacle, ...] = (), *,
-              ground: bool = True) -> CollisionWorld:
+              ground: bool = True,
+              allowed: tuple[tuple[str, str], ...] = ()) -> CollisionWorld:
         """The collision world for ``obstacles``, the ``attached`` objects carried and
         the ``clouds``' cells (and the ground unless ``ground`` is false), built once per
-        distinct set of the four."""
-        return self.scene(obstacles, attached, clouds, ground=ground)[0]
+        distinct set of the four (and of the ``allowed`` pairs)."""
+        return self.scene(obstacles, attached, clouds, ground=ground, allowed=allowed)[0]
 
     def scene(self, obstacles: tuple[Obstacle, ...],
               attached: tuple[AttachedObject, ...] = (),
-              clouds: tuple[CloudObstacle, ...] = (), *, ground: bool = True
+              clouds: tuple[CloudObstacle, ...] = (), *, ground: bool = True,
+              allowed: tuple[tuple[str, str], ...] = ()
               ) -> tuple[CollisionWorld, PathPlanner]:
         """The collision world for ``obstacles``, the ``attached`` objects carried and
         the ``clouds``' cells, and the path planner in it, built once per distinct set of
         the three (a cloud by its cells' content). ``ground``: the plane the base stands
         on (:mod:`arduinobot.scene.ground`) is an obstacle too, unless ``obstacles`` has
-        one of its id already (a user's own ground replaces ours)."""
+        one of its id already (a user's own ground replaces ours). ``allowed``: (object,
+        obstacle) id pairs not checked in this world (an object resting on its support)."""
         obstacles = with_ground(obstacles, ground)
+        allowed = tuple(sorted((min(a, b), max(a, b)) for a, b in allowed))
         key = (_obstacle_key(obstacles), _attached_key(attached),
-               tuple((c.id, c.key()) for c in clouds))
+               tuple((c.id, c.key()) for c in clouds), allowed)
         found = self._worlds.pop(key, None)
         if found is None:
-            w = self._base_world().with_scene(obstacles, attached=attached, clouds=clouds)
+            base = self._base_world()
+            w = base.with_scene(obstacles, attached=attached, clouds=clouds,
+                                acm=base.acm.with_pairs(allowed, reason="Resting")
+                                if allowed else None)
             found = (w, PathPlanner(w, self.description))
         self._worlds[key] = found  # most recently used last
         while len(self._worlds) > self.max_worlds:

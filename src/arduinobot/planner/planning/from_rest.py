@@ -43,7 +43,8 @@ class FromRest:
         t0 = time.perf_counter()
         start = context.validate(request)
         world, paths = context.scene(request.obstacles, request.attached, request.clouds,
-                                     ground=request.ground)
+                                     ground=request.ground,
+                                     allowed=request.allowed)
         t1 = time.perf_counter()
         res = paths.solve(PathRequest(start=start, goal=request.goal, group=request.group,
                                       planner=request.planner,

@@ -65,6 +65,9 @@ class MotionRequest:
     start_acceleration: Mapping[str, float] | None = None
     # the plane the base stands on is an obstacle (arduinobot.scene.ground) unless False
     ground: bool = True
+    # (object, obstacle) id pairs allowed to touch for this motion only: a carried object
+    # and the support it rests on, until a lift clears it (a task's pick and place)
+    allowed: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         check_goal(self.goal)

@@ -110,7 +110,8 @@ def _effort_safe_brake(context: PlanningContext, q0: np.ndarray, v0: np.ndarray,
     acceleration the arm already has) whose torques fit the effort limits
     (:func:`arduinobot.planner.timing.braking.effort_safe`), with what the arm carries."""
     world = context.world(request.obstacles, request.attached, request.clouds,
-                          ground=request.ground)
+                          ground=request.ground,
+                                     allowed=request.allowed)
     dynamics = context.payload(world.attached)[0]
     tr, ratio = effort_safe(
         lambda f: brake_to_rest(q0, v0, a0, velocity=lim.velocity,
@@ -172,7 +173,8 @@ def _blend(context: PlanningContext, request: MotionRequest, brake: _Brake,
     shift of :data:`SHIFTS` whose trajectory passes the verifier."""
     new = plan.trajectory.timing
     world = context.world(request.obstacles, request.attached, request.clouds,
-                          ground=request.ground)
+                          ground=request.ground,
+                                     allowed=request.allowed)
     dynamics, profiles = context.payload(world.attached)  # with what it carries
     verifier = Verifier(brake.limits, dynamics, world,
                         clearance_states=context.clearance_states)

@@ -4,7 +4,8 @@
 What can be known without planning is checked here: each motion step's group, the
 joints of a joint goal, the named state of a named goal or a gripper step, an attach's
 object (among the task's obstacles, as attach and detach steps before it leave them)
-and link, a detach's object. Reachability, collisions and limits stay the planner's.
+and link, a detach's object, a pick's object, a place's object and where it goes (a
+place of the task's or an obstacle). Reachability, collisions and limits stay the planner's.
 """
 
 from __future__ import annotations
@@ -15,7 +16,15 @@ from arduinobot.description.errors import SrdfError
 from arduinobot.planner.planning.goals import JointGoal, NamedGoal
 from arduinobot.planner.tasks.gripper import gripper_goal, gripper_group
 from arduinobot.planner.tasks.results import TaskStepFailed
-from arduinobot.planner.tasks.steps import AttachStep, DetachStep, GripperStep, MoveStep, Task
+from arduinobot.planner.tasks.steps import (
+    AttachStep,
+    DetachStep,
+    GripperStep,
+    MoveStep,
+    PickStep,
+    PlaceStep,
+    Task,
+)
 
 
 def check_task(task: Task, description: Description) -> None:
@@ -38,6 +47,28 @@ def check_task(task: Task, description: Description) -> None:
             elif isinstance(step, GripperStep):
                 gripper_goal(description, step.command, gripper_group(description),
                              where=f"{where}.gripper")
+            elif isinstance(step, PickStep):
+                if step.object not in free:
+                    raise InvalidRequest(
+                        f"no obstacle '{step.object}' in the scene to pick (obstacles "
+                        f"then: {', '.join(sorted(free)) or 'none'})", field=f"{where}.pick")
+                free.discard(step.object)
+                carried.add(step.object)
+            elif isinstance(step, PlaceStep):
+                if step.object not in carried:
+                    raise InvalidRequest(
+                        f"the robot carries no '{step.object}' then to place (carried: "
+                        f"{', '.join(sorted(carried)) or 'nothing'})", field=f"{where}.place")
+                at = step.at
+                named = at.name if at.name is not None else at.on
+                if named is not None and named not in task.places and named not in free:
+                    raise InvalidRequest(
+                        f"'{named}' is no place of the task (places: "
+                        f"{', '.join(task.places) or 'none'}) and no obstacle then "
+                        f"(obstacles: {', '.join(sorted(free)) or 'none'})",
+                        field=f"{where}.at")
+                carried.discard(step.object)
+                free.add(step.object)
             elif isinstance(step, AttachStep):
                 if step.object not in free:
                     raise InvalidRequest(

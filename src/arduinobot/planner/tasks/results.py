@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -32,6 +33,11 @@ class StepResult:
     # attach, detach: the object and the link that holds it
     object: str | None = None
     link: str | None = None
+    # the task's pick or place step this one was generated for (None: the task's own)
+    part_of: int | None = None
+    # attach: what the object is held with, its touch links, and its mass [kg]
+    touch_links: tuple[str, ...] = ()
+    mass: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +51,8 @@ class TaskResult:
     planning_time: float
     obstacles: tuple[Obstacle, ...]  # the scene as the last step leaves it
     start_obstacles: tuple[Obstacle, ...] = ()  # the scene the task starts in
+    #: what each pick and place step chose (sequence.Choice)
+    choices: tuple[Any, ...] = ()
 
     def boundaries(self) -> list[float]:
         """Each step's start time in the task [s]."""

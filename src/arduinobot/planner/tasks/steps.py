@@ -11,6 +11,10 @@ naming each step's kind::
     {"attach": OBJECT_ID, "link": LINK, "mass": kg, "touch_links": [...], "reach": m}
     {"detach": OBJECT_ID}
     {"wait": seconds}
+    {"pick": OBJECT_ID, "approach": m, "lift": m, "mass": kg, "grasp": {"approach":
+     "fingers" | "above", "height": m}}          grasps generated (pick.py)
+    {"place": OBJECT_ID, "at": {"position": [x, y, z]} | {"on": OBSTACLE_ID} | NAME,
+     "approach": m}                               a place named in ``places`` or an obstacle
 
 and optional ``label``, ``velocity_scaling``, ``acceleration_scaling`` and
 ``planning_time`` on a motion step. Parsing refuses a bad step with
@@ -36,8 +40,12 @@ from arduinobot.planner.planning.pathfinding.search import check_seed
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.obstacles import Obstacle
 
-StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait"]
-STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait")
+StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait", "pick", "place"]
+STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait",
+                                    "pick", "place")
+#: [m] a pick's way in and a place's way down by default, and a pick's lift
+APPROACH = 0.05
+LIFT = 0.05
 #: the longest wait step [s]: a task is a motion, not a timer
 MAX_WAIT = 60.0
 #: [m] the largest ``reach`` an attach step may give (a grip a metre from the object is
@@ -119,7 +127,48 @@ class WaitStep:
     kind: StepKind = field(default="wait", init=False)
 
 
-Step = MoveStep | GripperStep | AttachStep | DetachStep | WaitStep
+@dataclass(frozen=True)
+class PickStep:
+    """Pick ``object`` up: grasps generated from its shape and the claw
+    (:mod:`arduinobot.planner.tasks.pick`), the first that plans whole taken; the claw
+    comes in ``approach`` [m] and lifts it ``lift`` [m]; ``mass`` [kg] carried;
+    ``grasp`` hints (``approach``: fingers or above, ``height`` [m] over its centre)."""
+
+    object: str
+    approach: float = APPROACH
+    lift: float = LIFT
+    mass: float = 0.0
+    grasp: Mapping[str, Any] = field(default_factory=dict)
+    options: MotionOptions = MotionOptions()
+    label: str | None = None
+    kind: StepKind = field(default="pick", init=False)
+
+
+@dataclass(frozen=True)
+class PlaceTarget:
+    """Where a place puts its object: its centre at ``position`` [m], on top of the
+    obstacle ``on``, or the task's place ``name`` (or, lacking one, the obstacle so
+    named)."""
+
+    position: tuple[float, float, float] | None = None
+    on: str | None = None
+    name: str | None = None
+
+
+@dataclass(frozen=True)
+class PlaceStep:
+    """Put the carried ``object`` down ``at`` (:mod:`arduinobot.planner.tasks.place`):
+    lowered ``approach`` [m] straight down, let go, the claw back up as far."""
+
+    object: str
+    at: PlaceTarget
+    approach: float = APPROACH
+    options: MotionOptions = MotionOptions()
+    label: str | None = None
+    kind: StepKind = field(default="place", init=False)
+
+
+Step = MoveStep | GripperStep | AttachStep | DetachStep | WaitStep | PickStep | PlaceStep
 
 
 @dataclass(frozen=True)
@@ -140,6 +189,8 @@ class Task:
     #: the plane the base stands on is an obstacle of every motion step
     #: (:mod:`arduinobot.scene.ground`) unless False
     ground: bool = True
+    #: named places a place step's ``at`` may name (a tasks.yaml's ``places``)
+    places: Mapping[str, PlaceTarget] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.steps:
@@ -164,7 +215,9 @@ def _number(value: object, where: str, *, low: float = -math.inf,
 _MOTION_KEYS = {"velocity_scaling", "acceleration_scaling", "planning_time"}
 _KEYS: dict[str, set[str]] = {
     "move": {"group", *_MOTION_KEYS}, "line": set(_MOTION_KEYS), "gripper": set(_MOTION_KEYS),
-    "attach": {"link", "mass", "touch_links", "reach"}, "detach": set(), "wait": set()}
+    "attach": {"link", "mass", "touch_links", "reach"}, "detach": set(), "wait": set(),
+    "pick": {"approach", "lift", "mass", "grasp", *_MOTION_KEYS},
+    "place": {"at", "approach", *_MOTION_KEYS}}
 
 
 def _options(data: Mapping[str, Any], where: str) -> MotionOptions:
@@ -210,6 +263,8 @@ def step_from_mapping(data: object, where: str) -> Step:
     if kind == "gripper":
         return GripperStep(_gripper_command(value, at), options=_options(data, where),
                            label=label)
+    if kind in ("pick", "place"):
+        return _pick_or_place(kind, value, data, where, label)
     if kind in ("attach", "detach"):
         if not isinstance(value, str) or not value:
             raise InvalidRequest("must be an obstacle id", field=at)
@@ -230,6 +285,80 @@ def step_from_mapping(data: object, where: str) -> Step:
                               data["reach"], f"{where}.reach", low=0.0, high=MAX_REACH,
                               unit="m"))
     return WaitStep(_number(value, at, low=0.0, high=MAX_WAIT, unit="s"), label=label)
+
+
+def _object_id(value: object, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise InvalidRequest("must be an obstacle id", field=where)
+    return value
+
+
+def _pick_or_place(kind: str, value: object, data: Mapping[str, Any], where: str,
+                   label: str | None) -> Step:
+    at = f"{where}.{kind}"
+    obj = _object_id(value, at)
+    approach = _number(data.get("approach", APPROACH), f"{where}.approach", low=0.0,
+                       high=1.0, unit="m")
+    options = _options(data, where)
+    if kind == "place":
+        if "at" not in data:
+            raise InvalidRequest("a place needs 'at': {position: [x, y, z]}, {on: OBSTACLE} "
+                                 "or a place's name", field=f"{where}.at")
+        return PlaceStep(obj, place_target(data["at"], f"{where}.at"), approach=approach,
+                         options=options, label=label)
+    grasp = data.get("grasp", {})
+    if not isinstance(grasp, Mapping):
+        raise InvalidRequest("must be an object {approach, height}", field=f"{where}.grasp")
+    extra = sorted(set(grasp) - {"approach", "height"})
+    if extra:
+        raise InvalidRequest(unknown_fields(extra, {"approach", "height"}, of="grasp hints"),
+                             field=f"{where}.grasp")
+    hints: dict[str, object] = {}
+    if "approach" in grasp:
+        if grasp["approach"] not in ("fingers", "above"):
+            raise InvalidRequest(f"{grasp['approach']!r} must be fingers (along the claw) "
+                                 "or above (straight down)", field=f"{where}.grasp.approach")
+        hints["approach"] = grasp["approach"]
+    if "height" in grasp:
+        hints["height"] = _number(grasp["height"], f"{where}.grasp.height", low=-1.0,
+                                  high=1.0, unit="m")
+    return PickStep(obj, approach=approach,
+                    lift=_number(data.get("lift", LIFT), f"{where}.lift", low=0.0, high=1.0,
+                                 unit="m"),
+                    mass=_number(data.get("mass", 0.0), f"{where}.mass", low=0.0,
+                                 high=MAX_MASS, unit="kg"),
+                    grasp=hints, options=options, label=label)
+
+
+def place_target(value: object, where: str) -> PlaceTarget:
+    """A place's ``at`` (or a named place): ``{position: [x, y, z]}``, ``{on: ID}`` or a
+    name."""
+    if isinstance(value, str) and value:
+        return PlaceTarget(name=value)
+    if not isinstance(value, Mapping) or len(value) != 1 \
+            or next(iter(value)) not in ("position", "on"):
+        raise InvalidRequest(f"{value!r} must be {{position: [x, y, z]}}, {{on: OBSTACLE}} "
+                             "or a place's name", field=where)
+    if "on" in value:
+        return PlaceTarget(on=_object_id(value["on"], f"{where}.on"))
+    p = value["position"]
+    if not isinstance(p, Sequence) or isinstance(p, str) or len(p) != 3:
+        raise InvalidRequest("must be [x, y, z] [m]", field=f"{where}.position")
+    x, y, z = (_number(v, f"{where}.position[{i}]", unit="m") for i, v in enumerate(p))
+    return PlaceTarget(position=(x, y, z))
+
+
+def places_from_mapping(data: object, where: str) -> dict[str, PlaceTarget]:
+    """A tasks.yaml's (or a task's) ``places``: ``{NAME: {position: [...]} | {on: ID} |
+    ID}``."""
+    if not isinstance(data, Mapping):
+        raise InvalidRequest("must map place names to {position: [x, y, z]}, {on: "
+                             "OBSTACLE} or an obstacle id", field=where)
+    out = {}
+    for name, v in data.items():
+        t = place_target(v, f"{where}.{name}")
+        out[str(name)] = PlaceTarget(on=t.name) if t.name is not None else t
+    return out
 
 
 def _gripper_command(value: object, where: str) -> str | float | tuple[float, ...]:
@@ -254,7 +383,7 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
     if not isinstance(data, Mapping):
         raise InvalidRequest("must be an object with steps", field=where or "task")
     known = {"steps", "start", "obstacles", "velocity_scaling", "acceleration_scaling",
-             "planning_time", "seed", "name", "description", "ground"}
+             "planning_time", "seed", "name", "description", "ground", "places"}
     extra = sorted(set(data) - known)
     if extra:
         raise InvalidRequest(unknown_fields(extra, known, of="a task"), field=where or "task")
@@ -287,4 +416,5 @@ def task_from_mapping(data: object, *, where: str = "", name: str | None = None,
             acc, f"{pre}acceleration_scaling", low=0.01, high=1.0),
         planning_time=_number(data.get("planning_time", 1.0), f"{pre}planning_time",
                               low=1e-3, high=60.0),
-        seed=seed, name=name if name is not None else data.get("name"), ground=ground)
+        seed=seed, name=name if name is not None else data.get("name"), ground=ground,
+        places=places_from_mapping(data.get("places", {}), f"{pre}places"))

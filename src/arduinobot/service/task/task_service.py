@@ -59,6 +59,8 @@ def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = T
             "end": dict(s.end), "carried": list(s.carried)}
         if s.object is not None:
             item["object"], item["link"] = s.object, s.link
+        if s.part_of is not None:
+            item["part_of"] = s.part_of
         if s.result is not None:
             item["certified"] = bool(s.result.verification.certified)
             item["verified"] = bool(s.result.verification.ok)
@@ -68,6 +70,10 @@ def planned_body(result: TaskResult, *, name: str | None, trajectories: bool = T
     return {"event": "planned", "name": name, "duration": result.duration,
             "planning_time": result.planning_time, "joint_names": list(result.joint_names),
             "obstacles": [obstacle_json(o) for o in result.start_obstacles],
+            **({"choices": [{"step": c.index, "kind": c.kind, "object": c.object,
+                             "candidate": c.name, "tried": c.tried,
+                             "candidates": c.candidates, "details": dict(c.details)}
+                            for c in result.choices]} if result.choices else {}),
             "steps": steps}
 
 

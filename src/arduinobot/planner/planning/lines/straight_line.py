@@ -129,7 +129,8 @@ class StraightLine:
         d = context.description
         start = context.validate(request)
         world, paths = context.scene(request.obstacles, request.attached, request.clouds,
-                                     ground=request.ground)
+                                     ground=request.ground,
+                                     allowed=request.allowed)
         chk = world.check(start)
         if not chk.valid:
             raise StartInCollision("the start state collides", pairs=chk.pairs,
