@@ -1,4 +1,5 @@
-"""What a worker does with one validated request: fk, ik, check or plan.
+"""What a worker does with one validated request: fk, ik, check or plan (and the
+execute wing's ``recheck``: :mod:`arduinobot.service.plan.recheck`).
 
 A :class:`Handlers` owns everything built from the description once per process (the
 kinematics, the obstacle-free collision world, the motion planner), so a request pays
@@ -92,6 +93,9 @@ class Handlers:
         if kind in ("check", "plan", "fk"):
             return {"check": self.check, "plan": self.plan, "fk": self.fk}[kind](
                 data, scene=scene)
+        if kind == "recheck":  # a running motion's rest (the execute wing's)
+            from arduinobot.service.plan.recheck import recheck
+            return recheck(self, data, scene=scene)
         fn = {"ik": self.ik}.get(kind)
         if fn is None:
             raise InvalidRequest(f"unknown request kind '{kind}'")
