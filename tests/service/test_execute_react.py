@@ -25,7 +25,7 @@ pytestmark = pytest.mark.slow
 GOAL = {"joints": {"joint_1": -1.0, "joint_2": 0.3, "joint_3": 0.5}}
 SLOW = {"goal": GOAL, "velocity_scaling": 0.03, "acceleration_scaling": 0.03, "seed": 7}
 APPLY_AT = 0.15  # progress at which the obstacle is put in
-ON_PATH_AT = 0.7  # where on the planned path the obstacle is put [fraction of time]
+ON_PATH_AT = 0.5  # where on the planned path the obstacle is put [fraction of time]
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def _on_path(c: PlannerClient, desc) -> dict:
         if n in desc.robot.actuated_joints}})
     q = plan.positions[int(ON_PATH_AT * (len(plan.times) - 1))]
     at = link_pose(desc.robot, "claw_support", list(plan.joint_names), q)[:3, 3]
-    return {"id": "intruder", "shape": "sphere", "radius": 0.12,
+    return {"id": "intruder", "shape": "sphere", "radius": 0.08,
             "xyz": [float(v) for v in at]}
 
 
@@ -89,6 +89,7 @@ def _run(c: PlannerClient, on_change: str, add: list[dict]) -> tuple[dict, list[
             threading.Thread(target=c.apply, kwargs={"add": add}, daemon=True).start()
     done = c.execute(plan=SLOW, on_change=on_change, on_event=on_event)
     assert applied.is_set()
+    print([e for e in events if e["event"] not in ("progress",)])
     return dict(done.report), events
 
 

@@ -202,9 +202,15 @@ class Reactor:
             data["attached"] = list(plan["attached"])
         out = outcome_of(self.submit, "recheck", data)
         with self._lock:
-            if self._leg is not leg:
-                return  # that leg ended while it was checked
-            self._leg = (halt, traj, change.revision)
+            ended = self._leg is not leg
+            if not ended:
+                self._leg = (halt, traj, change.revision)
+        if ended:  # the leg ended (or was stopped) while it was checked: said, not acted on
+            _log.warning("scene revision %d: the motion ended before its recheck did",
+                         change.revision)
+            self.emit({"event": "changed", **change.to_json(), "certified": None,
+                       "action": "ended_first"})
+            return
         if isinstance(out, Failure):
             _log.error("scene revision %d: the recheck failed (%s: %s): stopping",
                        change.revision, out.code, out.message)
