@@ -48,6 +48,8 @@ class Handlers:
         self._padded_scene = functools.lru_cache(_SCENE_CACHE)(self._padded)
         self._planner: Any = None
         self._frames: Any = None  # the kept scene's attach and detach (built on first use)
+        # (world, its Certifier) of the last recheck (arduinobot.service.plan.recheck)
+        self.recheck_certifier: tuple[Any, Any] | None = None
 
     def warm_up(self) -> None:
         """Build the planner (and its obstacle-free world) and plan one short motion now,

@@ -73,7 +73,14 @@ def recheck(handlers: Handlers, data: Mapping[str, Any], *,
     world = handlers._scene(obs, 0.0, clouds, ground=bool(data.get("ground", True)))
     if carried:
         world = world.with_scene(world.obstacles, attached=carried)
-    cert = Certifier(world)
+    # one certifier per world (its one-joint cells and work buffers): the worlds are the
+    # planner's, kept while their obstacle set is in use
+    held = handlers.recheck_certifier
+    if held is not None and held[0] is world:
+        cert = held[1]
+    else:
+        cert = Certifier(world)
+        handlers.recheck_certifier = (world, cert)
     out: dict[str, Any] = {"scene_revision": revision, "states": len(full)}
     got = cert.path(full)
     if got.free:
