@@ -6,8 +6,12 @@ when the stream's progress passes ``--at``, a sphere is applied to the kept scen
 the planned motion has its claw at ``--on-path`` of its time. Each run must stop before
 the obstacle (``on_change: stop``): the ``stopped`` event's ``before``. Figures: the
 ``stopped`` event's ``stop_ms`` (the apply's arrival at the service to the first stop
-setpoint sent, wall clock [ms]) and the ``changed`` event's ``recheck_ms`` (the worker's
-certification of the rest), median and p95; runs that did not stop before the obstacle.
+setpoint sent, wall clock [ms]) and its parts from the ``changed`` event: ``heard_ms``
+(the apply applied, kept on disk and published), ``decided_ms`` (the rest sampled,
+certified by a worker, the halt set) and ``recheck_ms`` (the worker's certification
+alone), median and p95; runs that did not stop before the obstacle (``not_before``: the
+arm had passed the last certified state when the stop came, the obstacle appearing
+closer ahead than the reaction's distance).
 
     ./dev bench react [--runs 20] [--seed 1] [--workers 1] [--at 0.15] [--on-path 0.5]
 """
@@ -69,6 +73,7 @@ def one_run(c: PlannerClient, desc, rng: np.random.Generator, *, at: float,
     stopped = next((e for e in events if e["event"] == "stopped"), {})
     return {"outcome": done.report["outcome"], "before": bool(stopped.get("before")),
             "stop_ms": stopped.get("stop_ms"), "recheck_ms": changed.get("recheck_ms"),
+            "heard_ms": changed.get("heard_ms"), "decided_ms": changed.get("decided_ms"),
             "certified": changed.get("certified"),
             "stopped_at": stopped.get("trajectory_time"), "rest_at": stopped.get("rest_at"),
             "certified_until": stopped.get("certified_until"),
@@ -106,13 +111,19 @@ def main() -> None:
         srv.stop()
     stop = [r["stop_ms"] for r in runs if r["stop_ms"] is not None]
     rech = [r["recheck_ms"] for r in runs if r["recheck_ms"] is not None]
+    heard = [r["heard_ms"] for r in runs if r["heard_ms"] is not None]
+    decided = [r["decided_ms"] for r in runs if r["decided_ms"] is not None]
     figures = {"runs": len(runs), "stopped": sum(r["outcome"] == "stopped" for r in runs),
                "not_before": sum(not r["before"] for r in runs),
-               "stop_ms": stats(stop), "recheck_ms": stats(rech)}
+               "stop_ms": stats(stop), "heard_ms": stats(heard),
+               "decided_ms": stats(decided), "recheck_ms": stats(rech)}
     print(f"apply -> stop command: median {figures['stop_ms']['median']} ms, p95 "
-          f"{figures['stop_ms']['p95']} ms over {len(stop)} stops; recheck median "
-          f"{figures['recheck_ms']['median']} ms; stopped {figures['stopped']}/{len(runs)}, "
-          f"not before the obstacle {figures['not_before']}")
+          f"{figures['stop_ms']['p95']} ms over {len(stop)} stops (heard after "
+          f"{figures['heard_ms']['median']} ms, decided after "
+          f"{figures['decided_ms']['median']} ms, of which the worker's recheck "
+          f"{figures['recheck_ms']['median']} ms: medians); stopped "
+          f"{figures['stopped']}/{len(runs)}, not before the obstacle "
+          f"{figures['not_before']}")
     emit("react", figures)
 
 

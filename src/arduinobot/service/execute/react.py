@@ -60,6 +60,7 @@ class Change:
     arrived: float
     ids: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     cleared: bool = False
+    heard: float = 0.0  # when this service heard of it (wall clock [s])
 
     @classmethod
     def of(cls, msg: Mapping[str, Any], heard: float) -> Change:
@@ -67,16 +68,19 @@ class Change:
         return cls(int(msg.get("revision", 0)),
                    float(arrived) if isinstance(arrived, (int, float)) else heard,
                    {k: tuple(str(i) for i in msg.get(k) or ()) for k in CHANGE_LISTS},
-                   bool(msg.get("cleared")))
+                   bool(msg.get("cleared")), heard)
 
     def merge(self, later: Change) -> Change:
         return Change(max(self.revision, later.revision), min(self.arrived, later.arrived),
                       {k: (*self.ids.get(k, ()), *later.ids.get(k, ())) for k in CHANGE_LISTS},
-                      self.cleared or later.cleared)
+                      self.cleared or later.cleared, min(self.heard, later.heard))
 
     def to_json(self) -> dict[str, Any]:
+        """The change as the ``changed`` event says it; ``heard_ms``: from the apply's
+        arrival to this service hearing of it (the apply, its file, its replication)."""
         return {"revision": self.revision, **{k: list(v) for k, v in self.ids.items()},
-                "cleared": self.cleared}
+                "cleared": self.cleared,
+                "heard_ms": 1e3 * (self.heard - self.arrived) if self.heard else None}
 
 
 @dataclass(frozen=True)
@@ -134,7 +138,8 @@ class Reactor:
             self._leg, self.verdict = (halt, trajectory, revision), None
         now = self.scene_revision()
         if now is not None and now > revision:
-            self._changes.put(Change(now, time.time()))
+            t = time.time()
+            self._changes.put(Change(now, t, heard=t))
 
     def end(self) -> None:
         """The leg is over (played, stopped or failed)."""
@@ -232,8 +237,11 @@ class Reactor:
         if verdict.action == "stop":
             self.verdict = verdict
             halt.set()  # the executor brakes at its next tick
+        decided = time.time()
         self.emit({"event": "changed", **change.to_json(), "certified": verdict.certified,
                    "action": verdict.action, "recheck_ms": 1e3 * verdict.seconds,
+                   # from the apply's arrival to the decision (the halt set)
+                   "decided_ms": 1e3 * (decided - change.arrived),
                    **({"refused": verdict.refused} if verdict.refused else {}),
                    **({"certified_until": verdict.certified_until}
                       if verdict.certified_until is not None else {})})
