@@ -251,8 +251,10 @@ class Run:
         ch = verdict.change
         rest = ex.last_stop_end
         until = verdict.certified_until
+        # the leg's tick that sent the first stop setpoint
+        tick = report.phases.index("stop") if "stop" in report.phases else None
         self._reply({"event": "stopped", "execution": self.execution,
-                     "revision": ch.revision, "tick": report.ticks,
+                     "revision": ch.revision, "tick": tick,
                      "trajectory_time": report.cancelled_at, "stop_time": report.stop_time,
                      "stop_kind": ex.last_stop, "rest_at": rest,
                      "certified_until": until,
