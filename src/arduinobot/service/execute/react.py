@@ -163,16 +163,26 @@ class Reactor:
                 pass
             try:
                 self._react(change)
-            except Exception:  # noqa: BLE001 -- logged; a stop is asked below
+            except Exception as e:  # noqa: BLE001 -- logged, said, and a stop asked
                 _log.exception("reacting to scene revision %d failed", change.revision)
-                self._stop_on_error(change)
+                self._stop_on_error(change, e)
 
-    def _stop_on_error(self, change: Change) -> None:
+    def _stop_on_error(self, change: Change, error: Exception) -> None:
+        """Not checked (the pool refused the job, a scene catching up, a bug): as not
+        certified, the arm stops (unless told to ignore), and the stream says why."""
         with self._lock:
             leg = self._leg
-        if leg is not None and self.on_change != "ignore":
+        if leg is None:
+            return
+        action = "ignored" if self.on_change == "ignore" else "stop"
+        code = getattr(error, "code", "INTERNAL")  # a coded error's, else a bug's
+        if action == "stop":
             self.verdict = Verdict(change, False, "stop")
             leg[0].set()
+        self.emit({"event": "changed", **change.to_json(), "certified": False,
+                   "action": action, "refused": {"error": {
+                       "code": str(getattr(code, "value", code)),
+                       "message": str(getattr(error, "message", error))}}})
 
     def _react(self, change: Change) -> None:
         with self._lock:
