@@ -89,7 +89,6 @@ def _run(c: PlannerClient, on_change: str, add: list[dict]) -> tuple[dict, list[
             threading.Thread(target=c.apply, kwargs={"add": add}, daemon=True).start()
     done = c.execute(plan=SLOW, on_change=on_change, on_event=on_event)
     assert applied.is_set()
-    print([e for e in events if e["event"] not in ("progress",)])
     return dict(done.report), events
 
 
