@@ -19,6 +19,7 @@ its way, measured with 3 mm of noise and 1% NaN holes at 1 cm cells.
   goal. ``--no-mplib`` skips it.
 
     ./dev bench cloud [--repeats 3] [--plans 10] [--no-mplib]
+    ./dev bench cloud --table 1.2 --points 150000   (a smaller table: about 50k cells)
 """
 
 from __future__ import annotations
@@ -51,14 +52,22 @@ MPLIB_CLOUD = Path(__file__).with_name("_lib") / "mplib_cloud.py"
 
 START = np.array([1.2, -0.6, -0.6, 0.0])
 GOAL = JointGoal({"joint_1": -1.2, "joint_2": -0.6, "joint_3": -0.6})
-TABLE = Obstacle("table", "box", size=(2.4, 2.4, 0.02), xyz=(0.0, 0.0, -0.16))
+
+
+def table_box(side: float) -> Obstacle:
+    """The table as a box: ``side`` [m] square, its top at z = -0.15."""
+    return Obstacle("table", "box", size=(side, side, 0.02), xyz=(0.0, 0.0, -0.16))
+
+
 PILLAR = Obstacle("pillar", "box", size=(0.15, 0.15, 3.0), xyz=(0.0, 0.9, 0.6))
 
 
-def measured(rng: np.random.Generator, n: int = 300_000) -> np.ndarray:
-    """The table's top and the pillar's sides as a depth camera returns them."""
+def measured(rng: np.random.Generator, n: int = 300_000, side: float = 2.4) -> np.ndarray:
+    """The table's top (``side`` [m] square) and the pillar's sides as a depth camera
+    returns them, shape (n, 3)."""
     m = n // 2
-    table = np.column_stack([rng.uniform(-1.2, 1.2, m), rng.uniform(-1.2, 1.2, m),
+    h = side / 2
+    table = np.column_stack([rng.uniform(-h, h, m), rng.uniform(-h, h, m),
                              np.full(m, -0.15)])
     size = np.array([0.15, 0.15, 3.0])
     p = rng.uniform(-0.5, 0.5, (n - m, 3)) * size
@@ -75,15 +84,19 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--plans", type=int, default=10)
     ap.add_argument("--no-mplib", action="store_true", help="skip MPlib's column")
+    ap.add_argument("--table", type=float, default=2.4,
+                    help="the table's side [m] (default 2.4: ~113k cells at 1 cm; 1.2: ~50k)")
+    ap.add_argument("--points", type=int, default=300_000,
+                    help="points per cloud, half on the table (default 300,000)")
     args = ap.parse_args()
     d = load_description()
     base = CollisionWorld(d)
     rng = np.random.default_rng(0)
     decode, keep, build, first, cells, built = [], [], [], [], 0, []
     world = base
-    pts = measured(rng)
+    pts = measured(rng, args.points, args.table)
     for _ in range(args.repeats + 1):  # the first warms numba and the surface samples
-        pts = measured(rng)
+        pts = measured(rng, args.points, args.table)
         wire = {"id": "camera", "shape": "points", "points": encode_points(pts),
                 "resolution": 0.01}
         t0 = time.perf_counter()
@@ -105,13 +118,13 @@ def main() -> None:
         built.append((tiles.built, len(tiles)))
     decode, keep, build, first = decode[1:], keep[1:], build[1:], first[1:]
     ms = 1e3
-    print(f"apply of 300,000 points -> {cells} cells: decode {statistics.median(decode) * ms:.0f}"
+    print(f"apply of {args.points:,} points -> {cells} cells: decode {statistics.median(decode) * ms:.0f}"
           f" ms, keep {statistics.median(keep) * ms:.0f} ms, world "
           f"{statistics.median(build) * ms:.0f} ms (median of {args.repeats}); the first "
           f"plan and proof {statistics.median(first) * ms:.0f} ms, building "
           f"{built[-1][0]} of {built[-1][1]} tiles")
-    boxes = base.with_scene([TABLE, PILLAR])
-    figures = {"points": 300_000, "cells": cells,
+    boxes = base.with_scene([table_box(args.table), PILLAR])
+    figures = {"points": args.points, "table_m": args.table, "cells": cells,
                "decode_ms": statistics.median(decode) * ms,
                "keep_ms": statistics.median(keep) * ms,
                "world_ms": statistics.median(build) * ms,

@@ -1,7 +1,9 @@
 """Soak benchmark: a real `arduinobot serve` under mixed load for minutes, then a crash.
 
 Client threads (each its own Zenoh session) send, in a seeded mix: plans on the benchmark
-scenes (bench/_lib/scenes.py), fk and state checks, and bad inputs (malformed JSON, unknown
+scenes (bench/_lib/scenes.py), fk and state checks, kept-scene applies (each client
+replacing its own box through ``PlannerClient.update``, racing the others), the shipped
+tasks.yaml's pick as a task (planned only), and bad inputs (malformed JSON, unknown
 fields, out-of-limit joints, oversized payloads) that must come back as coded errors.
 Prints throughput, latency percentiles, lost replies (no reply at all, or an unexpected
 code: target 0), the resident memory of every serve process (server, forkserver, zygote,
@@ -33,6 +35,7 @@ import numpy as np
 
 from arduinobot.client import errors
 from arduinobot.client.client import PlannerClient
+from arduinobot.client.replies import SceneReply
 from arduinobot.service.process.pool import rss_bytes
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
@@ -103,13 +106,16 @@ def requests(seed: int) -> list[tuple[str, object, set[str] | None]]:
     """A seeded mix: (kind, body, allowed error codes; None: must succeed)."""
     from arduinobot.description import load_description
     from arduinobot.planner.collision.world import CollisionWorld
+    from arduinobot.scene.ground import with_ground
     desc = load_description()
     rng = np.random.default_rng(seed)
     mix: list[tuple[str, object, set[str] | None]] = []
     names = desc.robot.actuated_joints
     arm = desc.summary()["groups"][desc.default_group()]
     for obs in SCENES.values():
-        w = CollisionWorld(desc, obstacles=obs)
+        # the service plans with the ground under the base (scene/ground.py): the ends
+        # drawn are valid there too
+        w = CollisionWorld(desc, obstacles=list(with_ground(tuple(obs))))
         for a, b, _ in problems(w, 12, rng):
             mix.append(("plan", {"start": dict(zip(names, map(float, a))),
                                  # the arm's joints (the gripper is not in the group)
@@ -121,12 +127,28 @@ def requests(seed: int) -> list[tuple[str, object, set[str] | None]]:
                                   "obstacles": obstacle_dicts(obs)}, {"BUSY"}))
     for kind, body, code in BAD:
         mix.append((kind, body, {code, "BUSY"}))
+    # the kept scene and tasks: a client's own object replaced (its body made per client,
+    # see load), the shipped tasks.yaml's pick planned in the kept scene
+    mix += [("scene/apply", None, {"BUSY"})] * 6
+    mix += [("task", {"number": 1, "trajectories": False}, {"BUSY", "TIMEOUT"})] * 3
     return mix
+
+
+def scene_change(scene: SceneReply, client: int, n: int) -> dict:
+    """Client ``client``'s ``n``-th apply to ``scene``: its box moved (out of every
+    scene's way, beyond the arm's reach) by replacing it, through the client's update
+    loop."""
+    oid = f"soak{client}"
+    box = {"id": oid, "shape": "box", "size": [0.05, 0.05, 0.05],
+           "xyz": [3.0 + 0.1 * client, 0.01 * (n % 50), 0.5]}
+    held = any(o["id"] == oid for o in scene.objects)
+    return {"remove": [oid] if held else [], "add": [box]}
 
 
 def load(endpoint: str, clients: int, seconds: float, seed: int) -> dict:
     mix = requests(seed)
-    lat: dict[str, list[float]] = {"plan": [], "fk": [], "check": [], "bad": []}
+    lat: dict[str, list[float]] = {"plan": [], "fk": [], "check": [], "bad": [],
+                                   "scene/apply": [], "task": []}
     outcomes: Counter[str] = Counter()
     unexpected: list[str] = []
     lock = threading.Lock()
@@ -134,13 +156,20 @@ def load(endpoint: str, clients: int, seconds: float, seed: int) -> dict:
 
     def run(i: int) -> None:
         rng = np.random.default_rng(seed + 1 + i)
+        applied = 0
         with PlannerClient(endpoint, timeout=60) as c:
             while time.monotonic() < end:
                 kind, body, allowed = mix[int(rng.integers(len(mix)))]
                 bad = isinstance(body, bytes)
                 t = time.perf_counter()
                 try:
-                    c.request(kind, body)
+                    if kind == "scene/apply":
+                        c.update(lambda scene, n=applied: scene_change(scene, i, n))
+                        applied += 1
+                    elif kind == "task":
+                        c.task(1, trajectories=False)
+                    else:
+                        c.request(kind, body)
                     code = "ok"
                 except errors.ServiceUnavailable as e:
                     code = f"LOST({e.reason})"

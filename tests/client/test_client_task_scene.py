@@ -109,3 +109,21 @@ def test_the_kept_scene_is_read_and_changed_with_if_revision(c):
     assert bad.value.details["field"].startswith("remove")
     gone = c.apply({"remove": ["client_box"]})
     assert gone.revision == applied.revision + 1 and c.scene().revision == gone.revision
+
+
+def test_a_task_names_the_scene_revision_it_was_planned_in_and_can_pin_one(c):
+    now = c.scene().revision
+    planned = c.task(1)  # the course's pick: planned only
+    assert planned.scene_revision == now
+    assert c.task(1, scene_revision=now).scene_revision == now
+    pole = {"id": "task_pin_pole", "shape": "cylinder", "radius": 0.02, "length": 0.2,
+            "xyz": [-1.5, -1.5, 0.1]}
+    moved = c.apply(add=[pole], if_revision=now)
+    try:
+        with pytest.raises(errors.SceneConflict) as e:  # the scene moved on: not planned
+            c.task(1, scene_revision=now)
+        assert e.value.details["current_revision"] == moved.revision
+        assert e.value.details["field"] == "scene_revision"
+        assert c.task(1).scene_revision == moved.revision
+    finally:
+        c.apply(remove=["task_pin_pole"])

@@ -19,7 +19,7 @@ from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.limits import SERVO_ACCELERATION_CAP, JointLimits
 from arduinobot.service.scene.sync import SceneService
 from tests.helpers.serve import REPO, free_port
-from tests.helpers.so101 import ARM_JOINTS, GRIPPER_JOINT, make_so101
+from tests.helpers.so101 import ARM_JOINTS, GRIPPER_JOINT, MESH_BOUNDS, make_so101
 
 
 def _cli(*args: str, cwd=REPO) -> subprocess.CompletedProcess[str]:
@@ -89,20 +89,29 @@ def test_published_folder_gets_the_shipped_so101_config(so101):
     assert r.returncode == 0, r.stderr
     assert "the config shipped for so101_new_calib" in r.stdout
     assert "github.com/TheRobotStudio/SO-ARM100" in r.stdout  # where the folder comes from
-    assert "tcp: (0.0, 0.0, -0.02) in gripper_frame_link" in r.stdout
+    assert "tcp: (-0.01, 0.0, -0.02) in gripper_frame_link" in r.stdout
     d = load_description(so101, env={})
     lim = JointLimits.from_description(d)
     assert np.all(lim.velocity <= 4.7) and np.all(lim.acceleration <= 39.0)  # an STS3215's
     assert set(d.srdf.groups) == {"arm", "gripper"}
-    # the tool point is between the jaws: the moving jaw's hinge behind it, the fingertip
-    # frame 2 cm beyond it, within the gripper's length of the wrist
+    # the tool point is between the jaws from the SRDF's closed state (0) to open (1.5)
+    # and beyond: in the fingertip frame, beyond the fixed jaw's inner face (its x = 0,
+    # the jaw at x >= 0) and short of the moving jaw's nearest face, 2 cm behind the tips
     kin = Kinematics(d.robot)
-    q = np.zeros(len(kin.joint_names))
-    tcp = kin.point_position(q, d.tcp.parent_link, d.tcp.xyz)
-    tips = kin.point_position(q, "gripper_frame_link", (0.0, 0.0, 0.0))
-    hinge = kin.point_position(q, "moving_jaw_so101_v1_link", (0.0, 0.0, 0.0))
-    assert np.linalg.norm(tcp - tips) == pytest.approx(0.02, abs=1e-9)
-    assert np.linalg.norm(tcp - hinge) < np.linalg.norm(tips - hinge)
+    grip = list(kin.joint_names).index(GRIPPER_JOINT)
+    lo, hi = MESH_BOUNDS["moving_jaw_so101_v1"]
+    corners = [(x, y, z + 0.0189) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+               for z in (lo[2], hi[2])]  # the jaw's mesh sits 18.9 mm up its link
+    for opening in np.linspace(0.0, 1.74, 12):
+        q = np.zeros(len(kin.joint_names))
+        q[grip] = opening
+        frame = kin.link_pose(q, "gripper_frame_link")
+        world = np.array([kin.point_position(q, "moving_jaw_so101_v1_link", c) for c in corners])
+        jaw = (world - frame[:3, 3]) @ frame[:3, :3]  # into the fingertip frame
+        tcp = np.linalg.inv(frame) @ np.append(kin.point_position(q, d.tcp.parent_link,
+                                                                  d.tcp.xyz), 1.0)
+        assert tcp[2] == pytest.approx(-0.02, abs=1e-9)
+        assert jaw[:, 0].max() < tcp[0] < 0.0, (opening, jaw[:, 0].max(), tcp[0])
 
 
 def _session(port: int) -> zenoh.Session:

@@ -41,6 +41,7 @@ from arduinobot.client.replies import (
     SceneReply,
     TaskReply,
 )
+from arduinobot.client.scene_update import update_scene
 from arduinobot.client.stream import ExecutionEvent, cancel_execution, follow, stream
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE, ON_CHANGE
@@ -269,7 +270,7 @@ class PlannerClient:
 
     def task(self, task: str | int | Mapping[str, Any], *, execute: bool = False,
              start_tolerance: float = 0.01, move_to_start: bool = False,
-             trajectories: bool = True,
+             trajectories: bool = True, scene_revision: int | None = None,
              on_planned: Callable[[Mapping[str, Any]], None] | None = None,
              on_event: Callable[[ExecutionEvent], None] | None = None,
              cancel: threading.Event | None = None) -> TaskReply:
@@ -283,6 +284,9 @@ class PlannerClient:
             start_tolerance: [rad] largest distance of each joint from the task's start;
                 move_to_start: move there first (execute).
             trajectories: include each step's plan in :attr:`TaskReply.steps`.
+            scene_revision: plan only in this revision of the kept scene (else
+                SceneConflict, ``details.current_revision``); the reply's
+                :attr:`TaskReply.scene_revision` names the one used either way.
             on_planned: called with the planned reply, before the robot moves.
             on_event: called with each execution event (started, progress, finished).
             cancel: set it (from any thread) to stop the arm smoothly (set while the
@@ -306,6 +310,8 @@ class PlannerClient:
             body["task"] = dict(task)
         if execute:
             body.update(start_tolerance=start_tolerance, move_to_start=move_to_start)
+        if scene_revision is not None:
+            body["scene_revision"] = scene_revision
         steps = body.get("task", {}).get("steps")
         silence = self.timeout + planning_time(body.get("task")) * max(
             1, len(steps) if isinstance(steps, Sequence) else 1)
@@ -326,8 +332,8 @@ class PlannerClient:
               add: Sequence[Mapping[str, Any]] = (), remove: Sequence[str] = (),
               attach: Sequence[Mapping[str, Any]] = (), detach: Sequence[str] = (),
               state: Mapping[str, float] | None = None, clear: bool = False,
-              if_revision: int | None = None, apply_id: str | None = None
-              ) -> SceneApplied:
+              if_revision: int | None = None, apply_id: str | None = None,
+              turn: str | None = None) -> SceneApplied:
         """Change the kept scene, all or nothing, in one new revision: ``clear``, then
         ``remove`` (ids), ``add`` (objects, plan_request.json's obstacle form or meshes),
         ``detach`` (ids), ``attach`` (``{object, link, touch_links, mass, com}``), at the
@@ -335,7 +341,9 @@ class PlannerClient:
         at that revision. A whole apply request as ``change`` takes the keywords' place
         (they are added to it). ``apply_id`` (default: a new random one, unless
         ``change`` has one) makes a retry safe: the service answers an id it has taken
-        with the revision it made (``already_applied``) and changes nothing.
+        with the revision it made (``already_applied``) and changes nothing. ``turn``: the
+        token a lost ``if_revision`` race handed this writer (``SceneConflict.details
+        ["turn"]``); :meth:`update` does the read-modify-write loop with it.
 
         Raises:
             SceneConflict (``details.current_revision``), InvalidRequest naming the
@@ -354,8 +362,17 @@ class PlannerClient:
             body["if_revision"] = if_revision
         if apply_id is not None:
             body["apply_id"] = apply_id
+        if turn is not None:
+            body["turn"] = turn
         body.setdefault("apply_id", uuid.uuid4().hex)
         return SceneApplied.parse(self.request("scene/apply", body))
+
+    def update(self, make_change: Callable[[SceneReply], Mapping[str, Any] | None], *,
+               attempts: int = 50) -> SceneApplied | None:
+        """Read the scene, apply ``make_change(scene)`` at that revision, again after each
+        lost race with the turn the service hands the loser
+        (:func:`arduinobot.client.scene_update.update_scene`)."""
+        return update_scene(self, make_change, attempts=attempts)
 
     # -- seeing (issue 41) ------------------------------------------------------------
     def perceive(self, image: bytes | str | os.PathLike[str] | None = None, *,

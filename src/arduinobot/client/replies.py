@@ -318,6 +318,8 @@ class TaskReply:
         planned: the ``planned`` reply as received.
         execution, report: the execution's id and report (outcome, ticks, peaks, and
             ``objects``' simulated end poses from a twin), if it was executed and moved.
+        scene_revision: the kept scene's revision the task was planned in (None from a
+            service that does not say).
     """
 
     name: str | None
@@ -328,6 +330,7 @@ class TaskReply:
     planned: Mapping[str, Any] = field(repr=False)
     execution: str | None = None
     report: Mapping[str, Any] | None = None
+    scene_revision: int | None = None
 
     @classmethod
     def parse(cls, planned: Any, finished: Mapping[str, Any] | None = None) -> TaskReply:
@@ -345,7 +348,8 @@ class TaskReply:
                 report["objects"] = finished["objects"]
         return cls(b.get("name"), float(b["duration"]), float(b.get("planning_time", 0.0)),
                    tuple(b.get("joint_names", ())), tuple(b["steps"]), b,
-                   None if finished is None else finished.get("execution"), report)
+                   None if finished is None else finished.get("execution"), report,
+                   b.get("scene_revision"))
 
 
 @dataclass(frozen=True)

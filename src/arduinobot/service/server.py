@@ -36,6 +36,7 @@ from arduinobot.service.messages import Failure, JobKind, Outcome, Success
 from arduinobot.service.peers import refuse_peer_instances
 from arduinobot.service.perceive.perceive_service import ImageSource, perceive_extension
 from arduinobot.service.plan.bodies import description_body
+from arduinobot.service.process.heap_trim import HeapTrimmer
 from arduinobot.service.process.job import SHUTTING_DOWN, Job
 from arduinobot.service.process.memtrace import MemTrace, count_live
 from arduinobot.service.process.pool import WorkerPool
@@ -131,6 +132,7 @@ class PlannerService:
         self._config: dict[str, str | None] = {}
         self._extensions: list[Any] = []
         self._memtrace: MemTrace | None = None
+        self._trimmer = HeapTrimmer()
         self.scene: SceneService | None = None
 
     def start(self) -> None:
@@ -145,6 +147,7 @@ class PlannerService:
                                               "robot": desc.summary()})
         self._config = desc.config.to_json()
         self._memtrace = MemTrace.from_env(counts=self._held)
+        self._trimmer.start()
         try:
             cfg = zenoh_config(mode=o.mode, listen=o.listen, connect=o.connect,
                                config_file=o.config_file,
@@ -233,6 +236,7 @@ class PlannerService:
             self.session.close()
             self.session = None
         self._shared.clear()
+        self._trimmer.stop()
         if self._memtrace is not None:
             self._memtrace.close()
             self._memtrace = None

@@ -210,6 +210,7 @@ class PerceiveService:
         out: one apply at the revision read; retried if the scene moved on meanwhile.
         The new revision, and the ids removed as unseen."""
         failure = SceneApplyFailed(Code.BUSY, "the kept scene did not answer", {})
+        turn = "ask"  # the next turn if this loses a race (arduinobot.service.scene.turns)
         for _ in range(APPLY_ATTEMPTS):
             snap = self.scene()
             held = {o.id for o in snap.obstacles} if snap is not None else set()
@@ -223,6 +224,7 @@ class PerceiveService:
                         for o in obstacles]}
             if snap is not None:
                 change["if_revision"] = snap.revision
+                change["turn"] = turn
             replies = list(self.session.get(f"{self.prefix}/scene/apply",
                                             payload=wire.encode(change), timeout=APPLY_TIMEOUT))
             for r in replies:
@@ -237,6 +239,7 @@ class PerceiveService:
                 failure = SceneApplyFailed(Code.BUSY, "the kept scene did not answer", {})
             if failure.code != Code.SCENE_CONFLICT:
                 break
+            turn = failure.details.get("turn") or "ask"
             time.sleep(0.2)  # this instance's copy of the scene catches up
         raise failure
 

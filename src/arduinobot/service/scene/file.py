@@ -55,6 +55,14 @@ class SceneFile:
             raise InvalidRequest(f"scene file {self.path} is not a scene object")
         return data
 
+    def set_aside(self) -> Path:
+        """Rename the file to ``<name>.unreadable-<UTC time>`` beside it (kept for its
+        owner to read, never loaded again); its new path."""
+        aside = self.path.with_name(
+            f"{self.path.name}.unreadable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}")
+        os.replace(self.path, aside)
+        return aside
+
     def clean(self, *, older_than: float = STALE_TMP_AGE) -> int:
         """Remove the temporary files of this scene file that a killed writer left
         (``.<name>-*.tmp``, last written over ``older_than`` [s] ago: a live writer's is
@@ -69,13 +77,14 @@ class SceneFile:
             return 0
         for f in stale:
             try:
-                if now - f.stat().st_mtime > older_than:
-                    f.unlink()
-                    removed += 1
+                old = now - f.stat().st_mtime > older_than
             except FileNotFoundError:
-                pass
+                continue
             except OSError as e:
-                _log.warning("scene: cannot remove the stale temporary file %s: %s", f, e)
+                _log.warning("scene: cannot read the temporary file %s: %s", f, e)
+                continue
+            if old and _remove(f, "stale temporary file"):
+                removed += 1
         if removed:
             _log.info("scene: %d temporary file(s) of a killed writer removed beside %s",
                       removed, self.path)
@@ -200,15 +209,40 @@ def collect_meshes(folder: Path, keep: Iterable[SceneState]) -> int:
     for f in entries:
         stale = (f.suffix == ".stl" and f.resolve() not in used) or \
             (f.name.startswith(".mesh-") and f.suffix == ".tmp")
-        if not stale or not f.is_file():
-            continue
-        try:
-            f.unlink()
+        if stale and f.is_file() and _remove(f, "unused mesh file"):
             removed += 1
-        except FileNotFoundError:
-            pass
-        except OSError as e:
-            _log.warning("scene: cannot remove the unused mesh file %s: %s", f, e)
     if removed:
         _log.info("scene: %d mesh file(s) no revision uses removed from %s", removed, folder)
     return removed
+
+
+def _remove(f: Path, what: str) -> bool:
+    """Remove ``f``; whether it was removed (gone already: not by us; refused: said in the
+    log, never in the way of the scene change it follows)."""
+    try:
+        f.unlink()
+        return True
+    except FileNotFoundError:
+        return False
+    except OSError as e:
+        _log.warning("scene: cannot remove the %s %s: %s", what, f, e)
+        return False
+
+
+def object_named(data: Mapping[str, Any], field: str | None) -> str | None:
+    """The object a scene's ``field`` (``objects[1].radius``, ``attached[0].link``) lies
+    in, as a user finds it in the file: ``"object 'ball' (objects[1])"``; None when the
+    field is not inside one."""
+    if not field:
+        return None
+    for key in ("objects", "attached"):
+        if field.startswith(f"{key}["):
+            try:
+                i = int(field[len(key) + 1:field.index("]")])
+                item = data[key][i]
+            except (ValueError, LookupError, TypeError):
+                return None
+            oid = item.get("id") if isinstance(item, Mapping) else None
+            what = "carried object" if key == "attached" else "object"
+            return f"{what} '{oid}' ({key}[{i}])" if oid is not None else f"{key}[{i}]"
+    return None

@@ -57,6 +57,7 @@ import threading
 import time
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any
 
 import orjson
@@ -64,6 +65,7 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description import Description
 from arduinobot.scene.frames import Frames
 from arduinobot.scene.state import (
@@ -86,9 +88,12 @@ from arduinobot.service.scene.file import (
     default_scene_file,
     foreign_owner,
     mesh_dir_for,
+    object_named,
     scene_owner,
 )
+from arduinobot.service.scene.identity import EncodedScenes
 from arduinobot.service.scene.members import Instances
+from arduinobot.service.scene.turns import TURN_TIME, Turns
 
 _log = logging.getLogger(__name__)
 
@@ -139,7 +144,7 @@ class SceneService:
         self._state = SceneState()
         # the scene before this one: a plan that took it may still read its mesh files
         self._previous = self._state
-        self._encoded: tuple[int, bytes] = (-1, b"")
+        self._encoded = EncodedScenes()  # each scene's reply and digest, encoded once
         # one thread applies (and forwards), another takes changes from the leader: a
         # follower forwarding an apply can still take the leader's sync of it
         self._writes = concurrent.futures.ThreadPoolExecutor(1, "scene-apply")
@@ -157,6 +162,7 @@ class SceneService:
         # apply_id -> the revision it made (the leader's and every member's that took it)
         self._applied: OrderedDict[str, int] = OrderedDict()
         self._ids = itertools.count(1)
+        self._turns = Turns()  # the leader's: who lost the last if_revision race
 
     @property
     def state(self) -> SceneState:
@@ -167,8 +173,14 @@ class SceneService:
     def start(self) -> None:
         """Load the file, take changes, catch up with the live instances, serve the keys."""
         self.file.clean()  # what a kill -9 mid-write left
-        data = self.file.load()
-        if data is None and self._legacy is not None and self._legacy.is_file():
+        unreadable: InvalidRequest | None = None
+        data: dict[str, Any] | None = None
+        try:
+            data = self.file.load()
+        except InvalidRequest as e:
+            unreadable = e
+        if data is None and unreadable is None and self._legacy is not None \
+                and self._legacy.is_file():
             _log.info("scene: none kept yet for this robot in %s; %s holds a scene kept "
                       "before scenes were per robot (`arduinobot scene load %s` takes it)",
                       self.file.path, self._legacy, self._legacy)
@@ -179,9 +191,12 @@ class SceneService:
                 _log.warning("scene: %s holds another robot's kept scene: %s; its objects "
                              "are loaded as they are (give --scene-file to keep this "
                              "robot's scene elsewhere)", self.file.path, foreign)
-            self._state = self._previous = restore(data, self.builder)
-            _log.info("scene: revision %d, %d objects from %s", self._state.revision,
-                      len(self._state.objects), self.file.path)
+            try:
+                self._state = self._previous = restore(data, self.builder)
+                _log.info("scene: revision %d, %d objects from %s", self._state.revision,
+                          len(self._state.objects), self.file.path)
+            except InvalidRequest as e:
+                unreadable = e
         self._collect()  # what a killed instance left: meshes of refused or old scenes
         p, me = self.prefix, f"{self.prefix}/instance/{self.instance}"
         liveliness = self.session.liveliness()
@@ -190,7 +205,11 @@ class SceneService:
         # for the scene: no change falls between the two
         self._declare(f"{me}/scene/sync", self._on_sync, complete=False, exact=True)
         self._entities.append(liveliness.declare_token(f"{p}/scene/member/{self.instance}"))
-        self._catch_up()
+        # an unreadable file is set aside before a catch-up writes the live scene over it
+        aside = self.file.set_aside() if unreadable is not None else None
+        answered = self._catch_up()
+        if unreadable is not None and aside is not None:
+            self._start_without_the_file(unreadable, data, answered, aside)
         self._publisher = self.session.declare_publisher(f"{p}/scene/changes")
         self._declare(f"{p}/scene", self._on_get, shared=True)
         self._declare(f"{me}/scene", self._on_get)
@@ -201,6 +220,33 @@ class SceneService:
         self._declare(f"{me}/scene/apply", apply_, exact=True)
         self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead), exact=True)
         self._started = True
+
+    def _start_without_the_file(self, error: InvalidRequest, data: Mapping[str, Any] | None,
+                                answered: int, aside: Path) -> None:
+        """The kept file cannot be read (not JSON, an object no longer valid) and was set
+        aside (as ``aside``): start from the live instances' scene, or, alone, put the file
+        back and stop naming the file, the object and the field (a scene silently emptied
+        would lose its objects).
+
+        Raises:
+            InvalidRequest: no live instance answered (``details``: ``file``, ``field``,
+                ``object``).
+        """
+        where = object_named(data or {}, error.field)
+        what = f"{where}: {error}" if where else str(error)
+        if not answered:
+            os.replace(aside, self.file.path)
+            raise InvalidRequest(
+                f"the kept scene file {self.file.path} cannot be read: {what}; no live "
+                f"instance of '{self.prefix}' answered to start from. Fix or remove that "
+                "in the file, move the file aside (an empty scene), or give --scene-file",
+                details={"field": error.field, "file": str(self.file.path),
+                         "object": where})
+        with self._lock:
+            self.file.save(self._state)
+        _log.warning("scene: the kept scene file could not be read (%s); started from the "
+                     "live instances' scene, revision %d, and set the file aside as %s",
+                     what, self._state.revision, aside)
 
     # -- staying current -----------------------------------------------------------------
     def check_current(self) -> None:
@@ -303,13 +349,8 @@ class SceneService:
 
     # -- reading -----------------------------------------------------------------------
     def encoded(self) -> bytes:
-        """The scene's JSON, encoded once per revision (meshes make it large)."""
-        state = self._state
-        rev, body = self._encoded
-        if rev != state.revision:
-            body = orjson.dumps(state.to_json())
-            self._encoded = (state.revision, body)
-        return body
+        """The scene's JSON with its digest (:mod:`.identity`), encoded once."""
+        return self._encoded.of(self._state)[0]
 
     def _on_get(self, query: zenoh.Query) -> None:
         query.reply(query.key_expr, self.encoded(), encoding=wire.JSON)
@@ -404,10 +445,10 @@ class SceneService:
                 "attached": len(now.attached), "already_applied": True}),
                 encoding=wire.JSON)
             return
-        old, new = self._install(lambda: apply(self._state, change, self.builder))
+        old, new = self._install_fairly(change)
         if new is not old:
             self._remember(change.get("apply_id"), new.revision)
-        missed = self._replicate(old.revision, new.revision, change)
+        missed = self._replicate(old, new.revision, change)
         added = [o.id for o in new.objects if o.id not in set(old.ids())]
         removed = [i for i in old.ids() if i not in set(new.ids())]
         attached = [i for i in new.attached_ids() if i not in set(old.attached_ids())]
@@ -430,11 +471,56 @@ class SceneService:
             reply["clouds"] = {c.id: dict(c.counts) for c in new.clouds if c.id in taken}
         query.reply(query.key_expr, orjson.dumps(reply), encoding=wire.JSON)
 
-    def _replicate(self, base: int, revision: int, change: Mapping[str, Any]) -> list[str]:
-        """Have every other live instance take the change (answered once it is on their
-        disk too), before the apply is acknowledged; the members that did not."""
-        payload = orjson.dumps({"from": self.instance, "base": base, "revision": revision,
-                                "change": change})
+    def _install_fairly(self, change: Mapping[str, Any]) -> tuple[SceneState, SceneState]:
+        """:meth:`_install` of ``change``, the writer that lost the last ``if_revision``
+        race first (:mod:`arduinobot.service.scene.turns`).
+
+        Raises:
+            SceneConflict: a stale ``if_revision`` (``details.turn`` and
+                ``retry_within`` when this writer asked for turns and gets the next,
+                ``retry_after`` while another holds it), or another writer's turn
+                (``reason: turn_held``).
+        """
+        now = self._state.revision
+        wait = self._turns.blocks(change, now)
+        if wait is not None:
+            raise SceneConflict(f"another writer holds the turn at revision {now} (it lost "
+                                f"the last race); retry in {wait:.2f} s",
+                                field="if_revision", current_revision=now,
+                                details={"reason": "turn_held", "retry_after": round(wait, 3)})
+        try:
+            return self._install(lambda: apply(self._state, change, self.builder))
+        except SceneConflict as e:
+            if e.field != "if_revision":
+                raise
+            turn = self._turns.lost(change, e.current_revision)
+            if turn is None:
+                held = self._turns.held(e.current_revision)
+                if held is None:
+                    raise
+                left = max(held.until - time.monotonic(), 0.0)
+                raise SceneConflict(
+                    f"the scene is at revision {e.current_revision}, not "
+                    f"{change['if_revision']}, and another writer holds the next turn: read "
+                    f"it and apply again in {left:.2f} s", field="if_revision",
+                    current_revision=e.current_revision,
+                    details={"reason": "stale", "retry_after": round(left, 3)}) from None
+            raise SceneConflict(
+                f"the scene is at revision {e.current_revision}, not {change['if_revision']}: "
+                f"read it and apply again with turn '{turn.token}' within {TURN_TIME:g} s "
+                "(the next conditional apply at that revision is yours)", field="if_revision",
+                current_revision=e.current_revision,
+                details={"reason": "stale", "turn": turn.token,
+                         "retry_within": TURN_TIME}) from None
+
+    def _replicate(self, base: SceneState, revision: int, change: Mapping[str, Any]
+                   ) -> list[str]:
+        """Have every other live instance take the change to ``base`` (answered once it
+        is on their disk too), before the apply is acknowledged; the members that did
+        not."""
+        payload = orjson.dumps({"from": self.instance, "base": base.revision,
+                                "base_digest": self._encoded.digest(base),
+                                "revision": revision, "change": change})
         members = sorted(self.instances.members())
         # one exact query per member, all sent before any answer is awaited
         pending = [(m, self.session.get(f"{self.prefix}/instance/{m}/scene/sync",
@@ -460,6 +546,13 @@ class SceneService:
         if sender != self.instance:
             def taken() -> SceneState:
                 state = self._state
+                theirs = msg.get("base_digest")
+                if state.revision == msg["base"] and theirs is not None \
+                        and theirs != self._encoded.digest(state):
+                    _log.warning("scene: revision %d here is not %s's revision %d (another "
+                                 "scene made apart: a partition or a pause): taking its "
+                                 "scene", state.revision, sender, msg["base"])
+                    return self._fetch(sender) or state
                 if state.revision == msg["base"]:
                     took = apply(state, msg["change"], self.builder)
                     self._remember(msg["change"].get("apply_id"), took.revision)
@@ -488,11 +581,11 @@ class SceneService:
                 return restore(orjson.loads(reply.ok.payload.to_bytes()), self.builder)
         return None
 
-    def _catch_up(self) -> None:
-        """Take the newest scene among the live instances' if it is newer than the file's.
-        Every instance with a liveliness token is asked until it answers (its queryables
-        may reach this new session a moment after the session opens), for at most
-        :data:`CATCH_UP_TIMEOUT`."""
+    def _catch_up(self) -> int:
+        """Take the newest scene among the live instances' if it is newer than the file's;
+        how many instances answered. Every instance with a liveliness token is asked until
+        it answers (its queryables may reach this new session a moment after the session
+        opens), for at most :data:`CATCH_UP_TIMEOUT`."""
         deadline = time.monotonic() + CATCH_UP_TIMEOUT
         scenes = self._scenes("*")
         missing = self.instances.live() - set(scenes) - {self.instance}
@@ -504,13 +597,24 @@ class SceneService:
         if missing:
             _log.warning("scene: instances %s did not answer; starting from the newest "
                          "scene of the others and the file", ", ".join(sorted(missing)))
+        mine = self._state
         best = max(scenes.values(), key=lambda d: d.get("revision", -1), default=None)
-        if best is not None and best.get("revision", -1) > self._state.revision:
-            # restored under the lock: its mesh files are written where a sync collects
-            _, new = self._install(lambda: restore(best, self.builder)
-                                if best.get("revision", -1) > self._state.revision
-                                else self._state)
-            _log.info("scene: caught up to revision %d from the live instances", new.revision)
+        lead = scenes.get(self.leader()) if self.leader() != self.instance else None
+        if lead is not None and lead.get("revision") == mine.revision \
+                and lead.get("digest") not in (None, self._encoded.digest(mine)):
+            # the same number, another scene (made apart): the leader's is the scene
+            _log.warning("scene: revision %d here is not the leader's revision %d (another "
+                         "scene made apart: a partition or a pause): taking the leader's",
+                         mine.revision, mine.revision)
+            best = lead
+        elif best is None or best.get("revision", -1) <= mine.revision:
+            return len(scenes)
+        # restored under the lock (its mesh files are written where a sync collects),
+        # unless a change came in meanwhile
+        _, new = self._install(lambda: restore(best, self.builder)
+                               if self._state is mine else self._state)
+        _log.info("scene: caught up to revision %d from the live instances", new.revision)
+        return len(scenes)
 
     def _scenes(self, instance: str) -> dict[str, dict[str, Any]]:
         """The scenes of the instances ``instance`` matches (``*``: all), by id."""

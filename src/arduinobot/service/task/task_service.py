@@ -180,7 +180,8 @@ class TaskService:
             "files": "task" not in body,
             "trajectories": bool(body.get("trajectories", True)), "execute": execute,
             "start_tolerance": body.get("start_tolerance", 0.01),
-            "move_to_start": bool(body.get("move_to_start", False))}
+            "move_to_start": bool(body.get("move_to_start", False)),
+            "scene_revision": body.get("scene_revision")}
 
     def _plan(self, job: Mapping[str, Any]) -> Outcome:
         """The task job's outcome, from the pool (which answers every job exactly once:
@@ -228,23 +229,27 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
                 scene: SceneSnapshot | None) -> Success:
     """A ``task`` job in a worker (``data``: what :meth:`TaskService._on_task` sends):
     the task read, started in the kept ``scene`` (and at ``data["start"]`` if it gives
-    none), planned with the worker's ``planner``; the ``planned`` reply, and for an
-    executed task the execute request of the whole task, both encoded.
+    none), planned with the worker's ``planner``; the ``planned`` reply (naming the
+    scene's revision), and for an executed task the execute request of the whole task,
+    both encoded.
 
     Raises:
+        SceneConflict: ``data["scene_revision"]`` pins a revision the scene has left.
         PlanningError: the task's refusal (a field, a step that failed: its own code).
     """
     from arduinobot.planner.tasks import plan_task, task_from_mapping
     task = task_from_mapping(data["task"], where=data["where"], name=data["name"],
                              files=bool(data.get("files", False)))
-    obstacles, _ = with_scene(scene, {}, task.obstacles)
+    obstacles, revision = with_scene(scene, {"scene_revision": data.get("scene_revision")},
+                                     task.obstacles)
     task = replace(task, obstacles=obstacles,
                    clouds=scene.clouds if scene is not None else ())
     if data.get("start") is not None and task.start is None:
         task = _with_start(task, data["start"])
     result = plan_task(planner, task)
-    body = wire.encode(planned_body(result, name=task.name,
-                                    trajectories=bool(data.get("trajectories", True))))
+    planned = planned_body(result, name=task.name,
+                           trajectories=bool(data.get("trajectories", True)))
+    body = wire.encode({**planned, "scene_revision": revision})
     if not data.get("execute"):
         return Success(body)
     return Success(body, execute=wire.encode({
