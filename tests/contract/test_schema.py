@@ -258,7 +258,8 @@ def test_minimal_and_full_execute_requests_pass_and_round_trip():
                  {"trajectory": traj, "start_tolerance": 0.05, "move_to_start": True,
                   "client": "a1b2c3"},
                  {"plan": {"goal": {"named": "home"}}, "blend": True, "start_tolerance": 1},
-                 {"plan": {"goal": {"named": "home"}}, "blend": True, "blend_lead": 2.5}):
+                 {"plan": {"goal": {"named": "home"}}, "blend": True, "blend_lead": 2.5},
+                 {"plan": {"goal": {"named": "home"}}, "on_change": "stop"}):
         assert wire.decode("execute", wire.encode(body)) == body
         assert wire.decode("execute", json.dumps(body)) == body
 
@@ -272,6 +273,7 @@ def test_minimal_and_full_execute_requests_pass_and_round_trip():
     ('{"plan": {}, "blend": "yes"}', "blend"),
     ('{"plan": {}, "blend": true, "blend_lead": 0}', "blend_lead"),
     ('{"plan": {}, "blend": true, "blend_lead": 31}', "blend_lead"),
+    ('{"plan": {}, "on_change": "pause"}', "on_change"),
     ('{"plan": {}, "client": "not/alnum"}', "client"),
     ('{"plan": {}, "client": ""}', "client"),
     ('{"plan": []}', "plan"),
@@ -298,3 +300,13 @@ def test_the_execute_request_schema_is_published_and_its_ranges_are_the_services
     assert tol["default"] == DEFAULT_START_TOLERANCE
     assert s["properties"]["client"]["maxLength"] <= caps.MAX_NAME
     assert f"{wire.MAX_EXECUTE_PAYLOAD // 2**20} MiB" in s["description"]
+
+
+def test_on_change_is_the_same_in_the_schema_the_service_and_the_client():
+    from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE, ON_CHANGE
+    from arduinobot.service.execute.io import ExecuteRequest
+    prop = wire.schema("execute_request")["properties"]["on_change"]
+    assert tuple(prop["enum"]) == ON_CHANGE
+    assert prop["default"] == DEFAULT_ON_CHANGE
+    assert ExecuteRequest.decode(b'{"plan": {}}').on_change == DEFAULT_ON_CHANGE
+    assert ExecuteRequest.decode(b'{"plan": {}, "on_change": "ignore"}').on_change == "ignore"

@@ -82,17 +82,17 @@ def test_the_execute_service_gives_its_twin_the_kept_scene_when_it_changes(case)
     svc = ExecuteService(None, "p", case.d, RobotSpec())  # no session: nothing served
     snaps = [SceneSnapshot(3, (case.table,), (case.attached(0.2),))]
     svc.scene_source = lambda: snaps[-1]
-    svc._scene_to_twin(sim, [])
+    svc.scene_to_twin(sim, [])
     m = sim.model
     assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "carried:carried_box") >= 0
     assert mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "obstacle:table") >= 0
-    svc._scene_to_twin(sim, [])
+    svc.scene_to_twin(sim, [])
     assert sim.model is m  # the same scene: not rebuilt
     own = {"id": "post", "shape": "cylinder", "radius": 0.02, "length": 0.5, "xyz": [3, 0, 0]}
-    svc._scene_to_twin(sim, [own])  # a plan's own obstacle too
+    svc.scene_to_twin(sim, [own])  # a plan's own obstacle too
     assert mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_GEOM, "obstacle:post") >= 0
     snaps.append(SceneSnapshot(4))  # detached and cleared
-    svc._scene_to_twin(sim, [])
+    svc.scene_to_twin(sim, [])
     assert mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_BODY, "carried:carried_box") < 0
     assert mujoco.mj_name2id(sim.model, mujoco.mjtObj.mjOBJ_GEOM, "obstacle:table") < 0
 

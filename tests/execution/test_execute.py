@@ -97,6 +97,30 @@ def test_cancel_stops_at_rest_within_a_second_and_the_limits(desc, planned, at):
           f"peaks {rep.peak_ratio}; peak force {np.round(st.peak_force, 2)}")
 
 
+def test_a_halt_stops_on_the_path_as_stopped_and_says_where_it_rests(desc, planned):
+    """The halt of a scene change (service/execute/react.py): the cancel's stop, its own
+    outcome, and the trajectory time it rests at, on the path."""
+    traj = planned["reach_left"]
+    halt = threading.Event()
+    sim = SimArduinobot(desc, cache=CACHE)
+
+    def on_tick(tick):
+        if tick.phase == "trajectory" and tick.trajectory_time >= traj.duration * 0.3:
+            halt.set()
+    ex = Executor.for_description(sim, desc, options=ExecuteOptions(realtime=False),
+                                  on_tick=on_tick)
+    ex.warm_stops()  # the first stop's choice, ahead (nothing moves)
+    assert np.abs(sim.state().actuated(sim.joint_names) - traj.positions[0]).max() < 1e-9
+    rep = ex.execute(SampledTrajectory.from_json(_body(traj)), halt=halt)
+    assert rep.outcome == "stopped"
+    assert ex.last_stop == "path"
+    assert rep.cancelled_at < ex.last_stop_end < traj.duration
+    # it rests where the trajectory is at that time: on the path
+    assert np.abs(rep.q[-1] - traj.evaluate(ex.last_stop_end)[0]).max() < 1e-6
+    assert ex.stop_sent is not None
+    check_within_limits(rep, ex.limits)
+
+
 def test_refuses_a_start_elsewhere_and_moves_there_on_request(desc, planned):
     traj = SampledTrajectory.from_json(_body(planned["reach_forward"]))
     sim = SimArduinobot(desc, cache=CACHE, initial=[0.5, 0.2, -0.3, 0.0])

@@ -43,6 +43,8 @@ from arduinobot.client.replies import (
 )
 from arduinobot.client.scene_update import update_scene
 from arduinobot.client.stream import ExecutionEvent, cancel_execution, follow, stream
+from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE, ON_CHANGE
 from arduinobot.contract.wire import JSON
 from arduinobot.contract.zconfig import (
     DEFAULT_ENDPOINT,
@@ -227,7 +229,7 @@ class PlannerClient:
     # -- moving the service's robot (see arduinobot.client.stream) -----------------------
     def execute(self, trajectory: Mapping[str, Any] | None = None, *,
                 plan: Mapping[str, Any] | None = None, start_tolerance: float = 0.01,
-                move_to_start: bool = False,
+                move_to_start: bool = False, on_change: str = DEFAULT_ON_CHANGE,
                 on_event: Callable[[ExecutionEvent], None] | None = None,
                 cancel: threading.Event | None = None) -> ExecutionEvent:
         """Move the service's robot along ``trajectory`` (a plan reply or ``{joint_names,
@@ -235,7 +237,13 @@ class PlannerClient:
         the robot's state); returns the ``finished`` event with the report.
 
         Args:
-            on_event: called with each event (started, progress, finished).
+            on_change: when the kept scene changes while it moves and the rest of the
+                motion is no longer certified: ``replan`` (stop before it, plan on to
+                the same goal), ``stop`` (stop before it; outcome ``stopped``) or
+                ``ignore`` (:data:`arduinobot.contract.outcomes.ON_CHANGE`).
+            on_event: called with each event (started, progress, changed, stopped,
+                replanned, finished; :func:`arduinobot.client.stream.describe` says a
+                reaction's in a line).
             cancel: set it (from any thread) to stop the arm smoothly; another client
                 can stop it too, with :meth:`cancel_execution` and the execution id.
 
@@ -247,8 +255,11 @@ class PlannerClient:
         """
         if (trajectory is None) == (plan is None):
             raise TypeError("give exactly one of trajectory and plan")
+        if on_change not in ON_CHANGE:
+            raise InvalidRequest(f"on_change {on_change!r} must be one of "
+                                 f"{', '.join(ON_CHANGE)}", field="on_change")
         body: dict[str, Any] = {"start_tolerance": start_tolerance,
-                                "move_to_start": move_to_start}
+                                "move_to_start": move_to_start, "on_change": on_change}
         if trajectory is not None:
             body["trajectory"] = dict(trajectory)
         else:

@@ -2,7 +2,8 @@
 and :meth:`PlannerClient.task`, the CLI's ``task --remote`` and the ROS 2 task server.
 
 One query on ``<prefix>/execute`` answers with a stream: ``started`` (the execution id,
-its duration), ``progress`` every 0.1 s, then ``finished`` with the report (or a coded
+its duration), ``progress`` every 0.1 s (and, when the kept scene changes while the arm
+moves, ``changed``, ``stopped``, ``replanned``), then ``finished`` with the report (or a coded
 error, e.g. ``PORT_ERROR`` with the last setpoint the arm took); one on ``<prefix>/task``
 first answers ``planned``, then, executed, relays the same stream. :func:`follow` reads
 both. While an execute runs, the client holds a liveliness token
@@ -32,7 +33,14 @@ from arduinobot.contract.wire import JSON
 #: silence instead (progress arrives every 0.1 s; see ``silence``).
 STREAM_LIMIT = 24 * 3600.0
 
-EventKind = Literal["started", "progress", "finished"]
+EventKind = Literal["started", "progress", "finished", "changed", "stopped", "replanned"]
+#: every event kind an execution's stream carries: ``changed`` (a kept-scene change
+#: re-checked the rest of the motion: the revision, the objects, ``certified``,
+#: ``action``), ``stopped`` (stopped for it: the tick, ``stop_ms`` from the apply's
+#: arrival to the first stop setpoint, where it came to rest), ``replanned`` (planned on
+#: from there to the same goal: ``ok``, ``duration``)
+EVENT_KINDS: tuple[str, ...] = ("started", "progress", "finished", "changed", "stopped",
+                                "replanned")
 #: a reply's JSON object, or the coded error of an error reply raised
 #: (:func:`arduinobot.client.codec.decode_reply`): (reply, key, waited [s])
 Decode = Callable[[zenoh.Reply, str, float], dict[str, Any]]
@@ -43,7 +51,8 @@ class ExecutionEvent:
     """One reply of an execution's stream.
 
     Attributes:
-        event: started, progress or finished.
+        event: started, progress, finished, or one of a reaction to a scene change
+            (changed, stopped, replanned: :data:`EVENT_KINDS`).
         execution: the execution's id (cancel it with it).
         duration: [s] of the trajectory (started); time: [s] since it began (progress).
         report: the execution report (finished): outcome, ticks, peaks, tracking errors.
@@ -61,7 +70,7 @@ class ExecutionEvent:
     def parse(cls, body: Mapping[str, Any]) -> ExecutionEvent:
         """Raises: MalformedReply for a reply that is no event of an execution."""
         kind, execution = body.get("event"), body.get("execution")
-        if kind not in ("started", "progress", "finished") or not isinstance(execution, str):
+        if kind not in EVENT_KINDS or not isinstance(execution, str):
             raise MalformedReply("execute", "event", f"is not an execution event: "
                                  f"{json.dumps(body)[:200]}")
         report = body.get("report")
@@ -69,6 +78,35 @@ class ExecutionEvent:
             raise MalformedReply("execute", "report", "is missing")
         return cls(kind, execution, _float(body.get("duration")), _float(body.get("time")),
                    report, body)
+
+
+def describe(ev: ExecutionEvent) -> str | None:
+    """One line for a reaction event (changed, stopped, replanned), None for the others."""
+    b = ev.raw
+    if ev.event == "changed":
+        ids = ", ".join(f"{k} {' '.join(b[k])}" for k in ("added", "removed", "attached",
+                                                           "detached") if b.get(k))
+        what = f"scene revision {b.get('revision')}" + (f" ({ids})" if ids else "")
+        if b.get("certified"):
+            return f"{what}: the rest of the motion is still certified; going on"
+        ref = b.get("refused") or {}
+        where = f" at {ref['time']:.3f} s ({'/'.join(ref.get('pair', ()))})" \
+            if "time" in ref else ""
+        return f"{what}: the rest is no longer certified{where}: {b.get('action')}"
+    if ev.event == "stopped":
+        ms = b.get("stop_ms")
+        rest = b.get("rest_at")
+        return (f"stopped for revision {b.get('revision')}: stop command "
+                f"{'?' if ms is None else f'{ms:.0f}'} ms after the apply arrived, at rest "
+                f"at {'?' if rest is None else f'{rest:.3f}'} s of the trajectory "
+                f"({'before' if b.get('before') else 'NOT before'} the first uncertified "
+                "piece)")
+    if ev.event == "replanned":
+        if b.get("ok"):
+            return f"replanned from the stopped state: {float(b['duration']):.3f} s"
+        err = b.get("error") or {}
+        return f"replanning failed: {err.get('code')}: {err.get('message')}"
+    return None
 
 
 def _float(v: object) -> float | None:

@@ -8,7 +8,8 @@ jsonschema), never the planner, the service or a client.
 - ``ranges``: the numeric ranges of request fields.
 - ``caps``: the size caps of a request and the cheap structural check.
 - ``wire``: strict JSON in and out, the schemas' validators.
-- ``outcomes``: how an execution ended (``completed``, ``written``, ``cancelled``).
+- ``outcomes``: how an execution ended (``completed``, ``written``, ``cancelled``,
+  ``stopped``) and what it does when the world changes (``on_change``).
 - ``packed``: a trajectory's samples packed (base64 of float64 arrays).
 - ``inline``: bytes sent inline in a JSON field (base64), decoded within a size cap.
 - ``samples``: a trajectory's samples as CSV (``samples_csv``).

@@ -10,6 +10,9 @@ only) no wall clock paces the ticks.
 Cancelling (the ``cancel`` event: Ctrl-C, a cancel request, a lost client) switches at
 the next tick to a stop within every limit (:func:`arduinobot.execution.stops.choose_stop`). A new goal
 while moving takes over through :meth:`Executor.lookahead` and :meth:`Executor.switch`.
+A ``halt`` event stops the same way, for a reason of the caller's (the world changed:
+:mod:`arduinobot.service.execute.react`): the report's outcome is then ``stopped``, and
+:attr:`Executor.last_stop_end` says where on the trajectory the stop came to rest.
 """
 
 from __future__ import annotations
@@ -133,6 +136,11 @@ class Executor:
         self.robot, self.limits, self.options, self.on_tick = robot, limits, options, on_tick
         self.torques = torques
         self.last_stop: StopKind | None = None
+        #: the trajectory time [s] the last stop came to rest at, when it stayed on the
+        #: trajectory's path (a path stop, or its end); None for a joint stop
+        self.last_stop_end: float | None = None
+        #: wall-clock time [s since the epoch] the last stop's first setpoint went out
+        self.stop_sent: float | None = None
         self.blends = 0
         self._switch_lock = threading.Lock()
         # (tick, trajectory, what to do on the executing thread just before it plays)
@@ -150,6 +158,19 @@ class Executor:
         lim = JointLimits.from_description(description, joint_names=robot.joint_names)
         dyn = InverseDynamics(description.robot, robot.joint_names)
         return cls(robot, lim, torques=dyn.torques_batch, options=options, on_tick=on_tick)
+
+    def warm_stops(self) -> None:
+        """Choose one stop now (a short move from the robot's state), not first when the
+        arm must stop: the first choice in a process loads what the effort check uses
+        (measured 1.3 s, then 25-40 ms), and a stop's first setpoint waits for it."""
+        names = self.robot.joint_names
+        q = self.robot.state().actuated(names)
+        goal = np.clip(q + 0.05, self.limits.lower, self.limits.upper)
+        lim = self.limits
+        seg = move_segment(names, q, goal, velocity=0.1 * lim.velocity,
+                           acceleration=0.1 * lim.acceleration, jerk=0.1 * lim.jerk)
+        choose_stop(seg, 0.5 * seg.duration, seg.evaluate(0.5 * seg.duration), limits=lim,
+                    torques=self.torques)
 
     # -- blending into a new trajectory while moving ----------------------------------------
     def lookahead(self, lead: float) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
@@ -194,6 +215,16 @@ class Executor:
             hold = self._playing[1].evaluate(0.0)[0]
             self._switch = (at_tick, trajectory.for_joints(names, hold), on_switch)
 
+    def playing(self) -> tuple[Phase, Segment, float] | None:
+        """What plays now: the phase, its segment and the segment's time [s] at the
+        current tick (None between executions)."""
+        with self._switch_lock:
+            playing, now = self._playing, self._tick_index
+        if playing is None:
+            return None
+        phase, seg, k0, _ = playing
+        return phase, seg, max(0.0, (now - k0) / self.options.rate)
+
     # -- checks -------------------------------------------------------------------------
     def check_start(self, trajectory: SampledTrajectory) -> SampledTrajectory:
         """The trajectory over the robot's joints; raises :class:`NotAtStart` if the robot
@@ -219,8 +250,10 @@ class Executor:
 
     # -- execution ----------------------------------------------------------------------
     def execute(self, trajectory: SampledTrajectory, *,
-                cancel: threading.Event | None = None) -> ExecutionReport:
-        """Play ``trajectory`` (after a move to its start if allowed and needed).
+                cancel: threading.Event | None = None,
+                halt: threading.Event | None = None) -> ExecutionReport:
+        """Play ``trajectory`` (after a move to its start if allowed and needed); stop
+        smoothly once ``cancel`` (outcome ``cancelled``) or ``halt`` (``stopped``) is set.
 
         Raises:
             ExecutionBusy: another execution is running on this executor.
@@ -232,13 +265,15 @@ class Executor:
         if not self._lock.acquire(blocking=False):
             raise ExecutionBusy("the robot is already executing a trajectory")
         try:
-            return self._execute(trajectory, cancel or threading.Event())
+            return self._execute(trajectory, cancel or threading.Event(),
+                                 halt or threading.Event())
         finally:
             self._lock.release()
 
-    def _execute(self, trajectory: SampledTrajectory, cancel: threading.Event
-                 ) -> ExecutionReport:
+    def _execute(self, trajectory: SampledTrajectory, cancel: threading.Event,
+                 halt: threading.Event) -> ExecutionReport:
         o, lim = self.options, self.limits
+        self.last_stop, self.last_stop_end, self.stop_sent = None, None, None
         traj = self.check_start(trajectory)
         names = self.robot.joint_names
         now = self.robot.state().actuated(names)
@@ -253,7 +288,7 @@ class Executor:
         plan.append(("trajectory", traj))
         run = _Playback(self, traj)
         try:
-            cancelled_at = run.play(plan, cancel)
+            cancelled_at = run.play(plan, cancel, halt)
             with self._switch_lock:
                 self._playing, self._switch = None, None
             stop_time = run.stop(cancelled_at) if cancelled_at is not None else None
@@ -273,7 +308,8 @@ class Executor:
             # interrupted mid-motion: the robot holds the last setpoint
             log.exception("execution aborted at tick %d", run.k)
             raise
-        outcome: Outcome = "cancelled" if cancelled_at is not None else \
+        outcome: Outcome = ("stopped" if halt.is_set() and not cancel.is_set()
+                            else "cancelled") if cancelled_at is not None else \
             "completed" if self.robot.feedback else "written"
         return run.rec.report(outcome,
                               names, run.traj.duration, cancelled_at, stop_time, lim, run.dt)
@@ -301,6 +337,8 @@ class _Playback:
         q, qd, qdd = cur
         self.cur = cur
         ex.robot.command(q, qd, qdd, jerks=jerk)
+        if phase == "stop" and ex.stop_sent is None:
+            ex.stop_sent = time.time()  # the figure: a scene change's arrival to here
         self.sent = q
         ex.robot.advance(dt)
         st = ex.robot.state()
@@ -316,10 +354,10 @@ class _Playback:
         jerk = (seg.evaluate(t + self.dt)[2] - cur[2]) / self.dt
         self.tick(phase, traj_t, cur, jerk)
 
-    def play(self, plan: list[tuple[Phase, Segment]], cancel: threading.Event
-             ) -> float | None:
+    def play(self, plan: list[tuple[Phase, Segment]], cancel: threading.Event,
+             halt: threading.Event) -> float | None:
         """Play ``plan``'s segments (switching to a blend when one is due); the trajectory
-        time of a cancel, or None if it played to the end."""
+        time of a cancel or halt, or None if it played to the end."""
         ex, rate, dt = self.ex, self.ex.options.rate, self.dt
         self.last = (plan[0][1], 0.0)
         for phase, seg in plan:
@@ -327,7 +365,7 @@ class _Playback:
             i = 0 if self.k == 0 else 1  # a junction is one tick, not two
             ex._playing = (phase, seg, self.k - i, self.k)
             while i <= n:
-                if cancel.is_set():
+                if cancel.is_set() or halt.is_set():
                     break
                 with ex._switch_lock:
                     sw, ex._tick_index = ex._switch, self.k
@@ -346,7 +384,7 @@ class _Playback:
                 self._segment(seg, t, phase, t if phase == "trajectory" else 0.0)
                 self.last = (seg, t)
                 i += 1
-            if cancel.is_set():
+            if cancel.is_set() or halt.is_set():
                 return self.rec.traj_time
         return None
 
@@ -355,6 +393,9 @@ class _Playback:
         ex = self.ex
         how, stop = choose_stop(*self.last, self.cur, limits=ex.limits, torques=ex.torques)
         ex.last_stop = how
+        # where on the path it rests: a path stop's end, or the segment's own end
+        ex.last_stop_end = getattr(stop, "s_end", None) if how == "path" else \
+            self.last[0].duration if how == "finish" else None
         log.info("cancelled at %.3f s of the trajectory: stopping (%s) in %.3f s",
                  cancelled_at, how, stop.duration)
         n = int(math.ceil(stop.duration * ex.options.rate - 1e-9))

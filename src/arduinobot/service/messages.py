@@ -61,7 +61,7 @@ class Failure:
 #: what a job ends with
 Outcome = Success | Failure
 #: what the worker pool does
-JobKind = Literal["plan", "fk", "ik", "check", "task", "frames"]
+JobKind = Literal["plan", "fk", "ik", "check", "task", "frames", "recheck"]
 #: submits a job to the service's worker pool: ``submit(kind, data, respond)``
 #: (:meth:`arduinobot.service.server.PlannerService.submit`); ``respond`` gets its one outcome
 Submit = Callable[[JobKind, Mapping[str, Any], Callable[[Outcome], None]], None]

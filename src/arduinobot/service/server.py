@@ -324,8 +324,8 @@ class PlannerService:
         pool = self.pool
         if pool is None:  # closed: as _on_query answers a query that arrives then
             raise ShuttingDown(SHUTTING_DOWN)
-        if kind in (*SCENE_KINDS, "task") and self.scene is not None:
-            self.scene.check_current()
+        if kind in (*SCENE_KINDS, "task", "recheck") and self.scene is not None:
+            self.scene.check_current()  # (a moving arm's recheck: it stops instead)
         pool.submit(Job(kind, data, f"{self.instance[:8]}-{next(self._ids)}",
                         time.monotonic() + self.options.timeout, respond,
                         scene=self._scene_now()))

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 from arduinobot.cli.argtypes import UsageError, json_object
 from arduinobot.cli.common import (
     EXIT_CANCELLED,
+    EXIT_FAIL,
     EXIT_OK,
     add_connection_args,
     add_model_args,
@@ -25,7 +26,7 @@ from arduinobot.cli.common import (
     sigint_sets,
 )
 from arduinobot.cli.ros2_options import add_ros2_args, ros2_settings
-from arduinobot.contract.outcomes import succeeded
+from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE, ON_CHANGE, succeeded
 
 if TYPE_CHECKING:  # the executor and the drivers load with the command, not with the CLI
     from arduinobot.client.stream import ExecutionEvent
@@ -118,6 +119,11 @@ def _add_run_args(r: argparse._ArgumentGroup) -> None:
                    help="with --blend: how far ahead of the moving arm the blend is "
                    "planned from, in [0.05, 30] s (default 0.8 s); it must cover the "
                    "planning, or the blend is TOO_LATE")
+    r.add_argument("--on-change", choices=ON_CHANGE, default=DEFAULT_ON_CHANGE,
+                   help="with --remote: when the kept scene changes while the arm moves and "
+                   "the rest of the motion is no longer certified, replan (stop before it "
+                   "and plan on to the same goal; default), stop (stop before it) or "
+                   "ignore")
     r.add_argument("--no-publish", action="store_true",
                    help="do not publish <prefix>/joint_states")
     r.add_argument("--report", metavar="OUT.json", help="write the execution report")
@@ -344,8 +350,13 @@ def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
         lines.append("every setpoint was written to the port; this arm reports nothing "
                      "back, so nobody saw it take them (watch it)")
     if r.get("cancelled_at") is not None:
-        lines.append(f"cancelled at {r['cancelled_at']:.3f} s of "
-                     f"{r['trajectory_duration']:.3f} s; stopped in {r['stop_time']:.3f} s")
+        how = "stopped for a scene change" if r["outcome"] == "stopped" else "cancelled"
+        lines.append(f"{how} at {r['cancelled_at']:.3f} s of "
+                     f"{r['trajectory_duration']:.3f} s; stopped in {r['stop_time']:.3f} s"
+                     + (f" ({r['stopped_because']})" if r.get("stopped_because") else ""))
+    if r.get("legs"):
+        lines.append(f"{len(r['legs'])} legs (replanned {len(r['legs']) - 1} times after "
+                     "scene changes); this report is the last leg's")
     lines.append("commanded peaks vs limits: " + ", ".join(
         f"{k} {100 * v:.0f}%" for k, v in pk.items()))
     lines.append("tracking error (max per joint): " + ", ".join(
@@ -360,12 +371,15 @@ def _report(ns: argparse.Namespace, r: dict[str, Any]) -> int:
     print("\n".join(lines))
     if ns.report:
         Path(ns.report).write_text(json.dumps(r, indent=1))
-    return EXIT_OK if succeeded(r["outcome"]) else EXIT_CANCELLED
+    if succeeded(r["outcome"]):
+        return EXIT_OK
+    return EXIT_FAIL if r["outcome"] == "stopped" else EXIT_CANCELLED
 
 
 def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
     """Execute on the service's robot through :meth:`PlannerClient.execute`: its events
     on stderr; Ctrl-C cancels (the arm stops smoothly); a lost client stops the arm."""
+    from arduinobot.client.stream import describe
     from arduinobot.execution.segments import read_json
     with client(ns) as c:
         if ns.blend:
@@ -378,11 +392,14 @@ def _remote(ns: argparse.Namespace, req: dict[str, Any] | None) -> int:
             if ev.event == "started":
                 print(f"executing {ev.execution}: {ev.duration:.3f} s on the service's "
                       "robot (Ctrl-C stops smoothly)", file=sys.stderr)
+            elif (line := describe(ev)) is not None:  # a reaction to a scene change
+                print(line, file=sys.stderr)
         cancel = threading.Event()
         traj = None if req is not None else read_json(ns.trajectory)
         with sigint_sets(cancel):
             done = c.execute(traj, plan=req, start_tolerance=ns.start_tolerance,
-                             move_to_start=ns.move_to_start, on_event=on_event,
+                             move_to_start=ns.move_to_start, on_change=ns.on_change,
+                             on_event=on_event,
                              cancel=cancel)
     return _report(ns, dict(done.report or {}))  # a finished event has one (its parse)
 

@@ -4,4 +4,5 @@
 - ``run``: one execution's stream of events.
 - ``io``: the execute request decoded, the errors it answers as themselves.
 - ``twin_scene``: the world given to the MuJoCo twin.
+- ``react``: every scene change re-checks a moving arm's rest; stop, replan or go on.
 """

@@ -10,7 +10,9 @@ other request is. ``<p>/execute`` replies on the one query (get it with consolid
 NONE) ``{"event": "started", "execution", "duration"}``, ``{"event": "progress", ...}``
 every :data:`arduinobot.service.execute.run.PROGRESS_EVERY` ticks, then ``{"event": "finished", "execution", "report"}``;
 a plan without ``start`` starts from the robot's state; ``start_tolerance`` defaults to
-0.01 rad. A blend (``"blend": true`` with a ``plan`` while the arm moves) is planned from
+0.01 rad. While it moves, every kept-scene change re-checks the rest of the motion and,
+by the request's ``on_change``, stops it, replans it or lets it go on
+(:mod:`arduinobot.service.execute.react`; events ``changed``, ``stopped``, ``replanned``). A blend (``"blend": true`` with a ``plan`` while the arm moves) is planned from
 the setpoint ``blend_lead`` (default 0.8 s) ahead and gets one reply, ``{"event": "blended",
 "execution", "tick", "duration"}`` (or ``TOO_LATE``); the running execution's stream goes
 on to its final report. Errors as everywhere: ``{"error": {code, message, details}}``;
@@ -50,10 +52,11 @@ from arduinobot.execution.robots.base import JointState, Robot
 from arduinobot.execution.robots.spec import RobotSpec, twin_start
 from arduinobot.execution.segments import SampledTrajectory
 from arduinobot.service.execute.io import CODED, ExecuteRequest, payload_of
+from arduinobot.service.execute.react import Reactor
 from arduinobot.service.execute.run import Run
 from arduinobot.service.execute.twin_scene import TwinScene
 from arduinobot.service.extension import Host
-from arduinobot.service.messages import Failure, Outcome, SubmitPlan
+from arduinobot.service.messages import Failure, Outcome, Submit, SubmitPlan
 from arduinobot.service.queries import answering, guarded, reply_failure
 
 if TYPE_CHECKING:
@@ -80,11 +83,14 @@ class ExecuteService:
 
     def __init__(self, session: zenoh.Session, prefix: str, description: Description,
                  spec: RobotSpec, *, submit_plan: SubmitPlan | None = None,
+                 submit: Submit | None = None,
                  tick_sink: TickSink | None = None,
                  scene_source: Callable[[], SceneSnapshot | None] | None = None) -> None:
         self.session, self.prefix, self.description, self.spec = (session, prefix,
                                                                    description, spec)
         self.submit_plan = submit_plan
+        self.submit = submit  # the rechecks of a moving arm's rest (:mod:`.react`)
+        self.reactor: Reactor | None = None  # the running execution's
         self.tick_sink = tick_sink
         self._sink_failed = False  # logged once: a failing sink never stops the arm
         self._robot: Robot | None = None
@@ -97,7 +103,7 @@ class ExecuteService:
         self.running: Executor | None = None  # the Executor playing now
         self._ids = itertools.count(1)
         self._publisher: zenoh.Publisher | None = None
-        self._entities: list[zenoh.Publisher | zenoh.Queryable] = []
+        self._entities: list[zenoh.Publisher | zenoh.Queryable | zenoh.Subscriber] = []
         #: the kept scene now (the host's): a twin takes its objects and carried
         #: objects before each execution (SimArduinobot.set_scene)
         self.scene_source = scene_source
@@ -111,6 +117,8 @@ class ExecuteService:
         s = self.session
         self._publisher = s.declare_publisher(f"{p}/joint_states", encoding=wire.JSON)
         self._entities.append(self._publisher)
+        # the kept scene's changes: a moving arm's rest is checked again (:mod:`.react`)
+        self._entities.append(s.declare_subscriber(f"{p}/scene/changes", self._on_change))
         # execute builds the twin on first use (seconds on CAD meshes) or waits for the
         # pool, robot_state may wait for a port: on their own threads, never on Zenoh's
         for key, fn, threaded in ((f"{p}/execute", self._on_execute, True),
@@ -169,6 +177,8 @@ class ExecuteService:
                 self._robot = self.spec.open(self.description)
                 self._executor = Executor.for_description(  # in real time, the twin too
                     self._robot, self.description, options=ExecuteOptions(rate=self.spec.rate))
+                # a stop (a cancel, a scene change) must not wait for its first choice
+                self._executor.warm_stops()
             return self._executor
 
     def robot(self) -> Robot:
@@ -202,6 +212,25 @@ class ExecuteService:
             return twin_start(self.description)
         return self.robot().state()
 
+    def _on_change(self, sample: zenoh.Sample) -> None:
+        """A kept-scene change (Zenoh's thread: handed to the running execution's
+        reactor, which checks on its own thread)."""
+        react = self.reactor
+        if react is None:
+            return
+        try:
+            msg = orjson.loads(sample.payload.to_bytes())
+        except orjson.JSONDecodeError as e:
+            _log.warning("a scene change that is not JSON was ignored: %s", e)
+            return
+        if isinstance(msg, dict) and isinstance(msg.get("revision"), int):
+            react.changed(msg)
+
+    def scene_revision(self) -> int | None:
+        """The kept scene's revision now (None: no kept scene)."""
+        snap = self.scene_source() if self.scene_source is not None else None
+        return snap.revision if snap is not None else None
+
     def _on_cancel(self, query: zenoh.Query) -> None:
         raw = payload_of(query)
         body = wire.parse_json(raw) if raw else {}
@@ -230,20 +259,23 @@ class ExecuteService:
             self.cancel.clear()
             run = Run(self, query, execution, req)
             plan_req = req.plan or {}
-            self._scene_to_twin(robot, plan_req.get("obstacles") or (), req.twin,
+            self.scene_to_twin(robot, plan_req.get("obstacles") or (), req.twin,
                                 ground=bool(plan_req.get("ground", True)))
             if req.trajectory is not None:
+                # a plan reply says the scene it was planned in; else the scene now
+                rev = req.trajectory.get("scene_revision")
+                run.revision = rev if isinstance(rev, int) else self.scene_revision()
                 run.start_with(SampledTrajectory.from_json(req.trajectory))
                 return
             plan = dict(req.plan or {})
             if "start" not in plan:
                 plan["start"] = plan_start(robot, self.description)
-            self._plan(plan, run.on_planned)
+            self.plan(plan, run.on_planned)
         except BaseException:
             self.finish()
             raise
 
-    def _scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
+    def scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
                        twin: Mapping[str, Any] | None = None, *, ground: bool = True
                        ) -> None:
         """Give a twin the kept scene now with the plan's ``own`` obstacles and its
@@ -251,7 +283,7 @@ class ExecuteService:
         snap = self.scene_source() if self.scene_source is not None else None
         self.twin_scene.give(robot, snap, own, twin, ground=ground)
 
-    def _plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
+    def plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
         """Hand the plan ``request`` to the pool (checked first); ``respond`` gets its outcome."""
         if self.submit_plan is None:
             raise InvalidRequest("this service cannot plan", field="plan")
@@ -291,7 +323,7 @@ class ExecuteService:
                                                   "tick": k, "duration": traj.duration}),
                                 encoding=wire.JSON)
             query.drop()
-        self._plan(plan, on_planned)
+        self.plan(plan, on_planned)
 
     def finish(self) -> None:
         """The execution is over: the robot takes the next one."""
@@ -310,7 +342,7 @@ def execute_extension(spec: RobotSpec, *, tick_sink: OpenTickSink | None = None
     def make(host: Host) -> ExecuteService:
         sink = tick_sink(host.session, host.description) if tick_sink is not None else None
         svc = ExecuteService(host.session, host.prefix, host.description, spec,
-                             submit_plan=host.submit_plan, tick_sink=sink,
+                             submit_plan=host.submit_plan, submit=host.submit, tick_sink=sink,
                              scene_source=host.scene)
         try:
             svc.start()

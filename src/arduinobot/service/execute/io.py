@@ -13,6 +13,7 @@ import zenoh
 
 from arduinobot.contract import wire
 from arduinobot.contract.errors import PlanningError
+from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE, OnChange
 from arduinobot.execution.robots.base import RobotError
 
 #: the errors an execute key answers as themselves (logged: a refused motion is news)
@@ -35,6 +36,7 @@ class ExecuteRequest:
     client: str | None
     twin: Mapping[str, Any] | None = None  # a task's objects for a twin (the schema's)
     blend_lead: float = DEFAULT_BLEND_LEAD  # [s] ahead of the moving arm
+    on_change: OnChange = DEFAULT_ON_CHANGE  # a scene change that uncertifies the rest
 
     @classmethod
     def decode(cls, payload: bytes) -> ExecuteRequest:
@@ -44,7 +46,8 @@ class ExecuteRequest:
                    float(body.get("start_tolerance", DEFAULT_START_TOLERANCE)),
                    bool(body.get("move_to_start", False)), bool(body.get("blend", False)),
                    body.get("client"), body.get("twin"),
-                   float(body.get("blend_lead", DEFAULT_BLEND_LEAD)))
+                   float(body.get("blend_lead", DEFAULT_BLEND_LEAD)),
+                   body.get("on_change", DEFAULT_ON_CHANGE))
 
 
 def payload_of(query: zenoh.Query) -> bytes:

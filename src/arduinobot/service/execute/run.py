@@ -1,13 +1,16 @@
 """One execution on the service's robot: its thread, and its replies on the execute
 query (``started``, ``progress`` every :data:`PROGRESS_EVERY` ticks, ``finished`` with the
-report, or the coded error that ended it), until the final report."""
+report, or the coded error that ended it), until the final report. While it moves, its
+:class:`~arduinobot.service.execute.react.Reactor` re-checks the rest on every scene
+change (events ``changed``, ``stopped``, ``replanned``); a replanned execution plays in
+legs, the report is the last one's with every leg's summary (``legs``)."""
 
 from __future__ import annotations
 
 import logging
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any, Protocol
 
@@ -18,17 +21,20 @@ from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
-from arduinobot.execution.executor import Executor
-from arduinobot.execution.report import Tick
-from arduinobot.execution.robots.base import PortError, RobotError
+from arduinobot.execution.executor import Executor, plan_start
+from arduinobot.execution.report import ExecutionReport, Tick
+from arduinobot.execution.robots.base import PortError, Robot, RobotError
 from arduinobot.execution.segments import SampledTrajectory, check_fits
 from arduinobot.service.execute.io import CODED, ExecuteRequest
-from arduinobot.service.messages import Failure, Outcome
+from arduinobot.service.execute.react import Reactor, Verdict
+from arduinobot.service.messages import Failure, Outcome, Submit
 from arduinobot.service.queries import answering, reply_error
 
 _log = logging.getLogger(__name__)
 
 PROGRESS_EVERY = 10  # ticks between progress replies (10 Hz at 100 Hz)
+MAX_LEGS = 10  # an execution replans at most this often less one (a scene that keeps
+# moving into the path would otherwise keep the arm stopping forever)
 
 
 class RunHost(Protocol):
@@ -57,6 +63,23 @@ class RunHost(Protocol):
         """The execution is over: the robot takes the next one."""
         ...
 
+    submit: Submit | None  # a job through the pool (the rechecks), None: no pool
+    reactor: Reactor | None  # the running execution's, hearing the scene's changes
+
+    def scene_revision(self) -> int | None:
+        """The kept scene's revision now (None: no kept scene)."""
+        ...
+
+    def scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
+                      twin: Mapping[str, Any] | None = None, *, ground: bool = True
+                      ) -> None:
+        """Give a twin the kept scene now with a plan's own obstacles."""
+        ...
+
+    def plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
+        """A plan request through the pool; ``respond`` gets its outcome."""
+        ...
+
 
 class Run:
     """One execution: its query (replied to until the final report), its thread."""
@@ -65,13 +88,18 @@ class Run:
                  req: ExecuteRequest) -> None:
         self.svc, self.query, self.execution, self.req = svc, query, execution, req
         self.key = f"{svc.prefix}/execute"
+        #: the kept scene's revision the trajectory was planned in (a plan reply's)
+        self.revision: int | None = None
+        self.stopped_why: str | None = None  # why a stop for a change ended it
 
     def on_planned(self, outcome: Outcome) -> None:
         if isinstance(outcome, Failure):
             self._fail(outcome.code, outcome.message, outcome.details)
             return
         try:
-            self.start_with(SampledTrajectory.from_json(orjson.loads(outcome.body)))
+            body = orjson.loads(outcome.body)
+            self.revision = body.get("scene_revision")
+            self.start_with(SampledTrajectory.from_json(body))
         except RobotError as e:
             self._fail(e.code, e.message, e.details)
         except Exception as e:  # noqa: BLE001 -- answered, never swallowed silently
@@ -122,6 +150,7 @@ class Run:
         svc = self.svc
         watch = None
         done: dict[str, Any] | None = None
+        react: Reactor | None = None
         with answering(self.query, f"execution {self.execution}",
                        internal="the execution failed", coded=CODED, log_refusals=True):
             try:
@@ -133,19 +162,19 @@ class Run:
                 svc.running = ex
                 self._reply({"event": "started", "execution": self.execution,
                              "duration": traj.duration, "joint_names": list(traj.joint_names)})
+                react = self._reactor(ex)
                 t0 = time.monotonic()
-                try:
-                    report = ex.execute(traj, cancel=svc.cancel)
-                except PortError:
-                    svc.drop_robot()  # unplugged or stalled: the next request reopens it
-                    raise
+                report, legs = self._legs(ex, traj, react)
                 if watch is not None:  # done: the client may leave now
                     watch.undeclare()
                     watch = None
                 _log.info("execution %s %s after %.3f s", self.execution, report.outcome,
                           time.monotonic() - t0)
                 done = {"event": "finished", "execution": self.execution,
-                        "report": report.to_dict()}
+                        "report": {**report.to_dict(),
+                                   **({"legs": legs} if len(legs) > 1 else {})}}
+                if self.stopped_why is not None:
+                    done["report"]["stopped_because"] = self.stopped_why
                 objects = (self.req.twin or {}).get("objects") or ()
                 if objects and hasattr(ex.robot, "object_pose"):
                     # where the twin's objects ended: MuJoCo's state, not the plan's
@@ -153,6 +182,9 @@ class Run:
                         o["object"]["id"])[:3, 3].tolist() for o in objects}
             finally:
                 svc.running = None
+                if react is not None:
+                    svc.reactor = None
+                    react.close()
                 if watch is not None:
                     watch.undeclare()
                 svc.finish()
@@ -161,6 +193,110 @@ class Run:
             if done is not None:
                 self._reply(done)
         self.query.drop()
+
+    def _reactor(self, ex: Executor) -> Reactor | None:
+        """The execution's reaction to scene changes (:mod:`.react`), heard from now on;
+        None when the service has no pool to check with."""
+        svc = self.svc
+        if svc.submit is None:
+            return None
+        # a task's joined motion carries objects that change along it (attach, detach):
+        # its world is not one scene; re-checking it, and replanning its remaining
+        # steps, is not done yet: its stream says so for every change
+        unchecked = "a task's motion is not re-checked yet" if self.req.twin is not None \
+            else None
+        react = Reactor(ex, svc.submit, self.req.plan or {}, on_change=self.req.on_change,
+                        emit=lambda body: self._reply({"event": body["event"],
+                                                       "execution": self.execution, **body}),
+                        scene_revision=svc.scene_revision,
+                        unchecked=unchecked)
+        svc.reactor = react
+        return react
+
+    def _legs(self, ex: Executor, traj: SampledTrajectory, react: Reactor | None
+              ) -> tuple[ExecutionReport, list[dict[str, Any]]]:
+        """Play ``traj``; after a stop for a scene change, with ``replan``, plan from the
+        stopped state to the same goal and play that, up to :data:`MAX_LEGS` legs. The
+        last leg's report, and every leg's summary."""
+        svc = self.svc
+        legs: list[dict[str, Any]] = []
+        revision = self.revision if self.revision is not None else (svc.scene_revision() or 0)
+        while True:
+            halt = threading.Event()
+            if react is not None:
+                react.begin(halt, traj, revision)
+            try:
+                report = ex.execute(traj, cancel=svc.cancel, halt=halt)
+            except PortError:
+                svc.drop_robot()  # unplugged or stalled: the next request reopens it
+                raise
+            finally:
+                if react is not None:
+                    react.end()
+            legs.append(report.to_dict())
+            if report.outcome != "stopped" or react is None or react.verdict is None:
+                return report, legs
+            self._said_stop(ex, report, react.verdict)
+            if self.req.on_change != "replan" or len(legs) >= MAX_LEGS:
+                self.stopped_why = ("on_change is stop" if self.req.on_change == "stop"
+                                    else f"{MAX_LEGS} legs replanned already")
+                return report, legs
+            got = self._replan(ex, traj)
+            if got is None:
+                return report, legs
+            traj, revision = got
+
+    def _said_stop(self, ex: Executor, report: ExecutionReport, verdict: Verdict) -> None:
+        """The ``stopped`` event: where and how fast the arm stopped for the change."""
+        ch = verdict.change
+        rest = ex.last_stop_end
+        until = verdict.certified_until
+        # the leg's tick that sent the first stop setpoint
+        tick = report.phases.index("stop") if "stop" in report.phases else None
+        self._reply({"event": "stopped", "execution": self.execution,
+                     "revision": ch.revision, "tick": tick,
+                     "trajectory_time": report.cancelled_at, "stop_time": report.stop_time,
+                     "stop_kind": ex.last_stop, "rest_at": rest,
+                     "certified_until": until,
+                     "before": rest is not None and until is not None
+                     and rest <= until + 1e-9,
+                     "stop_ms": None if ex.stop_sent is None
+                     else 1e3 * (ex.stop_sent - ch.arrived)})
+
+    def _replan(self, ex: Executor, traj: SampledTrajectory
+                ) -> tuple[SampledTrajectory, int] | None:
+        """The same goal from the stopped state, planned in the scene now (the twin
+        takes it first); None (``stopped_why`` set, said on the stream) when no plan."""
+        svc = self.svc
+        if self.req.plan is not None:
+            plan = {k: v for k, v in self.req.plan.items()
+                    if k not in ("start", "start_velocity", "start_acceleration")}
+        else:  # a trajectory: its last state is the goal
+            end = traj.positions[-1]
+            plan = {"goal": {"joints": dict(zip(traj.joint_names, map(float, end)))}}
+        plan["start"] = plan_start(ex.robot, svc.description)
+        own = plan.get("obstacles") or ()
+        svc.scene_to_twin(ex.robot, own, None, ground=bool(plan.get("ground", True)))
+        box: list[Outcome] = []
+        got = threading.Event()
+
+        def respond(outcome: Outcome) -> None:
+            box.append(outcome)
+            got.set()
+        svc.plan(plan, respond)
+        got.wait()
+        outcome = box[0]
+        if isinstance(outcome, Failure):
+            self.stopped_why = f"replanning failed: {outcome.code}: {outcome.message}"
+            self._reply({"event": "replanned", "execution": self.execution, "ok": False,
+                         "error": outcome.to_json()["error"]})
+            return None
+        body = orjson.loads(outcome.body)
+        new = SampledTrajectory.from_json(body)
+        revision = int(body.get("scene_revision", 0))
+        self._reply({"event": "replanned", "execution": self.execution, "ok": True,
+                     "duration": new.duration, "revision": revision})
+        return new, revision
 
     def _watch_client(self, client: str) -> zenoh.Subscriber:
         """Cancel when the client's liveliness token goes (the client died or lost the

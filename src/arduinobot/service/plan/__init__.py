@@ -4,4 +4,5 @@
 - ``plan_io``: a plan request to a ``MotionRequest``, a result to its reply.
 - ``requests``: the common request fields (obstacles, joints).
 - ``bodies``: the collision bodies of a request's obstacles.
+- ``recheck``: a running motion's rest certified against the kept scene now.
 """

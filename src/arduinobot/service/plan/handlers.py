@@ -1,4 +1,5 @@
-"""What a worker does with one validated request: fk, ik, check or plan.
+"""What a worker does with one validated request: fk, ik, check or plan (and the
+execute wing's ``recheck``: :mod:`arduinobot.service.plan.recheck`).
 
 A :class:`Handlers` owns everything built from the description once per process (the
 kinematics, the obstacle-free collision world, the motion planner), so a request pays
@@ -47,6 +48,8 @@ class Handlers:
         self._padded_scene = functools.lru_cache(_SCENE_CACHE)(self._padded)
         self._planner: Any = None
         self._frames: Any = None  # the kept scene's attach and detach (built on first use)
+        # (world, its Certifier) of the last recheck (arduinobot.service.plan.recheck)
+        self.recheck_certifier: tuple[Any, Any] | None = None
 
     def warm_up(self) -> None:
         """Build the planner (and its obstacle-free world) and plan one short motion now,
@@ -92,6 +95,9 @@ class Handlers:
         if kind in ("check", "plan", "fk"):
             return {"check": self.check, "plan": self.plan, "fk": self.fk}[kind](
                 data, scene=scene)
+        if kind == "recheck":  # a running motion's rest (the execute wing's)
+            from arduinobot.service.plan.recheck import recheck
+            return recheck(self, data, scene=scene)
         fn = {"ik": self.ik}.get(kind)
         if fn is None:
             raise InvalidRequest(f"unknown request kind '{kind}'")

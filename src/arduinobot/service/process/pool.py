@@ -159,7 +159,8 @@ class WorkerPool:
         the plans in the queue."""
         self.count("received")
         slot = None
-        urgent = job.kind == "frames"
+        # (and a moving arm's rest re-checked after a scene change: its stop waits on it)
+        urgent = job.kind in ("frames", "recheck")
         with self._cond:
             stopping = self.stopping
             full = len(self._jobs) >= self.queue_size and not urgent

@@ -9,7 +9,9 @@ Keys (``<p>`` the prefix, ``<id>`` an instance's Zenoh id):
   ``state_source`` for an attach or detach) once applied, kept on disk and replicated,
   or refused with a coded error and nothing changed;
 - ``<p>/scene/changes`` (publication): ``{"revision", "added", "removed", "attached",
-  "detached", "cleared"}`` per applied revision, for whoever watches;
+  "detached", "cleared", "arrived"}`` per applied revision, for whoever watches
+  (``arrived``: when the apply reached the leading instance, wall clock [s since the
+  epoch]: a moving arm's reaction is timed from it, :mod:`arduinobot.service.execute.react`);
 - ``<p>/instance/<id>/scene/lead`` and ``.../scene/sync``, liveliness
   ``<p>/scene/member/<id>``: between instances only.
 
@@ -318,10 +320,13 @@ class SceneService:
         (self._shared if shared else self._entities).append(q)
 
     def _queued(self, pool: concurrent.futures.Executor,
-                work: Callable[[zenoh.Query, bytes], None]) -> Callable[[zenoh.Query], None]:
+                work: Callable[[zenoh.Query, bytes, float], None]
+                ) -> Callable[[zenoh.Query], None]:
         """A handler that hands the query to ``pool`` (never decoding or applying on
-        Zenoh's callback thread, which every queryable shares)."""
+        Zenoh's callback thread, which every queryable shares), with its arrival time
+        (wall clock [s])."""
         def handler(query: zenoh.Query) -> None:
+            arrived = time.time()
             zb = query.payload
             if zb is not None and len(zb) > MAX_APPLY_PAYLOAD:
                 reply_error(query, Code.INVALID_REQUEST, f"payload of {len(zb)} bytes "
@@ -333,7 +338,7 @@ class SceneService:
             def run() -> None:
                 # a bug: INTERNAL naming the exception, the service lives
                 with answering(query, f"scene: {query.key_expr}"):
-                    work(query, raw)
+                    work(query, raw, arrived)
                 query.drop()
             try:
                 pool.submit(run)
@@ -355,7 +360,7 @@ class SceneService:
         """The live instance with the smallest id (this one counts, live or not yet)."""
         return min(self.instances.live() | {self.instance})
 
-    def _apply_or_forward(self, query: zenoh.Query, raw: bytes) -> None:
+    def _apply_or_forward(self, query: zenoh.Query, raw: bytes, arrived: float) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
         if "apply_id" not in change:  # one id however often it is sent on
             change = {**change, "apply_id": f"{self.instance[:12]}-{next(self._ids)}"}
@@ -374,7 +379,7 @@ class SceneService:
             lead = self.leader()
             _log.debug("scene: apply, leader %s", lead[:8])
             if lead == self.instance:
-                return self._lead_change(query, change, source)
+                return self._lead_change(query, change, source, arrived=arrived)
             replies = list(self.session.get(f"{self.prefix}/instance/{lead}/scene/lead",
                                             payload=raw, timeout=FORWARD_TIMEOUT,
                                             encoding=wire.JSON))
@@ -394,8 +399,8 @@ class SceneService:
             _log.warning("scene: leader %s did not answer an apply; asking again", lead)
             time.sleep(0.2)
 
-    def _lead(self, query: zenoh.Query, raw: bytes) -> None:
-        self._lead_change(query, decode_apply(raw))
+    def _lead(self, query: zenoh.Query, raw: bytes, arrived: float) -> None:
+        self._lead_change(query, decode_apply(raw), arrived=arrived)
 
     def _collect(self) -> None:
         """Remove the mesh files neither this scene nor the one before it uses (the
@@ -429,7 +434,7 @@ class SceneService:
                 self._applied.popitem(last=False)
 
     def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any],
-                     source: StateSource | None = None) -> None:
+                     source: StateSource | None = None, *, arrived: float) -> None:
         done = self._applied.get(str(change.get("apply_id")))
         if done is not None:
             now = self._state
@@ -451,7 +456,8 @@ class SceneService:
         self._publisher.put(orjson.dumps({"revision": new.revision, "added": added,
                                           "removed": removed, "attached": attached,
                                           "detached": detached,
-                                          "cleared": bool(change.get("clear"))}),
+                                          "cleared": bool(change.get("clear")),
+                                          "arrived": arrived}),
                             encoding=wire.JSON)
         reply: dict[str, Any] = {"revision": new.revision,
                                  "objects": len(new.objects) + len(new.clouds),
@@ -534,7 +540,7 @@ class SceneService:
         raw = query.payload.to_bytes() if query.payload is not None else b""
         self._queued(self._syncs, self._take)(query) if raw else query.drop()
 
-    def _take(self, query: zenoh.Query, raw: bytes) -> None:
+    def _take(self, query: zenoh.Query, raw: bytes, arrived: float) -> None:
         msg = orjson.loads(raw)
         sender = str(msg["from"])
         if sender != self.instance:

@@ -1,0 +1,111 @@
+"""A running motion's rest re-certified against the kept scene now (a ``recheck`` job).
+
+The execute wing (:mod:`arduinobot.service.execute.react`) sends, when the kept scene
+changes while the arm moves, the states the arm is still to be commanded through: the
+trajectory's positions at every control tick from now to its end. The worker certifies
+the polyline through them with the planner's own proof
+(:class:`arduinobot.planner.collision.proof.certify.Certifier`, in the world a plan of
+that request would have now: the kept scene's objects, clouds and carried objects, the
+request's own obstacles and ground). A servo is commanded those states one tick apart;
+between two of them it moves by a hundredth of a second's motion, which the straight
+piece stands for.
+
+When the whole rest is not certified, the answer says where the first refusal fell and
+the longest prefix that *is* certified (its last state ``safe``): the proof walks pair by
+pair, so a refusal at piece ``k`` of one pair does not prove pieces before ``k`` for the
+pairs after it; the prefix up to the refused piece is certified again, until it passes
+(or nothing is left). A stop along the path that comes to rest at or before state
+``safe`` moves only through certified states.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from arduinobot.contract.errors import InvalidRequest
+
+if TYPE_CHECKING:
+    from arduinobot.scene.state import SceneSnapshot
+    from arduinobot.service.plan.handlers import Handlers
+
+_log = logging.getLogger(__name__)
+
+#: prefixes certified again at most, after the first refusal (each one is shorter)
+MAX_PREFIXES = 8
+
+
+def recheck(handlers: Handlers, data: Mapping[str, Any], *,
+            scene: SceneSnapshot | None) -> dict[str, Any]:
+    """Certify ``data["positions"]`` ((m, len(joint_names)) [rad], one control tick
+    apart) against ``scene`` and the plan request's own ``obstacles``, ``ground`` and
+    ``attached``; joints not named hold ``data["hold"]`` (else 0).
+
+    Returns ``{"certified", "scene_revision", "states", "seconds"}`` and, when not
+    certified, ``"refused"`` (the first refused piece: the index of its first state, and
+    the pair) and ``"safe"`` (the last state of the longest certified prefix; -1: not
+    even the first piece).
+    """
+    from arduinobot.planner.collision.proof.certify import Certifier
+    from arduinobot.scene.state import with_scene
+    from arduinobot.service.plan.plan_io import attached
+    from arduinobot.service.plan.requests import obstacles
+
+    t0 = time.perf_counter()
+    desc = handlers.description
+    names = list(data.get("joint_names") or ())
+    qs = np.asarray(data.get("positions") or (), float)
+    if qs.ndim != 2 or qs.shape[1] != len(names) or len(qs) < 1:
+        raise InvalidRequest(f"positions must be (m, {len(names)}) for joint_names "
+                             f"{names}, not {qs.shape}", field="positions")
+    order = handlers.kin.joint_names
+    hold = {str(k): float(v) for k, v in (data.get("hold") or {}).items()}
+    full = np.empty((len(qs), len(order)))
+    for j, n in enumerate(order):
+        full[:, j] = qs[:, names.index(n)] if n in names else hold.get(n, 0.0)
+    obs, revision = with_scene(scene, {}, obstacles(desc, data.get("obstacles")))
+    carried = attached(desc, data.get("attached"), scene=scene, obstacles=obs)
+    clouds = scene.clouds if scene is not None else ()
+    world = handlers._scene(obs, 0.0, clouds, ground=bool(data.get("ground", True)))
+    if carried:
+        world = world.with_scene(world.obstacles, attached=carried)
+    # one certifier per world (its one-joint cells and work buffers): the worlds are the
+    # planner's, kept while their obstacle set is in use
+    held = handlers.recheck_certifier
+    if held is not None and held[0] is world:
+        cert = held[1]
+    else:
+        cert = Certifier(world)
+        handlers.recheck_certifier = (world, cert)
+    out: dict[str, Any] = {"scene_revision": revision, "states": len(full)}
+    got = cert.path(full)
+    if got.free:
+        out["certified"] = True
+    else:
+        assert got.failure is not None
+        first = int(got.failure[0])
+        out["certified"] = False
+        out["refused"] = {"state": first, "pair": list(got.failure[2])}
+        end = first  # the prefix through state ``end`` (pieces 0 .. end-1)
+        for _ in range(MAX_PREFIXES):
+            if end < 1:
+                end = -1
+                break
+            pre = cert.path(full[:end + 1])
+            if pre.free:
+                break
+            assert pre.failure is not None
+            end = min(end - 1, int(pre.failure[0]))
+        else:
+            end = -1  # never proven within the tries: nothing counts as certified
+        out["safe"] = end
+    out["seconds"] = time.perf_counter() - t0
+    _log.info("recheck at scene revision %d: %d states %s in %.3f s", revision, len(full),
+              "certified" if out["certified"] else
+              f"refused at state {out['refused']['state']} ({out['refused']['pair']}), "
+              f"certified through {out['safe']}", out["seconds"])
+    return out
