@@ -20,7 +20,7 @@ ABOVE = 0.61  # [m] the tcp (claw_support's origin) above the box's top before t
 #: descent: the course gripper's fingers reach ~0.55 m below it (the 10x model)
 DROP = 0.05  # [m] each straight-line descent and ascent
 #: [m] the box's bottom above the table: none, it rests on it (an attached object may
-#: touch what it rests on until a motion takes it clear: planner/tasks/sequence.py)
+#: touch what it rests on until a motion takes it clear: planner/tasks/progress.py)
 GAP = 0.0
 #: [m] see and pick's box above its table (tests/cli/test_see_and_pick.py): planned
 #: where the camera saw it, a few mm off, it must not be seen inside the table

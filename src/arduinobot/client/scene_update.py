@@ -12,20 +12,25 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from arduinobot.client.errors import SceneConflict
 from arduinobot.client.replies import SceneApplied, SceneReply
 
-if TYPE_CHECKING:
-    from arduinobot.client.client import PlannerClient
-
-__all__ = ["update_scene"]
+__all__ = ["SceneWriter", "update_scene"]
 
 _log = logging.getLogger(__name__)
 
 
-def update_scene(client: PlannerClient,
+class SceneWriter(Protocol):
+    """What reads and changes the kept scene (a ``PlannerClient``)."""
+
+    def scene(self) -> SceneReply: ...
+
+    def apply(self, change: Mapping[str, Any] | None = None) -> SceneApplied: ...
+
+
+def update_scene(client: SceneWriter,
                  make_change: Callable[[SceneReply], Mapping[str, Any] | None], *,
                  attempts: int = 50) -> SceneApplied | None:
     """Apply ``make_change(scene)`` (an apply request: ``add``, ``remove``, ...) at the

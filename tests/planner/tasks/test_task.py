@@ -101,7 +101,7 @@ def test_a_bad_step_is_refused_naming_its_field():
 def test_each_motion_of_a_task_gets_a_seed_in_range():
     from arduinobot.planner.planning.goals import NamedGoal
     from arduinobot.planner.planning.pathfinding.search import MAX_SEED
-    from arduinobot.planner.tasks.sequence import MotionOptions, _request
+    from arduinobot.planner.tasks.progress import MotionOptions, _request
 
     task = task_from_mapping({"steps": [{"wait": 1}], "seed": MAX_SEED})
     seeds = [_request(task, MotionOptions(), NamedGoal("home"), None, {}, [], [], i).seed

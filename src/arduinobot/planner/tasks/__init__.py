@@ -5,6 +5,7 @@ place) planned as a whole before anything moves. The named tasks of a ``tasks.ya
 - ``steps``: the model (a task, its steps, parsed from JSON or YAML).
 - ``precheck``: the names a task's steps use, checked before anything is planned.
 - ``sequence``: the planning, step after step through the one door.
+- ``progress``: the planning so far, and one primitive step planned from there.
 - ``results``: what it gives (each step's result, the task's) and a step's failure.
 - ``gripper``: the gripper's group, the goal a gripper step names, the holding link.
 - ``claw``: the claw's fingertips: their gap over the gripper's range, their midpoint.

@@ -37,7 +37,7 @@ from arduinobot.planner.tasks.steps import (
 )
 
 if TYPE_CHECKING:
-    from arduinobot.planner.tasks.sequence import Part, Progress
+    from arduinobot.planner.tasks.progress import Part, Progress
 
 _CLAWS: weakref.WeakKeyDictionary[Any, Claw] = weakref.WeakKeyDictionary()
 
@@ -150,7 +150,7 @@ def plan_pick(progress: Progress, step: PickStep, index: int) -> None:
             p.restore(snap)
             failed.append((g.name, e))
             continue
-        from arduinobot.planner.tasks.sequence import Choice
+        from arduinobot.planner.tasks.progress import Choice
         p.choices.append(Choice(index, "pick", obj.id, g.name, k + 1, len(fits), details={
             "width": round(g.width, 4), "opening": round(c.opening, 4),
             "target": [round(float(v), 4) for v in g.target], "supports": supports,

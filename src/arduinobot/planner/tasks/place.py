@@ -28,7 +28,7 @@ from arduinobot.planner.tasks.places import blocking, moved, resolve, spots, top
 from arduinobot.planner.tasks.steps import DetachStep, GripperStep, MoveStep, PlaceStep
 
 if TYPE_CHECKING:
-    from arduinobot.planner.tasks.sequence import Part, Progress
+    from arduinobot.planner.tasks.progress import Part, Progress
 
 
 def plan_place(progress: Progress, step: PlaceStep, index: int) -> None:
@@ -134,7 +134,7 @@ def plan_place(progress: Progress, step: PlaceStep, index: int) -> None:
             p.restore(snap)
             failed.append((label, e))
             continue
-        from arduinobot.planner.tasks.sequence import Choice
+        from arduinobot.planner.tasks.progress import Choice
         placed = next(o for o in p.obstacles if o.id == held.id)
         p.choices.append(Choice(index, "place", held.id, label, k + 1, len(xys), details={
             "on": None if support is None else support.id,

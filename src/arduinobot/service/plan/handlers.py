@@ -147,7 +147,7 @@ class Handlers:
         carried = attached(self.description, data.get("attached"), scene=scene,
                            obstacles=obs)
         clouds = scene.clouds if scene is not None else ()
-        world = self._scene(obs, float(data.get("padding", 0.0)), clouds,
+        world = self.scene_world(obs, float(data.get("padding", 0.0)), clouds,
                             ground=bool(data.get("ground", True)))
         if carried:  # the scene's and the request's carried objects, contacts and poses
             world = world.with_scene(world.obstacles, attached=carried)  # the ground's too
@@ -177,8 +177,10 @@ class Handlers:
                          **({"fixed": True} if a.id in fixed else {})}
         return out
 
-    def _scene(self, obs: tuple[Any, ...], padding: float,
-               clouds: tuple[Any, ...] = (), *, ground: bool = True) -> CollisionWorld:
+    def scene_world(self, obs: tuple[Any, ...], padding: float,
+                    clouds: tuple[Any, ...] = (), *, ground: bool = True) -> CollisionWorld:
+        """The collision world of ``obs`` (and ``clouds``, the ground unless ``ground`` is
+        false) with ``padding`` [m], built once per distinct set."""
         if padding == 0.0:
             return self._motion_planner().world(obs, (), clouds, ground=ground)
         return self._padded_scene(obs, padding, clouds, ground)

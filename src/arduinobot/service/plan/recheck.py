@@ -23,15 +23,31 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
 
 if TYPE_CHECKING:
+    from arduinobot.description import Description
+    from arduinobot.planner.collision.world import CollisionWorld
+    from arduinobot.planner.kinematics.chain import Kinematics
     from arduinobot.scene.state import SceneSnapshot
-    from arduinobot.service.plan.handlers import Handlers
+
+
+class Handlers(Protocol):
+    """What a recheck needs of the worker's handlers
+    (:class:`arduinobot.service.plan.handlers.Handlers`): the robot, its kinematics, the
+    world of a set of obstacles, and where the last recheck's certifier is kept."""
+
+    description: Description
+    kin: Kinematics
+    recheck_certifier: tuple[Any, Any] | None
+
+    def scene_world(self, obs: tuple[Any, ...], padding: float,
+                    clouds: tuple[Any, ...] = (), *, ground: bool = True
+                    ) -> CollisionWorld: ...
 
 _log = logging.getLogger(__name__)
 
@@ -70,7 +86,7 @@ def recheck(handlers: Handlers, data: Mapping[str, Any], *,
     obs, revision = with_scene(scene, {}, obstacles(desc, data.get("obstacles")))
     carried = attached(desc, data.get("attached"), scene=scene, obstacles=obs)
     clouds = scene.clouds if scene is not None else ()
-    world = handlers._scene(obs, 0.0, clouds, ground=bool(data.get("ground", True)))
+    world = handlers.scene_world(obs, 0.0, clouds, ground=bool(data.get("ground", True)))
     if carried:
         world = world.with_scene(world.obstacles, attached=carried)
     # one certifier per world (its one-joint cells and work buffers): the worlds are the
