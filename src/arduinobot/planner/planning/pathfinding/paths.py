@@ -259,7 +259,7 @@ class PathPlanner:
         return self._solve(request, blend=blend, refused=frozenset(), replans=0)
 
     def _solve(self, request: PathRequest, *, blend: bool,
-               refused: Refused, replans: int) -> PathResult:
+               refused: Refused, replans: int = 0) -> PathResult:
         # ``refused``: the edges whose proof failed in this request's earlier attempts,
         # refused without a check: an escape edge is drawn again exactly as it was (same
         # seed), and its finer samples pass again where it grazes between them (each
