@@ -303,7 +303,8 @@ def ours_figures(rows: list[tuple[Problem, int, float, Any]], cold_start: list[f
                                 res.timing[k] for res in good) if good else None
                                 for k in STAGES},
                             "proof_max_ms": 1e3 * max((res.timing["recheck"] for res in good),
-                                                      default=0.0)}
+                                                      default=0.0),
+                            **proof_rungs(good)}
     return {"solved": len(ok), "runs": len(rows), "failures": fails,
             "wall_all": pct([w for *_, w, _ in rows]), "wall_warm": pct(warm),
             "cold_start_s": cold_start,
@@ -315,6 +316,18 @@ def ours_figures(rows: list[tuple[Problem, int, float, Any]], cold_start: list[f
             "clearance_mm": {"min": 1e3 * min(clear) if clear else None,
                              "median": 1e3 * statistics.median(clear) if clear else None},
             "recheck": _collisions(checked), "scenes": per_scene}
+
+
+def proof_rungs(replies: list[Any]) -> dict[str, Any]:
+    """The replies' proof ladder use summed (``verification.rungs``: trees, warm, hulls,
+    parts, exact, still, one_dim) and how many paths each planner found."""
+    rungs: dict[str, int] = {}
+    found: dict[str, int] = {}
+    for res in replies:
+        for k, v in (res.raw["verification"].get("rungs") or {}).items():
+            rungs[k] = rungs.get(k, 0) + int(v)
+        found[res.planner] = found.get(res.planner, 0) + 1
+    return {"rungs": rungs, "found_by": found}
 
 
 def peer_figures(rows: list[tuple[Problem, int, float, Any]],
