@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -316,7 +316,17 @@ class PathPlanner:
             if 0 <= k < len(path) - 1:
                 a, b = path[k], path[k + 1]
                 refused = refused | {(a.tobytes(), b.tobytes()), (b.tobytes(), a.tobytes())}
-            result = retry._solve(request, blend=blend, refused=refused, replans=replans)
+            # the re-plan gets what is left of the budget: planning_time bounds the
+            # whole request, however many paths its proofs refuse
+            left = float(request.planning_time) - (time.perf_counter() - t0)
+            if left <= 0:
+                raise NoPathFound(
+                    f"the path found was refused by its proof ({cert.failure}) and the "
+                    f"{request.planning_time:g} s budget is spent",
+                    details={"failure": str(cert.failure), "planner": planner_name,
+                             "planning_time": request.planning_time})
+            result = retry._solve(replace(request, planning_time=left), blend=blend,
+                                  refused=refused, replans=replans)
             return PathResult(joint_names=result.joint_names, path=result.path,
                               planner=result.planner,
                               timings={k: timings.get(k, 0.0) + v

@@ -152,7 +152,7 @@ def search(states: StateChecker, edge_free: Callable[[np.ndarray, np.ndarray], b
         for name in names:
             left = deadline - time.perf_counter()
             if left <= 0 or (max_rounds is not None and rounds >= max_rounds):
-                raise NoPathFound(f"{planner} found no path in {planning_time:g} s",
+                raise NoPathFound(f"{' and '.join(names)} found no path in {planning_time:g} s",
                                   details={"planner": planner, "planning_time": planning_time,
                                            "rounds": rounds, "planners": names})
             if name not in setups:
