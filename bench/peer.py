@@ -370,6 +370,10 @@ def main(argv: list[str] | None = None) -> None:
                     help="panda, so101: MPlib's RRTConnect range (default 1.0, its best here)")
     ap.add_argument("--hpp", action="store_true",
                     help="panda, so101: HPP too (its own venv .bench-venvs/hpp)")
+    ap.add_argument("--hpp-validation", choices=("Progressive", "Dichotomy"),
+                    default="Progressive", help="HPP's continuous path validation")
+    ap.add_argument("--hpp-tolerance", type=float, default=1e-3,
+                    help="HPP's allowed penetration [m] (default 0.001)")
     ap.add_argument("--seed", type=int, default=7, help="problem draws (7: bench/trajectory's)")
     ap.add_argument("--recheck-step", type=float, default=0.002, help="[rad]")
     ap.add_argument("--state-checks", type=int, default=40,

@@ -103,17 +103,19 @@ def panda_setup(folder: Path, args: argparse.Namespace) -> Setup:
 
 def so101_setup(folder: Path, args: argparse.Namespace) -> Setup:
     from tests.helpers.mbm_scenes import problems_for
-    from tests.helpers.so101 import URDF_NAME, make_so101
-    urdf = make_so101(folder / "so101") / URDF_NAME
+    from tests.helpers.so101 import make_so101
+    urdf = make_so101(folder / "so101")
     d = load_description(urdf)
     mp = MotionPlanner(d, cache=DiskCache(folder / "cache"))
-    arm = tuple(n for n in mp.joint_names if n != "gripper")
-    gen = problems_for(mp, arm, n_per_scene=args.mbm_n, seed=args.seed, reach=0.4)
+    names = tuple(mp.joint_names)
+    gen = problems_for(mp, names, n_per_scene=args.mbm_n, seed=args.seed, reach=0.4,
+                       tip=d.tcp.parent_link, fixed={names[-1]: 0.0})  # the gripper held
     probs = tuple(Problem(p.name, p.scene, p.start, p.goal, p.obstacles) for p in gen)
-    tip = d.robot.joints[arm[-1]].child
-    return Setup("so101", d, (str(urdf),), urdf, plain_srdf(d, folder / "plain"), tip, arm,
-                 probs, True, f"SO-101 fixture, generated MBM-class scenes, "
-                 f"{args.mbm_n} per scene, seed {args.seed}")
+    tip = d.robot.joints[names[-1]].child  # MPlib's group: the chain through the gripper
+    return Setup("so101", d, (str(urdf),), urdf, plain_srdf(d, folder / "plain"), tip, names,
+                 probs, True, f"SO-101 fixture (STL meshes), generated MBM-class scenes "
+                 f"(tests/helpers/mbm_scenes.py), {args.mbm_n} per scene, seed {args.seed}, "
+                 f"the gripper held at 0")
 
 
 def body(s: Setup, p: Problem, seed: int, args: argparse.Namespace) -> dict[str, Any]:
