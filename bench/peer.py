@@ -49,7 +49,14 @@ problems (at least half needing a detour). Per robot:
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
 
+``--models panda`` (VAMP's Panda on MotionBenchMaker problems) and ``--models so101`` (the
+SO-101 fixture on generated MBM-class scenes) run bench/_lib/peer_mbm.py instead: each
+problem ``--repeat`` times on each side (ours, MPlib with ``--rrt-range`` 1.0, and HPP with
+``--hpp``), 5 s budget, the cold start and first plan in a new world apart, every path
+re-checked at 0.002 rad.
+
 Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0] [--group arm]
+       ./dev bench peer --models panda --hpp [--mbm-n 3] [--repeat 3] [--vamp DIR]
        ./dev bench peer --n 10     (a quick look)
        ./dev bench peer --models course_fingers --group all   (arm and gripper, fingers checked)
 Prints a block per robot and scene, then one JSON line of all figures.

@@ -7,10 +7,11 @@ joint's axis) and a capsule to the next joint, a few thousand triangles each, wr
 millimetre STL and scaled back by the URDF's ``scale="0.001 0.001 0.001"`` (as CAD exports
 are). A fixed ``flange`` and a massless ``tool0`` frame on a fixed joint end the chain.
 The SRDF names the ``arm`` group, a ``ready`` state and disables the pairs a joint
-connects (and the two links each side of a short wrist link, whose housings touch).
+connects and a few wrist pairs whose housings touch at every angle.
 
-:func:`make_seven_joint` writes the package; :func:`clutter_problem` a generated shelf
-or cage problem (tests/helpers/mbm_scenes.py) for it.
+:func:`make_seven_joint` writes the package; tests/helpers/mbm_scenes.py's
+``problems_for`` makes shelf, cage, box and table problems for it (``tip="tool0"``,
+``reach=0.85``), as tests/service/test_seven_joint_clutter.py does.
 """
 
 from __future__ import annotations
