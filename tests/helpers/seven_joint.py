@@ -7,7 +7,7 @@ joint's axis) and a capsule to the next joint, a few thousand triangles each, wr
 millimetre STL and scaled back by the URDF's ``scale="0.001 0.001 0.001"`` (as CAD exports
 are). A fixed ``flange`` and a massless ``tool0`` frame on a fixed joint end the chain.
 The SRDF names the ``arm`` group, a ``ready`` state and disables the pairs a joint
-connects and a few wrist pairs whose housings touch at every angle.
+connects and two wrist pairs whose housings touch at (almost) every angle.
 
 :func:`make_seven_joint` writes the package; tests/helpers/mbm_scenes.py's
 ``problems_for`` makes shelf, cage, box and table problems for it (``tip="tool0"``,
@@ -44,8 +44,9 @@ SIZES = {"link0": (0.07, 0.1, 0.07), "link1": (0.055, 0.12, 0.055),
          "flange": (0.045, 0.02, 0.03)}
 MASSES = {"link0": 4.0, "link1": 3.0, "link2": 3.0, "link3": 2.5, "link4": 2.5,
           "link5": 2.0, "link6": 1.5, "link7": 0.5, "flange": 0.3}
-EXTRA_DISABLED = [("link5", "link7"), ("link4", "link6"), ("link6", "flange"),
-                  ("link5", "flange")]
+#: wrist pairs whose housings touch at (almost) every angle: in 300 seeded random states
+#: link4-link6 collided in all, link5-link7 in 280 (as MoveIt's "Always" pairs)
+EXTRA_DISABLED = [("link4", "link6"), ("link5", "link7")]
 
 
 def _capsule(a: np.ndarray, b: np.ndarray, r: float) -> trimesh.Trimesh:
