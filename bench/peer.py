@@ -49,7 +49,14 @@ problems (at least half needing a detour). Per robot:
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
 
+``--models panda`` (VAMP's Panda on MotionBenchMaker problems) and ``--models so101`` (the
+SO-101 fixture on generated MBM-class scenes) run bench/_lib/peer_mbm.py instead: each
+problem ``--repeat`` times on each side (ours, MPlib with ``--rrt-range`` 1.0, and HPP with
+``--hpp``), 5 s budget, the cold start and first plan in a new world apart, every path
+re-checked at 0.002 rad.
+
 Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0] [--group arm]
+       ./dev bench peer --models panda --hpp [--mbm-n 3] [--repeat 3] [--vamp DIR]
        ./dev bench peer --n 10     (a quick look)
        ./dev bench peer --models course_fingers --group all   (arm and gripper, fingers checked)
 Prints a block per robot and scene, then one JSON line of all figures.
@@ -370,6 +377,10 @@ def main(argv: list[str] | None = None) -> None:
                     help="panda, so101: MPlib's RRTConnect range (default 1.0, its best here)")
     ap.add_argument("--hpp", action="store_true",
                     help="panda, so101: HPP too (its own venv .bench-venvs/hpp)")
+    ap.add_argument("--hpp-validation", choices=("Progressive", "Dichotomy"),
+                    default="Progressive", help="HPP's continuous path validation")
+    ap.add_argument("--hpp-tolerance", type=float, default=1e-3,
+                    help="HPP's allowed penetration [m] (default 0.001)")
     ap.add_argument("--seed", type=int, default=7, help="problem draws (7: bench/trajectory's)")
     ap.add_argument("--recheck-step", type=float, default=0.002, help="[rad]")
     ap.add_argument("--state-checks", type=int, default=40,

@@ -4,10 +4,9 @@ Nothing of VAMP's or Franka's is shipped here: the files are read from a VAMP ch
 (``--vamp DIR``; default :func:`vamp_dir`: a copy extracted from a local mirror of the
 repository into ``~/.cache/arduinobot/bench/vamp``, or a ``git clone`` when online).
 
-- the robot: ``resources/panda/panda.urdf`` (its ``package://meshes/...`` URIs made paths
-  relative to a folder of ours holding a ``meshes`` symlink to VAMP's, so our loader,
-  MPlib, HPP and the independent re-check all read the same collision meshes) and
-  ``panda.srdf``; the fingers are fixed joints at VAMP's 6.5 cm opening;
+- the robot: ``resources/panda/panda.urdf`` (its collision meshes converted to STL in a
+  folder of ours, the URIs made relative paths to them, so our loader, MPlib, HPP and the
+  independent re-check all read the same triangles) and ``panda.srdf``; the fingers are fixed joints at VAMP's 6.5 cm opening;
 - the problems: ``resources/panda/problems.tar.bz2`` holds, per scene
   (bookshelf_small/tall/thin, box, cage, table_pick, table_under_pick), 100 MoveIt
   ``sceneNNNN.yaml`` (collision objects: box, sphere or cylinder primitives with a pose) and
@@ -94,15 +93,28 @@ def vamp_dir(given: Path | None = None) -> Path:
 
 
 def panda_files(vamp: Path, folder: Path) -> tuple[Path, Path]:
-    """VAMP's Panda URDF (mesh URIs relative to ``folder``) and SRDF in ``folder``."""
+    """VAMP's Panda URDF and SRDF in ``folder``, its collision meshes converted to STL in
+    ``folder/meshes`` (the visual ones dropped).
+
+    MPlib 0.2.1 (assimp) refuses VAMP's ``link6.obj`` ("a face with 2 vertices"); trimesh
+    reads it (dropping that degenerate face), so every side is given the same STL
+    triangles.
+    """
+    import trimesh
     src = vamp / "resources" / "panda"
-    folder.mkdir(parents=True, exist_ok=True)
-    link = folder / "meshes"
-    if link.is_symlink() or link.exists():
-        link.unlink()
-    link.symlink_to((src / "meshes").resolve(), target_is_directory=True)
+    meshes = folder / "meshes"
+    meshes.mkdir(parents=True, exist_ok=True)
     text = (src / "panda.urdf").read_text()
-    text = text.replace("package://meshes/", "meshes/")
+    text = re.sub(r"<visual>.*?</visual>", "", text, flags=re.S)
+
+    def convert(m: re.Match[str]) -> str:
+        out = meshes / (Path(m.group(1)).stem + ".stl")
+        if not out.exists():
+            mesh = trimesh.load(src / "meshes" / m.group(1), force="mesh")
+            mesh.export(out)
+        return f'filename="meshes/{out.name}"'
+
+    text = re.sub(r'filename="package://meshes/([^"]+)"', convert, text)
     if "package://" in text:
         raise ValueError("a package:// URI outside meshes/ is left in VAMP's panda.urdf")
     urdf, srdf = folder / "panda.urdf", folder / "panda.srdf"

@@ -52,6 +52,8 @@ from .recheck import IndependentModel, Limits, recheck
 from .sampled import SampledPositions
 from .scenes import obstacle_dicts
 
+DEEP = 1e-3  # [m] a re-check collision deeper than this is counted apart
+
 
 @dataclass(frozen=True)
 class Problem:
@@ -103,17 +105,19 @@ def panda_setup(folder: Path, args: argparse.Namespace) -> Setup:
 
 def so101_setup(folder: Path, args: argparse.Namespace) -> Setup:
     from tests.helpers.mbm_scenes import problems_for
-    from tests.helpers.so101 import URDF_NAME, make_so101
-    urdf = make_so101(folder / "so101") / URDF_NAME
+    from tests.helpers.so101 import make_so101
+    urdf = make_so101(folder / "so101")
     d = load_description(urdf)
     mp = MotionPlanner(d, cache=DiskCache(folder / "cache"))
-    arm = tuple(n for n in mp.joint_names if n != "gripper")
-    gen = problems_for(mp, arm, n_per_scene=args.mbm_n, seed=args.seed, reach=0.4)
+    names = tuple(mp.joint_names)
+    gen = problems_for(mp, names, n_per_scene=args.mbm_n, seed=args.seed, reach=0.4,
+                       tip=d.tcp.parent_link, fixed={names[-1]: 0.0})  # the gripper held
     probs = tuple(Problem(p.name, p.scene, p.start, p.goal, p.obstacles) for p in gen)
-    tip = d.robot.joints[arm[-1]].child
-    return Setup("so101", d, (str(urdf),), urdf, plain_srdf(d, folder / "plain"), tip, arm,
-                 probs, True, f"SO-101 fixture, generated MBM-class scenes, "
-                 f"{args.mbm_n} per scene, seed {args.seed}")
+    tip = d.robot.joints[names[-1]].child  # MPlib's group: the chain through the gripper
+    return Setup("so101", d, (str(urdf),), urdf, plain_srdf(d, folder / "plain"), tip, names,
+                 probs, True, f"SO-101 fixture (STL meshes), generated MBM-class scenes "
+                 f"(tests/helpers/mbm_scenes.py), {args.mbm_n} per scene, seed {args.seed}, "
+                 f"the gripper held at 0")
 
 
 def body(s: Setup, p: Problem, seed: int, args: argparse.Namespace) -> dict[str, Any]:
@@ -205,7 +209,7 @@ def _recheck_task(i: int) -> tuple[bool, Any]:
     return "collision" in rep.violations, rep.first_collision
 
 
-def recheck_all(s: Setup, tasks: list[tuple]) -> list[tuple[bool, Any]]:
+def recheck_all(s: Setup, tasks: list[tuple]) -> list[tuple]:
     """(collided, first collision) per task, in two forked processes."""
     global MODEL_FILES
     TASKS[:] = tasks
@@ -256,7 +260,8 @@ def run_mbm(name: str, folder: Path, args: argparse.Namespace) -> dict[str, Any]
             sides["mplib"].append((p, r, m["total_s"], m))
             if m["success"]:
                 t = MplibTiming(m, len(s.joints), np.zeros(len(s.joints)))
-                tasks["mplib"].append((t.evaluate, t.duration, rl, obs, args.recheck_step))
+                tasks["mplib"].append((lambda ts, t=t: t.evaluate(ts)[0], t.duration, rl, obs,
+                                       args.recheck_step))
         for r, h in enumerate(hpp[p.name] if hpp else []):
             sides["hpp"].append((p, r, h["total_s"], h))
             if h["success"]:
@@ -268,6 +273,12 @@ def run_mbm(name: str, folder: Path, args: argparse.Namespace) -> dict[str, Any]
     print(f"  re-checked {len(flat)} paths in {time.perf_counter() - t0:.0f} s", flush=True)
     n_o, n_m = len(tasks["ours"]), len(tasks["mplib"])
     parts = {"ours": checked[:n_o], "mplib": checked[n_o:n_o + n_m], "hpp": checked[n_o + n_m:]}
+    # how deep: the colliding paths again among obstacles shrunk by DEEP on every side
+    hit = [(k, i) for k in parts for i, (c, _) in enumerate(parts[k]) if c]
+    deep = recheck_all(s, [(*tasks[k][i][:3], shrunk(tasks[k][i][3], DEEP), tasks[k][i][4])
+                           for k, i in hit])
+    for (k, i), (c, _) in zip(hit, deep):
+        parts[k][i] = (True, parts[k][i][1], c)
     return {"source": s.source, "problems": [p.name for p in s.problems],
             "repeat": args.repeat, "planning_time": args.planning_time,
             "recheck_step": args.recheck_step,
@@ -277,9 +288,27 @@ def run_mbm(name: str, folder: Path, args: argparse.Namespace) -> dict[str, Any]
             if hpp else None}
 
 
-def _collisions(checked: list[tuple[bool, Any]]) -> dict[str, Any]:
-    return {"checked": len(checked), "with_collision": sum(c for c, _ in checked),
-            "first": [f for c, f in checked if c][:3]}
+def _collisions(checked: list[tuple]) -> dict[str, Any]:
+    return {"checked": len(checked), "with_collision": sum(c[0] for c in checked),
+            "deeper_than_mm": DEEP * 1e3,
+            "with_deep_collision": sum(len(c) > 2 and bool(c[2]) for c in checked),
+            "first": [c[1] for c in checked if c[0]][:3]}
+
+
+def shrunk(obstacles: list[dict], by: float) -> list[dict]:
+    """``obstacles`` with every face moved inwards by ``by`` [m] (a collision found among
+    them is deeper than ``by`` into the real one, or a self-collision)."""
+    out = []
+    for o in obstacles:
+        o = dict(o)
+        if o["shape"] == "box":
+            o["size"] = [max(1e-6, v - 2 * by) for v in o["size"]]
+        else:
+            o["radius"] = max(1e-6, o["radius"] - by)
+            if o["shape"] == "cylinder":
+                o["length"] = max(1e-6, o["length"] - 2 * by)
+        out.append(o)
+    return out
 
 
 def ours_figures(rows: list[tuple[Problem, int, float, Any]], cold_start: list[float],

@@ -81,6 +81,7 @@ def report_mbm(name: str, res: dict[str, Any]) -> None:
           f"{res['recheck_step']} rad on the meshes; wall ms median/p95/max")
     print(f"  ours   solved {o['solved']}/{o['runs']}  all {_w(o['wall_all'])}  warm (repeats "
           f"after the first) {_w(o['wall_warm'])}  collisions {o['recheck']['with_collision']}"
+          f" (deeper than 1 mm: {o['recheck']['with_deep_collision']})"
           f"/{o['recheck']['checked']}  certified {o['certified']}")
     print("         cold start (first plan per worker) s: "
           + " ".join(f"{w:.2f}" for w in o["cold_start_s"])
@@ -94,7 +95,9 @@ def report_mbm(name: str, res: dict[str, Any]) -> None:
         if m:
             print(f"  {side:6s} solved {m['solved']}/{m['runs']}  all {_w(m['wall_all'])}  "
                   f"solved only {_w(m['wall_solved'])}  collisions "
-                  f"{m['recheck']['with_collision']}/{m['recheck']['checked']}  ({m['settings']})")
+                  f"{m['recheck']['with_collision']}/{m['recheck']['checked']} (deeper than "
+                  f"{m['recheck']['deeper_than_mm']:g} mm: {m['recheck']['with_deep_collision']})"
+                  f"  ({m['settings']})")
     print("  per scene: solved ours/mplib/hpp, wall median ours/mplib/hpp ms, our max proof ms")
     for scene, s in o["scenes"].items():
         m = res["mplib"]["scenes"].get(scene, {})
