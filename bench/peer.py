@@ -49,7 +49,14 @@ problems (at least half needing a detour). Per robot:
   (bench/_lib/recheck.py) at 0.002 rad: ours from the reply's samples (bench/_lib/sampled.py),
   MPlib's from its toppra data; the count with any collision (target 0).
 
+``--models panda`` (VAMP's Panda on MotionBenchMaker problems) and ``--models so101`` (the
+SO-101 fixture on generated MBM-class scenes) run bench/_lib/peer_mbm.py instead: each
+problem ``--repeat`` times on each side (ours, MPlib with ``--rrt-range`` 1.0, and HPP with
+``--hpp``), 5 s budget, the cold start and first plan in a new world apart, every path
+re-checked at 0.002 rad.
+
 Usage: ./dev bench peer [--n 40] [--models course,shipped] [--scaling 1.0] [--group arm]
+       ./dev bench peer --models panda --hpp [--mbm-n 3] [--repeat 3] [--vamp DIR]
        ./dev bench peer --n 10     (a quick look)
        ./dev bench peer --models course_fingers --group all   (arm and gripper, fingers checked)
 Prints a block per robot and scene, then one JSON line of all figures.
@@ -79,7 +86,7 @@ from arduinobot.planner.timing.curve import build_curve
 from arduinobot.service.process.disk_cache import DiskCache
 from bench._lib.peer_models import PeerModel, make_model
 from bench._lib.peer_mplib import held_model, mplib_rows, scale_check
-from bench._lib.peer_report import NEAR, STAGES, report
+from bench._lib.peer_report import NEAR, STAGES, report, report_mbm
 from bench._lib.recheck import IndependentModel, Limits, recheck
 from bench._lib.report import emit
 from bench._lib.sampled import SampledPositions
@@ -351,18 +358,37 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=40, help="problems per scene (default 40)")
     ap.add_argument("--models", default="course,shipped",
-                    help="course,course_fingers,shipped (comma-separated)")
+                    help="course,course_fingers,shipped,panda,so101 (comma-separated)")
     ap.add_argument("--group", choices=("arm", "all"), default="arm",
                     help="arm: the arm moves, the gripper closed; all: arm and gripper "
                          "together (MPlib: joints 1-4, its left finger held)")
     ap.add_argument("--scaling", type=float, default=1.0,
                     help="velocity and acceleration scaling, both sides (default 1.0)")
-    ap.add_argument("--planning-time", type=float, default=1.0, help="budget [s], both sides")
+    ap.add_argument("--planning-time", type=float, default=None,
+                    help="budget [s], every side (default 1.0; 5.0 for panda and so101)")
+    ap.add_argument("--repeat", type=int, default=3,
+                    help="panda, so101: runs of each problem per side, seeds differ (default 3)")
+    ap.add_argument("--mbm-n", type=int, default=3,
+                    help="panda, so101: problems per scene (default 3: 21 for the Panda)")
+    ap.add_argument("--vamp", default=None,
+                    help="panda: a VAMP checkout (default: extracted to ~/.cache/arduinobot/"
+                         "bench/vamp from a local mirror, or cloned)")
+    ap.add_argument("--rrt-range", type=float, default=1.0,
+                    help="panda, so101: MPlib's RRTConnect range (default 1.0, its best here)")
+    ap.add_argument("--hpp", action="store_true",
+                    help="panda, so101: HPP too (its own venv .bench-venvs/hpp)")
+    ap.add_argument("--hpp-validation", choices=("Progressive", "Dichotomy"),
+                    default="Progressive", help="HPP's continuous path validation")
+    ap.add_argument("--hpp-tolerance", type=float, default=1e-3,
+                    help="HPP's allowed penetration [m] (default 0.001)")
     ap.add_argument("--seed", type=int, default=7, help="problem draws (7: bench/trajectory's)")
     ap.add_argument("--recheck-step", type=float, default=0.002, help="[rad]")
     ap.add_argument("--state-checks", type=int, default=40,
                     help="random states MPlib and our checker both judge (per model)")
     args = ap.parse_args(argv)
+    mbm_models = {"panda", "so101"}
+    if args.planning_time is None:
+        args.planning_time = 5.0 if set(args.models.split(",")) <= mbm_models else 1.0
     from arduinobot.planner.planning.pathfinding.search import set_ompl_log_level
     set_ompl_log_level("none")
     tmp = Path(tempfile.mkdtemp(prefix="bench-peer-"))
@@ -371,11 +397,15 @@ def main(argv: list[str] | None = None) -> None:
         for name in args.models.split(","):
             t0 = time.perf_counter()
             print(f"{name}:", flush=True)
-            model = make_model(name, tmp / name)  # type: ignore[arg-type]
-            out[name] = run_model(model, tmp / name, args)
+            if name in mbm_models:
+                from bench._lib.peer_mbm import run_mbm
+                out[name] = run_mbm(name, tmp / name, args)
+            else:
+                model = make_model(name, tmp / name)  # type: ignore[arg-type]
+                out[name] = run_model(model, tmp / name, args)
             print(f"  done in {time.perf_counter() - t0:.0f} s", flush=True)
         for name in args.models.split(","):
-            report(name, out[name])
+            (report_mbm if name in mbm_models else report)(name, out[name])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     emit("peer", out)

@@ -15,8 +15,8 @@ from tests.helpers.procs import REPO
 BENCH = REPO / "bench"
 ENTRY = sorted(f for f in BENCH.glob("*.py") if not f.name.startswith("_"))
 LIB = sorted((BENCH / "_lib").glob("*.py"))
-#: run by MPlib's own venv as a script (it cannot import the project: numpy 1.x)
-OTHER_VENV_SCRIPTS = {"mplib_runner.py", "mplib_cloud.py"}
+#: run by MPlib's or HPP's own venv as a script (they cannot import the project)
+OTHER_VENV_SCRIPTS = {"mplib_runner.py", "mplib_cloud.py", "hpp_runner.py"}
 
 
 def _tree(f: Path) -> ast.Module:

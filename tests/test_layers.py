@@ -239,8 +239,8 @@ def test_the_command_line_starts_without_the_viewer() -> None:
 
 # -- the harness: tests/ and bench/ ------------------------------------------------------
 BENCH = ROOT / "bench"
-#: run by MPlib's own venv as a script (it cannot import the project: numpy 1.x)
-OTHER_VENV_SCRIPTS = ("mplib_runner.py",)
+#: run by MPlib's or HPP's own venv as a script (they cannot import the project)
+OTHER_VENV_SCRIPTS = ("mplib_runner.py", "hpp_runner.py")
 
 
 def test_the_tests_import_nothing_of_bench_nor_of_a_conftest() -> None:

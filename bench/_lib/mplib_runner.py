@@ -13,8 +13,9 @@ trajectory (toppra's ``ParametrizeConstAccel`` on its ``SplineInterpolator``) fo
 verifiers; MPlib's own samples are returned too, to confirm the rebuild matches.
 
 Input: {"urdf", "srdf", "move_group", "velocity": [..], "acceleration": [..],
-"time_step", "warmup": bool, "scenes": {name: {"obstacles": [{"id", "shape": "box",
-"size", "xyz", "rpy"}], "problems": [{"start": {joint: rad}, "goal": {joint: rad},
+"time_step", "warmup": bool, optionally "rrt_range" (OMPL RRTConnect's range, default 0.1),
+"scenes": {name: {"obstacles": [{"id", "shape": "box" | "sphere" | "cylinder", "size" |
+"radius" (, "length"), "xyz", "rpy"}], "problems": [{"start": {joint: rad}, "goal": {joint: rad},
 "planning_time"}]}}, "output": path}, optionally "state_checks": [{"joints": {joint:
 rad}}] (MPlib's own collision check of single states, no obstacles). Output, written to
 ``output`` (MPlib's C++ code prints to stdout): {"joint_names", "move_group_joints",
@@ -50,9 +51,15 @@ def _quat(rpy: list[float]) -> np.ndarray:
 def _objects(obstacles: list[dict]) -> list:
     out = []
     for o in obstacles:
-        if o["shape"] != "box":
+        if o["shape"] == "box":
+            geom = fcl.Box(*o["size"])
+        elif o["shape"] == "sphere":
+            geom = fcl.Sphere(o["radius"])
+        elif o["shape"] == "cylinder":  # along its z axis, as ours
+            geom = fcl.Cylinder(o["radius"], o["length"])
+        else:
             raise ValueError(f"obstacle shape {o['shape']!r} not supported here")
-        shape = fcl.CollisionObject(fcl.Box(*o["size"]))
+        shape = fcl.CollisionObject(geom)
         pose = mplib.Pose(p=np.array(o["xyz"], float), q=_quat(o.get("rpy", [0, 0, 0])))
         out.append(fcl.FCLObject(o["id"], pose, [shape], [mplib.Pose()]))
     return out
@@ -69,7 +76,8 @@ def _toppra_data(planner: mplib.Planner, path: np.ndarray) -> tuple[list, list]:
     return inst.problem_data.gridpoints.tolist(), inst.problem_data.sd_vec.tolist()
 
 
-def solve(planner: mplib.Planner, names: list[str], prob: dict, step: float) -> dict:
+def solve(planner: mplib.Planner, names: list[str], prob: dict, step: float,
+          rrt_range: float = 0.1) -> dict:
     full = np.array([prob["start"].get(n, 0.0) for n in names])
     goal = np.array([prob["goal"].get(n, 0.0) for n in names])
     idx = planner.move_group_joint_indices
@@ -80,7 +88,7 @@ def solve(planner: mplib.Planner, names: list[str], prob: dict, step: float) -> 
     with contextlib.redirect_stdout(quiet):
         start_ok = len(planner.planning_world.check_collision()) == 0
         status, path = planner.planner.plan(full[idx], [goal[idx]],
-                                            time=prob["planning_time"], range=0.1,
+                                            time=prob["planning_time"], range=rrt_range,
                                             simplify=True)
     t1 = time.perf_counter()
     res = {"status": status, "start_valid": start_ok, "plan_s": t1 - t0}
@@ -129,9 +137,11 @@ def main() -> None:
         out["joint_names"] = names
         out["move_group_joints"] = [names[i] for i in planner.move_group_joint_indices]
         probs = body["problems"]
+        rrt_range = spec.get("rrt_range", 0.1)
         if spec.get("warmup") and probs:
-            solve(planner, names, probs[0], spec["time_step"])  # not reported
-        out["scenes"][scene] = [solve(planner, names, p, spec["time_step"]) for p in probs]
+            solve(planner, names, probs[0], spec["time_step"], rrt_range)  # not reported
+        out["scenes"][scene] = [solve(planner, names, p, spec["time_step"], rrt_range)
+                                for p in probs]
     if spec.get("state_checks"):
         out["state_checks"] = state_checks(spec)
     with open(spec["output"], "w") as f:

@@ -65,3 +65,45 @@ def report(name: str, res: dict[str, Any]) -> None:
         print(f"      other findings (limits by finite differences; ours on the interpolated "
               f"samples, indicative): ours {ro['kinds']} worst/limit {worst(ro)}; mplib "
               f"{rm['kinds']} worst/limit {worst(rm)}")
+
+
+def _w(d: dict[str, Any] | None) -> str:
+    if not d:
+        return "-"
+    return f"{fmt(d['median_ms'])}/{fmt(d['p95_ms'])}/{fmt(d['max_ms'])}"
+
+
+def report_mbm(name: str, res: dict[str, Any]) -> None:
+    """The MBM-class block (bench/_lib/peer_mbm.py): solved, wall median/p95/max [ms]."""
+    o = res["ours"]
+    print(f"\n== {name}: {res['source']}\n  {len(res['problems'])} problems x "
+          f"{res['repeat']} repeats, {res['planning_time']} s budget; paths re-checked at "
+          f"{res['recheck_step']} rad on the meshes; wall ms median/p95/max")
+    print(f"  ours   solved {o['solved']}/{o['runs']}  all {_w(o['wall_all'])}  warm (repeats "
+          f"after the first) {_w(o['wall_warm'])}  collisions {o['recheck']['with_collision']}"
+          f" (deeper than 1 mm: {o['recheck']['with_deep_collision']})"
+          f"/{o['recheck']['checked']}  certified {o['certified']}")
+    print("         cold start (first plan per worker) s: "
+          + " ".join(f"{w:.2f}" for w in o["cold_start_s"])
+          + f"; first plan in a new world {_w(o['cold_new_world'])}")
+    st = o["stage_median_ms"]
+    print("         stages median ms: " + " ".join(f"{k} {fmt(st[k])}" for k in STAGES)
+          + f"; proof (recheck) {_w(o['proof'])}; clearance mm min/median "
+          f"{fmt(o['clearance_mm']['min'], '.2f')}/{fmt(o['clearance_mm']['median'], '.2f')}")
+    for side in ("mplib", "hpp"):
+        m = res.get(side)
+        if m:
+            print(f"  {side:6s} solved {m['solved']}/{m['runs']}  all {_w(m['wall_all'])}  "
+                  f"solved only {_w(m['wall_solved'])}  collisions "
+                  f"{m['recheck']['with_collision']}/{m['recheck']['checked']} (deeper than "
+                  f"{m['recheck']['deeper_than_mm']:g} mm: {m['recheck']['with_deep_collision']})"
+                  f"  ({m['settings']})")
+    print("  per scene: solved ours/mplib/hpp, wall median ours/mplib/hpp ms, our max proof ms")
+    for scene, s in o["scenes"].items():
+        m = res["mplib"]["scenes"].get(scene, {})
+        h = (res.get("hpp") or {}).get("scenes", {}).get(scene, {})
+        print(f"    {scene:18s} {s['solved']}/{m.get('solved', '-')}/{h.get('solved', '-')} "
+              f"of {s['runs']}  {fmt(s['median_ms'])}/{fmt(m.get('median_ms'))}/"
+              f"{fmt(h.get('median_ms'))}  proof max {fmt(s['proof_max_ms'])}")
+    if o["failures"]:
+        print(f"  our failures: {o['failures']}")

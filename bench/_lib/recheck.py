@@ -127,7 +127,7 @@ class IndependentModel:
         """Every movable joint's value per state (mimics from their leaders)."""
         out = {n: qs[:, i] for i, n in enumerate(self.actuated)}
         for j in self.order:
-            if j.mimic is not None:
+            if j.mimic is not None and j.type != "fixed":  # a fixed one (Panda fingers) stays
                 out[j.name] = j.mimic.multiplier * out[j.mimic.joint] + j.mimic.offset
         return out
 
@@ -156,7 +156,10 @@ class IndependentModel:
         def body(link: str, indent: str) -> str:
             out = []
             inertial = self.links[link].inertial
-            if inertial is not None and inertial.mass and inertial.mass > 0:
+            # the root is MuJoCo's world body: fixed, its inertia moves nothing (and
+            # MuJoCo refuses one there, as the Panda's link0 has)
+            if link != self.root and inertial is not None and inertial.mass \
+                    and inertial.mass > 0:
                 o = inertial.origin if inertial.origin is not None else np.eye(4)
                 t = o[:3, :3] @ np.asarray(inertial.inertia, float) @ o[:3, :3].T
                 full = " ".join(repr(float(v)) for v in

@@ -6,7 +6,7 @@ from arduinobot.description import load_description
 from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goals import JointGoal, NamedGoal
-from arduinobot.planner.planning.pathfinding.paths import PathPlanner, PathRequest
+from arduinobot.planner.planning.pathfinding.paths import PROOF_REPLANS, PathPlanner, PathRequest
 from arduinobot.scene.obstacles import Obstacle
 from tests.helpers.planning_scenes import SPLIT, SPLIT_GOAL, SPLIT_START
 
@@ -132,3 +132,25 @@ def test_detours_keep_room_where_the_ends_allow(env):
     assert strict.certificate.free
     # the room shows in the proof: a path that keeps it needs fewer exact distances
     assert r.certificate.exact <= strict.certificate.exact
+
+
+def test_a_spent_proof_budget_plans_again_and_still_certifies(env, caplog):
+    # no budget at all for the found path's proof: a path whose proof needs one near
+    # stop (this one starts grazing the pillar) is refused at that edge, planned again,
+    # and past PROOF_REPLANS planned by the finer planner (its own budgets): what comes
+    # back is certified, and no contact shows at 0.002 rad
+    d, w, _ = env
+    near = None
+    for a in np.linspace(1.2, 0.0, 600):
+        q = np.array([a, -0.6, -0.6, 0.0])
+        if not w.is_valid(q):
+            break
+        near = q
+    pp = PathPlanner(w, d, room=0.0, proof_budget=(0, 0))
+    with caplog.at_level("INFO", logger="arduinobot.planner.planning.pathfinding.paths"):
+        r = pp.solve(PathRequest(start=near, goal=GOAL, seed=5))
+    spent = [m for m in caplog.messages if m.startswith("path not certified") and "nan" in m]
+    assert len(spent) == PROOF_REPLANS + 1
+    assert r.certificate is not None and r.certificate.free
+    assert np.array_equal(r.path[0], near) and np.allclose(r.path[-1], GOAL_Q())
+    assert w.first_invalid(interpolate(r.path, 0.002)) == -1

@@ -53,7 +53,7 @@ def _search(world, seed, *, budget=1.0, goal=(-1.2, -0.6, -0.6, 0.0)):
     start = np.array([1.2, -0.6, -0.6, 0.0])
     return search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), start,
                   np.array([goal]), np.array([0, 1, 2]), lim, planner="RRTConnect",
-                  seed=seed, budget=budget, planning_time=budget)
+                  seed=seed, budget=budget, planning_time=budget).path
 
 
 @pytest.mark.parametrize("seed", [0, 5, MAX_SEED])
@@ -73,3 +73,31 @@ def test_no_path_is_an_error_not_an_approximation(world):
     with pytest.raises(NoPathFound) as e:
         _search(world, 1, budget=0.05, goal=inside)
     assert e.value.details["planner"] == "RRTConnect"
+
+
+def test_the_slices_take_turns_and_name_the_planner_that_found_the_path(world):
+    # a first slice of one iteration cannot reach round the pillar: the fallback's turn
+    # comes, then the asked planner's again with twice the iterations, and so on; the
+    # path found is named by the planner whose tree reached the goal, and it is seeded
+    w, lim = world
+    start = np.array([1.2, -0.6, -0.6, 0.0])
+
+    def run():
+        return search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), start,
+                      np.array([(-1.2, -0.6, -0.6, 0.0)]), np.array([0, 1, 2]), lim,
+                      planner="RRTConnect", seed=3, budget=10.0, planning_time=10.0,
+                      first_slice=1)
+    a, b = run(), run()
+    assert a.rounds > 1 and a.planner in ("RRTConnect", "BKPIECE1")
+    assert a.rounds == b.rounds and a.planner == b.planner and np.array_equal(a.path, b.path)
+
+
+def test_max_rounds_ends_the_search_with_its_count(world):
+    w, lim = world
+    with pytest.raises(NoPathFound) as e:
+        search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), np.array([1.2, -0.6, -0.6, 0.0]),
+               np.array([(-1.2, -0.6, -0.6, 0.0)]), np.array([0, 1, 2]), lim,
+               planner="RRTConnect", seed=3, budget=10.0, planning_time=10.0,
+               first_slice=1, max_rounds=2)
+    assert e.value.details["rounds"] == 2
+    assert e.value.details["planners"] == ["RRTConnect", "BKPIECE1"]

@@ -20,7 +20,7 @@ import json
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Protocol
 
 import numba
@@ -69,6 +69,9 @@ class VerificationReport:
         tolerance: relative tolerance on the ratios.
         finite: every time, position, velocity, acceleration, jerk and effort of the
             trajectory (samples and the grid between them) is a finite number.
+        rungs: when certified, how often each rung of the proof's near-contact ladder
+            was used (:class:`arduinobot.planner.collision.proof.certificate.Rungs`, by
+            field name); None otherwise.
     """
 
     ok: bool
@@ -90,6 +93,7 @@ class VerificationReport:
     tolerance: float = TOLERANCE
     certified: bool = False
     finite: bool = True
+    rungs: Mapping[str, int] | None = None
 
     @property
     def worst_overall(self) -> tuple[str, float]:
@@ -112,7 +116,8 @@ class VerificationReport:
                 "clearance_states": self.clearance_states,
                 "derating": self.derating.to_dict(), "attempts": self.attempts,
                 "tolerance": self.tolerance, "certified": self.certified,
-                "finite": self.finite}
+                "finite": self.finite,
+                "rungs": None if self.rungs is None else dict(self.rungs)}
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict())
@@ -323,7 +328,8 @@ class Verifier:
             collision_free=free, colliding_time=when, colliding_pairs=pairs,
             checked_states=checked, max_step=max_step, min_clearance=float(clearance),
             closest_pair=(closest[0], closest[1]), clearance_states=n_clear, derating=derating,
-            attempts=attempts, certified=certificate is not None, finite=finite)
+            attempts=attempts, certified=certificate is not None, finite=finite,
+            rungs=None if certificate is None else asdict(certificate.rungs))
 
 
 def derate(report: VerificationReport, current: Derating, *, margin: float = 0.98,

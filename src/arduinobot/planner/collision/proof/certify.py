@@ -42,7 +42,15 @@ from arduinobot.planner.collision.compiled import Direct
 from arduinobot.planner.collision.proof.advance import Work, tree_lower_bound
 from arduinobot.planner.collision.proof.body_speed import local_rates, local_step
 from arduinobot.planner.collision.proof.certificate import Certificate
-from arduinobot.planner.collision.proof.ladder import GAP, HOLD, SOFT, STILL, Ladder
+from arduinobot.planner.collision.proof.ladder import (
+    GAP,
+    HOLD,
+    MAX_EXACT,
+    MAX_NEAR,
+    SOFT,
+    STILL,
+    Ladder,
+)
 from arduinobot.planner.collision.proof.one_dim import OneDimProver
 from arduinobot.planner.collision.proof.resume import Motion, Proof, Status, Stop, new_walk
 from arduinobot.planner.collision.table import Bodies, Pairs, place_carried
@@ -248,11 +256,18 @@ class Certifier:
             (every point at least half its nearest bound) for twice the bounds.
         local: a body moving by a static one also steps by how fast it moves where it
             is now (:mod:`.body_speed`), not only by the every-configuration bound.
+        max_exact, max_near: one certification's near-contact budgets (exact queries;
+            hull and exact queries together): spent, the motion is refused (its
+            certificate's failure names where, distance NaN), never passed
+            (:data:`.ladder.MAX_EXACT`, :data:`.ladder.MAX_NEAR` by default).
     """
 
     def __init__(self, world: CollisionWorld, *, fraction: float = 0.0,
-                 local: bool = True) -> None:
+                 local: bool = True, max_exact: int = MAX_EXACT,
+                 max_near: int = MAX_NEAR) -> None:
         self.world = world
+        self.max_exact = int(max_exact)
+        self.max_near = int(max_near)
         self.fraction = float(fraction)  # one compiled variant of the walk
         self.local = bool(local)
         self._work = Work.of(world.table.slots)
@@ -292,7 +307,7 @@ class Certifier:
         npair = len(w.table.pair_names)
         # per motion, so a certificate never depends on what was certified before
         proof = Proof(np.full(npair, np.inf), np.zeros((npair, 3)), np.zeros(npair, np.bool_))
-        ladder = Ladder(w, clear=clear)
+        ladder = Ladder(w, clear=clear, max_exact=self.max_exact, max_near=self.max_near)
         # 2. the still and one-joint pairs are proven without the walk, which passes over
         still, pairs = self._proven_before_walk(motion, ladder, proof)
         # 3. the walk proves every other pair along every piece, stopping where a point

@@ -102,6 +102,8 @@ class Ladder:
     Args:
         world: the collision world.
         clear: the clearance [m] required (the world's padding).
+        max_exact: exact queries this certification may make before it is spent.
+        max_near: walk stops (hull and exact queries) likewise.
 
     Attributes:
         exact_below: per pair [m]: the walk hands warm hull bounds under this (beyond the
@@ -112,8 +114,11 @@ class Ladder:
         stops: walk stops handled; ``exact``: the exact queries among them.
     """
 
-    def __init__(self, world: CollisionWorld, *, clear: float) -> None:
+    def __init__(self, world: CollisionWorld, *, clear: float, max_exact: int = MAX_EXACT,
+                 max_near: int = MAX_NEAR) -> None:
         n = len(world.table.pair_names)
+        self.max_exact = max_exact
+        self.max_near = max_near
         self.world = world
         self.clear = clear
         self.exact_below = np.full(n, EXACT_BELOW)
@@ -127,7 +132,7 @@ class Ladder:
 
     def spent(self) -> bool:
         """Whether this certification's near-contact budgets are spent."""
-        return self.exact >= MAX_EXACT or self.stops >= MAX_NEAR
+        return self.exact >= self.max_exact or self.stops >= self.max_near
 
     def at_stop(self, q: np.ndarray, p: int, proven: float, proof: Proof) -> float:
         """A lower bound [m] on pair ``p``'s distance at state ``q`` where the walk

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -19,19 +19,26 @@ from arduinobot.contract.errors import InvalidRequest, NoPathFound, StartInColli
 from arduinobot.description import Description
 from arduinobot.planner.collision.proof.certificate import Certificate
 from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.ladder import MAX_EXACT, MAX_NEAR
 from arduinobot.planner.collision.proof.motion_check import motion_valid, sampled_motion_valid
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goal_states import check_limits, resolve_goal, resolve_group
 from arduinobot.planner.planning.goals import Goal, check_goal
 from arduinobot.planner.planning.pathfinding.blended import prove_blended
 from arduinobot.planner.planning.pathfinding.room import Guarded, StateChecker, short_of_room
-from arduinobot.planner.planning.pathfinding.search import available_planners, check_seed, search
+from arduinobot.planner.planning.pathfinding.search import (
+    Found,
+    available_planners,
+    check_seed,
+    search,
+)
 from arduinobot.planner.planning.pathfinding.shortcut import shortcut_path
 from arduinobot.planner.timing.curve import Curve
 
 _log = logging.getLogger(__name__)
 
-__all__ = ["FINEST_STEP", "PLAN_STEP", "ROOM", "PathPlanner", "PathRequest", "PathResult"]
+__all__ = ["FINEST_STEP", "PLAN_STEP", "PROOF_EXACT", "PROOF_NEAR", "PROOF_REPLANS", "ROOM",
+           "ROOMY_ROUNDS", "PathPlanner", "PathRequest", "PathResult"]
 
 # edges (a, b), by their bytes, whose proof failed in a request's earlier attempts
 Refused = frozenset[tuple[bytes, bytes]]
@@ -46,6 +53,20 @@ PLAN_STEP = 0.02
 # instead of thousands of exact distances, and leave the servos room to track. Where no
 # such path exists (ends or passages closer than this), the search runs without it.
 ROOM = 0.002
+# the found path's proof budgets (:class:`.certify.Certifier`): exact queries (0.3-4 ms
+# each on CAD meshes) and walk stops (hull queries, ~20-50 us). Spent, the path is
+# refused at the edge where it was and planned again without it. The certifier's own
+# (4000, 40000) let a proof along a shelf 0.4 mm away run 19 s.
+PROOF_EXACT = 100
+PROOF_NEAR = 2000
+# paths refused for a spent proof budget that are planned again at the same step (each
+# without the edges refused so far); past that, as a graze: finer samples
+PROOF_REPLANS = 2
+# slices of the search (:func:`.search.search`) the roomy world gets before the search
+# runs without room: its first turn of each planner, ~0.3 s on the Panda in clutter. Half
+# the budget (before) starved the cage, whose passages are narrower than the room: 2 of
+# 3 MotionBenchMaker cage problems failed in 5 s, solved in 1-3 s without room.
+ROOMY_ROUNDS = 2
 # [rad] a path that grazes between its edges' samples is planned again with them twice
 # as close, down to this step, and below it with certified edges
 FINEST_STEP = 0.01
@@ -121,11 +142,14 @@ class PathPlanner:
         certify_edges: accept only edges certified free over their whole length (else
             edges are sampled at ``step`` and the found path is certified afterwards).
         room: detours are searched first with this much room [m] (see ``ROOM``); 0 never.
+        proof_budget: the found path's proof budgets, exact queries and walk stops (see
+            ``PROOF_EXACT``); a planner of certified edges uses the certifier's own.
     """
 
     def __init__(self, world: CollisionWorld, description: Description, *,
                  step: float = PLAN_STEP, certify_edges: bool = False,
-                 room: float = ROOM) -> None:
+                 room: float = ROOM,
+                 proof_budget: tuple[int, int] = (PROOF_EXACT, PROOF_NEAR)) -> None:
         self.world = world
         self.description = description
         self.step = step
@@ -135,8 +159,13 @@ class PathPlanner:
         self._guarded: dict[tuple[tuple[str, ...], tuple[tuple[str, str], ...]], Guarded] = {}
         self._fallback: PathPlanner | None = None
         self.certifier = Certifier(world)
-        # the found path's proof also certifies a clearance worth reporting (fraction 0.5)
-        self.proof = Certifier(world, fraction=0.5)
+        # the found path's proof also certifies a clearance worth reporting (fraction
+        # 0.5), within a budget: a path that grazes a shelf for its whole length is
+        # refused and planned again without that edge, in bounded time
+        # (a planner of certified edges proves its path with the certifier's own budgets:
+        # each edge was proven with them already)
+        exact, near = (MAX_EXACT, MAX_NEAR) if certify_edges else proof_budget
+        self.proof = Certifier(world, fraction=0.5, max_exact=exact, max_near=near)
         names = world.kin.joint_names
         self._groups: dict[str, tuple[str, ...]] = {
             g: tuple(j for j in joints if j in names)
@@ -227,10 +256,10 @@ class PathPlanner:
             GoalOutOfReach: no IK solution for a position goal.
             NoPathFound: no path within the time budget.
         """
-        return self._solve(request, blend=blend, refused=frozenset())
+        return self._solve(request, blend=blend, refused=frozenset(), replans=0)
 
     def _solve(self, request: PathRequest, *, blend: bool,
-               refused: Refused) -> PathResult:
+               refused: Refused, replans: int = 0) -> PathResult:
         # ``refused``: the edges whose proof failed in this request's earlier attempts,
         # refused without a check: an escape edge is drawn again exactly as it was (same
         # seed), and its finer samples pass again where it grazes between them (each
@@ -253,8 +282,7 @@ class PathPlanner:
         straight = path is not None
         planner_name = "straight line"
         if path is None:
-            path, room = self._detour(request, start, goals, joints, refused)
-            planner_name = request.planner
+            path, room, planner_name = self._detour(request, start, goals, joints, refused)
         t3 = time.perf_counter()
         timings["plan"] = t3 - t2
         if not straight:
@@ -276,7 +304,11 @@ class PathPlanner:
             # an edge accepted on its samples grazes between them: plan again with edges
             # sampled twice as close, and where even that grazes, accepting only
             # certified edges (each edge a proof: several times slower; rare)
-            retry = self._retry()
+            # a spent budget (distance NaN) is no graze between samples: the same
+            # planner again, without that edge, PROOF_REPLANS times
+            spent = cert.failure is not None and np.isnan(cert.failure[3])
+            retry = self if spent and replans < PROOF_REPLANS else self._retry()
+            replans += spent
             _log.info("path not certified (%s); re-planning with %s", cert.failure,
                       "certified edges" if retry.certify_edges
                       else f"edges sampled {retry.step:g} rad apart")
@@ -284,7 +316,17 @@ class PathPlanner:
             if 0 <= k < len(path) - 1:
                 a, b = path[k], path[k + 1]
                 refused = refused | {(a.tobytes(), b.tobytes()), (b.tobytes(), a.tobytes())}
-            result = retry._solve(request, blend=blend, refused=refused)
+            # the re-plan gets what is left of the budget: planning_time bounds the
+            # whole request, however many paths its proofs refuse
+            left = float(request.planning_time) - (time.perf_counter() - t0)
+            if left <= 0:
+                raise NoPathFound(
+                    f"the path found was refused by its proof ({cert.failure}) and the "
+                    f"{request.planning_time:g} s budget is spent",
+                    details={"failure": str(cert.failure), "planner": planner_name,
+                             "planning_time": request.planning_time})
+            result = retry._solve(replace(request, planning_time=left), blend=blend,
+                                  refused=refused, replans=replans)
             return PathResult(joint_names=result.joint_names, path=result.path,
                               planner=result.planner,
                               timings={k: timings.get(k, 0.0) + v
@@ -313,13 +355,13 @@ class PathPlanner:
 
     def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
                 joints: tuple[str, ...], refused: Refused
-                ) -> tuple[np.ndarray, StateChecker | None]:
+                ) -> tuple[np.ndarray, StateChecker | None, str]:
         # With room first (half the budget), then without. An end that lacks the room
         # (a start a hair from the base) is joined by a short free edge to a nearby state
         # that has it, so only that edge comes close. Where no such edge leaves it (a
         # camera a millimetre from the turntable), the pairs short of room there lose
-        # it alone (:mod:`.room`). Returns the path and the roomy world it was found in
-        # (None: without room).
+        # it alone (:mod:`.room`). Returns the path, the roomy world it was found in
+        # (None: without room) and the planner that found it.
         budget = float(req.planning_time)
         if self.room > 0 and not self.certify_edges:
             roomy: StateChecker = self.roomy(joints)
@@ -346,18 +388,21 @@ class PathPlanner:
             if head is not None and tails:
                 t0 = time.perf_counter()
                 try:
-                    mid = self._search(req, head, np.array([e for _, e in tails]), joints,
-                                       roomy, budget / 2, refused)
+                    found = self._search(req, head, np.array([e for _, e in tails]), joints,
+                                       roomy, budget / 2, refused,
+                                         max_rounds=ROOMY_ROUNDS)
                 except NoPathFound:
                     budget -= time.perf_counter() - t0
                     _log.info("no detour with %.1f mm of room; searching without",
                               1e3 * self.room)
                 else:
+                    mid = found.path
                     goal, end = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))
                     # the escape edges, where an end needed one
                     return np.vstack([[start]] * (head is not start) + [mid]
-                                     + [[goal]] * (end is not goal)), roomy
-        return self._search(req, start, goals, joints, None, budget, refused), None
+                                     + [[goal]] * (end is not goal)), roomy, found.planner
+        found = self._search(req, start, goals, joints, None, budget, refused)
+        return found.path, None, found.planner
 
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
                 roomy: StateChecker, rng: np.random.Generator, refused: Refused
@@ -385,9 +430,9 @@ class PathPlanner:
 
     def _search(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
                 joints: tuple[str, ...], roomy: StateChecker | None, budget: float,
-                refused: Refused) -> np.ndarray:
+                refused: Refused, *, max_rounds: int | None = None) -> Found:
         names = self.world.kin.joint_names
         return search(roomy or self.world, lambda a, b: self._edge_free(a, b, refused, roomy),
                       start, goals, np.array([names.index(j) for j in joints], dtype=np.int64),
                       self._limits, planner=req.planner, seed=req.seed, budget=budget,
-                      planning_time=req.planning_time)
+                      planning_time=req.planning_time, max_rounds=max_rounds)

@@ -9,7 +9,10 @@ are judged by the caller's world and edge check, so the same search runs with ro
 
 from __future__ import annotations
 
+import logging
+import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -25,7 +28,7 @@ from arduinobot.planner.collision.proof.motion_check import (
     ValidityChecker,
 )
 
-__all__ = ["MAX_SEED", "OmplLogLevel", "PLANNERS", "available_planners", "check_seed", "search",
+__all__ = ["FALLBACK", "FIRST_SLICE", "Found", "MAX_SEED", "RANGE", "SLICED", "OmplLogLevel", "PLANNERS", "available_planners", "check_seed", "search",
            "set_ompl_log_level"]
 
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
@@ -33,6 +36,24 @@ PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE
             "AORRTC")
 # the largest seed a request may give (OMPL's seeds are 32-bit, as the wire schema's)
 MAX_SEED = 2**32 - 1
+
+# the planners whose budget is sliced (:func:`search`): they evaluate their termination
+# condition in the calling thread (a Python one asked from PRM's roadmap thread would
+# wait for the GIL forever); another planner gets the whole budget in one solve
+SLICED = frozenset({"RRTConnect", "RRT", "KPIECE1", "BKPIECE1", "LBKPIECE1"})
+# the planner that takes turns with the asked one (:func:`search`)
+FALLBACK = "BKPIECE1"
+# the fallback's slices, in iterations, as a share of the asked planner's (a BKPIECE1
+# iteration costs ~5 RRTConnect ones on the Panda in MotionBenchMaker's cage: 2.3 vs
+# 0.45 ms). State checks to a path on the Panda's 3 cage problems and the tall
+# bookshelf's slot, 20 s budgets, by share: 0.1 109k, 0.2 114k, 0.4 76k, 0.6 79k, 1.0 86k
+FALLBACK_SHARE = 0.4
+# planner iterations of the first slice (:func:`search`)
+FIRST_SLICE = 500
+# [rad] the longest edge a tree grows by (:func:`search`)
+RANGE = 0.5
+
+_log = logging.getLogger(__name__)
 
 OmplLogLevel = Literal["debug", "info", "warn", "error", "none"]
 
@@ -68,15 +89,43 @@ def set_ompl_log_level(level: OmplLogLevel) -> None:
     ou.setLogLevel(levels[level])
 
 
+@dataclass(frozen=True)
+class Found:
+    """A search's path and who found it.
+
+    Attributes:
+        path: shape (k, dof), full joint vectors, first = start, last = a goal.
+        planner: the OMPL planner whose tree reached the goal.
+        rounds: the slices run, all planners together (1: the first planner's first).
+    """
+
+    path: np.ndarray
+    planner: str
+    rounds: int
+
+
 def search(states: StateChecker, edge_free: Callable[[np.ndarray, np.ndarray], bool],
            start: np.ndarray, goals: np.ndarray, columns: np.ndarray, limits: np.ndarray, *,
-           planner: str, seed: int | None, budget: float, planning_time: float
-           ) -> np.ndarray:
-    """A path (shape (k, dof), full joint vectors) from ``start`` (dof,) to one of
-    ``goals`` (g, dof) found by OMPL's ``planner`` within ``budget`` [s], moving only the
-    joints ``columns`` (indices, shape (n,)) within ``limits`` (dof, 2) [rad]; states
-    judged by ``states``, motions by ``edge_free``. ``planning_time`` [s]: the request's,
-    for the error.
+           planner: str, seed: int | None, budget: float, planning_time: float,
+           fallback: str | None = FALLBACK, first_slice: int = FIRST_SLICE,
+           range_: float = RANGE, max_rounds: int | None = None) -> Found:
+    """A path from ``start`` (dof,) to one of ``goals`` (g, dof) found within ``budget``
+    [s], moving only the joints ``columns`` (indices, shape (n,)) within ``limits``
+    (dof, 2) [rad]; states judged by ``states``, motions by ``edge_free``.
+    ``planning_time`` [s]: the request's, for the error.
+
+    The budget is spent in slices of planner iterations, ``planner`` and ``fallback``
+    (another family: a tree that grows by cells of free space, where RRTConnect's two
+    trees keep meeting the same shelf) taking turns, each slice twice the iterations of
+    the round before (``first_slice`` for the first, ``FALLBACK_SHARE`` of it for the
+    fallback's, whose iterations cost more), when ``planner`` is one of ``SLICED``
+    (else it alone gets the whole budget); each planner keeps its tree
+    between its slices, so a turn costs no work already done. Slices are counted in
+    iterations, not seconds, so a seeded search repeats itself wherever it ends (as long
+    as the budget does not cut it short). ``range_`` [rad]: the longest edge a tree grows
+    by (OMPL's default, a fifth of the space's diagonal, is ~2.7 rad on a 7-joint arm:
+    long edges that clutter refuses; measured in docs/bench.md). ``max_rounds``: at
+    most this many slices (None: until the budget ends).
 
     Raises:
         NoPathFound: no exact solution within the budget (an approximate one is not a
@@ -92,9 +141,58 @@ def search(states: StateChecker, edge_free: Callable[[np.ndarray, np.ndarray], b
         bounds.setLow(i, float(limits[j, 0]))
         bounds.setHigh(i, float(limits[j, 1]))
     space.setBounds(bounds)
+    codec = StateCodec(columns, start)
+    sliced = planner in SLICED
+    names = [planner] + ([fallback] if sliced and fallback not in (None, planner) else [])
+    # per planner: its SimpleSetup and the checkers it holds (kept alive with it)
+    setups: dict[str, tuple[og.SimpleSetup, object, object]] = {}
+    deadline = time.perf_counter() + budget
+    rounds, size = 0, first_slice
+    while True:
+        for name in names:
+            left = deadline - time.perf_counter()
+            if left <= 0 or (max_rounds is not None and rounds >= max_rounds):
+                raise NoPathFound(f"{' and '.join(names)} found no path in {planning_time:g} s",
+                                  details={"planner": planner, "planning_time": planning_time,
+                                           "rounds": rounds, "planners": names})
+            if name not in setups:
+                setups[name] = _built(space, codec, states, edge_free, start, goals, name,
+                                      range_)
+            ss = setups[name][0]
+            rounds += 1
+            t0 = time.perf_counter()
+            if sliced:
+                ss.solve(_slice(size if name == planner
+                                else max(1, int(size * FALLBACK_SHARE)), left))
+            else:
+                ss.solve(left)
+            _log.debug("slice %d: %s, %d iterations, %.3f s", rounds, name, size,
+                       time.perf_counter() - t0)
+            if ss.haveExactSolutionPath():
+                p = ss.getSolutionPath()
+                out = np.array([codec.full(p.getState(i)) for i in range(p.getStateCount())])
+                return Found(out, name, rounds)
+        size *= 2
+
+
+def _slice(iterations: int, seconds: float) -> ob.PlannerTerminationCondition:
+    # ends after ``iterations`` evaluations (a planner asks once per iteration) or
+    # ``seconds`` [s], whichever first
+    end = time.perf_counter() + seconds
+    count = [0]
+
+    def done() -> bool:
+        count[0] += 1
+        return count[0] > iterations or time.perf_counter() >= end
+    return ob.PlannerTerminationCondition(done)
+
+
+def _built(space: ob.StateSpace, codec: StateCodec, states: StateChecker,
+           edge_free: Callable[[np.ndarray, np.ndarray], bool], start: np.ndarray,
+           goals: np.ndarray, name: str, range_: float
+           ) -> tuple[og.SimpleSetup, object, object]:
     ss = og.SimpleSetup(space)
     si = ss.getSpaceInformation()
-    codec = StateCodec(columns, start)
     svc = ValidityChecker(si, states, codec)
     mv = MotionChecker(si, edge_free, codec)
     ss.setStateValidityChecker(svc)
@@ -108,14 +206,9 @@ def search(states: StateChecker, edge_free: Callable[[np.ndarray, np.ndarray], b
         codec.put(g, st)
         gs.addState(st)
     ss.setGoal(gs)
-    ss.setPlanner(getattr(og, planner)(si))
+    pl = getattr(og, name)(si)
+    if hasattr(pl, "setRange"):
+        pl.setRange(range_)
+    ss.setPlanner(pl)
     ss.setup()
-    status = ss.solve(budget)
-    if not ss.haveExactSolutionPath():
-        raise NoPathFound(f"{planner} found no path in {planning_time:g} s ({status})",
-                          details={"planner": planner, "planning_time": planning_time})
-    p = ss.getSolutionPath()
-    out = np.array([codec.full(p.getState(i)) for i in range(p.getStateCount())])
-    # keep the svc/mv alive until OMPL is done with them
-    del svc, mv
-    return out
+    return ss, svc, mv
