@@ -8,8 +8,8 @@ second model of fixed links (boxes, spheres, cylinders) anchored in the same dev
 ``pyhpp.core.Problem`` whose path validation is ``Progressive`` (continuous: a distance
 lower bound and a velocity bound per link, with ``tolerance`` [m] of allowed penetration)
 or ``Dichotomy``, ``BiRRTPlanner`` with the time budget, then ``RandomShortcut`` with
-what is left of it. Timed: solve and optimise (the device and the problem are built
-before each run, untimed).
+what is left of it, at most ``OPTIMISE_S`` (1 s: it shortcuts until its time out).
+Timed: solve and optimise (the device and the problem are built before each run, untimed).
 
 Input: {"urdf", "srdf", "joints": [name, ...], "validation": "Progressive" | "Dichotomy",
 "tolerance", "optimise": bool, "problems": {name: {"obstacles": [{"id", "shape", "size" |
@@ -31,6 +31,8 @@ import numpy as np
 from pinocchio import SE3
 from pyhpp.core import BiRRTPlanner, Dichotomy, Problem, Progressive, RandomShortcut
 from pyhpp.pinocchio import Device, urdf
+
+OPTIMISE_S = 1.0  # [s] RandomShortcut's time out at most (it runs until then)
 
 
 def _geometry(o: dict) -> str:
@@ -75,7 +77,7 @@ def build(spec: dict, obstacles: list[dict], robot_text: str) -> tuple[Device, P
                                  '<robot name="env"/>', SE3.Identity())
     problem = Problem(robot)
     kind = Progressive if spec.get("validation", "Progressive") == "Progressive" else Dichotomy
-    problem.pathValidation = kind(robot, float(spec["tolerance"]))
+    problem.pathValidation(kind(robot, float(spec["tolerance"])))  # a setter, not a field
     return robot, problem
 
 
@@ -112,7 +114,8 @@ def solve(spec: dict, obstacles: list[dict], run: dict, robot_text: str) -> dict
     out = path
     if spec.get("optimise", True):
         opt = RandomShortcut(problem)
-        opt.timeOut(max(0.05, float(run["planning_time"]) - (t1 - t0)))
+        # what is left of the budget, at most OPTIMISE_S: it shortcuts until its time out
+        opt.timeOut(max(0.05, min(OPTIMISE_S, float(run["planning_time"]) - (t1 - t0))))
         out = opt.optimize(path)
     t2 = time.perf_counter()
     return {"success": True, "status": "solved", "solve_s": t1 - t0, "optimise_s": t2 - t1,

@@ -80,6 +80,7 @@ class Setup:
     problems: tuple[Problem, ...]
     ground: bool
     source: str
+    moved: tuple[str, ...] = ()  # the goal's joints (default: all of ``joints``)
 
 
 def panda_setup(folder: Path, args: argparse.Namespace) -> Setup:
@@ -117,11 +118,12 @@ def so101_setup(folder: Path, args: argparse.Namespace) -> Setup:
     return Setup("so101", d, (str(urdf),), urdf, plain_srdf(d, folder / "plain"), tip, names,
                  probs, True, f"SO-101 fixture (STL meshes), generated MBM-class scenes "
                  f"(tests/helpers/mbm_scenes.py), {args.mbm_n} per scene, seed {args.seed}, "
-                 f"the gripper held at 0")
+                 f"the gripper held at 0", moved=names[:-1])  # the arm group: no gripper
 
 
 def body(s: Setup, p: Problem, seed: int, args: argparse.Namespace) -> dict[str, Any]:
-    return {"start": dict(zip(s.joints, p.start)), "goal": {"joints": dict(zip(s.joints, p.goal))},
+    goal = {n: v for n, v in zip(s.joints, p.goal) if n in (s.moved or s.joints)}
+    return {"start": dict(zip(s.joints, p.start)), "goal": {"joints": goal},
             "obstacles": obstacle_dicts(list(p.obstacles)), "ground": s.ground,
             "planning_time": args.planning_time, "velocity_scaling": 1.0,
             "acceleration_scaling": 1.0, "seed": seed}

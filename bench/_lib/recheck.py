@@ -157,9 +157,11 @@ class IndependentModel:
             out = []
             inertial = self.links[link].inertial
             # the root is MuJoCo's world body: fixed, its inertia moves nothing (and
-            # MuJoCo refuses one there, as the Panda's link0 has)
+            # MuJoCo refuses one there, as the Panda's link0 has); a "massless" frame's
+            # placeholder (the SO-101's 1e-9 kg, zero inertia, which MuJoCo refuses) adds
+            # no torque the effort check could see
             if link != self.root and inertial is not None and inertial.mass \
-                    and inertial.mass > 0:
+                    and inertial.mass > 1e-6:
                 o = inertial.origin if inertial.origin is not None else np.eye(4)
                 t = o[:3, :3] @ np.asarray(inertial.inertia, float) @ o[:3, :3].T
                 full = " ".join(repr(float(v)) for v in
