@@ -38,12 +38,13 @@ def main() -> None:
         planner = MotionPlanner(desc)
         plan_task(planner, task_from_mapping(pick_and_place()))  # the caches, unmeasured
         plan_task(planner, task_from_mapping(pick_and_place_by_name()))  # the claw's too
-        for by_name in (False, True):
-            run(planner, n, by_name=by_name)
+        figures = {form: run(planner, n, by_name=by_name)
+                   for form, by_name in (("eleven_steps", False), ("by_name", True))}
+    emit("task", figures)
 
 
-def run(planner: MotionPlanner, n: int, *, by_name: bool) -> None:
-    """Plan the ``n`` variants of one form and print its figures."""
+def run(planner: MotionPlanner, n: int, *, by_name: bool) -> dict[str, Any]:
+    """Plan the ``n`` variants of one form, print its figures and return them."""
     form = "two steps by name" if by_name else "eleven steps"
     print(f"-- {form}")
     times: list[float] = []
@@ -69,12 +70,12 @@ def run(planner: MotionPlanner, n: int, *, by_name: bool) -> None:
     med = statistics.median(times) if times else None
     if med is not None:
         print(f"median planning time {med * 1e3:.1f} ms over {len(times)} variants")
-    emit("task_by_name" if by_name else "task", {
+    return {
         "variants": n, "planned": len(times), "failed": failed,
         "median_planning_s": med, "max_planning_s": max(times, default=None),
         "median_task_duration_s": statistics.median(durations) if durations else None,
         **({"median_picks_tried": statistics.median(tried) if tried else None,
-            "most_picks_tried": max(tried, default=None)} if by_name else {})})
+            "most_picks_tried": max(tried, default=None)} if by_name else {})}
 
 
 if __name__ == "__main__":
