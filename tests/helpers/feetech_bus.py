@@ -164,8 +164,23 @@ class SimBus:
         os.close(self.slave)
 
     def close(self) -> None:
+        """Stop serving, after handling every byte the driver wrote: a SYNC_WRITE has no
+        answer, so the driver's last one (the hold) may still be in the pty when the
+        driver closes its port, as it would be on a wire that the servos still read."""
         if not self._stop.is_set():
             self._stop.set()
             self._thread.join()
+            self._drain()
             os.close(self.master)
             os.close(self.slave)
+
+    def _drain(self) -> None:
+        while select.select([self.master], [], [], 0)[0]:
+            try:
+                data = os.read(self.master, 4096)
+            except OSError:
+                return
+            if not data:
+                return
+            self._buf += data
+            self._parse()
