@@ -16,7 +16,7 @@ import zenoh
 from arduinobot.client.replies import SceneReply
 from arduinobot.contract.zconfig import zenoh_config
 from arduinobot.description import load_description
-from arduinobot.service.scene.identity import encode_scene
+from arduinobot.service.scene.identity import EncodedScenes, encode_scene, scene_digest
 from arduinobot.service.scene.sync import SceneService
 from tests.helpers.serve import free_port
 
@@ -70,7 +70,33 @@ def test_the_same_revision_with_other_objects_has_another_digest(tmp_path):
     a = encode_scene(_restored(_file(tmp_path, "a", _box("table", 1.0))))
     b = encode_scene(_restored(_file(tmp_path, "b", _box("ball", 1.5))))
     again = encode_scene(_restored(tmp_path / "a" / "scene.json"))
-    assert a[1] != b[1] and a == again
+    assert json.loads(a)["digest"] != json.loads(b)["digest"] and a == again
+
+
+def test_a_digest_hashed_member_by_member_is_the_whole_scenes(tmp_path):
+    """The kept digests hash each member once; each must still be the digest of the whole
+    scene as a fresh instance computes it, through a run of changes, order included."""
+    from arduinobot.scene.state import SceneBuilder, apply
+    builder = SceneBuilder(LINKS, tmp_path / "meshes")
+    state = _restored(_file(tmp_path, "a", _box("table", 1.0), _box("ball", 1.5)))
+    kept = EncodedScenes()
+    changes = [{"add": [_box("cup", 0.5)]}, {"remove": ["ball"]},
+               {"add": [_box("ball", 1.5)]}, {"remove": ["table"]},
+               {"add": [_box("table", 1.0)]}]
+    digests = [kept.digest(state)]
+    for change in changes:
+        state = apply(state, change, builder)
+        digests.append(kept.digest(state))
+        assert digests[-1] == scene_digest(state)
+        assert json.loads(kept.of(state)[0])["digest"] == digests[-1]
+    assert len(set(digests)) == len(digests)  # every revision its own
+    # a fresh instance reading the scene's file has its digest; in another order, not
+    body = state.to_json()
+    for name, objects in (("same", body["objects"]), ("other", body["objects"][::-1])):
+        path = tmp_path / name / "scene.json"
+        path.parent.mkdir()
+        path.write_text(json.dumps({**body, "objects": objects}))
+        assert (scene_digest(_restored(path)) == digests[-1]) is (name == "same")
 
 
 def _restored(path: Path):
