@@ -85,9 +85,10 @@ class EncodedScenes:
                                       [self._hash(a.data, seen) for a in state.attached]))
         # the members of the scenes kept (the last one's too: a change names its base)
         for s, _ in self._digests[-1:]:
-            for m in (*s.objects, *s.clouds, *s.attached):
-                if id(m.data) in self._members:
-                    seen.setdefault(id(m.data), self._members[id(m.data)])
+            for data in (*(o.data for o in s.objects), *(c.data for c in s.clouds),
+                         *(a.data for a in s.attached)):
+                if id(data) in self._members:
+                    seen.setdefault(id(data), self._members[id(data)])
         self._members = seen
         self._digests = [*self._digests[-1:], (state, d)]
         return d
