@@ -1,4 +1,5 @@
-"""The two-finger claw as a pick sees it: how far its fingertips open over the gripper's
+"""The two-finger claw as a pick sees it (two moving fingers, or one moving jaw against
+the link it turns on, as the SO-101's): how far its fingertips open over the gripper's
 joint range, where their midpoint is, and the axis they close along, all in the frame of
 the link that holds what it picks up, from the finger links' collision meshes.
 
@@ -81,9 +82,16 @@ def claw_of(planner: object) -> Claw:
     points = dict(world.bodies.points)
     fingers = list(dict.fromkeys(robot.joints[j].child for j in movers
                                  if robot.joints[j].child in points))
+    if len(fingers) == 1:
+        # one moving jaw (the SO-101's): the other is the link it turns on, whose far
+        # end (along the claw) is the fixed jaw's tip
+        fixed = robot.joints[leader].parent
+        if fixed in points:
+            fingers = [fixed, fingers[0]]
     if len(fingers) != 2:
-        raise InvalidRequest(f"a pick needs a claw of two fingers with collision meshes; "
-                             f"the gripper group '{group}' moves {len(fingers)} "
+        raise InvalidRequest(f"a pick needs a claw of two fingers with collision meshes, "
+                             f"or one moving jaw against the link it turns on; the "
+                             f"gripper group '{group}' moves {len(fingers)} "
                              f"({', '.join(fingers) or 'none'})", field="pick")
     link = holding_link(desc)
     names = list(kin.joint_names)
@@ -91,22 +99,24 @@ def claw_of(planner: object) -> Claw:
     k = names.index(leader)
     values = np.linspace(float(lim.lower[k]), float(lim.upper[k]), SAMPLES)
 
-    def finger_points(v: float) -> list[np.ndarray]:
+    def finger_points(v: float, *, origins: bool = False) -> list[np.ndarray]:
         q = np.zeros(len(names))
         q[k] = v
         inv = np.linalg.inv(kin.link_pose(q, link))
         out = []
         for f in fingers:
             t = inv @ kin.link_pose(q, f)
-            out.append(points[f] @ t[:3, :3].T + t[:3, 3])
+            out.append(t[:3, 3] if origins else points[f] @ t[:3, :3].T + t[:3, 3])
         return out
 
     # the claw's long axis: the bisector of each finger's own (its vertices' principal
-    # axis, pointing away from the link)
+    # axis, pointing from the finger's joint towards its vertices: its tip), at the
+    # middle of the range
+    mid = float(values[len(values) // 2])
     axes = []
-    for p in finger_points(float(values[len(values) // 2])):
+    for p, o in zip(finger_points(mid), finger_points(mid, origins=True)):
         a = np.linalg.svd(p - p.mean(0), full_matrices=False)[2][0]
-        axes.append(a if float(p.mean(0) @ a) >= 0 else -a)
+        axes.append(a if float((p.mean(0) - o) @ a) >= 0 else -a)
     along = (axes[0] + axes[1]) / np.linalg.norm(axes[0] + axes[1])
     widest = finger_points(float(values[0])), finger_points(float(values[-1]))
     spread = [np.linalg.norm(a[0].mean(0) - a[1].mean(0)) for a in widest]
