@@ -43,6 +43,7 @@ import orjson
 from arduinobot.contract.outcomes import OnChange
 from arduinobot.execution.executor import Executor
 from arduinobot.execution.segments import Segment
+from arduinobot.service.execute.task_react import TaskPieces
 from arduinobot.service.messages import Failure, Submit, outcome_of
 
 _log = logging.getLogger(__name__)
@@ -94,6 +95,8 @@ class Verdict:
     certified_until: float | None = None
     refused: Mapping[str, Any] | None = None  # {"time": [s], "pair": [a, b]}
     seconds: float = 0.0  # the recheck's, in the worker
+    #: a task's: the step the refusal fell in (:meth:`.task_react.TaskPieces.step`)
+    step: Mapping[str, Any] | None = None
 
 
 class Reactor:
@@ -109,13 +112,16 @@ class Reactor:
         scene_revision: the kept scene's revision now (None: no kept scene).
         unchecked: why this execution's rest cannot be re-checked (said on the stream
             for every change, the motion going on), or None.
+        task: a task's steps (:mod:`.task_react`): its rest is checked piece by piece,
+            each step's in its own world, and the events name the steps.
     """
 
     def __init__(self, ex: Executor, submit: Submit, plan: Mapping[str, Any], *,
                  on_change: OnChange, emit: Callable[[dict[str, Any]], None],
                  scene_revision: Callable[[], int | None],
-                 unchecked: str | None = None) -> None:
+                 unchecked: str | None = None, task: TaskPieces | None = None) -> None:
         self.ex, self.submit, self.plan, self.unchecked = ex, submit, plan, unchecked
+        self.task = task
         self.on_change, self.emit, self.scene_revision = on_change, emit, scene_revision
         self._changes: queue.Queue[Change | None] = queue.Queue()
         self._lock = threading.Lock()
@@ -167,6 +173,21 @@ class Reactor:
                 _log.exception("reacting to scene revision %d failed", change.revision)
                 self._stop_on_error(change, e)
 
+    def _rest(self, seg: Segment, t: float) -> tuple[dict[str, Any], np.ndarray]:
+        """A single motion's recheck data from trajectory time ``t`` [s] on: every
+        control tick's state, in the plan request's world; and the ticks' times [s]."""
+        dt = 1.0 / self.ex.options.rate
+        ts = np.append(np.arange(t, seg.duration, dt), seg.duration)
+        qs = np.array([seg.evaluate(float(x))[0] for x in ts])
+        plan = self.plan
+        data: dict[str, Any] = {"joint_names": list(seg.joint_names),
+                                "positions": qs.tolist(),
+                                "obstacles": list(plan.get("obstacles") or ()),
+                                "ground": bool(plan.get("ground", True))}
+        if plan.get("attached"):
+            data["attached"] = list(plan["attached"])
+        return data, ts
+
     def _stop_on_error(self, change: Change, error: Exception) -> None:
         """Not checked (the pool refused the job, a scene catching up, a bug): as not
         certified, the arm stops (unless told to ignore), and the stream says why."""
@@ -205,16 +226,14 @@ class Reactor:
             seg, t = traj, 0.0  # still moving to the start: the whole trajectory
         elif phase == "trajectory" and t >= seg.duration:
             return  # its last setpoint is out: nothing left to check
-        dt = 1.0 / self.ex.options.rate
-        ts = np.append(np.arange(t, seg.duration, dt), seg.duration)
-        qs = np.array([seg.evaluate(float(x))[0] for x in ts])
-        plan = self.plan
-        data: dict[str, Any] = {"joint_names": list(seg.joint_names),
-                                "positions": qs.tolist(),
-                                "obstacles": list(plan.get("obstacles") or ()),
-                                "ground": bool(plan.get("ground", True))}
-        if plan.get("attached"):
-            data["attached"] = list(plan["attached"])
+        spans: list[tuple[int, np.ndarray]] = []
+        if self.task is not None:  # each step's piece in its own world
+            data, spans = self.task.rest(seg, t, self.ex.options.rate)
+            if not spans:
+                return  # only an attach or a detach is left
+            ts = np.concatenate([s[1] for s in spans])
+        else:
+            data, ts = self._rest(seg, t)
         out = outcome_of(self.submit, "recheck", data)
         with self._lock:
             ended = self._leg is not leg
@@ -236,6 +255,11 @@ class Reactor:
             seconds = float(body.get("seconds", 0.0))
             if body["certified"]:
                 verdict = Verdict(change, True, "continued", seconds=seconds)
+            elif self.task is not None:
+                until, refused, step = self.task.where(body, spans)
+                verdict = Verdict(change, False, "ignored" if self.on_change == "ignore"
+                                  else "stop", certified_until=until, refused=refused,
+                                  seconds=seconds, step=step)
             else:
                 safe = int(body["safe"])
                 ref = body["refused"]
@@ -254,6 +278,10 @@ class Reactor:
                    "decided_ms": 1e3 * (decided - change.arrived),
                    **({"refused": verdict.refused} if verdict.refused else {}),
                    **({"certified_until": verdict.certified_until}
-                      if verdict.certified_until is not None else {})})
+                      if verdict.certified_until is not None else {}),
+                   # a task's: the step playing when the check began, the refused one's
+                   **({"running": self.task.at(t if phase == "trajectory" else 0.0)}
+                      if self.task is not None else {}),
+                   **({"step": dict(verdict.step)} if verdict.step is not None else {})})
         _log.info("scene revision %d while moving: %s (%s)", change.revision,
                   "certified" if verdict.certified else "not certified", verdict.action)

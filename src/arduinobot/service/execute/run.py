@@ -27,6 +27,7 @@ from arduinobot.execution.robots.base import PortError, Robot, RobotError
 from arduinobot.execution.segments import SampledTrajectory, check_fits
 from arduinobot.service.execute.io import CODED, ExecuteRequest
 from arduinobot.service.execute.react import Reactor, Verdict
+from arduinobot.service.execute.task_react import TaskPieces
 from arduinobot.service.messages import Failure, Outcome, Submit
 from arduinobot.service.queries import answering, reply_error
 
@@ -91,6 +92,9 @@ class Run:
         #: the kept scene's revision the trajectory was planned in (a plan reply's)
         self.revision: int | None = None
         self.stopped_why: str | None = None  # why a stop for a change ended it
+        self.stopped_in: dict[str, Any] | None = None  # a task's step it stopped in
+        # a task's steps along the trajectory: its rest is re-checked step by step
+        self.task = TaskPieces.of(req.task) if req.task is not None else None
 
     def on_planned(self, outcome: Outcome) -> None:
         if isinstance(outcome, Failure):
@@ -175,6 +179,8 @@ class Run:
                                    **({"legs": legs} if len(legs) > 1 else {})}}
                 if self.stopped_why is not None:
                     done["report"]["stopped_because"] = self.stopped_why
+                if self.stopped_in is not None:  # a task's step
+                    done["report"]["stopped_in"] = self.stopped_in
                 objects = (self.req.twin or {}).get("objects") or ()
                 if objects and hasattr(ex.robot, "object_pose"):
                     # where the twin's objects ended: MuJoCo's state, not the plan's
@@ -201,15 +207,11 @@ class Run:
         if svc.submit is None:
             return None
         # a task's joined motion carries objects that change along it (attach, detach):
-        # its world is not one scene; re-checking it, and replanning its remaining
-        # steps, is not done yet: its stream says so for every change
-        unchecked = "a task's motion is not re-checked yet" if self.req.twin is not None \
-            else None
+        # its rest is checked step by step, each in its own world (.task_react)
         react = Reactor(ex, svc.submit, self.req.plan or {}, on_change=self.req.on_change,
                         emit=lambda body: self._reply({"event": body["event"],
                                                        "execution": self.execution, **body}),
-                        scene_revision=svc.scene_revision,
-                        unchecked=unchecked)
+                        scene_revision=svc.scene_revision, task=self.task)
         svc.reactor = react
         return react
 
@@ -237,9 +239,13 @@ class Run:
             if report.outcome != "stopped" or react is None or react.verdict is None:
                 return report, legs
             self._said_stop(ex, report, react.verdict)
-            if self.req.on_change != "replan" or len(legs) >= MAX_LEGS:
-                self.stopped_why = ("on_change is stop" if self.req.on_change == "stop"
-                                    else f"{MAX_LEGS} legs replanned already")
+            if self.req.on_change != "replan" or len(legs) >= MAX_LEGS \
+                    or self.req.task is not None:
+                self.stopped_why = (
+                    "on_change is stop" if self.req.on_change == "stop"
+                    else "replanning a task's remaining steps is not done yet"
+                    if self.req.task is not None
+                    else f"{MAX_LEGS} legs replanned already")
                 return report, legs
             got = self._replan(ex, traj)
             if got is None:
@@ -253,7 +259,12 @@ class Run:
         until = verdict.certified_until
         # the leg's tick that sent the first stop setpoint
         tick = report.phases.index("stop") if "stop" in report.phases else None
+        at = rest if rest is not None else report.cancelled_at
+        if self.task is not None and at is not None:
+            self.stopped_in = self.task.at(at)  # the step it came to rest in
         self._reply({"event": "stopped", "execution": self.execution,
+                     **({"step": self.stopped_in} if self.stopped_in is not None else {}),
+                     **({"refused_step": dict(verdict.step)} if verdict.step else {}),
                      "revision": ch.revision, "tick": tick,
                      "trajectory_time": report.cancelled_at, "stop_time": report.stop_time,
                      "stop_kind": ex.last_stop, "rest_at": rest,

@@ -29,6 +29,7 @@ import zenoh
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE
 from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
@@ -187,6 +188,7 @@ class TaskService:
             "trajectories": bool(body.get("trajectories", True)), "execute": execute,
             "start_tolerance": body.get("start_tolerance", 0.01),
             "move_to_start": bool(body.get("move_to_start", False)),
+            "on_change": body.get("on_change", DEFAULT_ON_CHANGE),
             "scene_revision": body.get("scene_revision")}
 
     def _plan(self, job: Mapping[str, Any]) -> Outcome:
@@ -244,6 +246,7 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
         PlanningError: the task's refusal (a field, a step that failed: its own code).
     """
     from arduinobot.planner.tasks import plan_task, task_from_mapping
+    from arduinobot.service.task.pieces import task_pieces
     task = task_from_mapping(data["task"], where=data["where"], name=data["name"],
                              files=bool(data.get("files", False)))
     obstacles, revision = with_scene(scene, {"scene_revision": data.get("scene_revision")},
@@ -262,7 +265,11 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
         "trajectory": task_trajectory(result),
         "start_tolerance": data.get("start_tolerance", 0.01),
         "move_to_start": bool(data.get("move_to_start", False)),
-        "twin": twin_body(task, result)}))
+        "on_change": data.get("on_change", DEFAULT_ON_CHANGE),
+        "twin": twin_body(task, result),
+        # each step's world along the motion: a scene change re-checks the rest by it
+        "task": task_pieces(task, result, scene_ids=[
+            o.id for o in (scene.obstacles if scene is not None else ())])}))
 
 
 def _with_start(task: Task, start: Mapping[str, float]) -> Task:
