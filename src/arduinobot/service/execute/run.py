@@ -28,7 +28,8 @@ from arduinobot.execution.segments import SampledTrajectory, check_fits
 from arduinobot.service.execute.io import CODED, ExecuteRequest
 from arduinobot.service.execute.react import Reactor, Verdict
 from arduinobot.service.execute.task_react import TaskPieces
-from arduinobot.service.messages import Failure, Outcome, Submit
+from arduinobot.service.execute.task_replan import resume_job, resumed
+from arduinobot.service.messages import Failure, Outcome, Submit, outcome_of
 from arduinobot.service.queries import answering, reply_error
 
 _log = logging.getLogger(__name__)
@@ -95,6 +96,7 @@ class Run:
         self.stopped_in: dict[str, Any] | None = None  # a task's step it stopped in
         # a task's steps along the trajectory: its rest is re-checked step by step
         self.task = TaskPieces.of(req.task) if req.task is not None else None
+        self._grip: Callable[[Tick], None] | None = None  # a twin's task grasps
 
     def on_planned(self, outcome: Outcome) -> None:
         if isinstance(outcome, Failure):
@@ -129,18 +131,11 @@ class Run:
         publishes joint_states and replies progress."""
         base = self.svc.executor()
 
-        grasps = (self.req.twin or {}).get("grasps") or ()
-        grip = None
-        if grasps:  # a twin grips a task's objects (a real arm has no weld to switch)
-            from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
-            from arduinobot.execution.robots.twin_tasks import grasp_schedule
-            if isinstance(base.robot, SimArduinobot):
-                grip = grasp_schedule(base.robot, [(float(g["time"]), g["object"], g["hold"])
-                                                   for g in grasps])
+        self._grip = self._grasps(base.robot, self.req.twin)
 
         def on_tick(tick: Tick) -> None:
-            if grip is not None:
-                grip(tick)
+            if self._grip is not None:
+                self._grip(tick)
             msg = self.svc.publish_tick(tick)
             if tick.index % PROGRESS_EVERY == 0:
                 self._reply({"event": "progress", "execution": self.execution,
@@ -149,6 +144,20 @@ class Run:
                         options=replace(base.options,
                                         start_tolerance=self.req.start_tolerance,
                                         move_to_start=self.req.move_to_start))
+
+    @staticmethod
+    def _grasps(robot: Robot, twin: Mapping[str, Any] | None
+                ) -> Callable[[Tick], None] | None:
+        """A twin's grip schedule for a task's trajectory (a real arm has no weld)."""
+        grasps = (twin or {}).get("grasps") or ()
+        if not grasps:
+            return None
+        from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+        from arduinobot.execution.robots.twin_tasks import grasp_schedule
+        if not isinstance(robot, SimArduinobot):
+            return None
+        return grasp_schedule(robot, [(float(g["time"]), g["object"], g["hold"])
+                                      for g in grasps])
 
     def _run(self, traj: SampledTrajectory) -> None:
         svc = self.svc
@@ -239,15 +248,13 @@ class Run:
             if report.outcome != "stopped" or react is None or react.verdict is None:
                 return report, legs
             self._said_stop(ex, report, react.verdict)
-            if self.req.on_change != "replan" or len(legs) >= MAX_LEGS \
-                    or self.req.task is not None:
-                self.stopped_why = (
-                    "on_change is stop" if self.req.on_change == "stop"
-                    else "replanning a task's remaining steps is not done yet"
-                    if self.req.task is not None
-                    else f"{MAX_LEGS} legs replanned already")
+            if self.req.on_change != "replan" or len(legs) >= MAX_LEGS:
+                self.stopped_why = ("on_change is stop" if self.req.on_change == "stop"
+                                    else f"{MAX_LEGS} legs replanned already")
                 return report, legs
-            got = self._replan(ex, traj)
+            got = self._replan(ex, traj) if self.task is None else \
+                self._replan_task(ex, react, rest_at=ex.last_stop_end
+                                  if ex.last_stop_end is not None else report.cancelled_at)
             if got is None:
                 return report, legs
             traj, revision = got
@@ -307,6 +314,36 @@ class Run:
         revision = int(body.get("scene_revision", 0))
         self._reply({"event": "replanned", "execution": self.execution, "ok": True,
                      "duration": new.duration, "revision": revision})
+        return new, revision
+
+    def _replan_task(self, ex: Executor, react: Reactor, *, rest_at: float | None
+                     ) -> tuple[SampledTrajectory, int] | None:
+        """The task's remaining steps planned from the stopped state (:mod:`.task_replan`),
+        in the scene now; None (``stopped_why`` set, said on the stream) when not."""
+        svc = self.svc
+        assert self.task is not None and svc.submit is not None
+        job, why = (None, "it did not stop on its path") if rest_at is None else \
+            resume_job(self.task, rest_at, plan_start(ex.robot, svc.description),
+                       on_change=self.req.on_change)
+        outcome = None if job is None else outcome_of(svc.submit, "task", job)
+        if outcome is None or isinstance(outcome, Failure):
+            error = {"message": why} if outcome is None else outcome.to_json()["error"]
+            self.stopped_why = f"replanning the task's rest failed: {error['message']}"
+            self._reply({"event": "replanned", "execution": self.execution, "ok": False,
+                         "error": error, **({"step": self.stopped_in}
+                                            if self.stopped_in else {})})
+            return None
+        assert outcome.execute is not None
+        planned, body = orjson.loads(outcome.body), orjson.loads(outcome.execute)
+        new = SampledTrajectory.from_json(body["trajectory"])
+        self.task = react.task = TaskPieces.of(body["task"])
+        self._grip = self._grasps(ex.robot, body.get("twin"))
+        revision = int(planned.get("scene_revision", 0))
+        self._reply({"event": "replanned", "execution": self.execution, "ok": True,
+                     "duration": new.duration, "revision": revision,
+                     "from_step": resumed(job),
+                     "steps": len(planned["steps"]),
+                     "planning_time": planned.get("planning_time")})
         return new, revision
 
     def _watch_client(self, client: str) -> zenoh.Subscriber:

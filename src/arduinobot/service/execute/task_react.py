@@ -33,12 +33,15 @@ class TaskPieces:
     moved: tuple[str, ...] = ()
     ground: bool = True
     name: str | None = None
+    #: what planning its rest again needs (the task's JSON form, where it is from)
+    replan: Mapping[str, Any] | None = None
 
     @classmethod
     def of(cls, section: Mapping[str, Any]) -> TaskPieces:
         return cls(tuple(section.get("pieces") or ()),
                    tuple(str(m) for m in section.get("moved") or ()),
-                   bool(section.get("ground", True)), section.get("name"))
+                   bool(section.get("ground", True)), section.get("name"),
+                   section.get("replan"))
 
     def step(self, piece: int) -> dict[str, Any]:
         """Piece ``piece``'s step as events name it."""
@@ -46,12 +49,18 @@ class TaskPieces:
         return {"index": p["step"], "kind": p["kind"], "label": p.get("label"),
                 "task_step": p["task_step"], "task_kind": p["task_kind"]}
 
-    def at(self, t: float) -> dict[str, Any] | None:
-        """The step playing at trajectory time ``t`` [s] (None: none lasts there)."""
+    def piece_at(self, t: float) -> int | None:
+        """The piece playing at trajectory time ``t`` [s] (one that ends there: the
+        next; None: none lasts from there on)."""
         for i, p in enumerate(self.pieces):
             if p["start"] - EPS <= t < p["end"] - EPS:
-                return self.step(i)
+                return i
         return None
+
+    def at(self, t: float) -> dict[str, Any] | None:
+        """The step playing at trajectory time ``t`` [s] (None: none lasts there)."""
+        i = self.piece_at(t)
+        return None if i is None else self.step(i)
 
     def rest(self, seg: Segment, t: float, rate: float
              ) -> tuple[dict[str, Any], list[tuple[int, np.ndarray]]]:

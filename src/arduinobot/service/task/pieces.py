@@ -26,13 +26,16 @@ if TYPE_CHECKING:
     from arduinobot.planner.tasks import Task, TaskResult
 
 
-def task_pieces(task: Task, result: TaskResult, *, scene_ids: Sequence[str] = ()
-                ) -> dict[str, Any]:
+def task_pieces(task: Task, result: TaskResult, *, scene_ids: Sequence[str] = (),
+                moved: Sequence[str] = (), first: int = 0) -> dict[str, Any]:
     """The execute request's ``task`` section (see the module doc) of ``result``, planned
-    for ``task`` in a kept scene holding the obstacles ``scene_ids``."""
+    for ``task`` in a kept scene holding the obstacles ``scene_ids``; ``moved``: objects
+    the task moved before (a task's rest replanned: also its carried ones), ``first``:
+    the index of ``task``'s first step in the task as the user gave it."""
     kept = set(scene_ids)
     moved = sorted({s.object for s in result.steps
-                    if s.kind in ("attach", "detach") and s.object is not None})
+                    if s.kind in ("attach", "detach") and s.object is not None}
+                   | {a.id for a in task.carrying} | set(moved))
     pieces = []
     for s, t0 in zip(result.steps, result.boundaries()):
         if s.duration <= 0.0:
@@ -40,7 +43,7 @@ def task_pieces(task: Task, result: TaskResult, *, scene_ids: Sequence[str] = ()
         own = s.part_of if s.part_of is not None else s.index
         pieces.append({
             "step": s.index, "kind": s.kind, "label": s.label,
-            "task_step": own, "task_kind": task.steps[own].kind,
+            "task_step": own + first, "task_kind": task.steps[own].kind,
             "start": t0, "end": t0 + s.duration,
             "obstacles": [o.to_json() for o in s.obstacles
                           if o.id not in kept or o.id in moved],

@@ -33,7 +33,7 @@ from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE
 from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.extension import Host
 from arduinobot.service.messages import Failure, Outcome, Submit, Success, outcome_of
@@ -241,6 +241,12 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
     scene's revision), and for an executed task the execute request of the whole task,
     both encoded.
 
+    A task's rest replanned after a stop (:mod:`arduinobot.service.execute.task_replan`)
+    adds ``carrying`` (the objects held then), ``resting`` (pairs touching then),
+    ``exclude`` (kept-scene objects the task moves: its own copies are in the task),
+    ``resumed_at`` (the index of its first step in the task as given) and ``source``
+    (the task as given, for a later stop's replan).
+
     Raises:
         SceneConflict: ``data["scene_revision"]`` pins a revision the scene has left.
         PlanningError: the task's refusal (a field, a step that failed: its own code).
@@ -249,10 +255,18 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
     from arduinobot.service.task.pieces import task_pieces
     task = task_from_mapping(data["task"], where=data["where"], name=data["name"],
                              files=bool(data.get("files", False)))
+    scene_ids = [o.id for o in (scene.obstacles if scene is not None else ())]
+    exclude = {str(i) for i in data.get("exclude") or ()}
+    if exclude and scene is not None:  # where the task has them: in its own obstacles
+        scene = replace(scene, obstacles=tuple(o for o in scene.obstacles
+                                               if o.id not in exclude))
     obstacles, revision = with_scene(scene, {"scene_revision": data.get("scene_revision")},
                                      task.obstacles)
     task = replace(task, obstacles=obstacles,
-                   clouds=scene.clouds if scene is not None else ())
+                   clouds=scene.clouds if scene is not None else (),
+                   carrying=tuple(AttachedObject.from_mapping(a, where=f"carrying[{i}]")
+                                  for i, a in enumerate(data.get("carrying") or ())),
+                   resting=tuple((str(a), str(b)) for a, b in data.get("resting") or ()))
     if data.get("start") is not None and task.start is None:
         task = _with_start(task, data["start"])
     result = plan_task(planner, task)
@@ -267,9 +281,14 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
         "move_to_start": bool(data.get("move_to_start", False)),
         "on_change": data.get("on_change", DEFAULT_ON_CHANGE),
         "twin": twin_body(task, result),
-        # each step's world along the motion: a scene change re-checks the rest by it
-        "task": task_pieces(task, result, scene_ids=[
-            o.id for o in (scene.obstacles if scene is not None else ())])}))
+        # each step's world along the motion: a scene change re-checks the rest by it,
+        # and a stop replans the remaining steps of the task as given (``replan``)
+        "task": {**task_pieces(task, result, scene_ids=scene_ids, moved=sorted(exclude),
+                               first=int(data.get("resumed_at", 0))),
+                 "replan": data.get("source") or {
+                     "task": data["task"], "where": data["where"], "name": data["name"],
+                     "files": bool(data.get("files", False)),
+                     "start_tolerance": data.get("start_tolerance", 0.01)}}}))
 
 
 def _with_start(task: Task, start: Mapping[str, float]) -> Task:
