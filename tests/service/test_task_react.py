@@ -231,6 +231,7 @@ def test_with_replan_the_task_plans_its_remaining_steps_and_puts_the_box_in_the_
         report = reply.report
         assert report["outcome"] == "completed", report
         assert len(report["legs"]) == 2 and report["legs"][0]["outcome"] == "stopped"
+        assert "stopped_in" not in report and "stopped_because" not in report
         assert _kinds(events) == ["started", "changed", "stopped", "replanned", "finished"]
         stopped = next(e for e in events if e["event"] == "stopped")
         assert stopped["before"] is True and stopped["step"]["task_kind"] == "pick"

@@ -19,6 +19,11 @@ request's ``on_change``,
   (:mod:`.run`) says whether it did (``before``), and with ``replan`` plans from the
   stopped state to the same goal, in the new scene, and goes on.
 
+A task's rest is cut by its steps (:mod:`.task_react`): each step's piece is checked in
+the world that step was planned in (what the task carries there, the pairs allowed
+there) with the kept scene now, and the events name the steps; with ``replan`` the run
+plans the task's remaining steps from the stopped state (:mod:`.task_replan`).
+
 Every change handled is one ``changed`` event on the execution's stream: the revision,
 the objects added, removed, attached and detached, whether the rest was certified, the
 action, and how long the recheck took; a stop adds ``stopped`` (the tick, the time from
@@ -110,8 +115,6 @@ class Reactor:
         on_change: ``replan``, ``stop`` or ``ignore``.
         emit: sends one event body on the execution's stream.
         scene_revision: the kept scene's revision now (None: no kept scene).
-        unchecked: why this execution's rest cannot be re-checked (said on the stream
-            for every change, the motion going on), or None.
         task: a task's steps (:mod:`.task_react`): its rest is checked piece by piece,
             each step's in its own world, and the events name the steps.
     """
@@ -119,9 +122,9 @@ class Reactor:
     def __init__(self, ex: Executor, submit: Submit, plan: Mapping[str, Any], *,
                  on_change: OnChange, emit: Callable[[dict[str, Any]], None],
                  scene_revision: Callable[[], int | None],
-                 unchecked: str | None = None, task: TaskPieces | None = None) -> None:
-        self.ex, self.submit, self.plan, self.unchecked = ex, submit, plan, unchecked
-        self.task = task
+                 task: TaskPieces | None = None) -> None:
+        self.ex, self.submit, self.plan = ex, submit, plan
+        self.task = task  # a replan's new leg puts its own
         self.on_change, self.emit, self.scene_revision = on_change, emit, scene_revision
         self._changes: queue.Queue[Change | None] = queue.Queue()
         self._lock = threading.Lock()
@@ -211,13 +214,6 @@ class Reactor:
         if leg is None or change.revision <= leg[2]:
             return  # between legs (a replan plans in the newest scene), or already seen
         halt, traj, _ = leg
-        if self.unchecked is not None:
-            with self._lock:
-                if self._leg is leg:
-                    self._leg = (halt, traj, change.revision)
-            self.emit({"event": "changed", **change.to_json(), "certified": None,
-                       "action": "not_checked", "reason": self.unchecked})
-            return
         playing = self.ex.playing()
         if playing is None or halt.is_set():
             return

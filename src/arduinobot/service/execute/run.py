@@ -3,7 +3,8 @@ query (``started``, ``progress`` every :data:`PROGRESS_EVERY` ticks, ``finished`
 report, or the coded error that ended it), until the final report. While it moves, its
 :class:`~arduinobot.service.execute.react.Reactor` re-checks the rest on every scene
 change (events ``changed``, ``stopped``, ``replanned``); a replanned execution plays in
-legs, the report is the last one's with every leg's summary (``legs``)."""
+legs (a task's: its remaining steps planned again), the report is the last one's with
+every leg's summary (``legs``)."""
 
 from __future__ import annotations
 
@@ -258,6 +259,7 @@ class Run:
             if got is None:
                 return report, legs
             traj, revision = got
+            self.stopped_in = None  # it goes on: a later stop names its own step
 
     def _said_stop(self, ex: Executor, report: ExecutionReport, verdict: Verdict) -> None:
         """The ``stopped`` event: where and how fast the arm stopped for the change."""
