@@ -10,8 +10,8 @@ it), the task's objects where the task had them there (its own; those it moves, 
 kept-scene copies are left out), in the kept scene as it is now. A pick whose object is
 already held resumes at the next step (what is left of it is the lift; the next motion
 starts from where the arm is), as does a place whose object is already let go. A
-``line`` given as an ``offset`` is not planned again from a stop mid-way (the offset
-from there would end elsewhere): that refusal ends the execution stopped, and says so.
+``line`` given as an ``offset`` is not resumed from a stop (the offset from there would
+end elsewhere): that refusal ends the execution stopped, and says so.
 """
 
 from __future__ import annotations
@@ -42,11 +42,12 @@ def resume_job(task: TaskPieces, at: float, state: Mapping[str, float], *,
     if ("pick" in step and step["pick"] in carried) \
             or ("place" in step and step["place"] not in carried):
         k += 1  # its object already held (let go): what is left of it is the retreat
-    elif "line" in step and "offset" in (step.get("line") or {}):
-        return None, (f"step {k} is a line given as an offset: planned again from where "
-                      "it stopped it would end elsewhere")
     if k >= len(steps):
         return None, "it stopped in the task's last step's retreat: nothing is left to plan"
+    line = steps[k].get("line")
+    if isinstance(line, Mapping) and "offset" in line:
+        return None, (f"step {k} is a line given as an offset: planned from where it "
+                      "stopped it would end elsewhere")
     body = {**source["task"], "steps": steps[k:], "start": dict(state),
             "obstacles": list(p["obstacles"])}
     return {"task": body, "where": source.get("where", "task"), "name": source.get("name"),
