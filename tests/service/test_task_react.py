@@ -6,8 +6,9 @@ the bin. Each remaining step is re-checked with what the task carries there (the
 the attach on), so the change is refused in the place's move; with ``stop`` the arm stops
 (the twin's joint states, checked by FCL on the link meshes and on the carried box, each
 placed by an independent forward kinematics, touch nothing) and the report names the
-step; a change off the path lets the task go on and put the box in the bin. No
-wall-clock bounds: the stream's events."""
+step; with ``replan`` the task's remaining steps are planned again and the box ends in
+the bin; with ``ignore`` the box goes through the sphere (the same check finds it); a
+change off the path lets the task go on. No wall-clock bounds: the stream's events."""
 
 from __future__ import annotations
 
@@ -256,3 +257,31 @@ def test_with_replan_the_task_plans_its_remaining_steps_and_puts_the_box_in_the_
         want = [let_go[0], let_go[1], floor["xyz"][2] + floor["size"][2] / 2 + BOX / 2]
         sim = report["objects"]["box"]
         assert np.linalg.norm(np.subtract(sim, want)) < 0.01, (sim, want)
+
+
+def test_with_ignore_the_task_goes_through_what_it_was_told_of(served, course, meshes):
+    with PlannerClient(served.endpoint, timeout=120) as c:
+        task = _task(c, course)
+        planned = c.task(task)
+        carried = Carried(course, planned)
+        ob = _on_the_way(planned, carried)
+        states = States(c)
+        try:
+            reply, events = _run(c, task, "ignore", [ob])
+        finally:
+            states.close()
+        report = reply.report
+        assert report["outcome"] == "completed" and "legs" not in report, report
+        assert _kinds(events) == ["started", "changed", "finished"], events
+        changed = next(e for e in events if e["event"] == "changed")
+        assert changed["certified"] is False and changed["action"] == "ignored"
+        assert changed["step"]["task_kind"] == "place"
+        # the sphere was where the carried box went: the same independent check finds it
+        # in a state after the arm was where the box was attached
+        names, qs = states.arrays()
+        attach = next(s for s in planned.steps if s["kind"] == "attach")
+        cols = [i for i, n in enumerate(names) if n in attach["start"]]
+        q_attach = np.array([attach["start"][names[i]] for i in cols])
+        at = [k for k, q in enumerate(qs) if np.abs(q[cols] - q_attach).max() < 0.03]
+        assert at
+        assert [k for k in carried.hits(names, qs, ob) if k > at[0]]
