@@ -82,3 +82,16 @@ def test_a_piece_of_the_wrong_shape_is_refused_naming_it(handlers, case):
         _check(handlers, case, [_piece(_swing(case)), _piece([[0.0, 0.0]])],
                scene=None)
     assert e.value.details["field"] == "pieces[1].positions"
+
+
+def test_a_piece_naming_a_file_of_the_server_is_refused(handlers, case):
+    # the pieces come back on the wire (the execute request): a mesh path is refused
+    # before anything looks at the file
+    mesh = {"id": "m", "shape": "mesh", "mesh_path": "/etc/passwd", "xyz": [0, 0, 0]}
+    with pytest.raises(InvalidRequest) as e:
+        _check(handlers, case, [{**_piece(_swing(case)), "obstacles": [mesh]}], scene=None)
+    assert e.value.details["field"].startswith("pieces[0].obstacles[0]")
+    held = {"object": mesh, "link": case.link}
+    with pytest.raises(InvalidRequest) as e:
+        _check(handlers, case, [{**_piece(_swing(case)), "attached": [held]}], scene=None)
+    assert e.value.details["field"].startswith("pieces[0].attached[0].object")

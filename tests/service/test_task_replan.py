@@ -88,6 +88,7 @@ def test_a_replan_resumes_at_the_step_it_stopped_in_with_what_it_carries(task):
     assert job is not None and resumed(job) == {"task_step": 0, "kind": "pick"}
     assert job["task"]["steps"] == STEPS and job["task"]["start"] == state
     assert job["carrying"] == [] and job["exclude"] == ["box"]
+    assert job["files"] is False  # it came back on the wire: it names no server file
     assert job["task"]["places"] == {"bin": {"position": [0, 0, 0]}}
     # in the pick's lift, the box held: the pick is done but its lift; the place is next
     job, _ = resume_job(task, 2.0, state, on_change="stop")

@@ -214,6 +214,13 @@ class Reactor:
         if leg is None or change.revision <= leg[2]:
             return  # between legs (a replan plans in the newest scene), or already seen
         halt, traj, _ = leg
+        if self.task is not None and self.task.unchecked is not None:
+            with self._lock:
+                if self._leg is leg:
+                    self._leg = (halt, traj, change.revision)
+            self.emit({"event": "changed", **change.to_json(), "certified": None,
+                       "action": "not_checked", "reason": self.task.unchecked})
+            return
         playing = self.ex.playing()
         if playing is None or halt.is_set():
             return

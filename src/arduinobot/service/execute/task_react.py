@@ -35,13 +35,15 @@ class TaskPieces:
     name: str | None = None
     #: what planning its rest again needs (the task's JSON form, where it is from)
     replan: Mapping[str, Any] | None = None
+    #: why its rest is not re-checked (None: it is)
+    unchecked: str | None = None
 
     @classmethod
     def of(cls, section: Mapping[str, Any]) -> TaskPieces:
         return cls(tuple(section.get("pieces") or ()),
                    tuple(str(m) for m in section.get("moved") or ()),
                    bool(section.get("ground", True)), section.get("name"),
-                   section.get("replan"))
+                   section.get("replan"), section.get("unchecked"))
 
     def step(self, piece: int) -> dict[str, Any]:
         """Piece ``piece``'s step as events name it."""
@@ -75,8 +77,9 @@ class TaskPieces:
                 continue
             ts = np.append(np.arange(lo, hi, dt), hi)
             qs = np.array([seg.evaluate(float(x))[0] for x in ts])
-            sent.append({"positions": qs.tolist(), "obstacles": list(p["obstacles"]),
-                         "attached": list(p["attached"]), "allowed": list(p["allowed"])})
+            sent.append({"positions": qs.tolist(),
+                         **{k: list(p.get(k) or ()) for k in ("obstacles", "attached",
+                                                               "allowed")}})
             spans.append((i, ts))
         return ({"joint_names": list(seg.joint_names), "pieces": sent,
                  "moved": list(self.moved), "ground": self.ground}, spans)

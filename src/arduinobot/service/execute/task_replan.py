@@ -37,7 +37,8 @@ def resume_job(task: TaskPieces, at: float, state: Mapping[str, float], *,
     p = task.pieces[i]
     steps = list(source["task"]["steps"])
     k = int(p["task_step"])
-    carried = {str(a["object"]["id"]) for a in p["attached"]}
+    held = list(p.get("attached") or ())
+    carried = {str(a["object"]["id"]) for a in held}
     step = steps[k]
     if ("pick" in step and step["pick"] in carried) \
             or ("place" in step and step["place"] not in carried):
@@ -49,14 +50,15 @@ def resume_job(task: TaskPieces, at: float, state: Mapping[str, float], *,
         return None, (f"step {k} is a line given as an offset: planned from where it "
                       "stopped it would end elsewhere")
     body = {**source["task"], "steps": steps[k:], "start": dict(state),
-            "obstacles": list(p["obstacles"])}
+            "obstacles": list(p.get("obstacles") or ())}
     return {"task": body, "where": source.get("where", "task"), "name": source.get("name"),
-            "start": None, "files": bool(source.get("files", False)),
+            # what it names came back on the wire: no file of this machine
+            "start": None, "files": False,
             "trajectories": False, "execute": True,
             "start_tolerance": source.get("start_tolerance", 0.01),
             "move_to_start": False, "on_change": on_change,
-            "carrying": list(p["attached"]),
-            "resting": [list(r) for r in p["allowed"] if r[0] in carried],
+            "carrying": held,
+            "resting": [list(r) for r in p.get("allowed") or () if r[0] in carried],
             "exclude": list(task.moved), "resumed_at": k, "source": dict(source)
             }, f"step {k}"
 

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.obstacles import Obstacle, refuse_files
 from arduinobot.service.plan.recheck import Handlers, certifier, certify_rest, full_states
 
 if TYPE_CHECKING:
@@ -42,8 +42,12 @@ def piece_world(handlers: Handlers, piece: Mapping[str, Any], *,
     objects but those the task moves (``moved``) or gives itself, the piece's obstacles,
     its carried objects and its allowed pairs."""
     from arduinobot.service.plan.plan_io import attached
-    own = tuple(Obstacle.from_mapping(o, where=f"{where}.obstacles[{i}]")
+    # from the wire (the execute request): no shape may name a file of this machine
+    own = tuple(Obstacle.from_mapping(o, where=f"{where}.obstacles[{i}]", files=False)
                 for i, o in enumerate(piece.get("obstacles") or ()))
+    for i, a in enumerate(piece.get("attached") or ()):
+        if isinstance(a, Mapping) and isinstance(a.get("object"), Mapping):
+            refuse_files(a["object"], where=f"{where}.attached[{i}].object")
     given = {o.id for o in own}
     kept = scene.obstacles if scene is not None else ()
     obs = tuple(o for o in kept if o.id not in moved and o.id not in given) + own

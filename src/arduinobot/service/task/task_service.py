@@ -33,7 +33,7 @@ from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE
 from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
-from arduinobot.scene.obstacles import AttachedObject, Obstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle, refuse_files
 from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.extension import Host
 from arduinobot.service.messages import Failure, Outcome, Submit, Success, outcome_of
@@ -264,8 +264,8 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
                                      task.obstacles)
     task = replace(task, obstacles=obstacles,
                    clouds=scene.clouds if scene is not None else (),
-                   carrying=tuple(AttachedObject.from_mapping(a, where=f"carrying[{i}]")
-                                  for i, a in enumerate(data.get("carrying") or ())),
+                   carrying=_carrying(data.get("carrying") or (),
+                                      files=bool(data.get("files", False))),
                    resting=tuple((str(a), str(b)) for a, b in data.get("resting") or ()))
     if data.get("start") is not None and task.start is None:
         task = _with_start(task, data["start"])
@@ -289,6 +289,17 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
                      "task": data["task"], "where": data["where"], "name": data["name"],
                      "files": bool(data.get("files", False)),
                      "start_tolerance": data.get("start_tolerance", 0.01)}}}))
+
+
+def _carrying(items: Any, *, files: bool) -> tuple[AttachedObject, ...]:
+    """A resumed task's carried objects (``carrying``); without ``files`` none may name
+    a file of this machine (they came back on the wire)."""
+    out = []
+    for i, a in enumerate(items):
+        if not files and isinstance(a, Mapping) and isinstance(a.get("object"), Mapping):
+            refuse_files(a["object"], where=f"carrying[{i}].object")
+        out.append(AttachedObject.from_mapping(a, where=f"carrying[{i}]"))
+    return tuple(out)
 
 
 def _with_start(task: Task, start: Mapping[str, float]) -> Task:
