@@ -271,6 +271,7 @@ class PlannerClient:
     def task(self, task: str | int | Mapping[str, Any], *, execute: bool = False,
              start_tolerance: float = 0.01, move_to_start: bool = False,
              trajectories: bool = True, scene_revision: int | None = None,
+             on_change: str = DEFAULT_ON_CHANGE,
              on_planned: Callable[[Mapping[str, Any]], None] | None = None,
              on_event: Callable[[ExecutionEvent], None] | None = None,
              cancel: threading.Event | None = None) -> TaskReply:
@@ -287,6 +288,10 @@ class PlannerClient:
             scene_revision: plan only in this revision of the kept scene (else
                 SceneConflict, ``details.current_revision``); the reply's
                 :attr:`TaskReply.scene_revision` names the one used either way.
+            on_change: when the kept scene changes while the task moves and a
+                remaining step is no longer certified (each checked with what the task
+                carries there): ``replan`` (stop, plan the remaining steps from there,
+                go on), ``stop`` (stop; the report names the step) or ``ignore``.
             on_planned: called with the planned reply, before the robot moves.
             on_event: called with each execution event (started, progress, finished).
             cancel: set it (from any thread) to stop the arm smoothly (set while the
@@ -308,8 +313,12 @@ class PlannerClient:
             body["number"] = task
         else:
             body["task"] = dict(task)
+        if on_change not in ON_CHANGE:
+            raise InvalidRequest(f"on_change {on_change!r} must be one of "
+                                 f"{', '.join(ON_CHANGE)}", field="on_change")
         if execute:
-            body.update(start_tolerance=start_tolerance, move_to_start=move_to_start)
+            body.update(start_tolerance=start_tolerance, move_to_start=move_to_start,
+                        on_change=on_change)
         if scene_revision is not None:
             body["scene_revision"] = scene_revision
         steps = body.get("task", {}).get("steps")

@@ -25,7 +25,7 @@ from arduinobot.cli.common import (
     client,
     load_from_args,
 )
-from arduinobot.contract.outcomes import succeeded
+from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE, ON_CHANGE, succeeded
 
 if TYPE_CHECKING:
     from arduinobot.description import Description
@@ -77,6 +77,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report", metavar="OUT.json", help="write the plan's summary and the "
                    "execution report")
     g = p.add_argument_group("service (--remote)")
+    g.add_argument("--on-change", choices=ON_CHANGE, default=DEFAULT_ON_CHANGE,
+                   help="when the kept scene changes while the task moves and a remaining "
+                   "step (checked with what the task carries there) is no longer "
+                   "certified: replan (stop, plan the remaining steps from there and go "
+                   "on; default), stop (stop; the report names the step) or ignore")
     add_connection_args(g, timeout_help="seconds to wait for the plan (default 60)",
                         local_help=argparse.SUPPRESS)
     p.set_defaults(func=cmd_task)
@@ -279,7 +284,7 @@ def _remote(ns: argparse.Namespace) -> int:
     with client(ns) as c, sigint_sets(cancel):
         reply = c.task(task, execute=True, start_tolerance=ns.start_tolerance,
                        move_to_start=ns.move_to_start, trajectories=bool(ns.report),
-                       on_planned=lambda body: _print_plan(dict(body)), on_event=on_event,
+                       on_change=ns.on_change, on_planned=lambda body: _print_plan(dict(body)), on_event=on_event,
                        cancel=cancel)
     out: dict[str, Any] = {"planned": reply.planned}
     if reply.report is not None:

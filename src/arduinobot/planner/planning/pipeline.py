@@ -139,11 +139,13 @@ class MotionPlanner:
     def world(self, obstacles: tuple[Obstacle, ...],
               attached: tuple[AttachedObject, ...] = (),
               clouds: tuple[CloudObstacle, ...] = (), *,
-              ground: bool = True) -> CollisionWorld:
+              ground: bool = True,
+              allowed: tuple[tuple[str, str], ...] = ()) -> CollisionWorld:
         """The collision world for ``obstacles`` (with the ``attached`` objects carried,
-        the ``clouds``' cells and the ground unless ``ground`` is false), built once per
-        distinct set."""
-        return self.context.world(obstacles, attached, clouds, ground=ground)
+        the ``clouds``' cells and the ground unless ``ground`` is false; the (object,
+        obstacle) pairs ``allowed`` not checked), built once per distinct set."""
+        return self.context.world(obstacles, attached, clouds, ground=ground,
+                                  allowed=allowed)
 
     def limits(self, velocity_scaling: float, acceleration_scaling: float) -> JointLimits:
         """The joint limits scaled by the two factors, built once per pair."""

@@ -38,7 +38,7 @@ def check_task(task: Task, description: Description) -> None:
     actuated = set(description.robot.actuated_joints)
     links = description.robot.links
     free = {o.id for o in task.obstacles}
-    carried: set[str] = set()
+    carried: set[str] = {a.id for a in task.carrying}
     for i, step in enumerate(task.steps):
         where = f"steps[{i}]"
         try:

@@ -142,7 +142,8 @@ def run_step(progress: Progress, step: Step, index: int, *,
         p.q = {n: float(v) for n, v in zip(tr.joint_names, tr.positions[-1])}
         p.done.append(StepResult(at, step.kind, step.label, start, dict(p.q),
                                  float(tr.duration), res, tuple(a.id for a in p.attached),
-                                 group, part_of=part_of))
+                                 group, part_of=part_of, attached=tuple(p.attached),
+                                 obstacles=tuple(p.obstacles), allowed=pairs))
         p.still_resting()
         return
     held: tuple[str | None, str | None] = (None, None)
@@ -179,7 +180,9 @@ def run_step(progress: Progress, step: Step, index: int, *,
     p.done.append(StepResult(at, step.kind, step.label, start, dict(p.q),
                              step.seconds if isinstance(step, WaitStep) else 0.0,
                              None, tuple(a.id for a in p.attached), object=held[0],
-                             link=held[1], part_of=part_of, touch_links=touch, mass=mass))
+                             link=held[1], part_of=part_of, touch_links=touch, mass=mass,
+                             attached=tuple(p.attached), obstacles=tuple(p.obstacles),
+                             allowed=tuple(sorted(p.resting))))
 
 
 def _request(task: Task, options: MotionOptions, goal: Goal, group: str | None,

@@ -12,7 +12,7 @@ import numpy as np
 from arduinobot.contract.errors import PlanningError
 from arduinobot.planner.planning.motion import MotionResult
 from arduinobot.planner.tasks.steps import Step, StepKind
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,12 @@ class StepResult:
     # attach: what the object is held with, its touch links, and its mass [kg]
     touch_links: tuple[str, ...] = ()
     mass: float = 0.0
+    # the world the step was planned in (a motion step) or leaves (attach, detach, wait):
+    # the objects carried, posed on their links; the scene's obstacles as the task had
+    # them; the (object, obstacle) pairs allowed to touch (a resting object, the claw's)
+    attached: tuple[AttachedObject, ...] = ()
+    obstacles: tuple[Obstacle, ...] = ()
+    allowed: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,8 @@ def plan_task(planner: MotionPlanner, task: Task) -> TaskResult:
     q = dict.fromkeys(names, 0.0)
     if task.start is not None:
         q.update({k: float(v) for k, v in task.start.items()})
-    progress = Progress(planner, task, frames, q, list(task.obstacles))
+    progress = Progress(planner, task, frames, q, list(task.obstacles),
+                        attached=list(task.carrying), resting=set(task.resting))
     for i, step in enumerate(task.steps):
         try:
             if isinstance(step, PickStep):

@@ -38,7 +38,7 @@ from arduinobot.planner.planning.goals import (
 )
 from arduinobot.planner.planning.pathfinding.search import check_seed
 from arduinobot.scene.cloud import CloudObstacle
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 StepKind = Literal["move", "line", "gripper", "attach", "detach", "wait", "pick", "place"]
 STEP_KINDS: tuple[StepKind, ...] = ("move", "line", "gripper", "attach", "detach", "wait",
@@ -191,6 +191,10 @@ class Task:
     ground: bool = True
     #: named places a place step's ``at`` may name (a tasks.yaml's ``places``)
     places: Mapping[str, PlaceTarget] = field(default_factory=dict)
+    #: what the robot carries at the start (a task's rest replanned mid-way, after an
+    #: attach), and the (object, obstacle) pairs touching then, allowed until cleared
+    carrying: tuple[AttachedObject, ...] = ()
+    resting: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if not self.steps:

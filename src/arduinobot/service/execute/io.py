@@ -37,6 +37,7 @@ class ExecuteRequest:
     twin: Mapping[str, Any] | None = None  # a task's objects for a twin (the schema's)
     blend_lead: float = DEFAULT_BLEND_LEAD  # [s] ahead of the moving arm
     on_change: OnChange = DEFAULT_ON_CHANGE  # a scene change that uncertifies the rest
+    task: Mapping[str, Any] | None = None  # a task's steps along it (the schema's)
 
     @classmethod
     def decode(cls, payload: bytes) -> ExecuteRequest:
@@ -47,7 +48,7 @@ class ExecuteRequest:
                    bool(body.get("move_to_start", False)), bool(body.get("blend", False)),
                    body.get("client"), body.get("twin"),
                    float(body.get("blend_lead", DEFAULT_BLEND_LEAD)),
-                   body.get("on_change", DEFAULT_ON_CHANGE))
+                   body.get("on_change", DEFAULT_ON_CHANGE), body.get("task"))
 
 
 def payload_of(query: zenoh.Query) -> bytes:

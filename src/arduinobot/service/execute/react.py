@@ -19,6 +19,11 @@ request's ``on_change``,
   (:mod:`.run`) says whether it did (``before``), and with ``replan`` plans from the
   stopped state to the same goal, in the new scene, and goes on.
 
+A task's rest is cut by its steps (:mod:`.task_react`): each step's piece is checked in
+the world that step was planned in (what the task carries there, the pairs allowed
+there) with the kept scene now, and the events name the steps; with ``replan`` the run
+plans the task's remaining steps from the stopped state (:mod:`.task_replan`).
+
 Every change handled is one ``changed`` event on the execution's stream: the revision,
 the objects added, removed, attached and detached, whether the rest was certified, the
 action, and how long the recheck took; a stop adds ``stopped`` (the tick, the time from
@@ -43,6 +48,7 @@ import orjson
 from arduinobot.contract.outcomes import OnChange
 from arduinobot.execution.executor import Executor
 from arduinobot.execution.segments import Segment
+from arduinobot.service.execute.task_react import TaskPieces
 from arduinobot.service.messages import Failure, Submit, outcome_of
 
 _log = logging.getLogger(__name__)
@@ -94,6 +100,8 @@ class Verdict:
     certified_until: float | None = None
     refused: Mapping[str, Any] | None = None  # {"time": [s], "pair": [a, b]}
     seconds: float = 0.0  # the recheck's, in the worker
+    #: a task's: the step the refusal fell in (:meth:`.task_react.TaskPieces.step`)
+    step: Mapping[str, Any] | None = None
 
 
 class Reactor:
@@ -107,15 +115,16 @@ class Reactor:
         on_change: ``replan``, ``stop`` or ``ignore``.
         emit: sends one event body on the execution's stream.
         scene_revision: the kept scene's revision now (None: no kept scene).
-        unchecked: why this execution's rest cannot be re-checked (said on the stream
-            for every change, the motion going on), or None.
+        task: a task's steps (:mod:`.task_react`): its rest is checked piece by piece,
+            each step's in its own world, and the events name the steps.
     """
 
     def __init__(self, ex: Executor, submit: Submit, plan: Mapping[str, Any], *,
                  on_change: OnChange, emit: Callable[[dict[str, Any]], None],
                  scene_revision: Callable[[], int | None],
-                 unchecked: str | None = None) -> None:
-        self.ex, self.submit, self.plan, self.unchecked = ex, submit, plan, unchecked
+                 task: TaskPieces | None = None) -> None:
+        self.ex, self.submit, self.plan = ex, submit, plan
+        self.task = task  # a replan's new leg puts its own
         self.on_change, self.emit, self.scene_revision = on_change, emit, scene_revision
         self._changes: queue.Queue[Change | None] = queue.Queue()
         self._lock = threading.Lock()
@@ -167,6 +176,21 @@ class Reactor:
                 _log.exception("reacting to scene revision %d failed", change.revision)
                 self._stop_on_error(change, e)
 
+    def _rest(self, seg: Segment, t: float) -> tuple[dict[str, Any], np.ndarray]:
+        """A single motion's recheck data from trajectory time ``t`` [s] on: every
+        control tick's state, in the plan request's world; and the ticks' times [s]."""
+        dt = 1.0 / self.ex.options.rate
+        ts = np.append(np.arange(t, seg.duration, dt), seg.duration)
+        qs = np.array([seg.evaluate(float(x))[0] for x in ts])
+        plan = self.plan
+        data: dict[str, Any] = {"joint_names": list(seg.joint_names),
+                                "positions": qs.tolist(),
+                                "obstacles": list(plan.get("obstacles") or ()),
+                                "ground": bool(plan.get("ground", True))}
+        if plan.get("attached"):
+            data["attached"] = list(plan["attached"])
+        return data, ts
+
     def _stop_on_error(self, change: Change, error: Exception) -> None:
         """Not checked (the pool refused the job, a scene catching up, a bug): as not
         certified, the arm stops (unless told to ignore), and the stream says why."""
@@ -190,12 +214,12 @@ class Reactor:
         if leg is None or change.revision <= leg[2]:
             return  # between legs (a replan plans in the newest scene), or already seen
         halt, traj, _ = leg
-        if self.unchecked is not None:
+        if self.task is not None and self.task.unchecked is not None:
             with self._lock:
                 if self._leg is leg:
                     self._leg = (halt, traj, change.revision)
             self.emit({"event": "changed", **change.to_json(), "certified": None,
-                       "action": "not_checked", "reason": self.unchecked})
+                       "action": "not_checked", "reason": self.task.unchecked})
             return
         playing = self.ex.playing()
         if playing is None or halt.is_set():
@@ -205,16 +229,14 @@ class Reactor:
             seg, t = traj, 0.0  # still moving to the start: the whole trajectory
         elif phase == "trajectory" and t >= seg.duration:
             return  # its last setpoint is out: nothing left to check
-        dt = 1.0 / self.ex.options.rate
-        ts = np.append(np.arange(t, seg.duration, dt), seg.duration)
-        qs = np.array([seg.evaluate(float(x))[0] for x in ts])
-        plan = self.plan
-        data: dict[str, Any] = {"joint_names": list(seg.joint_names),
-                                "positions": qs.tolist(),
-                                "obstacles": list(plan.get("obstacles") or ()),
-                                "ground": bool(plan.get("ground", True))}
-        if plan.get("attached"):
-            data["attached"] = list(plan["attached"])
+        spans: list[tuple[int, np.ndarray]] = []
+        if self.task is not None:  # each step's piece in its own world
+            data, spans = self.task.rest(seg, t, self.ex.options.rate)
+            if not spans:
+                return  # only an attach or a detach is left
+            ts = np.concatenate([s[1] for s in spans])
+        else:
+            data, ts = self._rest(seg, t)
         out = outcome_of(self.submit, "recheck", data)
         with self._lock:
             ended = self._leg is not leg
@@ -236,6 +258,11 @@ class Reactor:
             seconds = float(body.get("seconds", 0.0))
             if body["certified"]:
                 verdict = Verdict(change, True, "continued", seconds=seconds)
+            elif self.task is not None:
+                until, refused, step = self.task.where(body, spans)
+                verdict = Verdict(change, False, "ignored" if self.on_change == "ignore"
+                                  else "stop", certified_until=until, refused=refused,
+                                  seconds=seconds, step=step)
             else:
                 safe = int(body["safe"])
                 ref = body["refused"]
@@ -254,6 +281,10 @@ class Reactor:
                    "decided_ms": 1e3 * (decided - change.arrived),
                    **({"refused": verdict.refused} if verdict.refused else {}),
                    **({"certified_until": verdict.certified_until}
-                      if verdict.certified_until is not None else {})})
+                      if verdict.certified_until is not None else {}),
+                   # a task's: the step playing when the check began, the refused one's
+                   **({"running": self.task.at(t if phase == "trajectory" else 0.0)}
+                      if self.task is not None else {}),
+                   **({"step": dict(verdict.step)} if verdict.step is not None else {})})
         _log.info("scene revision %d while moving: %s (%s)", change.revision,
                   "certified" if verdict.certified else "not certified", verdict.action)

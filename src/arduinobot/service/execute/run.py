@@ -3,7 +3,8 @@ query (``started``, ``progress`` every :data:`PROGRESS_EVERY` ticks, ``finished`
 report, or the coded error that ended it), until the final report. While it moves, its
 :class:`~arduinobot.service.execute.react.Reactor` re-checks the rest on every scene
 change (events ``changed``, ``stopped``, ``replanned``); a replanned execution plays in
-legs, the report is the last one's with every leg's summary (``legs``)."""
+legs (a task's: its remaining steps planned again), the report is the last one's with
+every leg's summary (``legs``)."""
 
 from __future__ import annotations
 
@@ -27,7 +28,9 @@ from arduinobot.execution.robots.base import PortError, Robot, RobotError
 from arduinobot.execution.segments import SampledTrajectory, check_fits
 from arduinobot.service.execute.io import CODED, ExecuteRequest
 from arduinobot.service.execute.react import Reactor, Verdict
-from arduinobot.service.messages import Failure, Outcome, Submit
+from arduinobot.service.execute.task_react import TaskPieces
+from arduinobot.service.execute.task_replan import resume_job, resumed
+from arduinobot.service.messages import Failure, Outcome, Submit, outcome_of
 from arduinobot.service.queries import answering, reply_error
 
 _log = logging.getLogger(__name__)
@@ -91,6 +94,10 @@ class Run:
         #: the kept scene's revision the trajectory was planned in (a plan reply's)
         self.revision: int | None = None
         self.stopped_why: str | None = None  # why a stop for a change ended it
+        self.stopped_in: dict[str, Any] | None = None  # a task's step it stopped in
+        # a task's steps along the trajectory: its rest is re-checked step by step
+        self.task = TaskPieces.of(req.task) if req.task is not None else None
+        self._grip: Callable[[Tick], None] | None = None  # a twin's task grasps
 
     def on_planned(self, outcome: Outcome) -> None:
         if isinstance(outcome, Failure):
@@ -125,18 +132,11 @@ class Run:
         publishes joint_states and replies progress."""
         base = self.svc.executor()
 
-        grasps = (self.req.twin or {}).get("grasps") or ()
-        grip = None
-        if grasps:  # a twin grips a task's objects (a real arm has no weld to switch)
-            from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
-            from arduinobot.execution.robots.twin_tasks import grasp_schedule
-            if isinstance(base.robot, SimArduinobot):
-                grip = grasp_schedule(base.robot, [(float(g["time"]), g["object"], g["hold"])
-                                                   for g in grasps])
+        self._grip = self._grasps(base.robot, self.req.twin)
 
         def on_tick(tick: Tick) -> None:
-            if grip is not None:
-                grip(tick)
+            if self._grip is not None:
+                self._grip(tick)
             msg = self.svc.publish_tick(tick)
             if tick.index % PROGRESS_EVERY == 0:
                 self._reply({"event": "progress", "execution": self.execution,
@@ -145,6 +145,20 @@ class Run:
                         options=replace(base.options,
                                         start_tolerance=self.req.start_tolerance,
                                         move_to_start=self.req.move_to_start))
+
+    @staticmethod
+    def _grasps(robot: Robot, twin: Mapping[str, Any] | None
+                ) -> Callable[[Tick], None] | None:
+        """A twin's grip schedule for a task's trajectory (a real arm has no weld)."""
+        grasps = (twin or {}).get("grasps") or ()
+        if not grasps:
+            return None
+        from arduinobot.execution.robots.sim_arduinobot import SimArduinobot
+        from arduinobot.execution.robots.twin_tasks import grasp_schedule
+        if not isinstance(robot, SimArduinobot):
+            return None
+        return grasp_schedule(robot, [(float(g["time"]), g["object"], g["hold"])
+                                      for g in grasps])
 
     def _run(self, traj: SampledTrajectory) -> None:
         svc = self.svc
@@ -175,6 +189,8 @@ class Run:
                                    **({"legs": legs} if len(legs) > 1 else {})}}
                 if self.stopped_why is not None:
                     done["report"]["stopped_because"] = self.stopped_why
+                if self.stopped_in is not None:  # a task's step
+                    done["report"]["stopped_in"] = self.stopped_in
                 objects = (self.req.twin or {}).get("objects") or ()
                 if objects and hasattr(ex.robot, "object_pose"):
                     # where the twin's objects ended: MuJoCo's state, not the plan's
@@ -201,15 +217,11 @@ class Run:
         if svc.submit is None:
             return None
         # a task's joined motion carries objects that change along it (attach, detach):
-        # its world is not one scene; re-checking it, and replanning its remaining
-        # steps, is not done yet: its stream says so for every change
-        unchecked = "a task's motion is not re-checked yet" if self.req.twin is not None \
-            else None
+        # its rest is checked step by step, each in its own world (.task_react)
         react = Reactor(ex, svc.submit, self.req.plan or {}, on_change=self.req.on_change,
                         emit=lambda body: self._reply({"event": body["event"],
                                                        "execution": self.execution, **body}),
-                        scene_revision=svc.scene_revision,
-                        unchecked=unchecked)
+                        scene_revision=svc.scene_revision, task=self.task)
         svc.reactor = react
         return react
 
@@ -241,10 +253,13 @@ class Run:
                 self.stopped_why = ("on_change is stop" if self.req.on_change == "stop"
                                     else f"{MAX_LEGS} legs replanned already")
                 return report, legs
-            got = self._replan(ex, traj)
+            got = self._replan(ex, traj) if self.task is None else \
+                self._replan_task(ex, react, rest_at=ex.last_stop_end
+                                  if ex.last_stop_end is not None else report.cancelled_at)
             if got is None:
                 return report, legs
             traj, revision = got
+            self.stopped_in = None  # it goes on: a later stop names its own step
 
     def _said_stop(self, ex: Executor, report: ExecutionReport, verdict: Verdict) -> None:
         """The ``stopped`` event: where and how fast the arm stopped for the change."""
@@ -253,7 +268,12 @@ class Run:
         until = verdict.certified_until
         # the leg's tick that sent the first stop setpoint
         tick = report.phases.index("stop") if "stop" in report.phases else None
+        at = rest if rest is not None else report.cancelled_at
+        if self.task is not None and at is not None:
+            self.stopped_in = self.task.at(at)  # the step it came to rest in
         self._reply({"event": "stopped", "execution": self.execution,
+                     **({"step": self.stopped_in} if self.stopped_in is not None else {}),
+                     **({"refused_step": dict(verdict.step)} if verdict.step else {}),
                      "revision": ch.revision, "tick": tick,
                      "trajectory_time": report.cancelled_at, "stop_time": report.stop_time,
                      "stop_kind": ex.last_stop, "rest_at": rest,
@@ -296,6 +316,36 @@ class Run:
         revision = int(body.get("scene_revision", 0))
         self._reply({"event": "replanned", "execution": self.execution, "ok": True,
                      "duration": new.duration, "revision": revision})
+        return new, revision
+
+    def _replan_task(self, ex: Executor, react: Reactor, *, rest_at: float | None
+                     ) -> tuple[SampledTrajectory, int] | None:
+        """The task's remaining steps planned from the stopped state (:mod:`.task_replan`),
+        in the scene now; None (``stopped_why`` set, said on the stream) when not."""
+        svc = self.svc
+        assert self.task is not None and svc.submit is not None
+        job, why = (None, "it did not stop on its path") if rest_at is None else \
+            resume_job(self.task, rest_at, plan_start(ex.robot, svc.description),
+                       on_change=self.req.on_change)
+        outcome = None if job is None else outcome_of(svc.submit, "task", job)
+        if outcome is None or isinstance(outcome, Failure):
+            error = {"message": why} if outcome is None else outcome.to_json()["error"]
+            self.stopped_why = f"replanning the task's rest failed: {error['message']}"
+            self._reply({"event": "replanned", "execution": self.execution, "ok": False,
+                         "error": error, **({"step": self.stopped_in}
+                                            if self.stopped_in else {})})
+            return None
+        assert outcome.execute is not None
+        planned, body = orjson.loads(outcome.body), orjson.loads(outcome.execute)
+        new = SampledTrajectory.from_json(body["trajectory"])
+        self.task = react.task = TaskPieces.of(body["task"])
+        self._grip = self._grasps(ex.robot, body.get("twin"))
+        revision = int(planned.get("scene_revision", 0))
+        self._reply({"event": "replanned", "execution": self.execution, "ok": True,
+                     "duration": new.duration, "revision": revision,
+                     "from_step": resumed(job),
+                     "steps": len(planned["steps"]),
+                     "planning_time": planned.get("planning_time")})
         return new, revision
 
     def _watch_client(self, client: str) -> zenoh.Subscriber:

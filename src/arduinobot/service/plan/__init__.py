@@ -5,4 +5,5 @@
 - ``requests``: the common request fields (obstacles, joints).
 - ``bodies``: the collision bodies of a request's obstacles.
 - ``recheck``: a running motion's rest certified against the kept scene now.
+- ``task_recheck``: a running task's rest, each step's piece in that step's world.
 """

@@ -96,6 +96,9 @@ class Handlers:
             return {"check": self.check, "plan": self.plan, "fk": self.fk}[kind](
                 data, scene=scene)
         if kind == "recheck":  # a running motion's rest (the execute wing's)
+            if "pieces" in data:  # a task's: each step's piece in that step's world
+                from arduinobot.service.plan.task_recheck import recheck_task
+                return recheck_task(self, data, scene=scene)
             from arduinobot.service.plan.recheck import recheck
             return recheck(self, data, scene=scene)
         fn = {"ik": self.ik}.get(kind)
@@ -178,11 +181,19 @@ class Handlers:
         return out
 
     def scene_world(self, obs: tuple[Any, ...], padding: float,
-                    clouds: tuple[Any, ...] = (), *, ground: bool = True) -> CollisionWorld:
+                    clouds: tuple[Any, ...] = (), *, ground: bool = True,
+                    attached: tuple[Any, ...] = (),
+                    allowed: tuple[tuple[str, str], ...] = ()) -> CollisionWorld:
         """The collision world of ``obs`` (and ``clouds``, the ground unless ``ground`` is
-        false) with ``padding`` [m], built once per distinct set."""
+        false) with ``padding`` [m], built once per distinct set; ``attached`` and
+        ``allowed`` (a task's step's carried objects and pairs allowed to touch) only
+        without padding."""
         if padding == 0.0:
-            return self._motion_planner().world(obs, (), clouds, ground=ground)
+            return self._motion_planner().world(obs, attached, clouds, ground=ground,
+                                                allowed=allowed)
+        if attached or allowed:
+            raise InvalidRequest("carried objects and allowed pairs are checked without "
+                                 "padding", field="padding")
         return self._padded_scene(obs, padding, clouds, ground)
 
     def _padded(self, obs: tuple[Any, ...], padding: float,

@@ -46,13 +46,65 @@ class Handlers(Protocol):
     recheck_certifier: tuple[Any, Any] | None
 
     def scene_world(self, obs: tuple[Any, ...], padding: float,
-                    clouds: tuple[Any, ...] = (), *, ground: bool = True
-                    ) -> CollisionWorld: ...
+                    clouds: tuple[Any, ...] = (), *, ground: bool = True,
+                    attached: tuple[Any, ...] = (),
+                    allowed: tuple[tuple[str, str], ...] = ()) -> CollisionWorld: ...
 
 _log = logging.getLogger(__name__)
 
 #: prefixes certified again at most, after the first refusal (each one is shorter)
 MAX_PREFIXES = 8
+
+
+def certifier(handlers: Handlers, world: CollisionWorld) -> Any:
+    """The certifier of ``world``: one per world (its one-joint cells and work buffers),
+    kept while the planner keeps the world (its obstacle set in use)."""
+    from arduinobot.planner.collision.proof.certify import Certifier
+    held = handlers.recheck_certifier
+    if held is not None and held[0] is world:
+        return held[1]
+    cert = Certifier(world)
+    handlers.recheck_certifier = (world, cert)
+    return cert
+
+
+def certify_rest(cert: Any, full: np.ndarray) -> dict[str, Any]:
+    """``{"certified"}`` of the polyline through ``full`` ((m, dof) [rad]) and, when not,
+    ``"refused"`` (the first refused piece: its first state's index, the pair) and
+    ``"safe"`` (the last state of the longest certified prefix; -1: none)."""
+    got = cert.path(full)
+    if got.free:
+        return {"certified": True}
+    assert got.failure is not None
+    first = int(got.failure[0])
+    out: dict[str, Any] = {"certified": False,
+                           "refused": {"state": first, "pair": list(got.failure[2])}}
+    end = first  # the prefix through state ``end`` (pieces 0 .. end-1)
+    for _ in range(MAX_PREFIXES):
+        if end < 1:
+            end = -1
+            break
+        pre = cert.path(full[:end + 1])
+        if pre.free:
+            break
+        assert pre.failure is not None
+        end = min(end - 1, int(pre.failure[0]))
+    else:
+        end = -1  # never proven within the tries: nothing counts as certified
+    out["safe"] = end
+    return out
+
+
+def full_states(handlers: Handlers, names: list[str], qs: np.ndarray,
+                hold: Mapping[str, Any] | None) -> np.ndarray:
+    """``qs`` ((m, len(names)) [rad]) in the kinematics' joint order, the joints not
+    named at ``hold`` (else 0)."""
+    order = handlers.kin.joint_names
+    held = {str(k): float(v) for k, v in (hold or {}).items()}
+    full = np.empty((len(qs), len(order)))
+    for j, n in enumerate(order):
+        full[:, j] = qs[:, names.index(n)] if n in names else held.get(n, 0.0)
+    return full
 
 
 def recheck(handlers: Handlers, data: Mapping[str, Any], *,
@@ -66,7 +118,6 @@ def recheck(handlers: Handlers, data: Mapping[str, Any], *,
     the pair) and ``"safe"`` (the last state of the longest certified prefix; -1: not
     even the first piece).
     """
-    from arduinobot.planner.collision.proof.certify import Certifier
     from arduinobot.scene.state import with_scene
     from arduinobot.service.plan.plan_io import attached
     from arduinobot.service.plan.requests import obstacles
@@ -78,47 +129,15 @@ def recheck(handlers: Handlers, data: Mapping[str, Any], *,
     if qs.ndim != 2 or qs.shape[1] != len(names) or len(qs) < 1:
         raise InvalidRequest(f"positions must be (m, {len(names)}) for joint_names "
                              f"{names}, not {qs.shape}", field="positions")
-    order = handlers.kin.joint_names
-    hold = {str(k): float(v) for k, v in (data.get("hold") or {}).items()}
-    full = np.empty((len(qs), len(order)))
-    for j, n in enumerate(order):
-        full[:, j] = qs[:, names.index(n)] if n in names else hold.get(n, 0.0)
+    full = full_states(handlers, names, qs, data.get("hold"))
     obs, revision = with_scene(scene, {}, obstacles(desc, data.get("obstacles")))
     carried = attached(desc, data.get("attached"), scene=scene, obstacles=obs)
     clouds = scene.clouds if scene is not None else ()
     world = handlers.scene_world(obs, 0.0, clouds, ground=bool(data.get("ground", True)))
     if carried:
         world = world.with_scene(world.obstacles, attached=carried)
-    # one certifier per world (its one-joint cells and work buffers): the worlds are the
-    # planner's, kept while their obstacle set is in use
-    held = handlers.recheck_certifier
-    if held is not None and held[0] is world:
-        cert = held[1]
-    else:
-        cert = Certifier(world)
-        handlers.recheck_certifier = (world, cert)
-    out: dict[str, Any] = {"scene_revision": revision, "states": len(full)}
-    got = cert.path(full)
-    if got.free:
-        out["certified"] = True
-    else:
-        assert got.failure is not None
-        first = int(got.failure[0])
-        out["certified"] = False
-        out["refused"] = {"state": first, "pair": list(got.failure[2])}
-        end = first  # the prefix through state ``end`` (pieces 0 .. end-1)
-        for _ in range(MAX_PREFIXES):
-            if end < 1:
-                end = -1
-                break
-            pre = cert.path(full[:end + 1])
-            if pre.free:
-                break
-            assert pre.failure is not None
-            end = min(end - 1, int(pre.failure[0]))
-        else:
-            end = -1  # never proven within the tries: nothing counts as certified
-        out["safe"] = end
+    out: dict[str, Any] = {"scene_revision": revision, "states": len(full),
+                           **certify_rest(certifier(handlers, world), full)}
     out["seconds"] = time.perf_counter() - t0
     _log.info("recheck at scene revision %d: %d states %s in %.3f s", revision, len(full),
               "certified" if out["certified"] else

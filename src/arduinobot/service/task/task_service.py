@@ -29,10 +29,11 @@ import zenoh
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest
+from arduinobot.contract.outcomes import DEFAULT_ON_CHANGE
 from arduinobot.contract.packed import pack
 from arduinobot.description import Description
 from arduinobot.description.moveit_config import NamedTask, find_task, read_tasks
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle, refuse_files
 from arduinobot.scene.state import SceneSnapshot, with_scene
 from arduinobot.service.extension import Host
 from arduinobot.service.messages import Failure, Outcome, Submit, Success, outcome_of
@@ -187,6 +188,7 @@ class TaskService:
             "trajectories": bool(body.get("trajectories", True)), "execute": execute,
             "start_tolerance": body.get("start_tolerance", 0.01),
             "move_to_start": bool(body.get("move_to_start", False)),
+            "on_change": body.get("on_change", DEFAULT_ON_CHANGE),
             "scene_revision": body.get("scene_revision")}
 
     def _plan(self, job: Mapping[str, Any]) -> Outcome:
@@ -239,17 +241,32 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
     scene's revision), and for an executed task the execute request of the whole task,
     both encoded.
 
+    A task's rest replanned after a stop (:mod:`arduinobot.service.execute.task_replan`)
+    adds ``carrying`` (the objects held then), ``resting`` (pairs touching then),
+    ``exclude`` (kept-scene objects the task moves: its own copies are in the task),
+    ``resumed_at`` (the index of its first step in the task as given) and ``source``
+    (the task as given, for a later stop's replan).
+
     Raises:
         SceneConflict: ``data["scene_revision"]`` pins a revision the scene has left.
         PlanningError: the task's refusal (a field, a step that failed: its own code).
     """
     from arduinobot.planner.tasks import plan_task, task_from_mapping
+    from arduinobot.service.task.pieces import task_pieces
     task = task_from_mapping(data["task"], where=data["where"], name=data["name"],
                              files=bool(data.get("files", False)))
+    scene_ids = [o.id for o in (scene.obstacles if scene is not None else ())]
+    exclude = {str(i) for i in data.get("exclude") or ()}
+    if exclude and scene is not None:  # where the task has them: in its own obstacles
+        scene = replace(scene, obstacles=tuple(o for o in scene.obstacles
+                                               if o.id not in exclude))
     obstacles, revision = with_scene(scene, {"scene_revision": data.get("scene_revision")},
                                      task.obstacles)
     task = replace(task, obstacles=obstacles,
-                   clouds=scene.clouds if scene is not None else ())
+                   clouds=scene.clouds if scene is not None else (),
+                   carrying=_carrying(data.get("carrying") or (),
+                                      files=bool(data.get("files", False))),
+                   resting=tuple((str(a), str(b)) for a, b in data.get("resting") or ()))
     if data.get("start") is not None and task.start is None:
         task = _with_start(task, data["start"])
     result = plan_task(planner, task)
@@ -262,7 +279,27 @@ def answer_task(planner: Any, data: Mapping[str, Any], *,
         "trajectory": task_trajectory(result),
         "start_tolerance": data.get("start_tolerance", 0.01),
         "move_to_start": bool(data.get("move_to_start", False)),
-        "twin": twin_body(task, result)}))
+        "on_change": data.get("on_change", DEFAULT_ON_CHANGE),
+        "twin": twin_body(task, result),
+        # each step's world along the motion: a scene change re-checks the rest by it,
+        # and a stop replans the remaining steps of the task as given (``replan``)
+        "task": {**task_pieces(task, result, scene_ids=scene_ids, moved=sorted(exclude),
+                               first=int(data.get("resumed_at", 0))),
+                 "replan": data.get("source") or {
+                     "task": data["task"], "where": data["where"], "name": data["name"],
+                     "files": bool(data.get("files", False)),
+                     "start_tolerance": data.get("start_tolerance", 0.01)}}}))
+
+
+def _carrying(items: Any, *, files: bool) -> tuple[AttachedObject, ...]:
+    """A resumed task's carried objects (``carrying``); without ``files`` none may name
+    a file of this machine (they came back on the wire)."""
+    out = []
+    for i, a in enumerate(items):
+        if not files and isinstance(a, Mapping) and isinstance(a.get("object"), Mapping):
+            refuse_files(a["object"], where=f"carrying[{i}].object")
+        out.append(AttachedObject.from_mapping(a, where=f"carrying[{i}]"))
+    return tuple(out)
 
 
 def _with_start(task: Task, start: Mapping[str, float]) -> Task:
