@@ -59,3 +59,22 @@ def test_a_mistyped_step_kind_gets_a_suggestion():
         task_from_mapping(yaml.safe_load("steps:\n  - mvoe: {named: home}\n"), name="t")
     assert e.value.field == "steps[0]"
     assert "'mvoe' (did you mean 'move'?)" in e.value.message, e.value.message
+
+
+def test_a_step_naming_what_is_not_there_names_what_is():
+    """Pick, place, attach and detach share one lookup: the refusal names the field, the
+    id asked for and the ids there are (or 'none' / 'nothing')."""
+    from arduinobot.contract.errors import InvalidRequest
+    from arduinobot.planner.tasks.progress import Progress
+    from arduinobot.scene.obstacles import Obstacle
+    box = Obstacle("box", "box", size=[0.1] * 3, xyz=[1.0, 0.0, 0.0])
+    p = Progress(None, None, None, {}, [box])  # type: ignore[arg-type]
+    assert p.obstacle_index("box", to="pick", field="steps[0].pick") == 0
+    with pytest.raises(InvalidRequest) as e:
+        p.obstacle_index("cup", to="pick", field="steps[0].pick")
+    assert e.value.field == "steps[0].pick"
+    assert "no obstacle 'cup' in the scene to pick (obstacles: box)" in e.value.message
+    with pytest.raises(InvalidRequest) as e:
+        p.carried_index("box", to="place", field="steps[1].place")
+    assert e.value.field == "steps[1].place"
+    assert "carries no 'box' to place (carried: nothing)" in e.value.message

@@ -88,11 +88,7 @@ def plan_pick(progress: Progress, step: PickStep, index: int) -> None:
     p = progress
     planner = p.planner
     where = f"steps[{index}]"
-    obj = next((o for o in p.obstacles if o.id == step.object), None)
-    if obj is None:
-        raise InvalidRequest(f"no obstacle '{step.object}' in the scene to pick (obstacles: "
-                             f"{', '.join(o.id for o in p.obstacles) or 'none'})",
-                             field=f"{where}.pick")
+    obj = p.obstacles[p.obstacle_index(step.object, to="pick", field=f"{where}.pick")]
     c = claw(planner)
     reach, leader = reach_of(planner, c)
     found = enumerate_grasps(c, reach, obj, p.vec(), approach=step.approach, leader=leader,

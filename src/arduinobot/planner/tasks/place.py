@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from arduinobot.contract.errors import (
-    InvalidRequest,
     NoFreePlace,
     NoReachableGrasp,
     PlanningError,
@@ -43,11 +42,7 @@ def plan_place(progress: Progress, step: PlaceStep, index: int) -> None:
     p = progress
     planner = p.planner
     where = f"steps[{index}]"
-    held = next((a for a in p.attached if a.id == step.object), None)
-    if held is None:
-        raise InvalidRequest(f"the robot carries no '{step.object}' to place (carried: "
-                             f"{', '.join(a.id for a in p.attached) or 'nothing'})",
-                             field=f"{where}.place")
+    held = p.attached[p.carried_index(step.object, to="place", field=f"{where}.place")]
     at = resolve(step.at, p.task.places, p.obstacles, where)
     c = claw(planner)
     reach, leader = reach_of(planner, c)

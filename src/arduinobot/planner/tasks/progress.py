@@ -87,6 +87,35 @@ class Progress:
         s = self.q if state is None else state
         return np.array([s[n] for n in self.planner.joint_names], float)
 
+    def obstacle_index(self, ident: str, *, to: str, field: str) -> int:
+        """The index of the obstacle ``ident`` in :attr:`obstacles`.
+
+        Raises:
+            InvalidRequest: (``field``) no such obstacle: the ones there are named, and
+                what it was wanted ``to`` do (pick, attach).
+        """
+        k = next((j for j, o in enumerate(self.obstacles) if o.id == ident), None)
+        if k is None:
+            raise InvalidRequest(
+                f"no obstacle '{ident}' in the scene to {to} (obstacles: "
+                f"{', '.join(o.id for o in self.obstacles) or 'none'})", field=field)
+        return k
+
+    def carried_index(self, ident: str, *, to: str | None = None, field: str) -> int:
+        """The index of the carried object ``ident`` in :attr:`attached`.
+
+        Raises:
+            InvalidRequest: (``field``) the robot carries no such object: what it carries
+                is named.
+        """
+        k = next((j for j, a in enumerate(self.attached) if a.id == ident), None)
+        if k is None:
+            raise InvalidRequest(
+                f"the robot carries no '{ident}'{'' if to is None else ' to ' + to} "
+                f"(carried: {', '.join(a.id for a in self.attached) or 'nothing'})",
+                field=field)
+        return k
+
     def snapshot(self) -> tuple:
         return (dict(self.q), list(self.obstacles), list(self.attached), len(self.done),
                 set(self.resting))
@@ -150,11 +179,7 @@ def run_step(progress: Progress, step: Step, index: int, *,
     touch: tuple[str, ...] = ()
     mass = 0.0
     if isinstance(step, AttachStep):
-        k = next((j for j, o in enumerate(p.obstacles) if o.id == step.object), None)
-        if k is None:
-            raise InvalidRequest(
-                f"no obstacle '{step.object}' in the scene to attach (obstacles: "
-                f"{', '.join(o.id for o in p.obstacles) or 'none'})", field=f"{where}.attach")
+        k = p.obstacle_index(step.object, to="attach", field=f"{where}.attach")
         link = step.link or holding_link(desc)
         # what it rests on may touch it until a motion takes it clear (a lift)
         p.resting |= {(step.object, s) for s in touching(
@@ -168,11 +193,7 @@ def run_step(progress: Progress, step: Step, index: int, *,
         held = (step.object, link)
         touch, mass = step.touch_links, step.mass  # as given (the twin resolves them)
     elif isinstance(step, DetachStep):
-        k = next((j for j, a in enumerate(p.attached) if a.id == step.object), None)
-        if k is None:
-            raise InvalidRequest(
-                f"the robot carries no '{step.object}' (carried: "
-                f"{', '.join(a.id for a in p.attached) or 'nothing'})", field=f"{where}.detach")
+        k = p.carried_index(step.object, field=f"{where}.detach")
         carried = p.attached.pop(k)
         p.resting = {r for r in p.resting if r[0] != step.object}
         p.obstacles.append(detach(p.frames, carried, p.vec(), where=f"{where}.detach"))
