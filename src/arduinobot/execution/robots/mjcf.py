@@ -15,6 +15,9 @@ inertia as :meth:`arduinobot.scene.obstacles.AttachedObject.payload` gives them)
 link and touch links excluded, as the planner excludes them. The ground
 (:mod:`arduinobot.scene.ground`) is a plane at z = 0, ``obstacle:ground``, unless opted
 out: what is let go lands on it (the links welded to the world never collide with it).
+A loose object (what a task picks up) the task gives no mass is simulated as a solid of
+:data:`LOOSE_DENSITY` (:func:`loose_body`): a massless free body is not one MuJoCo can
+keep at rest.
 
 The physics is MuJoCo's semi-implicit Euler: unlike ``implicitfast``, the actuator force
 it reports is the force it applies (the implicit integrators fold part of the damping
@@ -28,6 +31,7 @@ The servo force is ``kp (q_ref - q) + kv (qd_ref - qd)``, clamped to +-effort: a
 
 from __future__ import annotations
 
+import logging
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -43,11 +47,16 @@ from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.ground import GROUND_ID
 from arduinobot.scene.obstacles import Obstacle
 
+log = logging.getLogger(__name__)
+
 #: told what is being built, for a user waiting on a first twin: ``progress(message)``
 Progress = Callable[[str], None]
 
 TIMESTEP = 0.001  # [s]
 COLLISION_PARTS = 32  # convex pieces per collision mesh (at most)
+#: [kg/m^3] a loose object the task gives no mass is simulated as a solid this dense
+#: (water's; printed PLA is 1240, pine 500): a 2.5 cm cube weighs 16 g
+LOOSE_DENSITY = 1000.0
 
 
 @dataclass(frozen=True)
@@ -256,8 +265,19 @@ def loose_body(a: Any, assets: list[str], cache: ArtifactCache | None,
                progress: Progress | None) -> list[str]:
     """A loose object (an :class:`arduinobot.scene.obstacles.AttachedObject` whose shape is posed in
     the world): a free body ``loose:<id>`` where its shape is, with its mass, under
-    gravity until :func:`to_mjcf`'s weld ``grasp:<id>`` to its link is switched on."""
+    gravity until :func:`to_mjcf`'s weld ``grasp:<id>`` to its link is switched on.
+
+    An object of no mass (a pick step gives 0 kg unless told) is simulated as a uniform
+    solid of :data:`LOOSE_DENSITY`: MuJoCo would make it a 1 mg body of 1e-9 kg m^2
+    (``boundmass``/``boundinertia``), which its contact with the table it rests on
+    spins and throws about (the SO-101's 2.5 cm cube slid 10 cm off its spot in the
+    first 0.3 s, before the arm came near it)."""
     from dataclasses import replace
+    if a.mass <= 0:
+        mass = LOOSE_DENSITY * solid_volume(a.shape)
+        log.info("twin: '%s' has no mass; simulated as %.4f kg (%g kg/m^3)", a.id, mass,
+                 LOOSE_DENSITY)
+        a = replace(a, mass=mass)
     pose = (f' pos="{_f(a.shape.xyz)}" '
             f'quat="{_quat(rpy_matrix(tuple(a.shape.rpy)))}"')
     at_origin = replace(a, shape=replace(a.shape, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)),
@@ -265,6 +285,15 @@ def loose_body(a: Any, assets: list[str], cache: ArtifactCache | None,
     lines = carried_body(at_origin, assets, cache, progress, prefix="loose", head=pose)
     lines.insert(1, f'  <freejoint name="{_esc("loose:" + a.id)}"/>')
     return lines
+
+
+def solid_volume(shape: Obstacle) -> float:
+    """[m^3] ``shape``'s volume as a solid (a mesh that is not closed: its bounding
+    box's, as :meth:`arduinobot.scene.obstacles.AttachedObject.payload` takes its inertia)."""
+    m = shape.geometry.triangles()
+    if m.is_watertight and m.volume > 0:
+        return float(m.volume)
+    return float(np.prod(m.bounds[1] - m.bounds[0]))
 
 
 def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
