@@ -155,3 +155,29 @@ def test_a_check_names_the_resting_pair_and_not_a_stuck_one(case):
     stuck = check(_table_under(case, sink=3 * TOUCHING), 0.0)
     assert not stuck["valid"] and "resting" not in stuck and "hint" not in stuck
     assert "resting" not in check(_table_under(case), 0.8)  # swung away: free
+
+
+def test_a_box_on_the_floor_is_lifted_off_it(case):
+    # a floor of the user's own at the box's bottom (the id ``ground`` replaces ours; a
+    # small one, clear of the arm)
+    table = _table_under(case)
+    top = table.xyz[2] + THICK / 2
+    floor = Obstacle("ground", "box", size=(0.5, 0.5, 0.2),
+                     xyz=(table.xyz[0], table.xyz[1], top - 0.1))
+    with pytest.raises(StartInCollision) as e:
+        case.mp.solve(_request(case, JointGoal({case.names[0]: 0.5}), floor))
+    assert e.value.details["resting"] == [["carried_box", "ground"]]
+    up = case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, 0.03)), floor))
+    assert up.verification.ok and up.verification.certified
+    qs = np.asarray(up.trajectory.positions)
+    assert _depth_hits(case, qs, floor, DEPTH) == 0
+    assert _gap(case, qs[-1], floor) > TOUCHING
+
+
+def test_a_support_too_thin_to_prove_the_lift_against_is_refused(case):
+    thick = _table_under(case)
+    thin = Obstacle("table", "box", size=(0.5, 0.5, 0.003),  # 3 mm: no 2 mm core
+                    xyz=(thick.xyz[0], thick.xyz[1], thick.xyz[2] + THICK / 2 - 0.0015))
+    with pytest.raises(StartInCollision) as e:
+        case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, 0.03)), thin))
+    assert "'table' is too thin to lift off from" in e.value.message
