@@ -58,6 +58,7 @@ def test_a_resting_box_attached_in_the_kept_scene_is_lifted_by_a_line(case):
                          "seed": 3, "trajectory_format": "points"})
             v = up.raw["verification"]
             assert v["ok"] and v["certified"] and v["collision_free"]
+            assert up.raw["lifted_off"] == [["carried_box", "table"]]
             qs = np.array([p["positions"] for p in up.raw["trajectory"]["points"]])
             assert _depth_hits(case, qs, table, DEPTH) == 0
             assert _gap(case, qs[-1], table) > TOUCHING
@@ -68,6 +69,7 @@ def test_a_resting_box_attached_in_the_kept_scene_is_lifted_by_a_line(case):
                            "seed": 3, "planning_time": 5.0,
                            "trajectory_format": "points"})
             assert move.raw["verification"]["ok"] and move.raw["verification"]["certified"]
+            assert "lifted_off" not in move.raw
             mq = np.array([p["positions"] for p in move.raw["trajectory"]["points"]])
             assert np.isclose(mq[-1][0], 0.5, atol=1e-3)
             assert _box_hits(case.d, case.names, mq, case.box, case.link, table) == 0

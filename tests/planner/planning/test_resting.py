@@ -84,6 +84,7 @@ def test_a_resting_box_is_lifted_by_a_line_then_moved(case):
     up = case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, 0.03)), table))
     v = up.verification
     assert v.ok and v.certified and v.collision_free
+    assert up.lifted_off == (("carried_box", "table"),)
     qs = np.asarray(up.trajectory.positions)
     # never deeper than DEPTH into the table, and clear of it at the end
     assert _depth_hits(case, qs, table, DEPTH) == 0
@@ -94,6 +95,7 @@ def test_a_resting_box_is_lifted_by_a_line_then_moved(case):
     move = case.mp.solve(_request(case, JointGoal({case.names[0]: 0.5}), table,
                                   start=lifted))
     assert move.verification.ok and move.verification.certified
+    assert move.lifted_off == ()
     assert _box_hits(case.d, case.names, np.asarray(move.trajectory.positions), case.box,
                      case.link, table) == 0
 

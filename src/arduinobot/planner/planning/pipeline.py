@@ -110,6 +110,7 @@ class MotionPlanner:
         result = self.strategy(request).solve(self.context, request)
         if lift is not None:
             lift.check_end(self.context, result)
+            result = replace(result, lifted_off=lift.pairs)
         if result.reached is None:
             result = replace(result, reached=self._reached(request, result))
         return result
