@@ -183,3 +183,13 @@ def test_a_support_too_thin_to_prove_the_lift_against_is_refused(case):
     with pytest.raises(StartInCollision) as e:
         case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, 0.03)), thin))
     assert "'table' is too thin to lift off from" in e.value.message
+
+
+def test_a_core_takes_an_id_clear_of_the_scene_s(case):
+    table = _table_under(case)
+    other = Obstacle("table.core", "sphere", radius=0.01, xyz=(3.0, 3.0, 3.0))
+    req = _request(case, LineGoal(offset=(0.0, 0.0, -0.03)), table)
+    with pytest.raises(LineInterrupted) as e:
+        case.mp.solve(MotionRequest(goal=req.goal, start={}, obstacles=(table, other),
+                                    attached=req.attached, seed=3))
+    assert e.value.details["pairs"] == [["carried_box", "table.core_"]]

@@ -77,6 +77,14 @@ def core(support: Obstacle, depth: float = DEPTH) -> Obstacle | None:
     return replace(support, id=f"{support.id}.core", geometry=shrunk)
 
 
+def _named(c: Obstacle, taken: set[str]) -> Obstacle:
+    # a core's id clear of the request's own (a scene may hold a "table.core" already)
+    name = c.id
+    while name in taken:
+        name += "_"
+    return c if name == c.id else replace(c, id=name)
+
+
 def carried_pose(kin: Kinematics, a: AttachedObject, q: np.ndarray) -> np.ndarray:
     """Where carried object ``a`` is at joints ``q`` [rad]: its world pose (4, 4)."""
     return kin.link_pose(q, a.link) @ a.shape.pose()
@@ -195,12 +203,13 @@ def lift_off(context: PlanningContext, request: MotionRequest) -> Lift | None:
         raise StartInCollision(
             f"the start state collides: '{thin[0]}' is too thin to lift off from "
             f"(under {2 * DEPTH * 1e3:g} mm)", pairs=chk.pairs, q=q)
-    added = tuple(c for c in cores.values() if c is not None)
+    taken = {o.id for o in obstacles} | {a.id for a in request.attached}
+    added = tuple(_named(c, taken) for c in cores.values() if c is not None)
     # a core lies inside its support: every other body is kept off it by the support's
     # own check, so only the lifted object is checked against it
     objects = {o for o, _ in pairs}
     others = list(world.bodies.names) + [a.id for a in request.attached
-                                                 if a.id not in objects]
+                                         if a.id not in objects]
     extra = [(n, c.id) for c in added for n in others]
     return Lift(replace(request, obstacles=(*request.obstacles, *added),
                         allowed=(*request.allowed, *pairs, *extra)), pairs)
