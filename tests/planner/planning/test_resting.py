@@ -141,6 +141,7 @@ def test_a_box_stuck_in_the_table_does_not_rest_on_it(case):
 def test_a_check_names_the_resting_pair_and_not_a_stuck_one(case):
     import json
 
+    from arduinobot.client.replies import CheckReply
     from arduinobot.contract import wire
     from arduinobot.service.plan.handlers import Handlers
 
@@ -154,6 +155,8 @@ def test_a_check_names_the_resting_pair_and_not_a_stuck_one(case):
     rests = check(_table_under(case), 0.0)
     assert not rests["valid"] and rests["resting"] == [["carried_box", "table"]]
     assert "lift it first with a straight line" in rests["hint"]
+    parsed = CheckReply.parse({**rests, "request_id": "r"})  # the schema, then the type
+    assert parsed.resting == (("carried_box", "table"),) and parsed.hint == rests["hint"]
     stuck = check(_table_under(case, sink=3 * TOUCHING), 0.0)
     assert not stuck["valid"] and "resting" not in stuck and "hint" not in stuck
     assert "resting" not in check(_table_under(case), 0.8)  # swung away: free
