@@ -185,7 +185,7 @@ def test_a_support_too_thin_to_prove_the_lift_against_is_refused(case):
                     xyz=(thick.xyz[0], thick.xyz[1], thick.xyz[2] + THICK / 2 - 0.0015))
     with pytest.raises(StartInCollision) as e:
         case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, 0.03)), thin))
-    assert "'table' is too thin to lift off from" in e.value.message
+    assert "'table' has no core to prove the lift against" in e.value.message
 
 
 def test_a_core_takes_an_id_clear_of_the_scene_s(case):
@@ -196,3 +196,31 @@ def test_a_core_takes_an_id_clear_of_the_scene_s(case):
         case.mp.solve(MotionRequest(goal=req.goal, start={}, obstacles=(table, other),
                                     attached=req.attached, seed=3))
     assert e.value.details["pairs"] == [["carried_box", "table.core_"]]
+
+
+def test_a_running_lift_is_rechecked_in_its_own_world(case):
+    # the execute wing's recheck of a lift's rest: certified with the pair allowed and
+    # the table's core checked, as it was planned; a rest that stays on the table is not
+    from arduinobot.service.plan.handlers import Handlers
+    from arduinobot.service.plan.recheck import recheck
+
+    table = _table_under(case)
+    up = case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, 0.03)), table))
+    qs = np.asarray(up.trajectory.positions)
+    h = Handlers(case.d)
+    data = {"joint_names": list(up.trajectory.joint_names), "obstacles": [table.to_json()],
+            "attached": [AttachedObject(case.box, case.link).to_mapping()]}
+    assert recheck(h, {**data, "positions": qs.tolist()}, scene=None)["certified"]
+    stays = recheck(h, {**data, "positions": [qs[0].tolist()] * 3}, scene=None)
+    assert not stays["certified"] and stays["safe"] == -1
+    assert sorted(stays["refused"]["pair"]) == ["carried_box", "table"]
+    # a rest that presses the box 1 cm into the table, then lifts it clear: it ends
+    # clear, so the pair is allowed, and the table's core refuses it
+    down = case.mp.solve(_request(case, LineGoal(offset=(0.0, 0.0, -0.01)), table,
+                                  start=dict(zip(case.names, map(float, qs[-1])))))
+    deeper = np.asarray(down.trajectory.positions)
+    dq = deeper[-1] - deeper[0]
+    pushed = np.vstack([qs[0] + np.outer(np.linspace(0, 1, 20), dq), qs[-1:]])
+    got = recheck(h, {**data, "positions": pushed.tolist()}, scene=None)
+    assert not got["certified"]
+    assert sorted(got["refused"]["pair"]) == ["carried_box", "table.core"]

@@ -49,7 +49,8 @@ if TYPE_CHECKING:  # annotations only: the context imports the heavy stack
     from arduinobot.planner.kinematics.chain import Kinematics
     from arduinobot.planner.planning.context import PlanningContext
 
-__all__ = ["DEPTH", "TOUCHING", "Lift", "lift_off", "resting_pairs"]
+__all__ = ["DEPTH", "TOUCHING", "Lift", "cores_for", "lift_off", "lifting_world",
+           "resting_pairs"]
 
 #: [m] an object this close to another rests on it (touches it); and the deepest it may
 #: be in it at the start to count as resting, not stuck in it
@@ -170,6 +171,43 @@ class Lift:
                 pairs=still, q=dict(zip(context.joint_names, map(float, q))))
 
 
+def cores_for(pairs: Sequence[tuple[str, str]], obstacles: Sequence[Obstacle],
+              attached: Sequence[AttachedObject], links: Sequence[str]
+              ) -> tuple[tuple[Obstacle, ...], tuple[tuple[str, str], ...]] | None:
+    """The supports' cores (ids clear of ``obstacles`` and ``attached``) and the pairs to
+    allow while the objects of ``pairs`` are lifted off: those pairs, and every body but
+    the lifted objects against the cores (each core lies inside its support, which keeps
+    them off it). None when a support has no core (a mesh, or too thin)."""
+    by_id = {o.id: o for o in obstacles}
+    cores = {s: core(by_id[s]) for _, s in pairs}
+    if any(c is None for c in cores.values()):
+        return None
+    taken = {o.id for o in obstacles} | {a.id for a in attached}
+    added = tuple(_named(c, taken) for c in cores.values() if c is not None)
+    objects = {o for o, _ in pairs}
+    others = list(links) + [a.id for a in attached if a.id not in objects]
+    return added, (*pairs, *((n, c.id) for c in added for n in others))
+
+
+def lifting_world(kin: Kinematics, attached: Sequence[AttachedObject],
+                  obstacles: Sequence[Obstacle], pairs: Sequence[tuple[str, str]],
+                  first: np.ndarray, last: np.ndarray
+                  ) -> tuple[tuple[Obstacle, ...], tuple[tuple[str, str], ...]] | None:
+    """For a motion from ``first`` to ``last`` [rad] (a running lift's rest): the cores
+    and allowed pairs (:func:`cores_for`) when carried objects rest on something at
+    ``first`` (of the colliding ``pairs`` there) and every one ends clear of it at
+    ``last`` (further than :data:`TOUCHING`); else None."""
+    resting = resting_pairs(kin, attached, obstacles, pairs, first)
+    if not resting:
+        return None
+    carried = {a.id: a for a in attached}
+    by_id = {o.id: o for o in obstacles}
+    if any(gap(placed(carried[o], carried_pose(kin, carried[o], last)), by_id[s])
+           <= TOUCHING for o, s in resting):
+        return None
+    return cores_for(resting, obstacles, attached, kin.link_names)
+
+
 def lift_off(context: PlanningContext, request: MotionRequest) -> Lift | None:
     """What to plan for ``request`` whose carried objects may rest on something at its
     start (see the module doc): None when none does (plan it as it is).
@@ -196,20 +234,12 @@ def lift_off(context: PlanningContext, request: MotionRequest) -> Lift | None:
                                pairs=chk.pairs, q=q)
         err.details.update({"resting": [list(p) for p in pairs], "hint": hint(pairs)})
         raise err
-    by_id = {o.id: o for o in obstacles}
-    cores = {s: core(by_id[s]) for _, s in pairs}
-    thin = [s for s, c in cores.items() if c is None]
-    if thin:  # thinner than twice DEPTH: nothing to prove the lift against
+    found = cores_for(pairs, obstacles, request.attached, world.bodies.names)
+    if found is None:  # a mesh, or thinner than twice DEPTH: nothing to prove it against
         raise StartInCollision(
-            f"the start state collides: '{thin[0]}' is too thin to lift off from "
-            f"(under {2 * DEPTH * 1e3:g} mm)", pairs=chk.pairs, q=q)
-    taken = {o.id for o in obstacles} | {a.id for a in request.attached}
-    added = tuple(_named(c, taken) for c in cores.values() if c is not None)
-    # a core lies inside its support: every other body is kept off it by the support's
-    # own check, so only the lifted object is checked against it
-    objects = {o for o, _ in pairs}
-    others = list(world.bodies.names) + [a.id for a in request.attached
-                                         if a.id not in objects]
-    extra = [(n, c.id) for c in added for n in others]
+            f"the start state collides: {', '.join(repr(s) for _, s in pairs)} has no "
+            f"core to prove the lift against (a mesh, or {2 * DEPTH * 1e3:g} mm thin or "
+            f"less)", pairs=chk.pairs, q=q)
+    added, allowed = found
     return Lift(replace(request, obstacles=(*request.obstacles, *added),
-                        allowed=(*request.allowed, *pairs, *extra)), pairs)
+                        allowed=(*request.allowed, *allowed)), pairs)
