@@ -284,7 +284,9 @@ class IkReply:
 @dataclass(frozen=True)
 class CheckReply:
     """One state's check (``<prefix>/check``): ``valid`` and every colliding ``pairs``;
-    ``clearance`` [m] to the ``closest`` pair (None when not computed), at ``joints``."""
+    ``clearance`` [m] to the ``closest`` pair (None when not computed), at ``joints``;
+    ``resting``: the (carried object, obstacle) pairs that only touch (a plan from here
+    must lift them off with a straight line: ``hint``)."""
 
     valid: bool
     pairs: tuple[tuple[str, str], ...]
@@ -292,6 +294,8 @@ class CheckReply:
     closest: tuple[str, str] | None
     joints: Mapping[str, float]
     request_id: str
+    resting: tuple[tuple[str, str], ...] = ()
+    hint: str | None = None
 
     @classmethod
     def parse(cls, body: Any) -> CheckReply:
@@ -301,7 +305,8 @@ class CheckReply:
         return cls(b["valid"], tuple(tuple(p) for p in b["pairs"]),
                    _number(b["clearance"]),
                    None if closest is None else tuple(closest),
-                   dict(b["joints"]), b["request_id"])
+                   dict(b["joints"]), b["request_id"],
+                   tuple(tuple(p) for p in b.get("resting") or ()), b.get("hint"))
 
 
 @dataclass(frozen=True)

@@ -82,14 +82,16 @@ def test_two_steps_pick_the_resting_box_and_put_it_in_the_bin(course):
     assert np.allclose(place.details["position"], want, atol=1e-3)
 
 
-def test_the_lift_is_refused_without_the_resting_pair_and_the_pair_ends_there(course):
+def test_a_move_is_refused_without_the_resting_pair_and_the_pair_ends_there(course):
     """The box touches the table when the lift starts: without the (box, table) pair
-    allowed, the same motion is refused as starting in collision; the next motion has no
-    pair allowed, and starts with the box clear of the table."""
+    allowed, a move from there is refused as starting in collision (the planner names it
+    resting), the line alone is lifted off by the planner itself (the table's core
+    checked); the next motion has no pair allowed, and starts with the box clear of the
+    table."""
     from dataclasses import replace
 
     from arduinobot.contract.errors import StartInCollision
-    from arduinobot.planner.planning.goals import line_from_mapping
+    from arduinobot.planner.planning.goals import JointGoal, line_from_mapping
     from arduinobot.planner.planning.motion import MotionRequest
     from arduinobot.planner.tasks.pick import claw
     from arduinobot.scene.frames import attach
@@ -110,9 +112,13 @@ def test_the_lift_is_refused_without_the_resting_pair_and_the_pair_ends_there(co
                         start=dict(lift.start), obstacles=obstacles, attached=(held,),
                         seed=1)
     with pytest.raises(StartInCollision) as e:
-        course.solve(req)
+        course.solve(replace(req, goal=JointGoal(dict(lift.end))))
     assert ("box", "table") in {tuple(sorted(p)) for p in e.value.pairs}
-    assert course.solve(replace(req, allowed=(("box", "table"),))).verification.certified
+    assert e.value.details["resting"] == [["box", "table"]]
+    alone = course.solve(req)
+    assert alone.verification.certified and alone.lifted_off == (("box", "table"),)
+    given = course.solve(replace(req, allowed=(("box", "table"),)))
+    assert given.verification.certified and given.lifted_off == ()
     # at the lift's end the box is 5 cm clear of the table (the next step checks it)
     end = np.array([lift.end[n] for n in names])
     pose = w.kin.link_pose(end, "claw_support") @ held.shape.pose()

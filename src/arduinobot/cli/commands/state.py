@@ -134,6 +134,8 @@ def cmd_check_state(ns: argparse.Namespace) -> int:
               f"{_values(res.joints)}")
         for a, b in res.pairs:
             print(f"  colliding: {a} / {b}")
+        if res.hint:
+            print(f"  {res.hint}")
         if res.clearance is not None and res.valid:
             print(f"  clearance {res.clearance:.4f} m between {' / '.join(res.closest or ())}")
     return EXIT_OK if res.valid else EXIT_FAIL

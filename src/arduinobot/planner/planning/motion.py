@@ -80,7 +80,9 @@ class MotionResult:
     ``timing``: seconds per stage (validate, plan, simplify, recheck, parameterise,
     verify, total); ``path`` shape (k, dof) in ``trajectory.joint_names`` order.
     ``reached``: the tool frame at the end and the residuals to the goal (the planner
-    fills it in for every strategy); ``line``: a straight-line move's report.
+    fills it in for every strategy); ``line``: a straight-line move's report;
+    ``lifted_off``: the (carried object, obstacle) pairs it was resting on at the start,
+    allowed for this line (:mod:`arduinobot.planner.planning.resting`).
     """
 
     trajectory: JointTrajectory
@@ -90,3 +92,4 @@ class MotionResult:
     planner: str
     reached: Reached | None = None
     line: LineReport | None = None
+    lifted_off: tuple[tuple[str, str], ...] = ()

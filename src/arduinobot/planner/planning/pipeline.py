@@ -10,6 +10,8 @@ The strategies by default (:func:`default_strategies`): :class:`FromRest` (a
 collision-free path, blended, timed, verified), :class:`StraightLine` (a tcp line, Pilz's
 LIN) and :class:`FromMovingState` around the first (a moving start blended into that
 plan). Every result carries what its last state reached (:mod:`arduinobot.planner.planning.reached`).
+A carried object that starts resting on something is lifted off by a line only
+(:mod:`arduinobot.planner.planning.resting`).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from arduinobot.planner.planning.lines.straight_line import StraightLine, line_t
 from arduinobot.planner.planning.motion import MotionRequest, MotionResult, Profile
 from arduinobot.planner.planning.moving_start import FromMovingState
 from arduinobot.planner.planning.reached import Reached, reached
+from arduinobot.planner.planning.resting import lift_off
 from arduinobot.planner.planning.strategy import Strategy, moves_at_start
 from arduinobot.planner.timing.curve import Curve
 from arduinobot.planner.timing.trajectory import JointTrajectory
@@ -96,8 +99,18 @@ class MotionPlanner:
             InvalidRequest, JointLimitViolation, StartInCollision, GoalInCollision,
             GoalOutOfReach, NoPathFound: from validation and path planning.
             TrajectoryError: no timing passed verification (details hold the report).
+
+        A carried object resting on something at the start (touching it) is lifted off
+        by a straight line only, proven never to press into it; any other goal from
+        there is refused with a hint (:mod:`arduinobot.planner.planning.resting`).
         """
+        lift = lift_off(self.context, request)
+        if lift is not None:
+            request = lift.request
         result = self.strategy(request).solve(self.context, request)
+        if lift is not None:
+            lift.check_end(self.context, result)
+            result = replace(result, lifted_off=lift.pairs)
         if result.reached is None:
             result = replace(result, reached=self._reached(request, result))
         return result

@@ -13,14 +13,15 @@ import fcl
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
+from arduinobot.planner.planning.resting import TOUCHING
 from arduinobot.planner.tasks.grasps import vertices
 from arduinobot.planner.tasks.steps import PlaceTarget
 from arduinobot.scene.ground import GROUND_ID
 from arduinobot.scene.obstacles import Obstacle
 from arduinobot.scene.pose import rpy_of
 
-#: [m] an object this close to another rests on it (touches it)
-TOUCHING = 1e-3
+__all__ = ["TOUCHING", "blocking", "moved", "resolve", "spots", "top", "touching"]
+
 #: the spots tried on a support: its top's centre, then these fractions of the way
 #: to its edges (the object's half width kept inside), in eight directions
 RINGS = (0.5, 0.9)

@@ -142,7 +142,9 @@ class Handlers:
 
     def check(self, data: Mapping[str, Any], *, scene: SceneSnapshot | None = None
               ) -> dict[str, Any]:
-        """Validity of one state: colliding pairs, clearance [m] and the closest pair."""
+        """Validity of one state: colliding pairs, clearance [m] and the closest pair;
+        a carried object resting on something (touching it) is named in ``resting``,
+        with the ``hint`` a plan from there would give."""
         q = self._q(data.get("joints"), "joints")
         obs, revision = with_scene(scene, data, obstacles(self.description,
                                                           data.get("obstacles")))
@@ -157,6 +159,8 @@ class Handlers:
         res = world.check(q, clearance=True)
         clearance = res.clearance if res.clearance is not None and math.isfinite(
             res.clearance) else None
+        resting = self._resting(world, carried, res.pairs, q) if carried and \
+            not res.valid else {}
         return {"valid": bool(res.valid), "pairs": [list(p) for p in res.pairs],
                 "clearance": clearance,
                 "closest": list(res.closest) if res.closest else None,
@@ -164,7 +168,17 @@ class Handlers:
                 "scene_revision": revision,
                 **({"clouds": scene.assumptions()} if scene is not None and scene.unknown
                    else {}),
-                **({"carried": self._carried_poses(q, carried, scene)} if carried else {})}
+                **({"carried": self._carried_poses(q, carried, scene)} if carried else {}),
+                **resting}
+
+    @staticmethod
+    def _resting(world: CollisionWorld, carried: tuple[Any, ...],
+                 pairs: Any, q: np.ndarray) -> dict[str, Any]:
+        # a carried object only touching what it rests on: the state stays invalid (a
+        # plan from it is refused but for a line that lifts it off), the reply says so
+        from arduinobot.planner.planning.resting import hint, resting_pairs
+        found = resting_pairs(world.kin, carried, world.obstacles, pairs, q)
+        return {"resting": [list(p) for p in found], "hint": hint(found)} if found else {}
 
     def _carried_poses(self, q: Any, carried: tuple[Any, ...], scene: SceneSnapshot | None
                        ) -> dict[str, Any]:

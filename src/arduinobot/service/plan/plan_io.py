@@ -186,6 +186,8 @@ def _body(result: Any, points: Any, *, packed: dict[str, Any] | None = None
         body["reached"] = result.reached.to_dict()
     if result.line is not None:
         body["line"] = result.line.to_dict()
+    if getattr(result, "lifted_off", ()):  # a line from a resting start
+        body["lifted_off"] = [list(p) for p in result.lifted_off]
     check_finite({k: body[k] for k in ("duration", "timing", "verification", "reached",
                                        "line") if k in body})
     return body  # every number finite: wire.encode(..., finite=True) may take it

@@ -6,7 +6,9 @@ trajectory's positions at every control tick from now to its end. The worker cer
 the polyline through them with the planner's own proof
 (:class:`arduinobot.planner.collision.proof.certify.Certifier`, in the world a plan of
 that request would have now: the kept scene's objects, clouds and carried objects, the
-request's own obstacles and ground). A servo is commanded those states one tick apart;
+request's own obstacles and ground; a rest that lifts a carried object off what it
+rests on, in the world the lift was planned in: :mod:`arduinobot.planner.planning.resting`).
+A servo is commanded those states one tick apart;
 between two of them it moves by a hundredth of a second's motion, which the straight
 piece stands for.
 
@@ -95,6 +97,25 @@ def certify_rest(cert: Any, full: np.ndarray) -> dict[str, Any]:
     return out
 
 
+def _lifting(handlers: Handlers, world: CollisionWorld, obs: tuple[Any, ...],
+             clouds: tuple[Any, ...], carried: tuple[Any, ...], full: np.ndarray, *,
+             ground: bool) -> CollisionWorld:
+    """``world``, or, when the rest starts with a carried object resting on something
+    (a line lifting it off: :mod:`arduinobot.planner.planning.resting`) and ends with it
+    clear, the world the lift was planned in: the pair allowed, the support's core
+    checked against the object (never more than ``DEPTH`` into it)."""
+    from arduinobot.planner.planning.resting import lifting_world
+    chk = world.check(full[0])
+    if chk.valid:
+        return world
+    found = lifting_world(world.kin, carried, world.obstacles, chk.pairs, full[0], full[-1])
+    if found is None:
+        return world
+    cores, allowed = found
+    return handlers.scene_world((*obs, *cores), 0.0, clouds, ground=ground,
+                                attached=carried, allowed=allowed)
+
+
 def full_states(handlers: Handlers, names: list[str], qs: np.ndarray,
                 hold: Mapping[str, Any] | None) -> np.ndarray:
     """``qs`` ((m, len(names)) [rad]) in the kinematics' joint order, the joints not
@@ -133,9 +154,11 @@ def recheck(handlers: Handlers, data: Mapping[str, Any], *,
     obs, revision = with_scene(scene, {}, obstacles(desc, data.get("obstacles")))
     carried = attached(desc, data.get("attached"), scene=scene, obstacles=obs)
     clouds = scene.clouds if scene is not None else ()
-    world = handlers.scene_world(obs, 0.0, clouds, ground=bool(data.get("ground", True)))
+    ground = bool(data.get("ground", True))
+    world = handlers.scene_world(obs, 0.0, clouds, ground=ground)
     if carried:
         world = world.with_scene(world.obstacles, attached=carried)
+        world = _lifting(handlers, world, obs, clouds, carried, full, ground=ground)
     out: dict[str, Any] = {"scene_revision": revision, "states": len(full),
                            **certify_rest(certifier(handlers, world), full)}
     out["seconds"] = time.perf_counter() - t0
