@@ -10,8 +10,15 @@ milliseconds while it walks the arenas, on its own thread: a request's thread wa
 most for the allocator's lock). A worker trims in its job loop instead (no thread of its
 own in a fork), after a job when no other waits, at most every :data:`WORKER_TRIM_GAP`
 seconds (:class:`IdleTrim`): a plan's search trees, a task's or a cloud's arrays are
-freed when the job ends. ``ARDUINOBOT_MALLOC_TRIM=0`` turns both off (to measure the
-difference: ``./dev bench soak``).
+freed when the job ends.
+
+The serving process also fixes glibc's mmap threshold at :data:`MMAP_THRESHOLD`: by
+default glibc raises it to the size of each mmapped block freed (up to 32 MiB), so after
+the first large apply every later mesh's base64 text (2.8 MB), its decoded JSON and its
+copies come from the arenas, where the small objects around them keep the pages; mesh
+churn held 429 MiB with the scene cleared (69 at start). Fixed, a block that large is
+mapped and unmapped whole. ``ARDUINOBOT_MALLOC_TRIM=0`` turns all of it off (to measure the
+difference: ``./dev bench soak``, ``./dev bench mesh_churn``).
 """
 
 from __future__ import annotations
@@ -32,6 +39,10 @@ _log = logging.getLogger(__name__)
 TRIM_PERIOD = 10.0
 #: [s] at least between a worker's trims (each walks its arenas: milliseconds)
 WORKER_TRIM_GAP = 1.0
+#: [bytes] the serving process's blocks from this size up are mapped on their own
+MMAP_THRESHOLD = 256 * 1024
+#: mallopt's parameter number of the threshold (glibc's malloc.h)
+_M_MMAP_THRESHOLD = -3
 
 
 def _malloc_trim() -> Callable[[int], int] | None:
@@ -80,7 +91,15 @@ class HeapTrimmer:
         self._thread: threading.Thread | None = None
 
     def start(self) -> None:
-        """Start trimming (nothing on a libc without ``malloc_trim``, or when turned off)."""
+        """Fix the mmap threshold and start trimming (nothing on a libc without
+        ``malloc_trim``, or when turned off)."""
+        if self._trim is not None:
+            try:
+                fixed = ctypes.CDLL(None).mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+            except (OSError, AttributeError):
+                fixed = 0
+            _log.debug("heap trim: mmap threshold %d bytes%s", MMAP_THRESHOLD,
+                       "" if fixed else " not set (mallopt refused)")
         if self._trim is None:
             _log.debug("heap trim: off (no glibc malloc_trim, or ARDUINOBOT_MALLOC_TRIM=0)")
             return

@@ -71,6 +71,7 @@ from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description import Description
 from arduinobot.scene.frames import Frames
 from arduinobot.scene.state import (
+    MeshStore,
     SceneBuilder,
     SceneState,
     StateSource,
@@ -125,12 +126,13 @@ class SceneService:
             :func:`arduinobot.service.scene.file.default_scene_file`).
         description: the robot (without it, attach and detach are refused).
         robot: computes link poses and contacts (default: a RobotFrames of description).
+        meshes: parses inline meshes (the service's worker pool; default: here).
     """
 
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
                  link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
                  description: Description | None = None,
-                 robot: Frames | None = None) -> None:
+                 robot: Frames | None = None, meshes: MeshStore | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
         owner = None if description is None else scene_owner(
             description.robot.name, description.robot.source)
@@ -142,7 +144,8 @@ class SceneService:
         if robot is None and description is not None:
             from arduinobot.planner.frames import RobotFrames  # only a worker's frames
             robot = RobotFrames(description)
-        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot)
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot,
+                                    meshes=meshes)
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
         # the scene before this one: a plan that took it may still read its mesh files
