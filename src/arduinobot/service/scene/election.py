@@ -78,8 +78,9 @@ class Election:
     # -- this instance -----------------------------------------------------------------
     def stalled(self) -> bool:
         """Whether the watch has not ticked for :data:`STALL` (this process was stopped
-        and the watch has not run since: it reports it on its next tick)."""
-        return time.monotonic() - self._last > STALL
+        and the watch has not run since: it reports it on its next tick); never before
+        the watch starts (a start's catch-up may take seconds)."""
+        return self._watch.is_alive() and time.monotonic() - self._last > STALL
 
     def ready(self) -> bool:
         """Whether this instance may lead now."""

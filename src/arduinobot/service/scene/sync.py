@@ -480,7 +480,8 @@ class SceneService:
                       "nothing changed", change.get("apply_id"), done)
             query.reply(query.key_expr, orjson.dumps({
                 "revision": done, "objects": len(now.objects) + len(now.clouds),
-                "attached": len(now.attached), "already_applied": True}),
+                "attached": len(now.attached), "already_applied": True,
+                "leader": self.instance}),
                 encoding=wire.JSON)
             return
         old, new = self._install_fairly(change)
