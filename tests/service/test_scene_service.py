@@ -443,7 +443,8 @@ def test_through_the_shipped_acl_viewers_read_the_scene_planners_change_it(secur
         sync = json.dumps({"from": "x", "base": 0, "revision": 1, "change": {}}).encode()
         for user in (viewer, planner):
             for key in (f"arduinobot/instance/{srv.instance}/scene/lead",
-                        f"arduinobot/instance/{srv.instance}/scene/sync"):
+                        f"arduinobot/instance/{srv.instance}/scene/sync",
+                        f"arduinobot/instance/{srv.instance}/scene/ready"):
                 assert _replies(user, key, sync) == [], key
         reply = next(iter(viewer.get("arduinobot/scene", timeout=5)))
         assert [o["id"] for o in json.loads(reply.ok.payload.to_bytes())["objects"]] == ["acl"]
