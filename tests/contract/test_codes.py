@@ -31,7 +31,7 @@ NOT_CODES = frozenset({
     # the model's file format, named in `arduinobot limits` (src/arduinobot/planner/kinematics/applied_limits.py)
     "URDF",
     # the kept scene (src/arduinobot/scene/state.py): its state folder and its object cap
-    "ARDUINOBOT_STATE", "XDG_STATE_HOME", "MAX_SCENE_OBJECTS",
+    "ARDUINOBOT_STATE", "XDG_STATE_HOME", "MAX_SCENE_OBJECTS", "MAX_SCENE_MESH_BYTES",
     # `arduinobot check` outcomes (printed, never on the wire)
     "PASS", "WARN", "FAIL", "FAILED",
 })

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 import time
 
-from arduinobot.service.process.heap_trim import HeapTrimmer
+from arduinobot.service.process.heap_trim import HeapTrimmer, IdleTrim
 from arduinobot.service.process.pool import rss_bytes
 
 MIB = 1 << 20
@@ -40,3 +40,32 @@ def test_turned_off_it_starts_no_thread(monkeypatch):
     trimmer.start()
     assert trimmer._thread is None
     trimmer.stop()
+
+
+def test_a_worker_trims_after_a_job_when_none_waits(monkeypatch):
+    """A worker's job loop (service/process/worker.py) trims after a job when no other
+    waits, at most every `gap` seconds; with another job waiting it does not."""
+    monkeypatch.delenv("ARDUINOBOT_MALLOC_TRIM", raising=False)
+    trim = IdleTrim(gap=3600.0)
+    assert trim._trim is not None, "the service runs on glibc (Debian, Ubuntu)"
+    blocks = [bytes(2048) + bytes([i % 256]) for i in range(60_000)]  # ~120 MiB of malloc
+    kept = blocks[::60]
+    del blocks
+    trim.after_job(busy=True)  # another job waits: not now
+    before = rss_bytes(os.getpid())
+    assert trim.trims == 0
+    trim.after_job(busy=False)
+    after = rss_bytes(os.getpid())
+    assert trim.trims == 1
+    assert before - after > 50 * MIB, (before / MIB, after / MIB)
+    again = [bytes(2048) + bytes([i % 256]) for i in range(60_000)]
+    del again
+    trim.after_job(busy=False)  # within the gap: not again
+    assert trim.trims == 1 and len(kept) == 1000
+
+
+def test_a_worker_does_not_trim_when_turned_off(monkeypatch):
+    monkeypatch.setenv("ARDUINOBOT_MALLOC_TRIM", "0")
+    trim = IdleTrim(gap=0.0)
+    trim.after_job(busy=False)
+    assert trim._trim is None and trim.trims == 0

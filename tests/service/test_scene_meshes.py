@@ -77,6 +77,43 @@ def test_a_removed_mesh_file_goes_one_scene_later(scene: SceneService) -> None:
     assert scene.state.objects[0].obstacle.geometry.source.name == other
 
 
+def _big_stl() -> bytes:
+    """A binary STL of 41,000 triangles (2,050,084 bytes: near the 2 MiB mesh cap)."""
+    sphere = trimesh.creation.icosphere(subdivisions=6)
+    return trimesh.Trimesh(0.1 * sphere.vertices, sphere.faces[:41_000],
+                           process=False).export(file_type="stl")
+
+
+def test_the_scenes_inline_meshes_are_capped_before_they_are_parsed(
+        scene: SceneService) -> None:
+    """Issue 39, item 10: the serving process keeps each mesh's text with its object, so
+    mesh churn grew it with the scene. 16 meshes of 2 MB fit MAX_SCENE_MESH_BYTES (32
+    MiB); a 17th is refused naming its field, before its bytes are parsed (they are no
+    mesh at all), nothing changes, and the scene keeps taking changes."""
+    from arduinobot.contract.caps import MAX_SCENE_MESH_BYTES
+    data = base64.b64encode(_big_stl()).decode()
+    near = [{"id": f"m{i}", "shape": "mesh", "xyz": [1.5, 1.5, 1.5 + i],
+             "mesh": {"format": "stl", "data": data}} for i in range(16)]
+    assert _apply(scene, {"add": near})["revision"] == 1
+    files = _files(scene)
+    junk = {"id": "junk", "shape": "mesh", "xyz": [1, 1, 1], "mesh": {
+        "format": "stl", "data": base64.b64encode(bytes(2_000_000)).decode()}}
+    body = _apply(scene, {"add": [junk]})
+    err = body["error"]
+    assert err["code"] == "INVALID_REQUEST" and err["details"]["field"] == "add[0].mesh.data"
+    assert err["details"]["limit"] == MAX_SCENE_MESH_BYTES
+    assert err["details"]["scene_bytes"] == 16 * 2_050_084
+    assert err["details"]["size"] == 2_000_000
+    assert scene.state.revision == 1 and _files(scene) == files
+    # the same over the cap within one apply, at the object that passes it
+    body = _apply(scene, {"clear": True, "add": [*near, junk]})
+    assert body["error"]["details"]["field"] == "add[16].mesh.data", body
+    # room made in the same apply: taken; the service still serves
+    other = _mesh("small", 0.1)
+    assert _apply(scene, {"remove": ["m0"], "add": [other]})["revision"] == 2
+    assert len(scene.state.objects) == 16
+
+
 def test_each_scene_file_has_its_own_mesh_folder(tmp_path: Path) -> None:
     a, b = tmp_path / "scene-a.json", tmp_path / "scene-b.json"
     assert mesh_dir_for(a) != mesh_dir_for(b)

@@ -162,6 +162,35 @@ def test_an_apply_sent_twice_is_applied_once(cluster):
         assert e.value.details["field"] == "apply_id"
 
 
+def test_a_token_that_is_no_instance_leads_nothing(cluster):
+    """Issue 39: the smallest id among `alive/*` tokens led, so a token of a session that
+    is no serve (declared here from a session of its own, behind the router without an
+    ACL, as a service's credentials allow) made every apply wait 10 s, then BUSY. Now
+    an apply through either instance is acknowledged by the smallest id that answers and
+    both instances hold it."""
+    endpoint, (a, b), _, _ = cluster
+    fake = zenoh.open(zenoh_config(mode="client", connect=[endpoint]))
+    token = fake.liveliness().declare_token("arduinobot/alive/0")
+    try:
+        with PlannerClient(endpoint, timeout=60) as c:
+            _wait_instances(c, 3)  # the fake among them, as the instances see it
+            replies = [c.request("scene/apply", {"add": [TABLE | {"id": f"t{inst[:6]}"}]},
+                                 instance=inst) for inst in (a.instance, b.instance)]
+            lead = min(a.instance, b.instance)
+            assert [r.get("leader") for r in replies] == [lead, lead], replies
+            assert replies[1]["revision"] == replies[0]["revision"] + 1
+            assert not any("not_taken_by" in r for r in replies), replies
+            scenes = [c.request("scene", instance=i) for i in (a.instance, b.instance)]
+            assert scenes[0] == scenes[1]
+            ids = {o["id"] for o in scenes[0]["objects"]}
+            assert {f"t{a.instance[:6]}", f"t{b.instance[:6]}"} <= ids
+            for inst in (a.instance, b.instance):
+                c.apply(remove=[f"t{inst[:6]}"])
+    finally:
+        token.undeclare()
+        fake.close()
+
+
 def test_a_follower_paused_past_its_lease_catches_up_and_never_plans_on_the_old_scene(cluster):
     """Issue 39, item 1: the follower stopped (SIGSTOP, as a VM pause) until the leader
     no longer counts it; an apply is acknowledged without it. Back, it answered against
@@ -414,7 +443,8 @@ def test_through_the_shipped_acl_viewers_read_the_scene_planners_change_it(secur
         sync = json.dumps({"from": "x", "base": 0, "revision": 1, "change": {}}).encode()
         for user in (viewer, planner):
             for key in (f"arduinobot/instance/{srv.instance}/scene/lead",
-                        f"arduinobot/instance/{srv.instance}/scene/sync"):
+                        f"arduinobot/instance/{srv.instance}/scene/sync",
+                        f"arduinobot/instance/{srv.instance}/scene/ready"):
                 assert _replies(user, key, sync) == [], key
         reply = next(iter(viewer.get("arduinobot/scene", timeout=5)))
         assert [o["id"] for o in json.loads(reply.ok.payload.to_bytes())["objects"]] == ["acl"]

@@ -391,6 +391,8 @@ class SceneApplied:
     already_applied: bool = False
     #: live instances that did not take the change (they catch up before planning)
     not_taken_by: tuple[str, ...] = ()
+    #: the instance that led the change (the smallest live id that answers)
+    leader: str | None = None
 
     @classmethod
     def parse(cls, body: Any) -> SceneApplied:
@@ -398,7 +400,7 @@ class SceneApplied:
         b = _validated("scene_apply", body)
         return cls(int(b["revision"]), b.get("objects"), b.get("attached"),
                    b.get("state_source"), b.get("clouds"), bool(b.get("already_applied")),
-                   tuple(b.get("not_taken_by") or ()))
+                   tuple(b.get("not_taken_by") or ()), b.get("leader"))
 
 
 @dataclass(frozen=True)

@@ -56,6 +56,12 @@ MAX_CLOUD_BYTES = 32 * 2**20
 #: the biggest allowed cloud would be refused by its size before the cloud's cap said why.
 MAX_APPLY_PAYLOAD = 4 * -(-MAX_CLOUD_BYTES // 3) + 16 * 2**20
 
+#: Most inline mesh bytes (decoded) the kept scene holds, all its meshes together: the
+#: serving process keeps each mesh's text with its object (and in the scene's reply and
+#: file), so without it mesh churn grew it by the scene's size (256 objects of
+#: 2 MiB). 16 meshes at the mesh cap; the course workspace's CAD meshes take ~3 MiB.
+MAX_SCENE_MESH_BYTES = 32 * 2**20
+
 
 def check_structure(value: Any, *, counts: bool = True) -> None:
     """Refuse a decoded payload nested deeper than :data:`MAX_DEPTH`, a string longer

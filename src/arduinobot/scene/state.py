@@ -17,10 +17,11 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
+from arduinobot.contract.caps import MAX_SCENE_MESH_BYTES
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.scene.cloud import CloudObstacle
 from arduinobot.scene.frames import Frames, hold, warn_if_far
@@ -133,16 +134,28 @@ class SceneState:
         return tuple(a.id for a in self.attached)
 
 
+class MeshStore(Protocol):
+    """Who parses an inline mesh and writes its file (the service: a worker process)."""
+
+    def store_mesh(self, data: Mapping[str, Any], *, where: str, folder: Path
+                   ) -> dict[str, Any]:
+        """:meth:`arduinobot.scene.shapes.Mesh.stored` of ``data`` (refusals name
+        fields under ``where``)."""
+        ...
+
+
 class SceneBuilder:
     """Turns wire objects into :class:`SceneObject` for one robot (its link names may not
     be object ids or frames) and one folder for mesh files; with ``robot`` (its link
-    poses and collision checks) it can attach and detach too."""
+    poses and collision checks) it can attach and detach too; with ``meshes`` its inline
+    meshes are parsed there (else here)."""
 
     def __init__(self, link_names: Sequence[str], mesh_dir: str | os.PathLike[str], *,
-                 robot: Frames | None = None) -> None:
+                 robot: Frames | None = None, meshes: MeshStore | None = None) -> None:
         self.link_names = frozenset(link_names)
         self.mesh_dir = Path(mesh_dir)
         self.robot = robot
+        self.meshes = meshes
 
     def build(self, data: Mapping[str, Any], where: str) -> SceneObject:
         """One object (schema-valid, see ``scene_apply_request.json``) at field ``where``.
@@ -171,7 +184,11 @@ class SceneBuilder:
         if "shape" in data:  # (without one, the obstacle names the missing field)
             cls = shape_class(data["shape"], field=f"{where}.shape")
             check_inline(cls, data, where=where)
-            geometry = cls.stored(geometry, where=where, folder=self.mesh_dir)
+            if self.meshes is not None and cls.kind == "mesh" and "mesh" in geometry:
+                geometry = self.meshes.store_mesh(geometry, where=where,
+                                                  folder=self.mesh_dir)
+            else:
+                geometry = cls.stored(geometry, where=where, folder=self.mesh_dir)
         obstacle = Obstacle.from_mapping(geometry, where=where)
         extra = data.get("touch_links") or ()
         if frame == WORLD:
@@ -216,7 +233,8 @@ class SceneBuilder:
 
 
 def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *,
-          max_objects: int = MAX_SCENE_OBJECTS) -> SceneState:
+          max_objects: int = MAX_SCENE_OBJECTS,
+          max_mesh_bytes: int = MAX_SCENE_MESH_BYTES) -> SceneState:
     """The scene after ``change`` (a schema-valid apply request), all or nothing: the
     whole scene is cleared (``clear``: carried objects too), then ``remove``'s ids go,
     ``add``'s objects come, ``detach``'s objects are put down in the world where their
@@ -229,7 +247,8 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
         SceneConflict: ``if_revision`` is not ``state.revision``.
         InvalidRequest: removing an id the scene does not hold (or one twice, or one that
             is carried), a duplicate id, an object the builder refuses, more than
-            ``max_objects`` objects, detaching what is not carried, attaching to an unknown
+            ``max_objects`` objects, inline meshes of more than ``max_mesh_bytes`` in all
+            (``add[i].mesh.data``, before it is parsed), detaching what is not carried, attaching to an unknown
             link or an unknown object, or one that already touches a link that is not a
             touch link (``details.pairs``); each naming its field.
     """
@@ -271,10 +290,19 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
         if oid in objects or oid in carried:
             raise InvalidRequest(f"duplicate id '{oid}': the scene already holds it (remove "
                                  "it in the same apply to replace it)", field=f"{where}.id")
+        _check_mesh_bytes(item, where, (*objects.values(), *carried.values()),
+                          max_mesh_bytes)  # before the parse it bounds
         obj = builder.build(item, where)
         objects[obj.id] = obj
     if change.get("attach") or change.get("detach"):
         _carry(change, objects, carried, builder)
+        total_mesh = sum(inline_mesh_bytes(o.data) for o in objects.values()) \
+            + sum(inline_mesh_bytes(a.data) for a in carried.values())
+        if total_mesh > max_mesh_bytes:  # a new object attached with its mesh
+            raise InvalidRequest(f"the scene's inline meshes would take {total_mesh} bytes, more "
+                                 f"than its cap of {max_mesh_bytes}", field="attach",
+                                 details={"limit": max_mesh_bytes,
+                                          "cap": "MAX_SCENE_MESH_BYTES"})
     for item, where in taken:  # after the carrying: what the robot holds is filtered too
         c = builder.build_cloud({k: v for k, v in item.items() if k != "state"}, where,
                                 item.get("state", change.get("state")),
@@ -287,6 +315,37 @@ def apply(state: SceneState, change: Mapping[str, Any], builder: SceneBuilder, *
                              details={"limit": max_objects, "cap": "MAX_SCENE_OBJECTS"})
     return SceneState(state.revision + 1, tuple(objects.values()), tuple(carried.values()),
                       tuple(clouds.values()))
+
+
+def inline_mesh_bytes(data: Mapping[str, Any]) -> int:
+    """The decoded size [bytes] of an object's inline mesh (0 without one), from its
+    base64 text's length: nothing decoded. A carried object's is its ``object``'s."""
+    inner = data.get("object")
+    if isinstance(inner, Mapping):
+        return inline_mesh_bytes(inner)
+    mesh = data.get("mesh")
+    text = mesh.get("data") if isinstance(mesh, Mapping) else None
+    if not isinstance(text, str):
+        return 0
+    return len(text) * 3 // 4 - text[-2:].count("=")
+
+
+def _check_mesh_bytes(item: Any, where: str, kept: Iterable[SceneObject | SceneAttached],
+                      cap: int) -> None:
+    """Refuse ``item`` if its inline mesh takes the scene's (``kept``) over ``cap``."""
+    if not isinstance(item, Mapping):
+        return
+    size = inline_mesh_bytes(item)
+    if not size:
+        return
+    held = sum(inline_mesh_bytes(o.data) for o in kept)
+    if held + size > cap:
+        raise InvalidRequest(
+            f"a mesh of {size} bytes would take the scene's inline meshes to "
+            f"{held + size} bytes, more than its cap of {cap} (remove or clear meshes in "
+            "the same apply, or give smaller ones)", field=f"{where}.mesh.data",
+            details={"limit": cap, "cap": "MAX_SCENE_MESH_BYTES", "scene_bytes": held,
+                     "size": size})
 
 
 def _carry(change: Mapping[str, Any], objects: dict[str, SceneObject],

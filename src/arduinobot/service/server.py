@@ -160,10 +160,11 @@ class PlannerService:
             refuse_peer_instances(self.session, p)
             self.pool.start()
             # the kept scene first: caught up with the other instances before any plan
+            # attach's frames and the meshes' parse in a worker (see scene/carry.py)
+            pooled = PooledFrames(desc, submit=self.submit)
             self.scene = SceneService(self.session, p, self.instance,
                                       tuple(desc.robot.links), scene_file=o.scene_file,
-                                      description=desc,
-                                      robot=PooledFrames(desc, submit=self.submit))
+                                      description=desc, robot=pooled, meshes=pooled)
             self.scene.start()
             for kind in (*WORK_KINDS, *INFO_KINDS):
                 for key, held in ((f"{p}/{kind}", self._shared),

@@ -229,7 +229,9 @@ class Handlers:
         """A ``frames`` job: a link's pose or a carried object's contacts for the kept
         scene's attach and detach (see :class:`arduinobot.service.scene.carry.PooledFrames`)."""
         from arduinobot.planner.frames import RobotFrames
-        from arduinobot.service.scene.carry import answer_frames
+        from arduinobot.service.scene.carry import answer_frames, answer_mesh
+        if data["op"] == "mesh":  # the scene's inline mesh: no robot needed
+            return answer_mesh(data)
         if self._frames is None:  # the planner's robot geometry, not a second build
             base = self._motion_planner().world(())
             self._frames = RobotFrames(self.description, kin=base.kin, bodies=base.bodies)

@@ -6,7 +6,7 @@
 - ``slot``: one worker slot (its pipes, its deadline, its restart).
 - ``job``: a job handed to a worker.
 - ``memtrace``: memory tracing of the workers (``ARDUINOBOT_MEMTRACE``).
-- ``heap_trim``: the serving process's freed heap given back (``malloc_trim``).
+- ``heap_trim``: freed heap given back (``malloc_trim``), the serving process's and each worker's.
 - ``disk_cache``: the artifact cache (collision geometry built once per model).
 - ``warmup``: compile the kernels and fill the cache at set-up.
 """

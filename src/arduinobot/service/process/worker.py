@@ -34,6 +34,7 @@ from arduinobot.service.messages import (
     receive,
 )
 from arduinobot.service.process.disk_cache import DiskCache
+from arduinobot.service.process.heap_trim import IdleTrim
 
 if TYPE_CHECKING:  # the serving process imports this module, never the planner
     from arduinobot.service.plan.handlers import Handlers
@@ -119,6 +120,7 @@ def serve_jobs(conn: Connection, handlers: Handlers, taken: TakenMark) -> None:
     """Answer jobs until :class:`~arduinobot.service.messages.Stop` or EOF (see the module), each
     marked ``taken`` as it arrives."""
     held: Any = None  # the last scene snapshot sent (a job may say it uses it again)
+    trim = IdleTrim()  # what a job freed, given back while no other waits
     while (job := receive(conn)) is not None:
         if not isinstance(job, JobMsg):
             raise TypeError(f"a worker takes JobMsg, not {type(job).__name__}")
@@ -134,6 +136,8 @@ def serve_jobs(conn: Connection, handlers: Handlers, taken: TakenMark) -> None:
         conn.send(Done(job.job_id, outcome, tuple(stamps or ())))
         if last:
             return
+        del job, outcome  # freed before the trim, not held until the next job
+        trim.after_job(busy=conn.poll(0))
 
 
 def _answer(conn: Connection, job: JobMsg, handlers: Handlers,

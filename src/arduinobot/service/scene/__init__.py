@@ -5,6 +5,7 @@ The scene's model (state, apply, attach/detach) is :mod:`arduinobot.scene.state`
 
 - ``apply``: ``<prefix>/scene/apply`` requests decoded, with the robot's state.
 - ``carry``: the frames attach and detach need, asked of the worker pool.
+- ``election``: the leader, among the live instances that answer.
 - ``file``: the scene file.
 - ``identity``: a scene's revision and digest (two scenes made apart told apart).
 - ``members``: the instances sharing one scene.

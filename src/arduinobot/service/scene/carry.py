@@ -3,6 +3,13 @@
 :class:`PooledFrames`, which asks the pool (a ``frames`` job), so it never imports the
 planner nor holds the GIL for a collision check next to Zenoh's callbacks; a worker
 answers with its :class:`arduinobot.planner.frames.RobotFrames` (:func:`answer_frames`).
+
+It parses the scene's inline meshes there too (:meth:`PooledFrames.store_mesh`, op
+``mesh``): a mesh's parse takes ~110 MB for a moment (a 1.6 MB OBJ of 199,000
+triangles), and in the serving process, among Zenoh's threads and their malloc arenas,
+mesh churn left it at 421 MiB with the scene cleared (69 at start: ``./dev bench
+mesh_churn``); a worker has its memory cap, gives its heap back after the job, and is
+replaced if the parse runs out of memory.
 """
 
 from __future__ import annotations
@@ -10,12 +17,14 @@ from __future__ import annotations
 import base64
 import logging
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import orjson
 
-from arduinobot.contract.errors import PlanningError
+from arduinobot.contract.codes import Code
+from arduinobot.contract.errors import InvalidRequest, PlanningError
 from arduinobot.description import Description
 from arduinobot.planner.checks import joint_values
 from arduinobot.scene.cloud import Cells, CloudObstacle
@@ -62,6 +71,29 @@ class PooledFrames:
             b["unknown"]) for b in out["bodies"])
         return bodies, out["counts"]
 
+    def store_mesh(self, data: Mapping[str, Any], *, where: str, folder: Path
+                   ) -> dict[str, Any]:
+        """:meth:`arduinobot.scene.shapes.Mesh.stored` in a worker: the object's data
+        with ``mesh_path`` (the file written in ``folder``) for its inline mesh.
+
+        Raises:
+            InvalidRequest: the mesh's refusals, naming the field under ``where``.
+            PlanningError: RESOURCE_LIMIT (the parse ran out of a worker's memory).
+        """
+        out = outcome_of(self._submit, "frames", {"op": "mesh", "data": dict(data),
+                                                  "where": where, "folder": str(folder)})
+        if isinstance(out, Failure):
+            if out.code == Code.INVALID_REQUEST:  # as raised there: field and all
+                err: PlanningError = InvalidRequest.__new__(InvalidRequest)
+                PlanningError.__init__(err, out.message, details=dict(out.details))
+                err.field = out.details.get("field")  # type: ignore[attr-defined]
+            else:
+                err = PlanningError(f"{where}.mesh: {out.message}",
+                                    details={**out.details, "field": f"{where}.mesh"})
+                err.code = out.code
+            raise err
+        return dict(orjson.loads(out.body)["stored"])
+
     def _ask(self, data: Mapping[str, Any]) -> dict[str, Any]:
         out = outcome_of(self._submit, "frames", data)
         if isinstance(out, Failure):
@@ -70,6 +102,14 @@ class PooledFrames:
             err.code = out.code
             raise err
         return orjson.loads(out.body)
+
+
+def answer_mesh(data: Mapping[str, Any]) -> dict[str, Any]:
+    """A ``frames`` job of op ``mesh`` in a worker: ``{"stored": the object's data with
+    mesh_path}`` (see :meth:`PooledFrames.store_mesh`)."""
+    from arduinobot.scene.shapes.mesh import Mesh
+    return {"stored": Mesh.stored(data["data"], where=data["where"],
+                                  folder=Path(data["folder"]))}
 
 
 def answer_frames(frames: RobotFrames, data: Mapping[str, Any]) -> dict[str, Any]:

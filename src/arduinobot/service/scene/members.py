@@ -1,5 +1,5 @@
 """Which instances share the kept scene, as liveliness tokens tell it: the live ones
-(``<p>/alive/<id>``, the leader is the smallest id) and the members that hold the scene
+(``<p>/alive/<id>``, the candidates to lead: :mod:`.election`) and the members that hold the scene
 (``<p>/scene/member/<id>``, the leader sends each change to each of them)."""
 
 from __future__ import annotations

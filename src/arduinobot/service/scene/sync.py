@@ -12,11 +12,13 @@ Keys (``<p>`` the prefix, ``<id>`` an instance's Zenoh id):
   "detached", "cleared", "arrived"}`` per applied revision, for whoever watches
   (``arrived``: when the apply reached the leading instance, wall clock [s since the
   epoch]: a moving arm's reaction is timed from it, :mod:`arduinobot.service.execute.react`);
-- ``<p>/instance/<id>/scene/lead`` and ``.../scene/sync``, liveliness
+- ``<p>/instance/<id>/scene/lead``, ``.../scene/sync`` and ``.../scene/ready``, liveliness
   ``<p>/scene/member/<id>``: between instances only.
 
 One writer at a time: every instance sends an apply to the leader, the live instance
-(liveliness ``<p>/alive/<id>``) with the smallest id, on its ``scene/lead`` key; the
+(liveliness ``<p>/alive/<id>``) with the smallest id that answers it is ready
+(:mod:`arduinobot.service.scene.election`: a token alone, of a hung process or of
+something that is no ``serve``, leads nothing), on its ``scene/lead`` key; the
 leader applies changes one after another (so ``if_revision`` means what it says), writes
 its file, sends the change to every other member's ``scene/sync`` (one exact query each)
 and waits for their answers, and only then acknowledges. The keys that change the scene
@@ -69,6 +71,7 @@ from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description import Description
 from arduinobot.scene.frames import Frames
 from arduinobot.scene.state import (
+    MeshStore,
     SceneBuilder,
     SceneState,
     StateSource,
@@ -82,6 +85,7 @@ from arduinobot.service.scene.apply import (
     decode_apply,
     with_robot_state,
 )
+from arduinobot.service.scene.election import Election
 from arduinobot.service.scene.file import (
     SceneFile,
     collect_meshes,
@@ -122,12 +126,13 @@ class SceneService:
             :func:`arduinobot.service.scene.file.default_scene_file`).
         description: the robot (without it, attach and detach are refused).
         robot: computes link poses and contacts (default: a RobotFrames of description).
+        meshes: parses inline meshes (the service's worker pool; default: here).
     """
 
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
                  link_names: tuple[str, ...], *, scene_file: str | os.PathLike[str] | None = None,
                  description: Description | None = None,
-                 robot: Frames | None = None) -> None:
+                 robot: Frames | None = None, meshes: MeshStore | None = None) -> None:
         self.session, self.prefix, self.instance = session, prefix, instance
         owner = None if description is None else scene_owner(
             description.robot.name, description.robot.source)
@@ -139,7 +144,8 @@ class SceneService:
         if robot is None and description is not None:
             from arduinobot.planner.frames import RobotFrames  # only a worker's frames
             robot = RobotFrames(description)
-        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot)
+        self.builder = SceneBuilder(link_names, mesh_dir_for(path), robot=robot,
+                                    meshes=meshes)
         self._lock = threading.Lock()  # held while the state changes (and is written)
         self._state = SceneState()
         # the scene before this one: a plan that took it may still read its mesh files
@@ -159,6 +165,10 @@ class SceneService:
         self._behind: str | None = None
         self._behind_count = 0
         self._behind_lock = threading.Lock()
+        # stopped (SIGSTOP, a VM pause) and not caught up since: it may not lead
+        self._stalled = False
+        self.election = Election(session, prefix, instance, self.instances,
+                                 ready=lambda: not self._stalled, on_stall=self._was_stopped)
         # apply_id -> the revision it made (the leader's and every member's that took it)
         self._applied: OrderedDict[str, int] = OrderedDict()
         self._ids = itertools.count(1)
@@ -219,6 +229,9 @@ class SceneService:
         self._declare(f"{p}/scene/apply", apply_, shared=True, exact=True)
         self._declare(f"{me}/scene/apply", apply_, exact=True)
         self._declare(f"{me}/scene/lead", self._queued(self._writes, self._lead), exact=True)
+        # answered last: an instance leads only once it serves its scene
+        self._declare(self.election.key(self.instance), self.election.answer, exact=True)
+        self.election.start()
         self._started = True
 
     def _start_without_the_file(self, error: InvalidRequest, data: Mapping[str, Any] | None,
@@ -265,6 +278,11 @@ class SceneService:
         _log.info("scene: %s: fetching the newest scene of the live instances", why)
         self._schedule_catch_up()
 
+    def _was_stopped(self, gap: float) -> None:
+        with self._behind_lock:
+            self._stalled = True
+        self._fall_behind(f"this process was stopped for {gap:.1f} s")
+
     def _member_returned(self, inst: str) -> None:
         if self._started:  # at start, _catch_up does it
             self._fall_behind(f"instance {inst[:8]} is back after its token went")
@@ -284,6 +302,7 @@ class SceneService:
         with self._behind_lock:
             if self._behind_count == seen:  # nothing new fell behind meanwhile
                 self._behind = None
+                self._stalled = False
         _log.info("scene: current at revision %d", self._state.revision)
 
     def _schedule_catch_up(self) -> None:
@@ -294,6 +313,7 @@ class SceneService:
             pass  # shut down: this instance is closing
 
     def close(self) -> None:
+        self.election.close()
         self._writes.shutdown(wait=True, cancel_futures=True)
         self._syncs.shutdown(wait=True, cancel_futures=True)
         for e in reversed(self._entities):
@@ -357,8 +377,9 @@ class SceneService:
 
     # -- writing -----------------------------------------------------------------------
     def leader(self) -> str:
-        """The live instance with the smallest id (this one counts, live or not yet)."""
-        return min(self.instances.live() | {self.instance})
+        """The live instance with the smallest id that answers it is ready (this one
+        counts, live or not yet): :meth:`Election.leader`."""
+        return self.election.leader()
 
     def _apply_or_forward(self, query: zenoh.Query, raw: bytes, arrived: float) -> None:
         change = decode_apply(raw)  # refused here, at once, wherever the leader is
@@ -385,6 +406,13 @@ class SceneService:
                                             encoding=wire.JSON))
             if replies:
                 r = replies[0]
+                other = _not_leader(r.err.payload.to_bytes()) if r.err is not None else None
+                if other is not None and time.monotonic() < give_up:
+                    # it chose another (which this instance passed over): ask that again
+                    _log.info("scene: %s does not lead, %s does: asking again", lead, other)
+                    self.election.reconsider(other)
+                    time.sleep(0.05)
+                    continue
                 if r.ok is not None:
                     body = r.ok.payload.to_bytes()
                     if source is not None:
@@ -400,6 +428,11 @@ class SceneService:
             time.sleep(0.2)
 
     def _lead(self, query: zenoh.Query, raw: bytes, arrived: float) -> None:
+        lead = self.leader()
+        if lead != self.instance:  # two views for a moment: one writer all the same
+            raise SceneUnavailable(f"instance {self.instance} does not lead the scene, "
+                                   f"{lead} does; retry",
+                                   details={"reason": "not_leader", "leader": lead})
         self._lead_change(query, decode_apply(raw), arrived=arrived)
 
     def _collect(self) -> None:
@@ -435,6 +468,11 @@ class SceneService:
 
     def _lead_change(self, query: zenoh.Query, change: Mapping[str, Any],
                      source: StateSource | None = None, *, arrived: float) -> None:
+        if not self.election.ready():  # stopped: what it holds may be old
+            raise SceneUnavailable(f"instance {self.instance} was stopped and is catching "
+                                   "up before it leads; retry",
+                                   details={"reason": "catching_up",
+                                            "retry_after": CATCH_UP_RETRY})
         done = self._applied.get(str(change.get("apply_id")))
         if done is not None:
             now = self._state
@@ -442,7 +480,8 @@ class SceneService:
                       "nothing changed", change.get("apply_id"), done)
             query.reply(query.key_expr, orjson.dumps({
                 "revision": done, "objects": len(now.objects) + len(now.clouds),
-                "attached": len(now.attached), "already_applied": True}),
+                "attached": len(now.attached), "already_applied": True,
+                "leader": self.instance}),
                 encoding=wire.JSON)
             return
         old, new = self._install_fairly(change)
@@ -461,7 +500,7 @@ class SceneService:
                             encoding=wire.JSON)
         reply: dict[str, Any] = {"revision": new.revision,
                                  "objects": len(new.objects) + len(new.clouds),
-                                 "attached": len(new.attached)}
+                                 "attached": len(new.attached), "leader": self.instance}
         if source is not None:
             reply["state_source"] = source
         if missed:
@@ -628,3 +667,15 @@ class SceneService:
                 out[inst] = orjson.loads(reply.ok.payload.to_bytes())
         return out
 
+
+
+def _not_leader(err: bytes) -> str | None:
+    """The leader another instance names when it refuses to lead (``not_leader``)."""
+    try:
+        details = orjson.loads(err)["error"]["details"]
+    except (orjson.JSONDecodeError, KeyError, TypeError):
+        return None
+    if isinstance(details, dict) and details.get("reason") == "not_leader":
+        leader = details.get("leader")
+        return leader if isinstance(leader, str) else None
+    return None
