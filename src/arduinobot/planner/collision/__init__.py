@@ -7,6 +7,7 @@ sampled motions, and motions proven free between samples.
 - The world: ``world`` (:class:`~.world.CollisionWorld`: state checks, sweeps, a pair's
   distance by kind), ``compiled`` (calling numba kernels past the dispatcher).
 - Point clouds: ``cloud_body`` (a cloud's cells as one body: a tree of cell boxes),
+  ``cloud_tree`` (that tree's build, split by the surface-area heuristic),
   ``cloud_tiles`` (its boundary's FCL BVHs in tiles, each built on first use),
   ``cloud_keep`` (a cloud posed, self-filtered and kept, with its unknown space).
 - Allowed pairs: ``acm`` (the allowed-collision matrix), ``acm_gen`` (computing it as

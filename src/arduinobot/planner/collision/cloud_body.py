@@ -27,11 +27,11 @@ from __future__ import annotations
 import math
 
 import fcl
-import numba
 import numpy as np
 
 from arduinobot.planner.collision.bounds.hulls import Hull, mesh_hull
 from arduinobot.planner.collision.bounds.obbtree import ObbTree
+from arduinobot.planner.collision.cloud_tree import build_box_tree
 from arduinobot.scene.cloud import Cells
 
 # the six face directions and, per direction, its square's corners (unit cell, as
@@ -111,57 +111,6 @@ def surface_bvh(vertices: np.ndarray, faces: np.ndarray) -> fcl.BVHModel:
     return m
 
 
-@numba.njit(cache=True, nogil=True)
-def _build(lo: np.ndarray, hi: np.ndarray, center: np.ndarray, half: np.ndarray,
-           left: np.ndarray, right: np.ndarray) -> int:
-    # Top down over the cells' boxes (lo, hi: (n, 3)), axis-aligned nodes, split at the
-    # median centre along the node's longest axis; one cell a leaf. Returns the node
-    # count (2n - 1).
-    n = lo.shape[0]
-    perm = np.arange(n)
-    mid = (lo + hi) * 0.5
-    stack = np.empty((2 * n + 2, 4), dtype=np.int64)  # start, end, parent, is_right
-    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, n, -1, 0
-    top, count = 1, 0
-    while top > 0:
-        top -= 1
-        s, e, parent, is_right = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-        node = count
-        count += 1
-        bl = np.full(3, np.inf)
-        bh = np.full(3, -np.inf)
-        for i in range(s, e):
-            for a in range(3):
-                bl[a] = min(bl[a], lo[perm[i], a])
-                bh[a] = max(bh[a], hi[perm[i], a])
-        for a in range(3):
-            center[node, a] = 0.5 * (bl[a] + bh[a])
-            half[node, a] = 0.5 * (bh[a] - bl[a]) + 1e-9
-        left[node] = -1
-        right[node] = -1
-        if parent >= 0:
-            if is_right:
-                right[parent] = node
-            else:
-                left[parent] = node
-        if e - s <= 1:
-            continue
-        axis = 0
-        if bh[1] - bl[1] > bh[axis] - bl[axis]:
-            axis = 1
-        if bh[2] - bl[2] > bh[axis] - bl[axis]:
-            axis = 2
-        sub = perm[s:e]
-        order = np.argsort(mid[sub, axis], kind="mergesort")
-        perm[s:e] = sub[order]
-        m = s + (e - s) // 2
-        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = m, e, node, 1
-        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = \
-            s, m, node, 0
-        top += 2
-    return count
-
-
 def _merged(lo: np.ndarray, size: np.ndarray, axis: int, longest: int
             ) -> tuple[np.ndarray, np.ndarray]:
     # boxes (lower corners and sizes in cells, (n, 3) int; one cell along ``axis``)
@@ -197,14 +146,15 @@ def cell_boxes(cells: Cells, *, longest: int = 2**21) -> tuple[np.ndarray, np.nd
 
 def cell_tree(cells: Cells) -> ObbTree:
     """An OBB tree (world axes) whose leaves are the cells joined into boxes
-    (:func:`cell_boxes`): the same union in fewer leaves, so built and walked faster."""
+    (:func:`cell_boxes`): the same union in fewer leaves, so built and walked faster;
+    split by the surface-area heuristic (:mod:`.cloud_tree`)."""
     corner, size = cell_boxes(cells, longest=TREE_LEAF_CELLS)
     lo = np.ascontiguousarray(corner * cells.resolution, float)
     hi = lo + size * cells.resolution
     cap = 2 * len(lo)
     center, half = np.empty((cap, 3)), np.empty((cap, 3))
     left, right = np.empty(cap, np.int64), np.empty(cap, np.int64)
-    n = _build(lo, hi, center, half, left, right)
+    n = build_box_tree(lo, hi, center, half, left, right)
     axes = np.ascontiguousarray(np.broadcast_to(np.eye(3), (n, 3, 3)))
     return ObbTree(center[:n].copy(), axes, half[:n].copy(), left[:n].copy(),
                    right[:n].copy())

@@ -186,6 +186,17 @@ def _box_gap(ra: np.ndarray, ca: np.ndarray, ha: np.ndarray, rb: np.ndarray, cb:
     return g
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _pair_gap(na: int, nb: int, rel_r: np.ndarray, rel_t: np.ndarray, center: np.ndarray,
+              axes: np.ndarray, half: np.ndarray, best: float, scratch: np.ndarray) -> float:
+    # :func:`_box_gap` of node na (a's frame) and node nb (b's, moved by rel_r, rel_t)
+    rb = scratch[2]
+    cb = scratch[1, 1]
+    box_in_frame(rel_r, rel_t, center[nb], axes[nb], rb, cb)
+    return _box_gap(axes[na], center[na], half[na], rb, cb, half[nb], best, scratch[3],
+                    scratch[4], scratch[1, 2])
+
+
 @numba.njit(cache=True, nogil=True)
 def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.ndarray,
                      axes: np.ndarray, half: np.ndarray, left: np.ndarray, right: np.ndarray,
@@ -203,29 +214,22 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
     """
     rel_r = scratch[0]
     rel_t = scratch[1, 0]
-    rb = scratch[2]
-    cb = scratch[1, 1]
     relative_pose(ta, tb, rel_r, rel_t)
     best = cap
     found = False  # a leaf pair below the cap set ``best``
     pruned = np.inf  # the smallest gap of a pruned node pair
+    # a node pair is measured when it is pushed, so of two children the nearer is
+    # popped first: a close leaf pair found early lowers ``best`` and prunes the rest
+    # (the same bound, for 0.6x the box tests near a cloud of 50k cells and 0.8x near
+    # two boxes, measured on bench/cloud.py's scene)
     stack[0, 0] = a
     stack[0, 1] = b
-    gaps[0] = -np.inf
+    gaps[0] = _pair_gap(a, b, rel_r, rel_t, center, axes, half, best, scratch)
     top = 1
     while top > 0:
         top -= 1
         na, nb = stack[top, 0], stack[top, 1]
-        if gaps[top] >= best:
-            pruned = min(pruned, gaps[top])
-            continue
-        box_in_frame(rel_r, rel_t, center[nb], axes[nb], rb, cb)
-        g = _box_gap(axes[na], center[na], half[na], rb, cb, half[nb], best, scratch[3],
-                     scratch[4], scratch[1, 2])
-        # OBB children are not nested in their parent's box, but their triangles are a
-        # subset of the parent's: the ancestors' gap still bounds them
-        if gaps[top] > g:
-            g = gaps[top]
+        g = gaps[top]
         if g >= best:
             pruned = min(pruned, g)
             continue
@@ -239,15 +243,18 @@ def tree_lower_bound(ta: np.ndarray, a: int, tb: np.ndarray, b: int, center: np.
             continue
         va = half[na, 0] * half[na, 1] * half[na, 2]
         vb = half[nb, 0] * half[nb, 1] * half[nb, 2]
-        # children inherit the parent's bound until they are popped and measured
         if lb < 0 or (la >= 0 and va >= vb):
-            stack[top, 0], stack[top, 1] = right[na], nb
-            stack[top + 1, 0], stack[top + 1, 1] = la, nb
+            a1, b1, a2, b2 = la, nb, right[na], nb
         else:
-            stack[top, 0], stack[top, 1] = na, right[nb]
-            stack[top + 1, 0], stack[top + 1, 1] = na, lb
-        gaps[top] = g
-        gaps[top + 1] = g
+            a1, b1, a2, b2 = na, lb, na, right[nb]
+        # OBB children are not nested in their parent's box, but their triangles are a
+        # subset of the parent's: the ancestors' gap still bounds them
+        g1 = max(g, _pair_gap(a1, b1, rel_r, rel_t, center, axes, half, best, scratch))
+        g2 = max(g, _pair_gap(a2, b2, rel_r, rel_t, center, axes, half, best, scratch))
+        if g2 < g1:
+            a1, b1, g1, a2, b2, g2 = a2, b2, g2, a1, b1, g1
+        stack[top, 0], stack[top, 1], gaps[top] = a2, b2, g2
+        stack[top + 1, 0], stack[top + 1, 1], gaps[top + 1] = a1, b1, g1
         top += 2
     # every pair was pruned at or above best, which only fell: what was pruned bounds it
     return best if found else pruned
