@@ -8,7 +8,6 @@ does not stop it. No wall-clock bounds: a slow motion, and the stream's events."
 
 from __future__ import annotations
 
-import json
 import threading
 import time
 
@@ -17,6 +16,7 @@ import pytest
 
 from arduinobot.client.client import PlannerClient
 from tests.helpers.contact import LinkMeshes
+from tests.helpers.joint_states import States
 from tests.helpers.serve import start_server
 
 pytestmark = pytest.mark.slow
@@ -38,22 +38,6 @@ def served():
 @pytest.fixture(scope="module")
 def meshes(desc):
     return LinkMeshes(desc)
-
-
-class States:
-    """Every ``<prefix>/joint_states`` message (the twin's measured state per tick)."""
-
-    def __init__(self, c: PlannerClient) -> None:
-        self.msgs: list[dict] = []
-        self.sub = c.session.declare_subscriber(
-            "arduinobot/joint_states", lambda s: self.msgs.append(json.loads(
-                s.payload.to_bytes())))
-
-    def arrays(self) -> tuple[list[str], np.ndarray]:
-        return self.msgs[0]["name"], np.array([m["position"] for m in self.msgs])
-
-    def close(self) -> None:
-        self.sub.undeclare()
 
 
 def _home(c: PlannerClient) -> None:

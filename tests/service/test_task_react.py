@@ -12,7 +12,6 @@ change off the path lets the task go on. No wall-clock bounds: the stream's even
 
 from __future__ import annotations
 
-import json
 import threading
 from typing import Any
 
@@ -24,6 +23,7 @@ from arduinobot.client.client import PlannerClient
 from arduinobot.description import load_description
 from tests.helpers.contact import LinkMeshes
 from tests.helpers.fk import link_pose
+from tests.helpers.joint_states import States
 from tests.helpers.pick_place import BIN_INNER, BIN_XY, BOX, pick_and_place_by_name
 from tests.helpers.serve import start_server
 
@@ -50,22 +50,6 @@ def course(course_ws):
 @pytest.fixture(scope="module")
 def meshes(course):
     return LinkMeshes(course)
-
-
-class States:
-    """Every ``<prefix>/joint_states`` message (the twin's measured state per tick)."""
-
-    def __init__(self, c: PlannerClient) -> None:
-        self.msgs: list[dict] = []
-        self.sub = c.session.declare_subscriber(
-            "arduinobot/joint_states", lambda s: self.msgs.append(json.loads(
-                s.payload.to_bytes())))
-
-    def arrays(self) -> tuple[list[str], np.ndarray]:
-        return self.msgs[0]["name"], np.array([m["position"] for m in self.msgs])
-
-    def close(self) -> None:
-        self.sub.undeclare()
 
 
 def _task(c: PlannerClient, course) -> dict[str, Any]:
