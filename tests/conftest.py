@@ -48,7 +48,7 @@ def desc():
 def scene_builder(desc, tmp_path):
     """A kept scene's builder for the shipped arm (it can attach and fix objects to links)."""
     from arduinobot.planner.frames import RobotFrames
-    from arduinobot.scene.state import SceneBuilder
+    from arduinobot.scene.builder import SceneBuilder
     return SceneBuilder(tuple(desc.robot.links), tmp_path / "meshes", robot=RobotFrames(desc))
 
 

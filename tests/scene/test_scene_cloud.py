@@ -18,8 +18,10 @@ from arduinobot.planner.frames import RobotFrames
 from arduinobot.planner.planning.goals import JointGoal
 from arduinobot.planner.planning.motion import MotionRequest
 from arduinobot.planner.planning.pipeline import MotionPlanner
+from arduinobot.scene.builder import SceneBuilder
+from arduinobot.scene.change import apply, restore
 from arduinobot.scene.cloud import encode_points
-from arduinobot.scene.state import SceneBuilder, SceneState, apply, restore
+from arduinobot.scene.state import SceneState
 from arduinobot.service.scene.apply import decode_apply
 from tests.planner.planning.test_carried import _dense
 

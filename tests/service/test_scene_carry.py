@@ -14,7 +14,9 @@ from scipy.spatial.transform import Rotation
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, JointLimitViolation, PlanningError
-from arduinobot.scene.state import SceneBuilder, SceneState, apply, restore
+from arduinobot.scene.builder import SceneBuilder
+from arduinobot.scene.change import apply, restore
+from arduinobot.scene.state import SceneState
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.scene.apply import decode_apply
 from arduinobot.service.scene.file import SceneFile

@@ -76,7 +76,8 @@ def test_the_same_revision_with_other_objects_has_another_digest(tmp_path):
 def test_a_digest_hashed_member_by_member_is_the_whole_scenes(tmp_path):
     """The kept digests hash each member once; each must still be the digest of the whole
     scene as a fresh instance computes it, through a run of changes, order included."""
-    from arduinobot.scene.state import SceneBuilder, apply
+    from arduinobot.scene.builder import SceneBuilder
+    from arduinobot.scene.change import apply
     builder = SceneBuilder(LINKS, tmp_path / "meshes")
     state = _restored(_file(tmp_path, "a", _box("table", 1.0), _box("ball", 1.5)))
     kept = EncodedScenes()
@@ -100,7 +101,8 @@ def test_a_digest_hashed_member_by_member_is_the_whole_scenes(tmp_path):
 
 
 def _restored(path: Path):
-    from arduinobot.scene.state import SceneBuilder, restore
+    from arduinobot.scene.builder import SceneBuilder
+    from arduinobot.scene.change import restore
     return restore(json.loads(path.read_text()), SceneBuilder(LINKS, path.parent / "meshes"))
 
 

@@ -13,8 +13,10 @@ import pytest
 from arduinobot.client.replies import FkReply
 from arduinobot.contract import wire
 from arduinobot.contract.errors import InvalidRequest, StartInCollision
+from arduinobot.scene.builder import SceneBuilder
+from arduinobot.scene.change import restore
 from arduinobot.scene.obstacles import rigid_links
-from arduinobot.scene.state import SceneBuilder, SceneState, restore
+from arduinobot.scene.state import SceneState
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.scene.file import SceneFile
 from tests.helpers.carry import CarryCase

@@ -13,21 +13,15 @@ import trimesh
 from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, PlanningError, SceneConflict
+from arduinobot.scene.builder import SceneBuilder
+from arduinobot.scene.change import apply, restore
 from arduinobot.scene.mesh_codec import (
     MAX_MESH_BASE64,
     MAX_MESH_BYTES,
     MAX_MESH_TRIANGLES,
     decode_mesh,
 )
-from arduinobot.scene.state import (
-    MAX_SCENE_OBJECTS,
-    SceneBuilder,
-    SceneSnapshot,
-    SceneState,
-    apply,
-    restore,
-    with_scene,
-)
+from arduinobot.scene.state import MAX_SCENE_OBJECTS, SceneSnapshot, SceneState, with_scene
 from arduinobot.service.scene.apply import MAX_APPLY_PAYLOAD, decode_apply
 from arduinobot.service.scene.file import SceneFile
 from tests.helpers.scene_fuzz import binary_stl as _binary_stl

@@ -10,7 +10,9 @@ shape model; the scene knows the robot only through the frames protocol.
 - ``ground``: the plane the base stands on, an obstacle by default.
 - ``frames``: attach and detach, once, for the kept scene and tasks, behind a small
   frames protocol (link poses, contacts), with the one contact rule.
-- ``state``: the kept scene's model: its state at a revision, apply, restore.
+- ``state``: the kept scene's model: its state at a revision, what a plan takes of it.
+- ``builder``: a wire object made an object of the kept scene (meshes stored).
+- ``change``: how an apply changes the kept scene (all or nothing), and restore.
 - ``pose``: URDF roll-pitch-yaw and rotation matrices, both ways (objects and links).
 - ``payload``: a carried object's mass, centre of mass and inertia on its link.
 - ``mesh_codec``: a mesh sent inline (STL/OBJ/PLY, base64) decoded and bounded.

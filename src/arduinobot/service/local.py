@@ -16,7 +16,9 @@ from arduinobot.contract.errors import InvalidRequest
 from arduinobot.description import Description
 from arduinobot.planner.cache import ArtifactCache
 from arduinobot.planner.frames import RobotFrames
-from arduinobot.scene.state import SceneBuilder, SceneSnapshot, restore
+from arduinobot.scene.builder import SceneBuilder
+from arduinobot.scene.change import restore
+from arduinobot.scene.state import SceneSnapshot
 from arduinobot.service.plan.bodies import description_body
 from arduinobot.service.plan.handlers import Handlers
 from arduinobot.service.process.disk_cache import DiskCache

@@ -2,7 +2,7 @@
 (``arduinobot scene save``), read into triangles and poses (free objects in the world,
 carried objects on their link) and into what the page's collision check takes.
 
-The objects are read by the service's own reader (:func:`arduinobot.scene.state.restore`),
+The objects are read by the service's own reader (:func:`arduinobot.scene.change.restore`),
 so the viewer draws a mesh from the same bytes, scale and checks the planner uses, and
 refuses what the service would. Pure numpy/trimesh: tested without a browser.
 """
@@ -124,7 +124,8 @@ class ViewerScene:
                 ``attached[0]``: a link this model does not have).
         """
         from arduinobot.planner.frames import RobotFrames
-        from arduinobot.scene.state import SceneBuilder, restore
+        from arduinobot.scene.builder import SceneBuilder
+        from arduinobot.scene.change import restore
         from arduinobot.service.process.disk_cache import DiskCache
 
         folder = Path(mesh_dir) if mesh_dir is not None else DiskCache().root / "meshes"

@@ -1,7 +1,8 @@
 """The kept scene: one planning scene every plan and check uses, kept on disk and shared
 by the instances.
 
-The scene's model (state, apply, attach/detach) is :mod:`arduinobot.scene.state`'s.
+The scene's model is :mod:`arduinobot.scene.state`'s (apply, attach and detach:
+:mod:`arduinobot.scene.change`'s).
 
 - ``apply``: ``<prefix>/scene/apply`` requests decoded, with the robot's state.
 - ``carry``: the frames attach and detach need, asked of the worker pool.

@@ -183,7 +183,7 @@ def mesh_dir_for(scene_file: str | os.PathLike[str]) -> Path:
     """The folder of a scene file's canonical mesh files (beside it), its own: files no
     revision of this scene uses are collected (:func:`collect_meshes`), which a folder
     shared with another scene's would make unsafe. They are a cache: the scene file
-    holds each mesh inline, and :func:`arduinobot.scene.state.restore` writes them again."""
+    holds each mesh inline, and :func:`arduinobot.scene.change.restore` writes them again."""
     p = Path(scene_file)
     return p.parent / "meshes" / p.stem
 

@@ -69,15 +69,10 @@ from arduinobot.contract import wire
 from arduinobot.contract.codes import Code
 from arduinobot.contract.errors import InvalidRequest, SceneConflict
 from arduinobot.description import Description
+from arduinobot.scene.builder import MeshStore, SceneBuilder
+from arduinobot.scene.change import apply, restore
 from arduinobot.scene.frames import Frames
-from arduinobot.scene.state import (
-    MeshStore,
-    SceneBuilder,
-    SceneState,
-    StateSource,
-    apply,
-    restore,
-)
+from arduinobot.scene.state import SceneState, StateSource
 from arduinobot.service.queries import answering, guarded, reply_error
 from arduinobot.service.scene.apply import (
     MAX_APPLY_PAYLOAD,
