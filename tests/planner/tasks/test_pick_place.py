@@ -268,3 +268,24 @@ def test_an_unknown_place_is_refused_with_planned_steps_zero(course):
     assert e.value.index == 1 and e.value.code == "INVALID_REQUEST"
     assert e.value.details["planned_steps"] == 0
     assert "bin" in e.value.message  # the places it has
+
+
+def test_a_resting_box_cannot_be_pressed_into_its_table(course):
+    """A carried box may touch the table it rested on until a motion takes it clear, but
+    no motion of a task may press it in: the table's core (2 mm in) is checked against it.
+    Before, the hand-written pick's lift turned into a 1 cm push down was planned and
+    certified with the box 1 cm inside the table."""
+    from tests.helpers.pick_place import pick_and_place
+    body = pick_and_place()
+    assert body["steps"][4].get("attach") == "box" and body["steps"][5]["label"] == "up"
+    body["steps"][5] = {"line": {"offset": [0.0, 0.0, -0.01]}, "label": "press"}
+    with pytest.raises(TaskStepFailed) as e:
+        plan_task(course, task_from_mapping(body))
+    assert e.value.details["step"] == 5, e.value.details
+    pairs = e.value.details["error"]["details"].get("pairs", [])
+    assert {"box", "table.core"} in [set(p) for p in pairs], e.value.details
+    # the lift itself still plans (the core is 2 mm under the box's bottom)
+    body["steps"][5] = {"line": {"offset": [0.0, 0.0, 0.05]}, "label": "up"}
+    body["steps"] = body["steps"][:6]
+    result = plan_task(course, task_from_mapping(body))
+    assert result.steps[5].result.verification.certified

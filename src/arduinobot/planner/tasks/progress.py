@@ -25,6 +25,7 @@ from arduinobot.planner.frames import RobotFrames
 from arduinobot.planner.planning.goals import Goal
 from arduinobot.planner.planning.motion import MotionRequest
 from arduinobot.planner.planning.pathfinding.search import MAX_SEED
+from arduinobot.planner.planning.resting import cores_for
 from arduinobot.planner.tasks.gripper import gripper_goal, gripper_group, holding_link
 from arduinobot.planner.tasks.places import touching
 from arduinobot.planner.tasks.results import StepResult
@@ -39,6 +40,7 @@ from arduinobot.planner.tasks.steps import (
     WaitStep,
 )
 from arduinobot.scene.frames import attach, detach
+from arduinobot.scene.ground import with_ground
 from arduinobot.scene.obstacles import AttachedObject, Obstacle
 
 if TYPE_CHECKING:  # the service imports this module before it plans anything
@@ -164,8 +166,9 @@ def run_step(progress: Progress, step: Step, index: int, *,
         else:
             group, goal = step.group, step.goal
         pairs = tuple(sorted(set(allowed) | p.resting))
-        req = _request(task, step.options, goal, group, start, p.obstacles, p.attached,
-                       at, allowed=pairs)
+        cores, core_pairs = _cores(p, pairs)
+        req = _request(task, step.options, goal, group, start, [*p.obstacles, *cores],
+                       p.attached, at, allowed=pairs + core_pairs)
         res = p.planner.solve(req)
         tr = res.trajectory
         p.q = {n: float(v) for n, v in zip(tr.joint_names, tr.positions[-1])}
@@ -204,6 +207,32 @@ def run_step(progress: Progress, step: Step, index: int, *,
                              link=held[1], part_of=part_of, touch_links=touch, mass=mass,
                              attached=tuple(p.attached), obstacles=tuple(p.obstacles),
                              allowed=tuple(sorted(p.resting))))
+
+
+def _cores(p: Progress, pairs: tuple[tuple[str, str], ...]
+           ) -> tuple[tuple[Obstacle, ...], tuple[tuple[str, str], ...]]:
+    """For the (carried object, support) ``pairs`` a motion allows to touch: each
+    support's core (:func:`arduinobot.planner.planning.resting.cores_for`: the support
+    shrunk by :data:`~arduinobot.planner.planning.resting.DEPTH`, checked against that
+    object only), so the motion's certificate proves the object never presses deeper
+    than that into its support, whatever the motion. A support without a core (a mesh, or
+    too thin) keeps the bare allowance, as before."""
+    held = {a.id for a in p.attached}
+    obstacles = with_ground(tuple(p.obstacles), p.task.ground)
+    known = {o.id for o in obstacles}
+    links = p.planner.world(()).bodies.names
+    cores: list[Obstacle] = []
+    more: list[tuple[str, str]] = []
+    for pair in pairs:
+        if pair[0] not in held or pair[1] not in known:
+            continue
+        found = cores_for([pair], [*obstacles, *cores], p.attached, links)
+        if found is None:
+            _log.debug("no core for %s: the pair %s is allowed unproven", pair[1], pair)
+            continue
+        cores.extend(found[0])
+        more.extend(found[1][1:])  # the pair itself is allowed already
+    return tuple(cores), tuple(more)
 
 
 def _request(task: Task, options: MotionOptions, goal: Goal, group: str | None,
