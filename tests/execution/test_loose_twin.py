@@ -76,7 +76,11 @@ def test_the_so101_picks_and_places_a_cube_by_name_on_the_twin(tmp_path):
     assert place["details"]["on"] == "table"
     let_go = np.array(place["details"]["position"])
     top = TABLE.xyz[2] + TABLE.size[2] / 2
-    assert let_go[2] - EDGE / 2 == pytest.approx(top, abs=3e-3)  # let go just above it
+    # let go resting on it: the cube's lowest point on the top (a 5-joint arm's line down
+    # may tilt what it holds, and a tilted cube's centre stands higher, at most half its
+    # diagonal), never pressed in deeper than the place's proof allows (the table's core,
+    # 2 mm in)
+    assert top + EDGE / 2 - 2e-3 <= let_go[2] <= top + EDGE * np.sqrt(3) / 2, let_go
     rest = [let_go[0], let_go[1], top + EDGE / 2]
     sim = np.array(rep["execution"]["objects"]["cube"])
     assert np.linalg.norm(sim - rest) < 0.01, (sim, rest)
