@@ -217,6 +217,8 @@ def _cores(p: Progress, pairs: tuple[tuple[str, str], ...]
     object only), so the motion's certificate proves the object never presses deeper
     than that into its support, whatever the motion. A support without a core (a mesh, or
     too thin) keeps the bare allowance, as before."""
+    if not pairs:  # most steps: nothing resting, nothing to build
+        return (), ()
     held = {a.id for a in p.attached}
     obstacles = with_ground(tuple(p.obstacles), p.task.ground)
     known = {o.id for o in obstacles}
