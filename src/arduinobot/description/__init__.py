@@ -8,6 +8,8 @@
 - ``packages``: ROS packages found and resource URIs resolved without ROS.
 - ``srdf``: planning groups, end effectors, named states, disabled collision pairs.
 - ``moveit_config``: the files that configure planning (SRDF, joint limits, tool point).
+- ``tcp``: the tool centre point: the default without a tcp file, and ``tcp.yaml``.
+- ``config_yaml``: ``joint_limits.yaml`` and ``initial_positions.yaml`` read against the robot.
 - ``meshes``: mesh files loaded as trimesh objects in metres, cached.
 - ``checks``: ``arduinobot check``: what ``check_urdf`` checks, and plausibility.
 - ``errors``: the errors of loading and checking a description.
@@ -32,7 +34,6 @@ from arduinobot.description.geometry import Geometry, MeshFile
 from arduinobot.description.loader import (
     DEFAULT_MODEL,
     Description,
-    Tcp,
     load_description,
     read_model_text,
 )
@@ -48,6 +49,7 @@ from arduinobot.description.model import (
 )
 from arduinobot.description.packages import PackageIndex, build_package_index
 from arduinobot.description.srdf import Srdf
+from arduinobot.description.tcp import Tcp
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 

@@ -14,14 +14,10 @@ from typing import Literal
 
 import numpy as np
 
+from arduinobot.description.config_yaml import apply_position_limits, read_joint_limits
 from arduinobot.description.errors import DescriptionError
 from arduinobot.description.geometry import MeshFile
-from arduinobot.description.loader import (
-    _read_joint_limits,
-    apply_position_limits,
-    model_path,
-    read_model,
-)
+from arduinobot.description.loader import model_path, read_model
 from arduinobot.description.meshes import load_mesh
 from arduinobot.description.model import Inertial, Link, Robot
 from arduinobot.description.moveit_config import resolve_config
@@ -344,7 +340,7 @@ def _check_config(robot: Robot, path: Path, packages: PackageIndex, *,
                   "; ".join(x.strip() for x in files.lines()), files.to_json())
     if files.joint_limits is not None:
         try:
-            limits, _ = _read_joint_limits(files.joint_limits, robot)
+            limits, _ = read_joint_limits(files.joint_limits, robot)
             _, ignored = apply_position_limits(robot, limits, files.joint_limits)
         except DescriptionError as e:
             yield _fail_from(e, "joint_limits")

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from arduinobot.contract.errors import GoalOutOfReach, InvalidRequest
-from arduinobot.description.loader import Tcp
+from arduinobot.description.tcp import Tcp
 from arduinobot.planner.checks import check_positions
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik_numeric import (

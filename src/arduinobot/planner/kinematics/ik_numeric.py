@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from arduinobot.contract.errors import InvalidRequest
-from arduinobot.description.loader import Tcp
+from arduinobot.description.tcp import Tcp
 from arduinobot.planner.kinematics.chain import Kinematics
 
 # Solutions closer than this in every joint [rad or m] are one solution.

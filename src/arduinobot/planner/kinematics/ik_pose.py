@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from arduinobot.description.loader import Tcp
+from arduinobot.description.tcp import Tcp
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik import IkSolution
 from arduinobot.planner.kinematics.ik_numeric import Chain, dedupe, wrap_into_limits

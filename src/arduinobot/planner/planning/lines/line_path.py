@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from arduinobot.contract.errors import LineInterrupted
-from arduinobot.description.loader import Tcp
+from arduinobot.description.tcp import Tcp
 from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik_numeric import Chain

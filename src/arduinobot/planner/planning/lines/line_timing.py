@@ -18,8 +18,8 @@ import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from arduinobot.contract.errors import TrajectoryError
-from arduinobot.description.loader import Tcp
 from arduinobot.description.moveit_config import CartesianLimits
+from arduinobot.description.tcp import Tcp
 from arduinobot.planner.kinematics.chain import Kinematics
 from arduinobot.planner.kinematics.ik_numeric import Chain
 from arduinobot.planner.kinematics.ik_pose import tool_jacobian
