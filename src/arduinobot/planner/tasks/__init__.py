@@ -2,7 +2,8 @@
 place) planned as a whole before anything moves. The named tasks of a ``tasks.yaml`` are read by
 :func:`arduinobot.description.moveit_config.read_tasks`.
 
-- ``steps``: the model (a task, its steps, parsed from JSON or YAML).
+- ``steps``: the model (a task, its steps).
+- ``task_json``: a task read from its JSON (or YAML) form, a bad field named.
 - ``precheck``: the names a task's steps use, checked before anything is planned.
 - ``sequence``: the planning, step after step through the one door.
 - ``progress``: the planning so far, and one primitive step planned from there.
@@ -28,8 +29,8 @@ from arduinobot.planner.tasks.steps import (
     Step,
     Task,
     WaitStep,
-    task_from_mapping,
 )
+from arduinobot.planner.tasks.task_json import task_from_mapping
 
 __all__ = ["AttachStep", "DetachStep", "GripperStep", "MoveStep", "PickStep", "PlaceStep",
            "PlaceTarget", "Step", "StepResult",
