@@ -10,7 +10,8 @@ serial before a driver needs them. Where things are:
 
 - :mod:`arduinobot.execution.executor`: :class:`~arduinobot.execution.executor.Executor`, its options and errors;
 - :mod:`arduinobot.execution.segments`: :class:`~arduinobot.execution.segments.SampledTrajectory`,
-  :func:`~arduinobot.execution.segments.check_fits`; :mod:`arduinobot.execution.stops`: smooth stops;
+  :func:`~arduinobot.execution.segments.check_fits`; :mod:`arduinobot.execution.ruckig_segments`: ruckig's
+  moves and stops; :mod:`arduinobot.execution.stops`: smooth stops;
 - :mod:`arduinobot.execution.report`: the execution report; :mod:`arduinobot.execution.joint_states`;
 - :mod:`arduinobot.execution.robots`: the :class:`~arduinobot.execution.robots.base.Robot` interface, the
   drivers and :class:`~arduinobot.execution.robots.spec.RobotSpec`;

@@ -32,7 +32,8 @@ from arduinobot.contract.ranges import RANGES
 from arduinobot.description import Description
 from arduinobot.execution.report import ExecutionReport, Phase, Recorder, Tick
 from arduinobot.execution.robots.base import Robot, RobotError
-from arduinobot.execution.segments import SampledTrajectory, Segment, move_segment
+from arduinobot.execution.ruckig_segments import move_segment
+from arduinobot.execution.segments import SampledTrajectory, Segment
 from arduinobot.execution.stops import StopKind, TorqueFn, choose_stop, effort_safe
 from arduinobot.planner.kinematics.limits import JointLimits
 

@@ -14,7 +14,8 @@ from typing import Literal
 import numpy as np
 from ruckig import Trajectory
 
-from arduinobot.execution.segments import PathStop, RestOf, RuckigSegment, Segment, stop_segment
+from arduinobot.execution.ruckig_segments import PathStop, RestOf, RuckigSegment, stop_segment
+from arduinobot.execution.segments import Segment
 from arduinobot.planner.kinematics.limits import JointLimits
 from arduinobot.planner.timing import braking
 from arduinobot.planner.timing.braking import TorqueFn
