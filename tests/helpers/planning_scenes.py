@@ -9,6 +9,9 @@ away from the wall (nothing touches it), yet every state with joint_1 = 0 collid
 real NO_PATH_FOUND, not a start or goal in collision. Leaning away, the gripper reaches
 under the plane the base stands on: plan these with the ground off (``ground=False``,
 ``"ground": false``; :mod:`arduinobot.scene.ground`), as a wall-mounted arm would.
+
+:data:`SLOT` is the same wall with the window just wide and tall enough for the arm in
+a narrow band of poses: a narrow passage, the only way from start to goal.
 """
 
 from __future__ import annotations
@@ -17,11 +20,22 @@ from arduinobot.scene.obstacles import Obstacle
 
 _X, _T, _Y, _Z = -0.02, 0.04, 0.62, 1.12  # the plane, the wall's thickness, the window
 
-SPLIT: tuple[Obstacle, ...] = (
-    Obstacle("roof", "box", size=(_T, 4.0, 2.0), xyz=(_X, 0.0, _Z + 1.0)),
-    Obstacle("front", "box", size=(_T, 2.0 - _Y, _Z), xyz=(_X, (2.0 + _Y) / 2, _Z / 2)),
-    Obstacle("back", "box", size=(_T, 2.0 - _Y, _Z), xyz=(_X, -(2.0 + _Y) / 2, _Z / 2)),
-)
+
+def split_wall(half_width: float, height: float) -> tuple[Obstacle, ...]:
+    """The wall in the plane x = -0.02 with a window |y| < ``half_width`` [m], z <
+    ``height`` [m] (2 m wide each side, its roof 2 m tall: past the arm's reach)."""
+    y, z = half_width, height
+    return (Obstacle("roof", "box", size=(_T, 4.0, 2.0), xyz=(_X, 0.0, z + 1.0)),
+            Obstacle("front", "box", size=(_T, 2.0 - y, z), xyz=(_X, (2.0 + y) / 2, z / 2)),
+            Obstacle("back", "box", size=(_T, 2.0 - y, z), xyz=(_X, -(2.0 + y) / 2, z / 2)))
+
+
+SPLIT: tuple[Obstacle, ...] = split_wall(_Y, _Z)
+# the window widened just enough for the arm in a narrow band of poses: the upper arm
+# leaning far to one side (joint_2 about -1.2 to -1.55 rad) with the forearm bent back
+# (joint_3 about -0.5 to 0), 0.9-0.92 m wide and 1.3-1.36 m tall at joint_1 = 0
+# (tests/planner/planning/test_narrow_passage.py)
+SLOT: tuple[Obstacle, ...] = split_wall(0.92, 1.36)
 SPLIT_START = {"joint_1": 1.2, "joint_2": -0.6, "joint_3": -0.6, "joint_4": 0.0}
 SPLIT_GOAL = {"joint_1": -1.2, "joint_2": -0.6, "joint_3": -0.6}
 
