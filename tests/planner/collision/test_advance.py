@@ -9,7 +9,7 @@ from arduinobot.description.meshes import shape_mesh
 from arduinobot.planner.collision.proof.advance import tree_lower_bound
 from arduinobot.planner.collision.proof.motion_check import interpolate
 from arduinobot.planner.collision.world import CollisionWorld
-from arduinobot.scene.obstacles import Obstacle
+from arduinobot.scene.obstacles import AttachedObject, Obstacle
 from tests.helpers.fcl_bodies import fcl_objects, place
 
 
@@ -103,3 +103,17 @@ def test_sweep_decides_every_state_like_single_checks(padding):
         assert np.all(cand.any(axis=1)[~valid])
         blocked += expect >= 0
     assert 0 < blocked < 12
+
+
+def test_a_world_sharing_the_robot_gets_the_weights_of_one_built_afresh(world):
+    # the robot's links' reach is computed once and kept with its bodies: a later world
+    # (other obstacles, a carried box whose reach is its own) must get exactly the
+    # weights a world built from nothing gets
+    obstacles = [Obstacle("shelf", "box", size=(0.3, 0.3, 0.02), xyz=(0.4, -0.3, 0.9))]
+    held = [AttachedObject(Obstacle("held", "box", size=(0.04, 0.04, 0.1)),
+                           world.description.tcp.parent_link)]
+    shared = world.with_scene(obstacles, attached=held)
+    fresh = CollisionWorld(load_description(), obstacles=obstacles, attached=held)
+    assert shared.table.pair_names == fresh.table.pair_names
+    assert any("held" in pair for pair in shared.table.pair_names)  # past the links
+    np.testing.assert_array_equal(shared.table.pairs.weight, fresh.table.pairs.weight)

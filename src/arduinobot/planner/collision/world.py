@@ -32,6 +32,7 @@ from arduinobot.planner.collision.compiled import Direct
 from arduinobot.planner.collision.proof.advance import (
     SweepCarry,
     Work,
+    joint_reach,
     pair_weights,
     sweep,
     tree_lower_bound,
@@ -151,7 +152,12 @@ class CollisionWorld:
         self.chain = self.kin.chain
         index, fixed = scene.checked_pairs(self.acm, carried_touch(self.attached))
         # [m/rad] how fast each pair can close in per joint, for conservative advancement
-        weight = pair_weights(robot, self.kin.joint_names, list(scene.points), index)
+        reach = bodies.proofs.get("joint_reach")
+        if reach is None:  # the robot's links' reach: once per robot, not per world
+            reach = bodies.proofs["joint_reach"] = tuple(
+                joint_reach(robot, link, pts) for link, pts in bodies.points)
+        weight = pair_weights(robot, self.kin.joint_names, list(scene.points), index,
+                              known=reach)
         # per pair, the body that moves by a static one (its local speed bounds the pair's
         # steps too), or -1
         links = np.array(scene.links, dtype=np.int64)

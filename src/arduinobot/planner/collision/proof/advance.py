@@ -19,6 +19,7 @@ the same as checking every state (the bound is a proof), typically for a tenth o
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import NamedTuple
 
 import numba
@@ -122,14 +123,20 @@ def joint_reach(robot: Robot, link: str, points: np.ndarray) -> dict[str, float]
 
 
 def pair_weights(robot: Robot, joint_names: tuple[str, ...], bodies: list[tuple[str | None,
-                 np.ndarray]], pairs: np.ndarray) -> np.ndarray:
+                 np.ndarray]], pairs: np.ndarray, *,
+                 known: Sequence[Mapping[str, float]] = ()) -> np.ndarray:
     """``weight[p, k]`` [m/rad]: how far body a of pair p can move relative to body b per
     unit of actuated joint k. ``bodies``: (link name, or None for a static obstacle;
-    points (v, 3) in the link frame). Mimic joints count with |multiplier|."""
+    points (v, 3) in the link frame). Mimic joints count with |multiplier|. ``known``: the
+    :func:`joint_reach` of the first ``len(known)`` bodies, already computed (the robot's
+    links: the same in every world of the robot, half of a new world's build on a 7-joint
+    arm when computed each time)."""
     idx = {n: k for k, n in enumerate(joint_names)}
-    reach, chains = [], []
-    for link, pts in bodies:
-        reach.append(joint_reach(robot, link, pts) if link is not None else {})
+    reach: list[Mapping[str, float]] = list(known)
+    chains = []
+    for i, (link, pts) in enumerate(bodies):
+        if i >= len(known):
+            reach.append(joint_reach(robot, link, pts) if link is not None else {})
         chains.append({j.name for j in robot.link_path(link)} if link is not None else set())
     w = np.zeros((len(pairs), len(joint_names)))
     for p, (a, b) in enumerate(pairs):
