@@ -28,7 +28,7 @@ from typing import Literal
 import numpy as np
 import zenoh
 
-from arduinobot.contract.zconfig import zenoh_config
+from arduinobot.contract.zconfig import Mode, zenoh_config
 from tests.helpers.serve import free_port
 
 Route = Literal["bare", "via_peer", "direct"]
@@ -47,7 +47,7 @@ def _answer(connect: str, listen: str | None, reply: bytes, ready: object,
             stop: object) -> None:
     """The answering process (spawned): a queryable on KEY, not complete, replying
     ``reply`` to every query, until ``stop`` is set."""
-    mode = "peer" if listen else "client"
+    mode: Mode = "peer" if listen else "client"
     session = zenoh.open(zenoh_config(mode=mode, connect=[connect],
                                       listen=[listen] if listen else []))
 
