@@ -35,7 +35,8 @@ Also the floor: a bare Zenoh get/reply on loopback (two sessions in this process
 queryable replying with a plan reply's bytes), back to back and after an idle gap as long
 as the median plan's ``timing.total`` (as the service's requests come: a round trip after
 a few idle milliseconds costs more, the threads and cores having gone to sleep), and the
-reply's size.
+reply's size; and the floors of a worker answering its own query, after the same gap:
+through the serving peer, and straight to a peer-mode querier (bench/_lib/zenoh_floor.py).
 
 Usage: ./dev bench hop [--n 40] [--model course|shipped] [--scene self] [--workers 2] [--kept]
 Prints the split (median and p95 per piece, in ms), then one JSON line.
@@ -48,24 +49,22 @@ import os
 import shutil
 import statistics
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import orjson
-import zenoh
 
 from arduinobot.client.client import PlannerClient, decode_reply, encode_body, plan_body
 from arduinobot.client.replies import PlanReply
-from arduinobot.contract.zconfig import zenoh_config
 from arduinobot.planner.planning.pipeline import MotionPlanner
 from arduinobot.service import hoptrace
 from arduinobot.service.process.disk_cache import DiskCache
 from bench._lib.peer_models import make_model
 from bench._lib.report import emit
 from bench._lib.scenes import SCENES, obstacle_dicts, problems
-from tests.helpers.serve import free_port, start_server
+from bench._lib.zenoh_floor import stats, zenoh_floor
+from tests.helpers.serve import start_server
 
 ARM = ("joint_1", "joint_2", "joint_3")
 #: (piece, from stamp, to stamp); client stamps: c_start, c_sent, c_got, c_decoded, c_parsed
@@ -76,14 +75,6 @@ PIECES = (("client_encode", "c_start", "c_sent"), ("zenoh_in", "c_sent", "callba
           ("reply", "done", "replied"), ("final", "replied", "final"),
           ("zenoh_out", "replied", "c_got"), ("client_decode", "c_got", "c_decoded"),
           ("client_parse", "c_decoded", "c_parsed"))
-
-
-def stats(xs: list[float]) -> dict[str, float | None]:
-    """Median and p95 of seconds, in ms."""
-    if not xs:
-        return {"median_ms": None, "p95_ms": None}
-    return {"median_ms": round(1e3 * statistics.median(xs), 4),
-            "p95_ms": round(1e3 * float(np.percentile(xs, 95)), 4)}
 
 
 def problem_body(names: tuple[str, ...], a: np.ndarray, b: np.ndarray, obstacles: list[dict],
@@ -110,33 +101,6 @@ def one(c: PlannerClient, body: dict[str, Any]) -> tuple[dict[str, float], PlanR
     st["c_parsed"] = hoptrace.now()
     ok = replies[0].ok
     return st, reply, 0 if ok is None else len(ok.payload)
-
-
-def zenoh_floor(reply: bytes, repeats: int, *, gap: float = 0.0) -> dict[str, float | None]:
-    """A bare get/reply on loopback with ``reply`` as the answer: Zenoh's own cost;
-    ``gap``: idle seconds before each get."""
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    srv = zenoh.open(zenoh_config(mode="peer", listen=[endpoint], connect=None))
-    cli = zenoh.open(zenoh_config(mode="client", connect=[endpoint], listen=[]))
-
-    def on_query(q: zenoh.Query) -> None:
-        q.reply("hop/floor", reply, encoding="application/json")
-        q.drop()
-    qbl = srv.declare_queryable("hop/floor", on_query, complete=True)
-    try:
-        times = []
-        for i in range(repeats + 20):
-            if gap:
-                time.sleep(gap)
-            t = time.perf_counter()
-            got = list(cli.get("hop/floor", payload=b'{"x":1}', timeout=5.0))
-            if i >= 20 and got and got[0].ok is not None:
-                times.append(time.perf_counter() - t)
-        return stats(times)
-    finally:
-        qbl.undeclare()
-        cli.close()
-        srv.close()
 
 
 def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
@@ -184,17 +148,22 @@ def run(args: argparse.Namespace, folder: Path) -> dict[str, Any]:
         totals.append(total)
     split = {p: stats(v) for p, v in pieces.items()}
     split["handler_outside_total"] = stats(outside)
-    big = max(rows, key=lambda r: r[2])[1]
+    big = orjson.dumps(dict(max(rows, key=lambda r: r[2])[1].raw))
+    gap = statistics.median(totals)
     return {"model": args.model, "scene": args.scene, "kept_objects": 20 if args.kept else 0,
             "problems": len(rows),
             "workers": args.workers, "hop": stats(hop), "hop_points": stats(as_points),
             "total": stats(totals),
             "split": split, "reply_bytes_median": statistics.median(n for _, _, n in rows),
             "points_median": statistics.median(len(r.times) for _, r, _ in rows),
-            "zenoh_floor": zenoh_floor(orjson.dumps(dict(big.raw)), args.floor_repeats),
-            "zenoh_floor_after_gap": zenoh_floor(orjson.dumps(dict(big.raw)),
-                                                 args.floor_repeats // 2,
-                                                 gap=statistics.median(totals)),
+            "zenoh_floor": zenoh_floor(big, args.floor_repeats),
+            "zenoh_floor_after_gap": zenoh_floor(big, args.floor_repeats // 2, gap=gap),
+            # the floors of a worker answering its own query (issue 43, item 3): through
+            # the serving peer, and straight from a peer-mode querier
+            "zenoh_floor_via_peer_after_gap": zenoh_floor(big, args.floor_repeats // 2,
+                                                          gap=gap, route="via_peer"),
+            "zenoh_floor_direct_after_gap": zenoh_floor(big, args.floor_repeats // 2,
+                                                        gap=gap, route="direct"),
             "load_average": round(os.getloadavg()[0], 2)}
 
 
@@ -220,6 +189,11 @@ def report(res: dict[str, Any]) -> None:
     print(f"  bare Zenoh get/reply of the largest reply: median {f['median_ms']:.3f} ms, "
           f"p95 {f['p95_ms']:.3f} ms back to back; after an idle gap of the median total: "
           f"median {g['median_ms']:.3f} ms, p95 {g['p95_ms']:.3f} ms")
+    v, d = res["zenoh_floor_via_peer_after_gap"], res["zenoh_floor_direct_after_gap"]
+    print(f"  the same after the gap, answered by another process (a worker answering its "
+          f"own query): through the serving peer median {v['median_ms']:.3f} ms, p95 "
+          f"{v['p95_ms']:.3f} ms; straight to a peer-mode querier median "
+          f"{d['median_ms']:.3f} ms, p95 {d['p95_ms']:.3f} ms")
 
 
 def main(argv: list[str] | None = None) -> None:
