@@ -119,6 +119,8 @@ class PlanningContext:
         self._payloads: dict[tuple, tuple[InverseDynamics, dict[str, TimingProfile]]] = {}
         self._robot_world: CollisionWorld | None = None
         base = self.world(())
+        #: the robot's kinematics (every world's are the same robot's)
+        self.kin = base.kin
         self.joint_names: tuple[str, ...] = tuple(base.kin.joint_names)
         self.dynamics = InverseDynamics(description.robot)
         self._limits: dict[tuple[float, float], JointLimits] = {}

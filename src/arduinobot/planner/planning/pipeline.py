@@ -124,14 +124,14 @@ class MotionPlanner:
             target = np.asarray(result.line.end)
         elif isinstance(goal, LineGoal):
             target = line_target(goal, *self._tool(result.trajectory.positions[0]))
-        return reached(self.description, self.context.world(()).kin, goal,
+        return reached(self.description, self.context.kin, goal,
                        np.asarray(result.trajectory.positions[-1], float), group=group,
                        target=target)
 
     def _tool(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         tcp = self.description.tcp
         assert tcp is not None  # only for a line goal, which planned only with a tcp
-        t = self.context.world(()).kin.link_pose(q, tcp.parent_link)
+        t = self.context.kin.link_pose(q, tcp.parent_link)
         return (t[:3, :3] @ np.asarray(tcp.xyz, float) + t[:3, 3],
                 t[:3, :3] @ tcp.rotation())
 

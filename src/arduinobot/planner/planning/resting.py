@@ -157,7 +157,7 @@ class Lift:
         """
         req = self.request
         q = np.asarray(result.trajectory.positions[-1], float)
-        kin = context.world(()).kin
+        kin = context.kin
         carried = {a.id: a for a in req.attached}
         by_id = {o.id: o for o in with_ground(req.obstacles, req.ground)}
         still = [(o, s) for o, s in self.pairs
