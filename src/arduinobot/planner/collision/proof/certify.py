@@ -38,6 +38,7 @@ import numpy as np
 
 from arduinobot.planner.collision.bounds.hulls import HullPack, warm_bound
 from arduinobot.planner.collision.bounds.obbtree import Forest
+from arduinobot.planner.collision.bounds.parts import load_kernels
 from arduinobot.planner.collision.compiled import Direct
 from arduinobot.planner.collision.proof.advance import Work, tree_lower_bound
 from arduinobot.planner.collision.proof.body_speed import local_rates, local_step
@@ -68,18 +69,21 @@ _CAP = 0.03
 SAMPLE_STEP = 0.01
 # distance bounds one certification may evaluate before it gives up (refuses): bounded
 # time for a motion that grazes along a contact. The ladder's queries count against it
-# too, each as the tree bounds it costs in time (a tree bound ~4.5 us of CPU on the
-# Panda; a walk stop, a hull or part-hull query and its round trip, ~0.2-0.6 ms; an
-# exact distance ~1-2 ms on CAD links), so the budget bounds the whole proof's time
+# too, each as the tree bounds it costs in time (measured in CPU on the Panda: a tree
+# bound ~4.5 us; a walk stop, its hull and part-hull queries and the round trip,
+# 0.1-0.3 ms; an exact distance 0.1 ms by a box's surface, 0.3-4 ms between CAD links),
+# so the budget bounds the whole proof's time
 MAX_BOUNDS = 500_000
-STOP_COST = 100
-EXACT_COST = 400
+STOP_COST = 50
+EXACT_COST = 200
 # a bound carried over from the last piece is used while at least this fraction of the
 # last one measured (else a new one is measured: it may be larger, and prove longer steps)
 CARRY = 0.5
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
+# the near-contact rungs' kernels were loaded in this process (:func:`.parts.load_kernels`)
+_LOADED = False
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -291,6 +295,12 @@ class Certifier:
         # the pairs whose relative motion one joint alone makes, proven by cells kept
         # with the robot's geometry (:mod:`.one_dim`)
         self.one_dim = OneDimProver(world, self._work, gap=GAP)
+        global _LOADED
+        if not _LOADED:
+            # the ladder's kernels, once per process: a service builds its certifiers
+            # before it forks, and a proof near contact does not pay ~40 ms to load them
+            load_kernels()
+            _LOADED = True
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP

@@ -60,7 +60,7 @@ ROOM = 0.002
 PROOF_EXACT = 100
 PROOF_NEAR = 2000
 # and its whole cost in tree bounds (:data:`.certify.MAX_BOUNDS`): ~90 ms of CPU on the
-# Panda; its slowest proof on 69 MotionBenchMaker paths took 11k (9.6k bounds, 18 stops)
+# Panda; its costliest proofs on MotionBenchMaker paths counted 10-13k
 PROOF_BOUNDS = 20_000
 # paths refused for a spent proof budget that are planned again at the same step (each
 # without the edges refused so far); past that, as a graze: finer samples
