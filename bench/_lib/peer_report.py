@@ -73,6 +73,13 @@ def _w(d: dict[str, Any] | None) -> str:
     return f"{fmt(d['median_ms'])}/{fmt(d['p95_ms'])}/{fmt(d['max_ms'])}"
 
 
+def _rungs(rungs: dict[str, int] | None) -> str:
+    # the proofs' ladder use summed over the scene's replies (verification.rungs)
+    if not rungs:
+        return ""
+    return "  rungs " + " ".join(f"{k} {v}" for k, v in rungs.items() if v)
+
+
 def report_mbm(name: str, res: dict[str, Any]) -> None:
     """The MBM-class block (bench/_lib/peer_mbm.py): solved, wall median/p95/max [ms]."""
     o = res["ours"]
@@ -104,6 +111,7 @@ def report_mbm(name: str, res: dict[str, Any]) -> None:
         h = (res.get("hpp") or {}).get("scenes", {}).get(scene, {})
         print(f"    {scene:18s} {s['solved']}/{m.get('solved', '-')}/{h.get('solved', '-')} "
               f"of {s['runs']}  {fmt(s['median_ms'])}/{fmt(m.get('median_ms'))}/"
-              f"{fmt(h.get('median_ms'))}  proof max {fmt(s['proof_max_ms'])}")
+              f"{fmt(h.get('median_ms'))}  proof max {fmt(s['proof_max_ms'])}"
+              + _rungs(s.get("rungs")))
     if o["failures"]:
         print(f"  our failures: {o['failures']}")

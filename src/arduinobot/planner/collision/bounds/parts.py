@@ -36,7 +36,14 @@ from scipy.spatial import ConvexHull, QhullError
 
 from arduinobot.planner.cache import ArtifactCache, content_key
 from arduinobot.planner.collision.bounds.gjk import gjk_direction
-from arduinobot.planner.collision.bounds.hulls import _SLACK, Hull, _along, _box, _qhull
+from arduinobot.planner.collision.bounds.hulls import (
+    _SLACK,
+    Hull,
+    _along,
+    _box,
+    _qhull,
+    separation,
+)
 
 _log = logging.getLogger(__name__)
 
@@ -502,3 +509,21 @@ class PartBounds:
         return float(parts_bound(self._pack(a), np.ascontiguousarray(ta, float),
                                  self._pack(b), np.ascontiguousarray(tb, float),
                                  float(cap)))
+
+
+def load_kernels() -> None:
+    """Call the near-contact rungs' compiled kernels once (the hulls' separation, the
+    part hulls' descent and GJK) on two unit cubes, so they are loaded from numba's
+    cache now: first called in a process near a contact, they took 8 and 28 ms (more on
+    a loaded machine) inside a proof. A service's zygote calls this (through the first
+    :class:`.certify.Certifier`) before it forks its workers."""
+    cube = np.ascontiguousarray(np.array(np.meshgrid([0.0, 1.0], [0.0, 1.0], [0.0, 1.0]),
+                                         float).reshape(3, -1).T)
+    here, there = np.eye(4), np.eye(4)
+    there[0, 3] = 2.0
+    fixed = there.copy()
+    fixed.flags.writeable = False  # a static obstacle's pose (a type of its own to numba)
+    pack = Parts.of([(cube, 0.0)], np.array([-1]), np.array([-1])).pack()
+    for tb in (there, fixed):  # two links; a link and an obstacle
+        separation(cube, here, cube, tb, np.array([-1.0, 0.0, 0.0]))
+        parts_bound(pack, here, pack, tb, float(np.inf))

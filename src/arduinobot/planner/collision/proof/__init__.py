@@ -1,6 +1,7 @@
 """The proof that a motion is free between its samples.
 
 - ``certify``: the certifier, the proof's outline and its compiled walk.
+- ``nearness``: the order the walk takes the pairs in, nearest first.
 - ``ladder``: the near-contact ladder (trees, hulls, part hulls, exact distances).
 - ``certificate``: a motion's certificate, its clearance and rung counts.
 - ``resume``: the protocol between the compiled walk and its Python side.

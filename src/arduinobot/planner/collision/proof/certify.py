@@ -38,6 +38,7 @@ import numpy as np
 
 from arduinobot.planner.collision.bounds.hulls import HullPack, warm_bound
 from arduinobot.planner.collision.bounds.obbtree import Forest
+from arduinobot.planner.collision.bounds.parts import load_kernels
 from arduinobot.planner.collision.compiled import Direct
 from arduinobot.planner.collision.proof.advance import Work, tree_lower_bound
 from arduinobot.planner.collision.proof.body_speed import local_rates, local_step
@@ -51,6 +52,7 @@ from arduinobot.planner.collision.proof.ladder import (
     STILL,
     Ladder,
 )
+from arduinobot.planner.collision.proof.nearness import walk_order
 from arduinobot.planner.collision.proof.one_dim import OneDimProver
 from arduinobot.planner.collision.proof.resume import Motion, Proof, Status, Stop, new_walk
 from arduinobot.planner.collision.table import Bodies, Pairs, place_carried
@@ -66,14 +68,22 @@ _CAP = 0.03
 # motion that really collides is refused at a sample, not by a walk converging on it
 SAMPLE_STEP = 0.01
 # distance bounds one certification may evaluate before it gives up (refuses): bounded
-# time for a motion that grazes along a contact
+# time for a motion that grazes along a contact. The ladder's queries count against it
+# too, each as the tree bounds it costs in time (measured in CPU on the Panda: a tree
+# bound ~4.5 us; a walk stop, its hull and part-hull queries and the round trip,
+# 0.1-0.3 ms; an exact distance 0.1 ms by a box's surface, 0.3-4 ms between CAD links),
+# so the budget bounds the whole proof's time
 MAX_BOUNDS = 500_000
+STOP_COST = 50
+EXACT_COST = 200
 # a bound carried over from the last piece is used while at least this fraction of the
 # last one measured (else a new one is measured: it may be larger, and prove longer steps)
 CARRY = 0.5
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
+# the near-contact rungs' kernels were loaded in this process (:func:`.parts.load_kernels`)
+_LOADED = False
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -89,7 +99,7 @@ def _eval_piece(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float
 def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pairs: Pairs,
              forest: Forest, hulls: HullPack, clear: float, fraction: float, local: bool,
              work: Work, q: np.ndarray, proof: Proof, exact_below: np.ndarray,
-             ask: np.ndarray) -> int:
+             ask: np.ndarray, order: np.ndarray, max_bounds: int) -> int:
     """Walk pairs ``walk.pair..`` along every piece of ``motion`` from (``walk.piece``,
     ``walk.sigma``); ``walk`` is a :data:`.resume.WALK` record.
 
@@ -130,10 +140,11 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
     low = np.inf
     for i in range(best.shape[0]):
         low = min(low, best[i])
-    for p in range(p0, index.shape[0]):
-        k = k0 if p == p0 else 0
-        s = s0 if p == p0 else 0.0
-        inj = injected if p == p0 else -1.0
+    for i in range(p0, order.shape[0]):
+        p = order[i]
+        k = k0 if i == p0 else 0
+        s = s0 if i == p0 else 0.0
+        inj = injected if i == p0 else -1.0
         a, b = index[p, 0], index[p, 1]
         carry = -1.0  # a bound [m] proven at the start of piece k, if any
         measured = np.inf  # the last bound measured (trees or FCL)
@@ -195,18 +206,18 @@ def _advance(motion: Motion, walk: np.ndarray, chain: Chain, bodies: Bodies, pai
                         # geometrically toward the boxes' contact (thousands of bounds,
                         # and a clearance certified in microns). A hull query first
                         # (Python: FCL's GJK), whatever the trees proved (in ``injected``)
-                        at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds + 1
+                        at.pair, at.piece, at.sigma, at.bounds = i, k, s, bounds + 1
                         at.injected = d
                         at.trees, at.warm = trees, warms
                         return Status.NEED_BOUND.value
                 bounds += 1
                 if d <= clear + GAP:
-                    at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                    at.pair, at.piece, at.sigma, at.bounds = i, k, s, bounds
                     at.injected = d
                     at.trees, at.warm = trees, warms
                     return Status.NEED_BOUND.value
-                if bounds > MAX_BOUNDS:
-                    at.pair, at.piece, at.sigma, at.bounds = p, k, s, bounds
+                if bounds > max_bounds:
+                    at.pair, at.piece, at.sigma, at.bounds = i, k, s, bounds
                     at.trees, at.warm = trees, warms
                     return Status.BUDGET.value
                 measured = d
@@ -260,14 +271,19 @@ class Certifier:
             hull and exact queries together): spent, the motion is refused (its
             certificate's failure names where, distance NaN), never passed
             (:data:`.ladder.MAX_EXACT`, :data:`.ladder.MAX_NEAR` by default).
+        max_bounds: one certification's whole budget, in tree bounds (trees and warm
+            hulls count one each, a walk stop :data:`STOP_COST`, an exact query
+            :data:`EXACT_COST`): spent, the motion is refused likewise
+            (:data:`MAX_BOUNDS` by default).
     """
 
     def __init__(self, world: CollisionWorld, *, fraction: float = 0.0,
                  local: bool = True, max_exact: int = MAX_EXACT,
-                 max_near: int = MAX_NEAR) -> None:
+                 max_near: int = MAX_NEAR, max_bounds: int = MAX_BOUNDS) -> None:
         self.world = world
         self.max_exact = int(max_exact)
         self.max_near = int(max_near)
+        self.max_bounds = int(max_bounds)
         self.fraction = float(fraction)  # one compiled variant of the walk
         self.local = bool(local)
         self._work = Work.of(world.table.slots)
@@ -279,6 +295,12 @@ class Certifier:
         # the pairs whose relative motion one joint alone makes, proven by cells kept
         # with the robot's geometry (:mod:`.one_dim`)
         self.one_dim = OneDimProver(world, self._work, gap=GAP)
+        global _LOADED
+        if not _LOADED:
+            # the ladder's kernels, once per process: a service builds its certifiers
+            # before it forks, and a proof near contact does not pay ~40 ms to load them
+            load_kernels()
+            _LOADED = True
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
@@ -312,18 +334,21 @@ class Certifier:
         still, pairs = self._proven_before_walk(motion, ladder, proof)
         # 3. the walk proves every other pair along every piece, stopping where a point
         # needs a closer bound than its trees' and warm hulls'; the ladder gives one
+        # (nearest first: the smallest clearance found early lengthens every later step)
+        order = self._order(motion, pairs)
         walk = new_walk()
         while True:
             status = Status(self._advance.call(motion, walk, w.chain, w.table.bodies, pairs,
                                                w.forest, w.hulls, clear, self.fraction,
                                                self.local, self._work, self._q, proof,
-                                               ladder.exact_below, ladder.ask))
+                                               ladder.exact_below, ladder.ask, order,
+                                               self._left(ladder)))
             if status == Status.DONE:
                 break
             at = Stop.read(walk)
-            p, k, s = at.pair, at.piece, at.sigma
+            p, k, s = int(order[at.pair]), at.piece, at.sigma
             pair = w.table.pair_names[p]
-            if status == Status.BUDGET or ladder.spent():
+            if status == Status.BUDGET or ladder.spent() or at.bounds > self._left(ladder):
                 return Certificate(False, clear, 0.0, pair, (k, s, pair, float("nan")),
                                    at.bounds, ladder.exact, ladder.rungs(walk))
             q = np.empty(w.dof)  # the very point the walk stopped at
@@ -335,12 +360,34 @@ class Certifier:
                                    at.bounds, ladder.exact, ladder.rungs(walk))
             walk[0]["injected"] = d
         # 5. certified: other pairs' figures stop at the smallest so far (the walk proves
-        # no more): on a tie, the pair whose figure is its own (a still pair's) is closest
+        # no more): on a tie, the pair whose figure is its own (a still pair's, else the
+        # first walked: the later ones stopped at it) is closest
         best = proof.best
-        worst = min(range(npair), key=lambda p: (best[p], p not in still), default=-1)
+        rank = np.empty(npair, np.int64)
+        rank[order] = np.arange(npair)
+        worst = min(range(npair), key=lambda p: (best[p], p not in still, rank[p]),
+                    default=-1)
         cert = float(best[worst]) if npair and np.isfinite(best[worst]) else float("inf")
         return Certificate(True, clear, cert, w.table.pair_names[worst] if npair else None,
                            None, Stop.read(walk).bounds, ladder.exact, ladder.rungs(walk))
+
+    def _left(self, ladder: Ladder) -> int:
+        # the walk's bound budget: what the ladder's queries have left of max_bounds
+        return self.max_bounds - STOP_COST * ladder.stops - EXACT_COST * ladder.exact
+
+    def _order(self, motion: Motion, pairs: Pairs) -> np.ndarray:
+        # the pairs nearest first (:mod:`.nearness`), read at the pieces' starts and the
+        # motion's end; with no clearance to report the walk proves only the clearance
+        # itself, whatever it found before: index order
+        n = len(pairs.index)
+        if self.fraction <= 0 or n < 2:
+            return np.arange(n, dtype=np.int64)
+        starts, u1, u2, lengths = motion
+        last = np.empty(self.world.dof)
+        _eval_piece(starts[-1], u1[-1], u2[-1], float(lengths[-1]), float(lengths[-1]), last)
+        w = self.world
+        return walk_order(np.vstack([starts, last]), w.chain, w.table.bodies, pairs,
+                          w.forest, self._work)
 
     def _sampled_collision(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                            lengths: np.ndarray, sample_step: float) -> Certificate | None:

@@ -18,7 +18,7 @@ import numpy as np
 from arduinobot.contract.errors import InvalidRequest, NoPathFound, StartInCollision
 from arduinobot.description import Description
 from arduinobot.planner.collision.proof.certificate import Certificate
-from arduinobot.planner.collision.proof.certify import Certifier
+from arduinobot.planner.collision.proof.certify import MAX_BOUNDS, Certifier
 from arduinobot.planner.collision.proof.ladder import MAX_EXACT, MAX_NEAR
 from arduinobot.planner.collision.proof.motion_check import motion_valid, sampled_motion_valid
 from arduinobot.planner.collision.world import CollisionWorld
@@ -37,7 +37,7 @@ from arduinobot.planner.timing.curve import Curve
 
 _log = logging.getLogger(__name__)
 
-__all__ = ["FINEST_STEP", "PLAN_STEP", "PROOF_EXACT", "PROOF_NEAR", "PROOF_REPLANS", "ROOM",
+__all__ = ["FINEST_STEP", "PLAN_STEP", "PROOF_BOUNDS", "PROOF_EXACT", "PROOF_NEAR", "PROOF_REPLANS", "ROOM",
            "ROOMY_ROUNDS", "PathPlanner", "PathRequest", "PathResult"]
 
 # edges (a, b), by their bytes, whose proof failed in a request's earlier attempts
@@ -59,6 +59,9 @@ ROOM = 0.002
 # (4000, 40000) let a proof along a shelf 0.4 mm away run 19 s.
 PROOF_EXACT = 100
 PROOF_NEAR = 2000
+# and its whole cost in tree bounds (:data:`.certify.MAX_BOUNDS`): ~90 ms of CPU on the
+# Panda; its costliest proofs on MotionBenchMaker paths counted 10-13k
+PROOF_BOUNDS = 20_000
 # paths refused for a spent proof budget that are planned again at the same step (each
 # without the edges refused so far); past that, as a graze: finer samples
 PROOF_REPLANS = 2
@@ -165,7 +168,8 @@ class PathPlanner:
         # (a planner of certified edges proves its path with the certifier's own budgets:
         # each edge was proven with them already)
         exact, near = (MAX_EXACT, MAX_NEAR) if certify_edges else proof_budget
-        self.proof = Certifier(world, fraction=0.5, max_exact=exact, max_near=near)
+        self.proof = Certifier(world, fraction=0.5, max_exact=exact, max_near=near,
+                               max_bounds=MAX_BOUNDS if certify_edges else PROOF_BOUNDS)
         names = world.kin.joint_names
         self._groups: dict[str, tuple[str, ...]] = {
             g: tuple(j for j in joints if j in names)
