@@ -24,6 +24,7 @@ A body whose hull hardly strays from its triangles (a primitive obstacle; a link
 
 from __future__ import annotations
 
+import functools
 import heapq
 import logging
 from collections.abc import Callable, Sequence
@@ -511,8 +512,9 @@ class PartBounds:
                                  float(cap)))
 
 
+@functools.cache
 def load_kernels() -> None:
-    """Call the near-contact rungs' compiled kernels once (the hulls' separation, the
+    """Call the near-contact rungs' compiled kernels once a process (the hulls' separation, the
     part hulls' descent and GJK) on two unit cubes, so they are loaded from numba's
     cache now: first called in a process near a contact, they took 8 and 28 ms (more on
     a loaded machine) inside a proof. A service's zygote calls this (through the first

@@ -82,9 +82,6 @@ CARRY = 0.5
 # tree levels whose nodes stand in for a moving body in its local speed: a step near a
 # contact costs an exact distance, so a tighter speed (eight pieces) pays for itself
 LOCAL_DEPTH = 3
-# the near-contact rungs' kernels were loaded in this process (:func:`.parts.load_kernels`)
-_LOADED = False
-
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _eval_piece(start: np.ndarray, u1: np.ndarray, u2: np.ndarray, length: float,
@@ -295,12 +292,10 @@ class Certifier:
         # the pairs whose relative motion one joint alone makes, proven by cells kept
         # with the robot's geometry (:mod:`.one_dim`)
         self.one_dim = OneDimProver(world, self._work, gap=GAP)
-        global _LOADED
-        if not _LOADED:
-            # the ladder's kernels, once per process: a service builds its certifiers
-            # before it forks, and a proof near contact does not pay ~40 ms to load them
-            load_kernels()
-            _LOADED = True
+        # the ladder's kernels, once per process (cached): a service builds its
+        # certifiers before it forks, and a proof near contact does not pay ~40 ms to
+        # load them
+        load_kernels()
 
     def pieces(self, starts: np.ndarray, u1: np.ndarray, u2: np.ndarray,
                lengths: np.ndarray, *, sample_step: float | None = SAMPLE_STEP
