@@ -10,6 +10,7 @@ from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.pathfinding.search import (
     MAX_SEED,
     PLANNERS,
+    Track,
     available_planners,
     search,
     set_ompl_log_level,
@@ -51,9 +52,13 @@ def test_a_log_level_not_offered_names_the_field():
 def _search(world, seed, *, budget=1.0, goal=(-1.2, -0.6, -0.6, 0.0)):
     w, lim = world
     start = np.array([1.2, -0.6, -0.6, 0.0])
-    return search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), start,
-                  np.array([goal]), np.array([0, 1, 2]), lim, planner="RRTConnect",
+    return search([_track(w, start, goal)], np.array([0, 1, 2]), lim, planner="RRTConnect",
                   seed=seed, budget=budget, planning_time=budget).path
+
+
+def _track(w, start, goal, turns=None):
+    return Track(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), np.asarray(start),
+                 np.array([goal]), turns=turns)
 
 
 @pytest.mark.parametrize("seed", [0, 5, MAX_SEED])
@@ -83,8 +88,7 @@ def test_the_slices_take_turns_and_name_the_planner_that_found_the_path(world):
     start = np.array([1.2, -0.6, -0.6, 0.0])
 
     def run():
-        return search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), start,
-                      np.array([(-1.2, -0.6, -0.6, 0.0)]), np.array([0, 1, 2]), lim,
+        return search([_track(w, start, (-1.2, -0.6, -0.6, 0.0))], np.array([0, 1, 2]), lim,
                       planner="RRTConnect", seed=3, budget=10.0, planning_time=10.0,
                       first_slice=1)
     a, b = run(), run()
@@ -92,12 +96,30 @@ def test_the_slices_take_turns_and_name_the_planner_that_found_the_path(world):
     assert a.rounds == b.rounds and a.planner == b.planner and np.array_equal(a.path, b.path)
 
 
-def test_max_rounds_ends_the_search_with_its_count(world):
+def test_a_tracks_turns_end_the_search_with_its_count(world):
     w, lim = world
     with pytest.raises(NoPathFound) as e:
-        search(w, lambda a, b: sampled_motion_valid(w, a, b, 0.02), np.array([1.2, -0.6, -0.6, 0.0]),
-               np.array([(-1.2, -0.6, -0.6, 0.0)]), np.array([0, 1, 2]), lim,
-               planner="RRTConnect", seed=3, budget=10.0, planning_time=10.0,
-               first_slice=1, max_rounds=2)
+        search([_track(w, (1.2, -0.6, -0.6, 0.0), (-1.2, -0.6, -0.6, 0.0), turns=2)],
+               np.array([0, 1, 2]), lim, planner="RRTConnect", seed=3, budget=10.0,
+               planning_time=10.0, first_slice=1)
     assert e.value.details["rounds"] == 2
     assert e.value.details["planners"] == ["RRTConnect", "BKPIECE1"]
+
+
+def test_tracks_take_turns_within_each_planners_turn(world):
+    # a track with two turns that can never reach its goal (in the pillar) and an open
+    # one: the open track's first slice comes before the closed track's second planner,
+    # so with slices too short for the fallback to matter the path is found in round 2
+    # (track 1, the asked planner), and the search repeats itself
+    w, lim = world
+    start = (1.2, -0.6, -0.6, 0.0)
+    closed = _track(w, start, (0.0, 0.0, 0.0, 0.0), turns=2)
+    opened = _track(w, start, (-1.2, -0.6, -0.6, 0.0))
+
+    def run():
+        return search([closed, opened], np.array([0, 1, 2]), lim, planner="RRTConnect",
+                      seed=4, budget=10.0, planning_time=10.0)
+    a, b = run(), run()
+    assert a.track == 1 and a.planner == "RRTConnect" and a.rounds == 2
+    assert a.rounds == b.rounds and np.array_equal(a.path, b.path)
+    assert np.allclose(a.path[-1, :3], [-1.2, -0.6, -0.6])

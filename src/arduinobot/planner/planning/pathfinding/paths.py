@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -28,6 +28,7 @@ from arduinobot.planner.planning.pathfinding.blended import prove_blended
 from arduinobot.planner.planning.pathfinding.room import Guarded, StateChecker, short_of_room
 from arduinobot.planner.planning.pathfinding.search import (
     Found,
+    Track,
     available_planners,
     check_seed,
     search,
@@ -68,10 +69,13 @@ PROOF_BOUNDS = 100_000
 # paths refused for a spent proof budget that are planned again at the same step (each
 # without the edges refused so far); past that, as a graze: finer samples
 PROOF_REPLANS = 2
-# slices of the search (:func:`.search.search`) the roomy world gets before the search
-# runs without room: its first turn of each planner, ~0.3 s on the Panda in clutter. Half
-# the budget (before) starved the cage, whose passages are narrower than the room: 2 of
-# 3 MotionBenchMaker cage problems failed in 5 s, solved in 1-3 s without room.
+# slices of the search (:func:`.search.search`) the roomy world gets: its first turn of
+# each planner, ~0.3 s on the Panda in clutter, each followed by the exact world's turn of
+# the same planner. Half the budget (before) starved the cage, whose passages are
+# narrower than the room: 2 of 3 MotionBenchMaker cage problems failed in 5 s, solved in
+# 1-3 s without room; both roomy turns before the exact world's first cost the cage ~0.2
+# s a plan (in process, 21 x 3: wall median 126 -> 92 ms, p95 1.61 -> 1.19 s, solved
+# 62 -> 63 of 63, when the exact world's first slice moved before the roomy BKPIECE1's)
 ROOMY_ROUNDS = 2
 # [rad] a path that grazes between its edges' samples is planned again with them twice
 # as close, down to this step, and below it with certified edges
@@ -363,7 +367,9 @@ class PathPlanner:
     def _detour(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
                 joints: tuple[str, ...], refused: Refused
                 ) -> tuple[np.ndarray, StateChecker | None, str]:
-        # With room first (half the budget), then without. An end that lacks the room
+        # With room and without, taking turns (:func:`.search.search`): the roomy world
+        # its first slice of each planner, the exact world each slice after the roomy
+        # one's of the same planner, then every slice. An end that lacks the room
         # (a start a hair from the base) is joined by a short free edge to a nearby state
         # that has it, so only that edge comes close. Where no such edge leaves it (a
         # camera a millimetre from the turntable), the pairs short of room there lose
@@ -393,23 +399,30 @@ class PathPlanner:
                 tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
                 tails = [(g, e) for g, e in tails if e is not None]
             if head is not None and tails:
-                t0 = time.perf_counter()
-                try:
-                    found = self._search(req, head, np.array([e for _, e in tails]), joints,
-                                       roomy, budget / 2, refused,
-                                         max_rounds=ROOMY_ROUNDS)
-                except NoPathFound:
-                    budget -= time.perf_counter() - t0
-                    _log.info("no detour with %.1f mm of room; searching without",
+                ends = np.array([e for _, e in tails])
+                found = self._search(req, [Track(roomy, self._checker(refused, roomy), head,
+                                                 ends, turns=ROOMY_ROUNDS),
+                                           self._track(start, goals, refused)],
+                                     joints, budget)
+                if found.track == 1:
+                    _log.info("no detour with %.1f mm of room yet; found without",
                               1e3 * self.room)
-                else:
-                    mid = found.path
-                    goal, end = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))
-                    # the escape edges, where an end needed one
-                    return np.vstack([[start]] * (head is not start) + [mid]
-                                     + [[goal]] * (end is not goal)), roomy, found.planner
-        found = self._search(req, start, goals, joints, None, budget, refused)
+                    return found.path, None, found.planner
+                mid = found.path
+                goal, end = min(tails, key=lambda t: float(np.abs(t[1] - mid[-1]).max()))
+                # the escape edges, where an end needed one
+                return np.vstack([[start]] * (head is not start) + [mid]
+                                 + [[goal]] * (end is not goal)), roomy, found.planner
+        found = self._search(req, [self._track(start, goals, refused)], joints, budget)
         return found.path, None, found.planner
+
+    def _checker(self, refused: Refused, roomy: StateChecker | None
+                 ) -> Callable[[np.ndarray, np.ndarray], bool]:
+        return lambda a, b: self._edge_free(a, b, refused, roomy)
+
+    def _track(self, start: np.ndarray, goals: np.ndarray, refused: Refused) -> Track:
+        # the exact world's: no room, every turn the budget allows
+        return Track(self.world, self._checker(refused, None), start, goals)
 
     def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
                 roomy: StateChecker, rng: np.random.Generator, refused: Refused
@@ -435,11 +448,9 @@ class PathPlanner:
                     return e
         return None
 
-    def _search(self, req: PathRequest, start: np.ndarray, goals: np.ndarray,
-                joints: tuple[str, ...], roomy: StateChecker | None, budget: float,
-                refused: Refused, *, max_rounds: int | None = None) -> Found:
+    def _search(self, req: PathRequest, tracks: list[Track], joints: tuple[str, ...],
+                budget: float) -> Found:
         names = self.world.kin.joint_names
-        return search(roomy or self.world, lambda a, b: self._edge_free(a, b, refused, roomy),
-                      start, goals, np.array([names.index(j) for j in joints], dtype=np.int64),
+        return search(tracks, np.array([names.index(j) for j in joints], dtype=np.int64),
                       self._limits, planner=req.planner, seed=req.seed, budget=budget,
-                      planning_time=req.planning_time, max_rounds=max_rounds)
+                      planning_time=req.planning_time)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -28,7 +28,7 @@ from arduinobot.planner.collision.proof.motion_check import (
     ValidityChecker,
 )
 
-__all__ = ["FALLBACK", "FIRST_SLICE", "Found", "MAX_SEED", "RANGE", "SLICED", "OmplLogLevel", "PLANNERS", "available_planners", "check_seed", "search",
+__all__ = ["FALLBACK", "FIRST_SLICE", "Found", "Track", "MAX_SEED", "RANGE", "SLICED", "OmplLogLevel", "PLANNERS", "available_planners", "check_seed", "search",
            "set_ompl_log_level"]
 
 PLANNERS = ("RRTConnect", "RRT", "RRTstar", "PRM", "PRMstar", "BITstar", "KPIECE1",
@@ -90,47 +90,72 @@ def set_ompl_log_level(level: OmplLogLevel) -> None:
 
 
 @dataclass(frozen=True)
+class Track:
+    """One world a search runs in: how its states and motions are judged, and its ends.
+
+    Attributes:
+        states: judges a state (a full joint vector).
+        edge_free: judges the straight motion between two full joint vectors.
+        start: shape (dof,), the full joint vector the trees grow from.
+        goals: shape (g, dof), the full joint vectors the goal tree grows from.
+        turns: at most this many slices in this world, all planners together (None:
+            until the budget ends).
+    """
+
+    states: StateChecker
+    edge_free: Callable[[np.ndarray, np.ndarray], bool]
+    start: np.ndarray
+    goals: np.ndarray
+    turns: int | None = None
+
+
+@dataclass(frozen=True)
 class Found:
     """A search's path and who found it.
 
     Attributes:
         path: shape (k, dof), full joint vectors, first = start, last = a goal.
         planner: the OMPL planner whose tree reached the goal.
-        rounds: the slices run, all planners together (1: the first planner's first).
+        rounds: the slices run, all planners and tracks together (1: the first).
+        track: the index of the :class:`Track` the path was found in.
     """
 
     path: np.ndarray
     planner: str
     rounds: int
+    track: int = 0
 
 
-def search(states: StateChecker, edge_free: Callable[[np.ndarray, np.ndarray], bool],
-           start: np.ndarray, goals: np.ndarray, columns: np.ndarray, limits: np.ndarray, *,
+def search(tracks: Sequence[Track], columns: np.ndarray, limits: np.ndarray, *,
            planner: str, seed: int | None, budget: float, planning_time: float,
            fallback: str | None = FALLBACK, first_slice: int = FIRST_SLICE,
-           range_: float = RANGE, max_rounds: int | None = None) -> Found:
-    """A path from ``start`` (dof,) to one of ``goals`` (g, dof) found within ``budget``
-    [s], moving only the joints ``columns`` (indices, shape (n,)) within ``limits``
-    (dof, 2) [rad]; states judged by ``states``, motions by ``edge_free``.
-    ``planning_time`` [s]: the request's, for the error.
+           range_: float = RANGE) -> Found:
+    """A path from a track's start to one of its goals found within ``budget`` [s],
+    moving only the joints ``columns`` (indices, shape (n,)) within ``limits`` (dof, 2)
+    [rad]; each :class:`Track` judges its own states and motions. ``planning_time`` [s]:
+    the request's, for the error.
 
     The budget is spent in slices of planner iterations, ``planner`` and ``fallback``
     (another family: a tree that grows by cells of free space, where RRTConnect's two
     trees keep meeting the same shelf) taking turns, each slice twice the iterations of
     the round before (``first_slice`` for the first, ``FALLBACK_SHARE`` of it for the
     fallback's, whose iterations cost more), when ``planner`` is one of ``SLICED``
-    (else it alone gets the whole budget); each planner keeps its tree
-    between its slices, so a turn costs no work already done. Slices are counted in
-    iterations, not seconds, so a seeded search repeats itself wherever it ends (as long
-    as the budget does not cut it short). ``range_`` [rad]: the longest edge a tree grows
-    by (OMPL's default, a fifth of the space's diagonal, is ~2.7 rad on a 7-joint arm:
-    long edges that clutter refuses; measured in docs/bench.md). ``max_rounds``: at
-    most this many slices (None: until the budget ends).
+    (else it alone gets the whole budget); within a planner's turn every track with
+    turns left runs its slice, in the order given (a world with room first, then the
+    exact one: where the room closes every passage, the exact world's first slice comes
+    before the roomy world's second planner, not after it). Each planner keeps its tree
+    in each track between its slices, so a turn costs no work already done. Slices are
+    counted in iterations, not seconds, so a seeded search repeats itself wherever it
+    ends (as long as the budget does not cut it short). ``range_`` [rad]: the longest
+    edge a tree grows by (OMPL's default, a fifth of the space's diagonal, is ~2.7 rad
+    on a 7-joint arm: long edges that clutter refuses; measured in docs/bench.md).
 
     Raises:
-        NoPathFound: no exact solution within the budget (an approximate one is not a
-            path).
+        NoPathFound: no exact solution within the budget, or every track's turns spent
+            (an approximate solution is not a path).
     """
+    if not tracks:
+        raise ValueError("a search needs a track")
     if seed is not None:
         # OMPL ignores a seed of 0 (its generator goes on, unseeded): 0 seeds with the
         # one value past MAX_SEED, which no request can name
@@ -141,37 +166,47 @@ def search(states: StateChecker, edge_free: Callable[[np.ndarray, np.ndarray], b
         bounds.setLow(i, float(limits[j, 0]))
         bounds.setHigh(i, float(limits[j, 1]))
     space.setBounds(bounds)
-    codec = StateCodec(columns, start)
+    codecs = [StateCodec(columns, t.start) for t in tracks]
     sliced = planner in SLICED
     names = [planner] + ([fallback] if sliced and fallback not in (None, planner) else [])
-    # per planner: its SimpleSetup and the checkers it holds (kept alive with it)
-    setups: dict[str, tuple[og.SimpleSetup, object, object]] = {}
+    # per (track, planner): its SimpleSetup and the checkers it holds (kept alive with it)
+    setups: dict[tuple[int, str], tuple[og.SimpleSetup, object, object]] = {}
+    used = [0] * len(tracks)
     deadline = time.perf_counter() + budget
     rounds, size = 0, first_slice
+
+    def give_up() -> NoPathFound:
+        return NoPathFound(f"{' and '.join(names)} found no path in {planning_time:g} s",
+                           details={"planner": planner, "planning_time": planning_time,
+                                    "rounds": rounds, "planners": names})
     while True:
         for name in names:
-            left = deadline - time.perf_counter()
-            if left <= 0 or (max_rounds is not None and rounds >= max_rounds):
-                raise NoPathFound(f"{' and '.join(names)} found no path in {planning_time:g} s",
-                                  details={"planner": planner, "planning_time": planning_time,
-                                           "rounds": rounds, "planners": names})
-            if name not in setups:
-                setups[name] = _built(space, codec, states, edge_free, start, goals, name,
-                                      range_)
-            ss = setups[name][0]
-            rounds += 1
-            t0 = time.perf_counter()
-            if sliced:
-                ss.solve(_slice(size if name == planner
-                                else max(1, int(size * FALLBACK_SHARE)), left))
-            else:
-                ss.solve(left)
-            _log.debug("slice %d: %s, %d iterations, %.3f s", rounds, name, size,
-                       time.perf_counter() - t0)
-            if ss.haveExactSolutionPath():
-                p = ss.getSolutionPath()
-                out = np.array([codec.full(p.getState(i)) for i in range(p.getStateCount())])
-                return Found(out, name, rounds)
+            for k, track in enumerate(tracks):
+                if track.turns is not None and used[k] >= track.turns:
+                    continue
+                left = deadline - time.perf_counter()
+                if left <= 0:
+                    raise give_up()
+                if (k, name) not in setups:
+                    setups[(k, name)] = _built(space, codecs[k], track, name, range_)
+                ss = setups[(k, name)][0]
+                rounds += 1
+                used[k] += 1
+                t0 = time.perf_counter()
+                if sliced:
+                    ss.solve(_slice(size if name == planner
+                                    else max(1, int(size * FALLBACK_SHARE)), left))
+                else:
+                    ss.solve(left)
+                _log.debug("slice %d: %s in track %d, %d iterations, %.3f s", rounds, name,
+                           k, size, time.perf_counter() - t0)
+                if ss.haveExactSolutionPath():
+                    p = ss.getSolutionPath()
+                    out = np.array([codecs[k].full(p.getState(i))
+                                    for i in range(p.getStateCount())])
+                    return Found(out, name, rounds, k)
+        if all(t.turns is not None and u >= t.turns for t, u in zip(tracks, used)):
+            raise give_up()
         size *= 2
 
 
@@ -187,21 +222,19 @@ def _slice(iterations: int, seconds: float) -> ob.PlannerTerminationCondition:
     return ob.PlannerTerminationCondition(done)
 
 
-def _built(space: ob.StateSpace, codec: StateCodec, states: StateChecker,
-           edge_free: Callable[[np.ndarray, np.ndarray], bool], start: np.ndarray,
-           goals: np.ndarray, name: str, range_: float
-           ) -> tuple[og.SimpleSetup, object, object]:
+def _built(space: ob.StateSpace, codec: StateCodec, track: Track, name: str,
+           range_: float) -> tuple[og.SimpleSetup, object, object]:
     ss = og.SimpleSetup(space)
     si = ss.getSpaceInformation()
-    svc = ValidityChecker(si, states, codec)
-    mv = MotionChecker(si, edge_free, codec)
+    svc = ValidityChecker(si, track.states, codec)
+    mv = MotionChecker(si, track.edge_free, codec)
     ss.setStateValidityChecker(svc)
     si.setMotionValidator(mv)
     s = si.allocState()
-    codec.put(start, s)
+    codec.put(track.start, s)
     ss.setStartState(s)
     gs = ob.GoalStates(si)
-    for g in goals:
+    for g in track.goals:
         st = si.allocState()
         codec.put(g, st)
         gs.addState(st)
