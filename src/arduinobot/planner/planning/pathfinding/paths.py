@@ -25,7 +25,13 @@ from arduinobot.planner.collision.world import CollisionWorld
 from arduinobot.planner.planning.goal_states import check_limits, resolve_goal, resolve_group
 from arduinobot.planner.planning.goals import Goal, check_goal
 from arduinobot.planner.planning.pathfinding.blended import prove_blended
-from arduinobot.planner.planning.pathfinding.room import Guarded, StateChecker, short_of_room
+from arduinobot.planner.planning.pathfinding.room import (
+    Guarded,
+    StateChecker,
+    escape,
+    roomy_world,
+    short_of_room,
+)
 from arduinobot.planner.planning.pathfinding.search import (
     Found,
     Track,
@@ -197,10 +203,7 @@ class PathPlanner:
         to the exact world (a gripper's fingers stay as close as they are)."""
         w = self._roomy.get(joints)
         if w is None:
-            w = self._roomy[joints] = self.world.with_scene(
-                self.world.obstacles, padding=self.world.padding + self.room,
-                narrow_phase=False, acm=self.world.acm.with_pairs(
-                    self.world.rigid_pairs(joints), reason="Rigid in the group"))
+            w = self._roomy[joints] = roomy_world(self.world, joints, self.room)
         return w
 
     def guarded(self, joints: tuple[str, ...], lost: tuple[tuple[str, str], ...]) -> Guarded:
@@ -209,14 +212,8 @@ class PathPlanner:
         (:mod:`.room`)."""
         g = self._guarded.get((joints, lost))
         if g is None:
-            w, keep = self.world, set(lost)
-            roomy = w.with_scene(w.obstacles, padding=w.padding + self.room,
-                                 narrow_phase=False, acm=w.acm.with_pairs(
-                                     w.rigid_pairs(joints), reason="Rigid in the group"
-                                 ).with_pairs(lost, reason="Short of room at an end"))
-            guard = w.with_scene(w.obstacles, acm=w.acm.with_pairs(
-                [n for n in w.pair_names if n not in keep], reason="Kept apart with room"))
-            g = self._guarded[(joints, lost)] = Guarded(roomy, guard, lost)
+            g = self._guarded[(joints, lost)] = Guarded.of(self.world, joints, lost,
+                                                           self.room)
         return g
 
     def _edge_free(self, a: np.ndarray, b: np.ndarray, refused: Refused,
@@ -380,8 +377,11 @@ class PathPlanner:
             roomy: StateChecker = self.roomy(joints)
             cols = np.array([self.world.kin.joint_names.index(j) for j in joints])
             rng = np.random.default_rng(req.seed)
-            head = self._escape(start, goals[0], cols, roomy, rng, refused)
-            tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
+            def leave(end: np.ndarray, toward: np.ndarray) -> np.ndarray | None:
+                return escape(end, toward, cols, roomy, self._limits[cols], rng,
+                              self._checker(refused, None))
+            head = leave(start, goals[0])
+            tails = [(g, leave(g, start)) for g in goals]
             tails = [(g, e) for g, e in tails if e is not None]
             # an end stuck without room: the pairs exactly short of it there lose it
             # alone; if the trees still doubt others, those too
@@ -395,8 +395,8 @@ class PathPlanner:
                     continue
                 roomy = self.guarded(joints, lost)
                 _log.info("%d pairs lose the room alone: %s", len(lost), lost)
-                head = self._escape(start, goals[0], cols, roomy, rng, refused)
-                tails = [(g, self._escape(g, start, cols, roomy, rng, refused)) for g in goals]
+                head = leave(start, goals[0])
+                tails = [(g, leave(g, start)) for g in goals]
                 tails = [(g, e) for g, e in tails if e is not None]
             if head is not None and tails:
                 ends = np.array([e for _, e in tails])
@@ -423,30 +423,6 @@ class PathPlanner:
     def _track(self, start: np.ndarray, goals: np.ndarray, refused: Refused) -> Track:
         # the exact world's: no room, every turn the budget allows
         return Track(self.world, self._checker(refused, None), start, goals)
-
-    def _escape(self, end: np.ndarray, toward: np.ndarray, cols: np.ndarray,
-                roomy: StateChecker, rng: np.random.Generator, refused: Refused
-                ) -> np.ndarray | None:
-        # ``end`` if it has the room, else a state with room that a free straight edge
-        # reaches from it, at the shortest distance [rad] where one does: the first of
-        # the directions tried (towards ``toward``, then seeded random ones of the
-        # group's joints). Ranking the found ones by their tree bound (so the edge's
-        # proof needs fewer exact distances) measured no faster on the course model:
-        # the bounds cost what the proof saved.
-        if roomy.is_valid(end):
-            return end
-        lim = self._limits[cols]
-        dirs = [toward[cols] - end[cols]] + list(rng.normal(size=(8, len(cols))))
-        for r in (0.05, 0.1, 0.2, 0.4):
-            for d in dirs:
-                n = float(np.linalg.norm(d))
-                if n == 0:
-                    continue
-                e = end.copy()
-                e[cols] = np.clip(end[cols] + r * d / n, lim[:, 0], lim[:, 1])
-                if roomy.is_valid(e) and self._edge_free(end, e, refused):
-                    return e
-        return None
 
     def _search(self, req: PathRequest, tracks: list[Track], joints: tuple[str, ...],
                 budget: float) -> Found:
