@@ -34,6 +34,7 @@ from arduinobot.execution.robots.base import (
     initial_positions,
 )
 from arduinobot.execution.robots.controller_gains import controller_gains, find_controllers_yaml
+from arduinobot.execution.robots.loose_state import LooseState
 from arduinobot.execution.robots.mjcf import TIMESTEP, Gains, Progress, servo_ctrl, to_mjcf
 from arduinobot.planner.cache import ArtifactCache
 
@@ -197,12 +198,14 @@ class SimArduinobot(Robot):
 
     def set_scene(self, obstacles: Sequence[Any] = (), attached: Sequence[Any] = (),
                   loose: Sequence[Any] = (), *, moving: bool = False,
-                  ground: bool | None = None) -> None:
+                  ground: bool | None = None, keep_loose: bool = False) -> None:
         """Put ``obstacles`` in the world and weld ``attached`` to their links instead of
         what was there (the kept scene at a new revision, or a plan's own obstacles), the
         arm at rest where it is now; the servo gains and figures stay. ``moving``: the
         arm keeps its motion instead (positions, velocities, setpoint and clock: a blend
-        changes the world between two ticks); ``loose`` objects start afresh either way.
+        changes the world between two ticks); ``loose`` objects start afresh either way,
+        unless ``keep_loose``: those the twin had already keep their simulated pose,
+        velocity and grip (:mod:`.loose_state`: a task planned again mid-way).
         ``ground``: a floor at z = 0 from now on, as the plan had its ground (None: as
         before).
 
@@ -215,6 +218,7 @@ class SimArduinobot(Robot):
         d = self.data
         motion = (d.qpos[self._qadr].copy(), d.qvel[self._dadr].copy(), float(d.time),
                   self._q_ref, self._qd_ref, self._qdd_ref, self._jerk) if moving else None
+        kept = LooseState.of(self._mj, self.model, d) if keep_loose else None
         robot = self._description.robot
         gains = {n: g for n, g in zip(self.joint_names, self.gains)}
         self.xml = to_mjcf(robot, gains=gains, excluded=self._excluded, obstacles=obstacles,
@@ -234,6 +238,8 @@ class SimArduinobot(Robot):
             self.data.qpos[self._qadr], self.data.qvel[self._dadr] = qpos, qvel
             self.data.time = t
             self._mj.mj_forward(self.model, self.data)
+        if kept is not None:
+            kept.put(self._mj, self.model, self.data)
 
     def _build(self, name: str) -> None:
         mujoco = self._mj

@@ -276,12 +276,12 @@ class ExecuteService:
             raise
 
     def scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
-                       twin: Mapping[str, Any] | None = None, *, ground: bool = True
-                       ) -> None:
+                       twin: Mapping[str, Any] | None = None, *, ground: bool = True,
+                       keep_loose: bool = False) -> None:
         """Give a twin the kept scene now with the plan's ``own`` obstacles and its
         ``ground``, or a task's ``twin`` objects (:meth:`TwinScene.give`)."""
         snap = self.scene_source() if self.scene_source is not None else None
-        self.twin_scene.give(robot, snap, own, twin, ground=ground)
+        self.twin_scene.give(robot, snap, own, twin, ground=ground, keep_loose=keep_loose)
 
     def plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
         """Hand the plan ``request`` to the pool (checked first); ``respond`` gets its outcome."""

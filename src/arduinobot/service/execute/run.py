@@ -74,9 +74,10 @@ class RunHost(Protocol):
         ...
 
     def scene_to_twin(self, robot: Robot, own: Sequence[Mapping[str, Any]],
-                      twin: Mapping[str, Any] | None = None, *, ground: bool = True
-                      ) -> None:
-        """Give a twin the kept scene now with a plan's own obstacles."""
+                      twin: Mapping[str, Any] | None = None, *, ground: bool = True,
+                      keep_loose: bool = False) -> None:
+        """Give a twin the kept scene now with a plan's own obstacles, or a task's
+        ``twin`` objects (``keep_loose``: those it has stay as simulated)."""
         ...
 
     def plan(self, request: Mapping[str, Any], respond: Callable[[Outcome], None]) -> None:
@@ -339,6 +340,10 @@ class Run:
         planned, body = orjson.loads(outcome.body), orjson.loads(outcome.execute)
         new = SampledTrajectory.from_json(body["trajectory"])
         self.task = react.task = TaskPieces.of(body["task"])
+        if body.get("twin") is not None:
+            # the world the rest was planned in (the kept scene now, a sphere added on
+            # the carried box's way), the task's objects as the twin has them
+            svc.scene_to_twin(ex.robot, (), body["twin"], keep_loose=True)
         self._grip = self._grasps(ex.robot, body.get("twin"))
         revision = int(planned.get("scene_revision", 0))
         self._reply({"event": "replanned", "execution": self.execution, "ok": True,

@@ -30,13 +30,15 @@ class TwinScene:
 
     def give(self, robot: Robot, snap: SceneSnapshot | None,
              own: Sequence[Mapping[str, Any]], twin: Mapping[str, Any] | None = None,
-             *, ground: bool = True) -> None:
+             *, ground: bool = True, keep_loose: bool = False) -> None:
         """Give a twin (a robot with ``set_scene``) the kept scene's objects (``snap``),
         the plan's ``own`` obstacles and the carried objects, when they changed since the
         last time; a task's ``twin`` (its obstacles, the kept scene's among them, and the
         objects it picks up as loose bodies, put back where it has them) instead of the
         plan's. ``ground``: a floor at z = 0 as the plan (or the task's ``twin``) had
-        its ground (:mod:`arduinobot.scene.ground`)."""
+        its ground (:mod:`arduinobot.scene.ground`). ``keep_loose``: the task's objects
+        the twin has already stay as simulated (where they lie, which are gripped): a
+        task planned again from where the arm stopped."""
         set_scene = getattr(robot, "set_scene", None)
         if set_scene is None:
             return
@@ -60,7 +62,8 @@ class TwinScene:
                      for i, o in enumerate(twin.get("objects") or ())]
             mine = {o["id"] for o in own} | {a.id for a in loose}
             kept = [o for o in obstacles if o.id not in mine]
-            set_scene([*kept, *own], attached, loose=loose, ground=ground)
+            set_scene([*kept, *own], attached, loose=loose, ground=ground,
+                      keep_loose=keep_loose)
         self.held = key
 
     def at_switch(self, robot: Robot, snap: SceneSnapshot | None,
