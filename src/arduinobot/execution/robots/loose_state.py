@@ -16,11 +16,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["LooseState"]
+from arduinobot.execution.robots.mjcf import GRASP_PREFIX, LOOSE_PREFIX
 
-# the names mjcf.py gives a loose object's free joint and its grasp weld
-JOINT_PREFIX = "loose:"
-WELD_PREFIX = "grasp:"
+__all__ = ["LooseState"]
 
 
 @dataclass(frozen=True)
@@ -43,28 +41,26 @@ class LooseState:
         joints = {}
         for j in range(model.njnt):
             name = mj.mj_id2name(model, mj.mjtObj.mjOBJ_JOINT, j) or ""
-            if name.startswith(JOINT_PREFIX) and model.jnt_type[j] == mj.mjtJoint.mjJNT_FREE:
+            if name.startswith(LOOSE_PREFIX) and model.jnt_type[j] == mj.mjtJoint.mjJNT_FREE:
                 a, v = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
                 joints[name] = (data.qpos[a:a + 7].copy(), data.qvel[v:v + 6].copy())
         welds = {}
         for e in range(model.neq):
             name = mj.mj_id2name(model, mj.mjtObj.mjOBJ_EQUALITY, e) or ""
-            if name.startswith(WELD_PREFIX):
+            if name.startswith(GRASP_PREFIX):
                 welds[name] = (bool(data.eq_active[e]), model.eq_data[e].copy())
         return cls(joints, welds)
 
-    def put(self, mj: Any, model: Any, data: Any) -> tuple[str, ...]:
+    def put(self, mj: Any, model: Any, data: Any) -> None:
         """Put the kept state into ``data`` (of a new ``model``) for every loose object
-        both have, then recompute the positions; the names put (the others, new to the
-        model, start where it has them)."""
-        put = []
+        both have, then recompute the positions (the others, new to the model, start
+        where it has them)."""
         for name, (q, v) in self.joints.items():
             j = mj.mj_name2id(model, mj.mjtObj.mjOBJ_JOINT, name)
             if j < 0 or model.jnt_type[j] != mj.mjtJoint.mjJNT_FREE:
                 continue
             a, d = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
             data.qpos[a:a + 7], data.qvel[d:d + 6] = q, v
-            put.append(name)
         for name, (active, eq) in self.welds.items():
             e = mj.mj_name2id(model, mj.mjtObj.mjOBJ_EQUALITY, name)
             if e < 0:
@@ -72,4 +68,3 @@ class LooseState:
             model.eq_data[e] = eq
             data.eq_active[e] = int(active)
         mj.mj_forward(model, data)
-        return tuple(put)

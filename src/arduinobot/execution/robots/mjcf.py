@@ -57,6 +57,10 @@ COLLISION_PARTS = 32  # convex pieces per collision mesh (at most)
 #: [kg/m^3] a loose object the task gives no mass is simulated as a solid this dense
 #: (water's; printed PLA is 1240, pine 500): a 2.5 cm cube weighs 16 g
 LOOSE_DENSITY = 1000.0
+#: a loose object's body and free joint are named this and its id; its grasp weld,
+#: ``GRASP_PREFIX`` and its id (the twin finds them by these names)
+LOOSE_PREFIX = "loose:"
+GRASP_PREFIX = "grasp:"
 
 
 @dataclass(frozen=True)
@@ -283,7 +287,7 @@ def loose_body(a: Any, assets: list[str], cache: ArtifactCache | None,
     at_origin = replace(a, shape=replace(a.shape, xyz=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)),
                         com=None)
     lines = carried_body(at_origin, assets, cache, progress, prefix="loose", head=pose)
-    lines.insert(1, f'  <freejoint name="{_esc("loose:" + a.id)}"/>')
+    lines.insert(1, f'  <freejoint name="{_esc(LOOSE_PREFIX + a.id)}"/>')
     return lines
 
 
@@ -358,7 +362,7 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
     for a in attached:  # what holds it may touch it, as in the planner
         pairs |= {frozenset((f"carried:{a.id}", t)) for t in {a.link, *a.touch_links}}
     for a in loose:  # the grasp is the weld, not friction of the fingers
-        pairs |= {frozenset((f"loose:{a.id}", t)) for t in {a.link, *a.touch_links}}
+        pairs |= {frozenset((LOOSE_PREFIX + a.id, t)) for t in {a.link, *a.touch_links}}
     exclude = [f'    <exclude body1="{_esc(a)}" body2="{_esc(b)}"/>'
                for a, b in sorted(tuple(sorted(p)) for p in pairs if len(p) == 2)]
     eq = [f"    {e}" for e in _mimic_equalities(robot)]
@@ -384,8 +388,8 @@ def to_mjcf(robot: Robot, *, gains: Mapping[str, Gains],
              "  </worldbody>",
              "  <contact>", *exclude, "  </contact>"]
     for a in loose:
-        eq.append(f'    <weld name="{_esc("grasp:" + a.id)}" body1="{_esc(a.link)}" '
-                  f'body2="{_esc("loose:" + a.id)}" active="false"/>')
+        eq.append(f'    <weld name="{_esc(GRASP_PREFIX + a.id)}" body1="{_esc(a.link)}" '
+                  f'body2="{_esc(LOOSE_PREFIX + a.id)}" active="false"/>')
     if eq:
         parts += ["  <equality>", *eq, "  </equality>"]
     parts += ["  <actuator>", *act, "  </actuator>", "</mujoco>"]

@@ -35,7 +35,15 @@ from arduinobot.execution.robots.base import (
 )
 from arduinobot.execution.robots.controller_gains import controller_gains, find_controllers_yaml
 from arduinobot.execution.robots.loose_state import LooseState
-from arduinobot.execution.robots.mjcf import TIMESTEP, Gains, Progress, servo_ctrl, to_mjcf
+from arduinobot.execution.robots.mjcf import (
+    GRASP_PREFIX,
+    LOOSE_PREFIX,
+    TIMESTEP,
+    Gains,
+    Progress,
+    servo_ctrl,
+    to_mjcf,
+)
 from arduinobot.planner.cache import ArtifactCache
 
 log = logging.getLogger(__name__)
@@ -266,7 +274,7 @@ class SimArduinobot(Robot):
             SimulationError: no loose object of that id.
         """
         mj, m, d = self._mj, self.model, self.data
-        eq = mj.mj_name2id(m, mj.mjtObj.mjOBJ_EQUALITY, f"grasp:{object_id}")
+        eq = mj.mj_name2id(m, mj.mjtObj.mjOBJ_EQUALITY, GRASP_PREFIX + object_id)
         if eq < 0:
             raise SimulationError(f"the twin has no loose object '{object_id}'")
         if hold:
@@ -291,7 +299,7 @@ class SimArduinobot(Robot):
             SimulationError: no loose object of that id.
         """
         mj = self._mj
-        b = mj.mj_name2id(self.model, mj.mjtObj.mjOBJ_BODY, f"loose:{object_id}")
+        b = mj.mj_name2id(self.model, mj.mjtObj.mjOBJ_BODY, LOOSE_PREFIX + object_id)
         if b < 0:
             raise SimulationError(f"the twin has no loose object '{object_id}'")
         out = np.eye(4)

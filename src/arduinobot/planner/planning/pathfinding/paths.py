@@ -377,11 +377,13 @@ class PathPlanner:
             roomy: StateChecker = self.roomy(joints)
             cols = np.array([self.world.kin.joint_names.index(j) for j in joints])
             rng = np.random.default_rng(req.seed)
-            def leave(end: np.ndarray, toward: np.ndarray) -> np.ndarray | None:
-                return escape(end, toward, cols, roomy, self._limits[cols], rng,
-                              self._checker(refused, None))
-            head = leave(start, goals[0])
-            tails = [(g, leave(g, start)) for g in goals]
+            exact_edge = self._checker(refused, None)
+
+            def leave(end: np.ndarray, toward: np.ndarray, roomy: StateChecker
+                      ) -> np.ndarray | None:
+                return escape(end, toward, cols, roomy, self._limits[cols], rng, exact_edge)
+            head = leave(start, goals[0], roomy)
+            tails = [(g, leave(g, start, roomy)) for g in goals]
             tails = [(g, e) for g, e in tails if e is not None]
             # an end stuck without room: the pairs exactly short of it there lose it
             # alone; if the trees still doubt others, those too
@@ -395,8 +397,8 @@ class PathPlanner:
                     continue
                 roomy = self.guarded(joints, lost)
                 _log.info("%d pairs lose the room alone: %s", len(lost), lost)
-                head = leave(start, goals[0])
-                tails = [(g, leave(g, start)) for g in goals]
+                head = leave(start, goals[0], roomy)
+                tails = [(g, leave(g, start, roomy)) for g in goals]
                 tails = [(g, e) for g, e in tails if e is not None]
             if head is not None and tails:
                 ends = np.array([e for _, e in tails])
